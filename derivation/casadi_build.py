@@ -1,0 +1,140 @@
+"""SymPy → CasADi SX, and the fuzzy quantities L_i, B_i, φ_i built from :mod:`fuzzy`.
+
+No equation is written here: expressions come from the derivation modules; this module
+only translates them node by node (shared subexpressions stay shared) and evaluates the
+factorized fuzzy sums described in :mod:`derivation.fuzzy`.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import casadi as ca
+import sympy as sp
+
+from derivation import fuzzy
+from derivation.layout import N_MF
+
+sys.setrecursionlimit(max(10_000, sys.getrecursionlimit()))
+
+
+class Translator:
+    """Translate SymPy expressions into CasADi SX, memoizing every node."""
+
+    def __init__(self, symbols: dict[str, ca.SX]):
+        self.symbols = symbols
+        self.memo: dict[sp.Basic, ca.SX] = {}
+
+    def __call__(self, expr) -> ca.SX:
+        expr = sp.sympify(expr)
+        hit = self.memo.get(expr)
+        if hit is not None:
+            return hit
+        out = self._translate(expr)
+        self.memo[expr] = out
+        return out
+
+    def _translate(self, e: sp.Basic) -> ca.SX:
+        if e.is_Symbol:
+            try:
+                return self.symbols[e.name]
+            except KeyError:
+                raise KeyError(f"no CasADi symbol for SymPy symbol {e.name!r}") from None
+        if e.is_Integer or e.is_Float:
+            return ca.SX(float(e))
+        if e.is_Rational:
+            return ca.SX(float(e.p)) / float(e.q)
+        if e.is_Add:
+            terms = [self(a) for a in e.args]
+            out = terms[0]
+            for t in terms[1:]:
+                out = out + t
+            return out
+        if e.is_Mul:
+            coeff, rest = e.as_coeff_Mul()
+            factors = [self(a) for a in sp.Mul.make_args(rest)]
+            out = factors[0]
+            for f in factors[1:]:
+                out = out * f
+            if coeff == -1:
+                return -out
+            if coeff != 1:
+                return self(coeff) * out
+            return out
+        if e.is_Pow:
+            base, ex = e.args
+            b = self(base)
+            if ex.is_Integer:
+                n = int(ex)
+                if n == 1:
+                    return b
+                if n == -1:
+                    return 1 / b
+                if n == 2:
+                    return b**2
+                if n == -2:
+                    return 1 / b**2
+                return b ** n
+            if ex == sp.Rational(1, 2):
+                return ca.sqrt(b)
+            return b ** self(ex)
+        if isinstance(e, sp.exp):
+            return ca.exp(self(e.args[0]))
+        raise NotImplementedError(f"cannot translate {type(e).__name__}: {e}")
+
+
+class FuzzyEvaluator:
+    """Numerical (SX) values of ν_j^(n), L_i[α], B_i[α, β] and φ_i at one x̂."""
+
+    def __init__(self, xhat: ca.SX, params: dict[str, ca.SX], thetas: list[ca.SX]):
+        self.thetas = thetas
+        n_in = xhat.numel()
+        base = {"mf_width": params["mf_width"]}
+        base.update({f"mf_centre_{m}": params[f"mf_centre_{m}"] for m in range(1, N_MF + 1)})
+        self.scales = [params[f"x_scale_{k}"] for k in range(1, n_in + 1)]
+        self._tr = []
+        for k in range(n_in):
+            zk = (xhat[k] - params[f"x_offset_{k + 1}"]) / self.scales[k]
+            self._tr.append(Translator({**base, "z": zk}))
+        self._nu: dict[tuple[int, int], ca.SX] = {}
+
+    def nu(self, k: int, order: int) -> ca.SX:
+        """∂^order/∂x̂_k^order of [ν_1..ν_N] at input k (0-based), scale included."""
+        key = (k, order)
+        if key not in self._nu:
+            exprs = fuzzy.normalized_membership_derivatives(order)
+            vec = ca.vertcat(*[self._tr[k](e) for e in exprs])
+            self._nu[key] = vec / self.scales[k] ** order if order else vec
+        return self._nu[key]
+
+    def L(self, i: int, alpha: tuple[int, ...]) -> ca.SX:
+        """θ̂_iᵀ ∂^α φ_i: contract the weight tensor one input at a time (last input first)."""
+        t = self.thetas[i - 1]
+        for k in reversed(range(i)):
+            t = ca.mtimes(ca.reshape(t, N_MF, t.numel() // N_MF).T, self.nu(k, alpha[k]))
+        return t
+
+    def B(self, i: int, alpha: tuple[int, ...], beta: tuple[int, ...]) -> ca.SX:
+        """(∂^α φ_i)ᵀ(∂^β φ_i) = Π_k ν^(α_k)(z_k)ᵀ ν^(β_k)(z_k)."""
+        out = ca.SX(1.0)
+        for k in range(i):
+            out = out * ca.dot(self.nu(k, alpha[k]), self.nu(k, beta[k]))
+        return out
+
+    def phi(self, i: int) -> ca.SX:
+        """φ_i = ν(z_1) ⊗ ... ⊗ ν(z_i), rule order of :func:`fuzzy.rule_multi_indices`."""
+        out = self.nu(0, 0)
+        for k in range(1, i):
+            out = ca.kron(out, self.nu(k, 0))
+        return out
+
+    def symbol_values(self, rule_bases: list[fuzzy.RuleBase]) -> dict[str, ca.SX]:
+        """SX for every L/B symbol the derivation created."""
+        out = {}
+        for rb in rule_bases:
+            for sym, kind in rb.symbols().items():
+                if kind[0] == "L":
+                    out[sym.name] = self.L(rb.i, kind[1])
+                else:
+                    out[sym.name] = self.B(rb.i, kind[1], kind[2])
+        return out

@@ -1,0 +1,118 @@
+"""Fuzzy logic systems f̂_i = θ̂_iᵀ φ_i(x̂1..x̂i) of eq (21), in SymPy.
+
+Membership functions (Table 1's φ = 0.6 read as the width, DESIGN.md item 6):
+
+    μ_j(z) = exp(-(z - c_j)² / (2 w²)),    z_k = (x̂_k - offset_k) / scale_k
+
+Rules form the full grid over the inputs x̂1..x̂i (triangular regressors, DESIGN.md
+item 7), with product inference and normalized firing strengths
+
+    φ_m(z) = Π_k μ_{m_k}(z_k) / Σ_{m'} Π_k μ_{m'_k}(z_k).
+
+On a full grid the denominator factors, Σ_{m'} Π_k μ = Π_k Σ_j μ_j(z_k), so
+
+    φ_m(z) = Π_k ν_{m_k}(z_k),   ν_j(z) = μ_j(z) / Σ_l μ_l(z),
+
+which is how the generator evaluates them; tests compare against the unfactored form.
+
+To keep the backstepping expressions small (issue 2), the controller never expands
+θ̂_iᵀφ_i. It uses two families of scalar symbols with known derivatives:
+
+    L_i[α]    = θ̂_iᵀ ∂^α φ_i                    (α a multi-index over x̂1..x̂i)
+    B_i[α, β] = (∂^α φ_i)ᵀ (∂^β φ_i)            (symmetric in α, β)
+
+Along the closed loop, with θ̂̇_i = γ_i χ_i φ_i - r_i θ̂_i (eqs 32, 37, 43, 49),
+
+    d/dt L_i[α]    = Σ_k L_i[α + e_k] x̂̇_k + γ_i χ_i B_i[0, α] - r_i L_i[α]
+    d/dt B_i[α, β] = Σ_k (B_i[α + e_k, β] + B_i[α, β + e_k]) x̂̇_k
+
+and both factor over the inputs, so the generator builds them from the derivatives of
+the one-dimensional ν_j derived here.
+"""
+
+from __future__ import annotations
+
+import itertools
+from functools import cache
+
+import sympy as sp
+
+from derivation.layout import N_MF
+
+z = sp.Symbol("z", real=True)
+mf_width = sp.Symbol("mf_width", positive=True)
+mf_centre = sp.symbols(f"mf_centre_1:{N_MF + 1}", real=True)
+
+
+def membership(j: int, zz=z) -> sp.Expr:
+    """Gaussian membership μ_j on a normalized input (0-based j)."""
+    return sp.exp(-((zz - mf_centre[j]) ** 2) / (2 * mf_width**2))
+
+
+@cache
+def normalized_membership_derivatives(order: int) -> tuple[sp.Expr, ...]:
+    """d^order ν_j / dz^order for j = 0..N_MF-1, with ν_j = μ_j / Σ_l μ_l."""
+    mus = [membership(j) for j in range(N_MF)]
+    total = sum(mus)
+    return tuple(sp.diff(mu / total, z, order) for mu in mus)
+
+
+def rule_multi_indices(n_inputs: int) -> list[tuple[int, ...]]:
+    """Rule m ↔ (m_1, ..., m_i), first input slowest (the order of np.kron)."""
+    return list(itertools.product(range(N_MF), repeat=n_inputs))
+
+
+class RuleBase:
+    """Symbols L_i[α], B_i[α, β] of the fuzzy system of chain step i (1-based)."""
+
+    def __init__(self, i: int):
+        self.i = i
+        self._L: dict[tuple[int, ...], sp.Symbol] = {}
+        self._B: dict[tuple[tuple[int, ...], tuple[int, ...]], sp.Symbol] = {}
+
+    def zero(self) -> tuple[int, ...]:
+        return (0,) * self.i
+
+    def L(self, alpha: tuple[int, ...] | None = None) -> sp.Symbol:
+        alpha = self.zero() if alpha is None else tuple(alpha)
+        if alpha not in self._L:
+            self._L[alpha] = sp.Symbol(f"L{self.i}_" + "".join(map(str, alpha)), real=True)
+        return self._L[alpha]
+
+    def B(self, alpha: tuple[int, ...], beta: tuple[int, ...]) -> sp.Symbol:
+        key = tuple(sorted((tuple(alpha), tuple(beta))))
+        if key not in self._B:
+            a, b = key
+            self._B[key] = sp.Symbol(
+                f"B{self.i}_" + "".join(map(str, a)) + "_" + "".join(map(str, b)), real=True)
+        return self._B[key]
+
+    def symbols(self) -> dict[sp.Symbol, tuple]:
+        """Every symbol created so far → ("L", α) or ("B", α, β)."""
+        out: dict[sp.Symbol, tuple] = {s: ("L", a) for a, s in self._L.items()}
+        out.update({s: ("B", a, b) for (a, b), s in self._B.items()})
+        return out
+
+    def rate(self, sym: sp.Symbol, xhat_dot, chi, gamma, r) -> sp.Expr:
+        """Time derivative of one L or B symbol along the closed loop (module docstring)."""
+        kind = self.symbols()[sym]
+
+        def shift(a, k):
+            return tuple(n + (1 if q == k else 0) for q, n in enumerate(a))
+
+        if kind[0] == "L":
+            a = kind[1]
+            return (sum(self.L(shift(a, k)) * xhat_dot[k] for k in range(self.i))
+                    + gamma * chi * self.B(self.zero(), a) - r * self.L(a))
+        _, a, b = kind
+        return sum((self.B(shift(a, k), b) + self.B(a, shift(b, k))) * xhat_dot[k]
+                   for k in range(self.i))
+
+
+def reference_regressor(xhat, offsets, scales) -> list[sp.Expr]:
+    """φ_i(x̂1..x̂i) in the unfactored textbook form, for tests (not for generation)."""
+    zs = [(x - o) / s for x, o, s in zip(xhat, offsets, scales, strict=True)]
+    firing = [sp.Mul(*[membership(j, zk) for j, zk in zip(m, zs, strict=True)])
+              for m in rule_multi_indices(len(xhat))]
+    total = sp.Add(*firing)
+    return [w / total for w in firing]

@@ -1,0 +1,352 @@
+"""Turn the derivation into CasADi functions and files: ``python -m derivation.generate DIR``.
+
+Writes into DIR (``generated/`` by default):
+
+* ``<group>.c``           C source of every function of a group (one shared object each);
+* ``<function>.casadi``   each function serialized (CasADi's virtual machine fallback);
+* ``layout.json``         the ordering of states, inputs and parameters, and each
+                          function's named inputs and outputs with their sizes;
+* ``manifest.json``       sha256 of every derivation source and every artefact, the sympy
+                          and casadi versions, and each function's operation count.
+
+Every file is headed "generated from <module>, do not edit"; nothing in it depends on the
+time, the machine or the hash seed, so two runs give identical bytes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import casadi as ca
+import sympy as sp
+
+from derivation import backstepping as bs
+from derivation import layout as lay
+from derivation import lyapunov, observer, plant
+from derivation.casadi_build import FuzzyEvaluator, Translator
+
+ROOT = Path(__file__).resolve().parent.parent
+DERIVATION_DIR = Path(__file__).resolve().parent
+HEADER = "generated from {modules}, do not edit"
+
+
+@dataclass
+class Group:
+    """Functions that share one C file and one list of source modules."""
+
+    name: str
+    modules: list[str]
+    functions: list[ca.Function]
+
+
+def _vec(name: str, n: int) -> ca.SX:
+    return ca.SX.sym(name, n)
+
+
+def _named(vec: ca.SX, entries) -> dict[str, ca.SX]:
+    return {e.name: vec[k] for k, e in enumerate(entries)}
+
+
+class Symbols:
+    """The SX inputs every function draws from, named by the layout."""
+
+    def __init__(self):
+        self.x_plant = _vec("x_plant", len(lay.PLANT_STATES))
+        self.x_ctrl = _vec("x_ctrl", len(lay.CONTROLLER_STATES))
+        self.p_plant = _vec("p_plant", len(lay.PLANT_PARAMS))
+        self.p_ctrl = _vec("p_ctrl", len(lay.CONTROLLER_PARAMS))
+        self.fault = _vec("fault", len(lay.FAULT_INPUTS))
+        self.yd = _vec("yd", len(lay.REFERENCE))
+        self.theta_star = _vec("theta_star", len(lay.THETA_STAR))
+        self.v = _vec("v", lay.N_BLADES)
+        self.d1 = ca.SX.sym("d1")
+        self.y = ca.SX.sym("y")
+        self.ydot = ca.SX.sym("ydot")
+        self.xhat = self.x_ctrl[: lay.N_CHAIN]
+        self.thetas = self._split(self.x_ctrl[lay.N_CHAIN:])
+        self.thetas_star = self._split(self.theta_star)
+
+    @staticmethod
+    def _split(vec: ca.SX) -> list[ca.SX]:
+        out, k = [], 0
+        for i in range(1, lay.N_CHAIN + 1):
+            n = lay.rule_count(i)
+            out.append(vec[k:k + n])
+            k += n
+        return out
+
+    def names(self) -> dict[str, ca.SX]:
+        out = {}
+        out.update(_named(self.x_plant, lay.PLANT_STATES))
+        out.update(_named(self.p_plant, lay.PLANT_PARAMS))
+        out.update(_named(self.p_ctrl, lay.CONTROLLER_PARAMS))
+        out.update(_named(self.fault, lay.FAULT_INPUTS))
+        out.update(_named(self.yd, lay.REFERENCE))
+        out.update({f"xhat_{k + 1}": self.xhat[k] for k in range(lay.N_CHAIN)})
+        out.update({f"v_{j + 1}": self.v[j] for j in range(lay.N_BLADES)})
+        out.update({"d1": self.d1, "y": self.y, "ydot": self.ydot})
+        return out
+
+
+def _function(name, inputs: dict, outputs: dict, doc: str = "") -> ca.Function:
+    outs = [ca.cse(ca.densify(o)) if isinstance(o, ca.SX) else o for o in outputs.values()]
+    return ca.Function(name, list(inputs.values()), outs, list(inputs), list(outputs))
+
+
+def build_plant(S: Symbols) -> list[ca.Function]:
+    tr = Translator(S.names())
+    xdot = ca.vertcat(*[tr(e) for e in plant.paper_rhs()])
+    X = ca.vertcat(*[tr(e) for e in plant.chain_state()])
+    f_plus_d = [tr(e) for e in plant.strict_feedback_f(plant.chain_state())]
+    f_plus_d[0] = f_plus_d[0] + S.d1
+    ins = {"x_plant": S.x_plant, "v": S.v, "d1": S.d1, "fault": S.fault, "p_plant": S.p_plant}
+    paper = _function("plant_paper", ins, {"x_plant_dot": xdot, "y": S.x_plant[0], "X": X})
+    targets = _function(
+        "strict_feedback_targets",
+        {"x_plant": S.x_plant, "d1": S.d1, "p_plant": S.p_plant},
+        {"f_plus_d": ca.vertcat(*f_plus_d), "X": X})
+    return [paper, targets]
+
+
+def _controller_translator(S: Symbols, d: bs.Design) -> tuple[Translator, FuzzyEvaluator]:
+    params = _named(S.p_ctrl, lay.CONTROLLER_PARAMS)
+    fz = FuzzyEvaluator(S.xhat, params, S.thetas)
+    return Translator({**S.names(), **fz.symbol_values(d.rule_bases)}), fz
+
+
+def controller_outputs(S: Symbols) -> dict[str, ca.SX]:
+    """u0 (49), the commands v_j, the controller state derivative (21) + adaptive laws."""
+    d = bs.derive()
+    tr, fz = _controller_translator(S, d)
+    u0 = tr(d.u0)
+    v = ca.vertcat(*[tr(e) for e in bs.applied_commands(d.u0)])
+    xhat_dot = [tr(e) for e in d.xhat_dot]
+    theta_dot = [g_chi_i * fz.phi(i + 1) - tr(r_i) * S.thetas[i]
+                 for i, (g_chi_i, r_i) in enumerate(
+                     (tr(g), r) for g, r in bs.adaptive_law_coefficients(d))]
+    return {
+        "u0": u0,
+        "v": v,
+        "x_ctrl_dot": ca.vertcat(*xhat_dot, *theta_dot),
+        "chi": ca.vertcat(*[tr(e) for e in d.chi]),
+        "alpha": ca.vertcat(*[tr(e) for e in d.alpha]),
+        "alpha_dot": ca.vertcat(*[tr(e) for e in d.alpha_dot_comp]),
+        "ydot_hat": tr(d.ydot_hat),
+    }
+
+
+def build_controller(S: Symbols) -> list[ca.Function]:
+    d = bs.derive()
+    ins = {"x_ctrl": S.x_ctrl, "y": S.y, "yd": S.yd, "p_ctrl": S.p_ctrl}
+    outs = controller_outputs(S)
+    ctrl = _function("controller", ins, outs)
+    tr, fz = _controller_translator(S, d)
+    alphas = _function(
+        "alpha_derivatives",
+        {**ins, "ydot": S.ydot},
+        {"alpha": ca.vertcat(*[tr(e) for e in d.alpha]),
+         "alpha_dot_full": ca.vertcat(*[tr(e) for e in d.alpha_dot_full]),
+         "alpha_dot_comp": ca.vertcat(*[tr(e) for e in d.alpha_dot_comp]),
+         "dalpha_dy": ca.vertcat(*[tr(e) for e in d.dalpha_dy]),
+         "ydot_hat": tr(d.ydot_hat)})
+    phis = {f"phi_{i}": fz.phi(i) for i in range(1, lay.N_CHAIN + 1)}
+    regress = _function("fuzzy_regressors", {"xhat": S.xhat, "p_ctrl": S.p_ctrl}, phis)
+    return [ctrl, alphas, regress]
+
+
+def build_closed_loop(S: Symbols, plant_fn: ca.Function, ctrl_fn: ca.Function) -> ca.Function:
+    """Plant (1)-(4) with faults (19), observer (21), adaptive laws and u0 (49): ż = f(z)."""
+    z = ca.vertcat(S.x_plant, S.x_ctrl)
+    c = ctrl_fn(x_ctrl=S.x_ctrl, y=S.x_plant[0], yd=S.yd, p_ctrl=S.p_ctrl)
+    p = plant_fn(x_plant=S.x_plant, v=c["v"], d1=S.d1, fault=S.fault, p_plant=S.p_plant)
+    zdot = ca.vertcat(p["x_plant_dot"], c["x_ctrl_dot"])
+    ins = {"z": z, "d1": S.d1, "yd": S.yd, "fault": S.fault,
+           "p_plant": S.p_plant, "p_ctrl": S.p_ctrl}
+    # z is a concatenation of symbols: rebuild it as one symbol for a clean signature
+    zsym = _vec("z", z.numel())
+    subs_from = [S.x_plant, S.x_ctrl]
+    subs_to = [zsym[: S.x_plant.numel()], zsym[S.x_plant.numel():]]
+    outs = {"z_dot": zdot, "y": S.x_plant[0], "ydot": p["x_plant_dot"][0], "u0": c["u0"],
+            "v": c["v"]}
+    outs = {k: ca.substitute([o], subs_from, subs_to)[0] for k, o in outs.items()}
+    ins["z"] = zsym
+    return _function("closed_loop_paper", ins, outs)
+
+
+def build_lyapunov(S: Symbols) -> list[ca.Function]:
+    d = bs.derive()
+    terms = lyapunov.derive()
+    tr_c, fz = _controller_translator(S, d)
+    extra = {}
+    for i in range(lay.N_CHAIN):
+        th, st = S.thetas[i], S.thetas_star[i]
+        extra[f"Lstar_{i + 1}"] = ca.dot(st, fz.phi(i + 1))
+        extra[f"tt_{i + 1}"] = ca.sumsqr(st - th)
+        extra[f"ts_{i + 1}"] = ca.dot(st - th, th)
+        extra[f"star_norm2_{i + 1}"] = ca.sumsqr(st)
+    Pm = ca.SX.sym("P", lay.N_CHAIN, lay.N_CHAIN)
+    extra.update({f"P_{i}_{j}": Pm[i, j] for i in range(4) for j in range(4)})
+    tr = Translator({**tr_c.symbols, **extra})
+    tr.symbols["y"] = S.x_plant[0]  # y = x1, eq (9)
+    V = ca.vertcat(*[tr(e) for e in terms.V])
+    Vdot = ca.vertcat(*[tr(e) for e in terms.Vdot])
+    lyap = _function(
+        "lyapunov",
+        {"x_plant": S.x_plant, "x_ctrl": S.x_ctrl, "d1": S.d1, "yd": S.yd, "fault": S.fault,
+         "theta_star": S.theta_star, "P": Pm, "p_plant": S.p_plant, "p_ctrl": S.p_ctrl},
+        {"V": V, "Vdot": Vdot})
+    bound = _function(
+        "lyapunov_bound", {"p_ctrl": S.p_ctrl, "theta_star": S.theta_star},
+        {"kappa_terms": ca.vertcat(*[tr(e) for e in terms.kappa_terms]),
+         "zeta_theta": tr(terms.zeta_theta)})
+
+    # AᵀP + PA = -Q, solved in the upper triangle of P; Routh-Hurwitz of A (eq 20)
+    K = _vec("K_obs", lay.N_CHAIN)
+    Q = ca.SX.sym("Q", lay.N_CHAIN, lay.N_CHAIN)
+    trk = Translator({**{f"K_obs_{k + 1}": K[k] for k in range(4)},
+                      **{f"Q_{i}_{j}": Q[i, j] for i in range(4) for j in range(4)}})
+    M, rhs, unknowns = lyapunov.lyapunov_equation()
+    Msx = ca.SX(M.shape[0], M.shape[1])
+    for i in range(M.shape[0]):
+        for j in range(M.shape[1]):
+            if M[i, j] != 0:
+                Msx[i, j] = trk(M[i, j])
+    bsx = ca.vertcat(*[trk(e) for e in rhs])
+    p = ca.solve(Msx, bsx)
+    Psx = ca.SX(4, 4)
+    for u, val in zip(unknowns, ca.vertsplit(p), strict=True):
+        _, i, j = u.name.split("_")
+        Psx[int(i), int(j)] = val
+        Psx[int(j), int(i)] = val
+    routh = ca.vertcat(*[trk(e) for e in observer.routh_hurwitz()])
+    A = observer.A_obs()
+    Asx = ca.SX(4, 4)
+    for i in range(4):
+        for j in range(4):
+            if A[i, j] != 0:
+                Asx[i, j] = trk(A[i, j])
+    lyap_P = _function("observer_lyapunov", {"K_obs": K, "Q": Q},
+                       {"P": Psx, "routh": routh, "A_obs": Asx})
+    return [lyap, bound, lyap_P]
+
+
+def groups() -> list[Group]:
+    S = Symbols()
+    plant_fns = build_plant(S)
+    ctrl_fns = build_controller(S)
+    closed = build_closed_loop(S, plant_fns[0], ctrl_fns[0])
+    return [
+        Group("plant", ["derivation/plant.py"], plant_fns),
+        Group("controller", ["derivation/backstepping.py", "derivation/observer.py",
+                             "derivation/fuzzy.py"], ctrl_fns),
+        Group("closed_loop", ["derivation/plant.py", "derivation/backstepping.py",
+                              "derivation/observer.py", "derivation/fuzzy.py"], [closed]),
+        Group("lyapunov", ["derivation/lyapunov.py", "derivation/backstepping.py",
+                           "derivation/observer.py", "derivation/fuzzy.py"],
+              build_lyapunov(S)),
+    ]
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def source_files() -> list[Path]:
+    """Every derivation source that can change the artefacts."""
+    return sorted(DERIVATION_DIR.glob("*.py"))
+
+
+def _signature(f: ca.Function) -> dict:
+    def io(names, sparsities):
+        return [{"name": n, "shape": [s.size1(), s.size2()]}
+                for n, s in zip(names, sparsities, strict=True)]
+    return {
+        "inputs": io(f.name_in(), [f.sparsity_in(k) for k in range(f.n_in())]),
+        "outputs": io(f.name_out(), [f.sparsity_out(k) for k in range(f.n_out())]),
+    }
+
+
+def _count_ops(f: ca.Function) -> dict:
+    """Instructions of the SX algorithm, split into arithmetic operations and the rest."""
+    n_ops = 0
+    for k in range(f.n_instructions()):
+        op = f.instruction_id(k)
+        if op not in (ca.OP_CONST, ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_PARAMETER):
+            n_ops += 1
+    return {"instructions": f.n_instructions(), "operations": n_ops}
+
+
+def write(outdir: Path) -> dict:
+    """Regenerate every artefact into outdir (created or emptied of old artefacts)."""
+    outdir.mkdir(parents=True, exist_ok=True)
+    for old in outdir.iterdir():
+        if old.suffix in {".c", ".casadi", ".json"}:
+            old.unlink()
+    functions: dict[str, dict] = {}
+    artefacts: list[Path] = []
+    gs = groups()
+    for g in gs:
+        header = HEADER.format(modules=", ".join(g.modules))
+        cname = f"{g.name}.c"
+        cg = ca.CodeGenerator(cname, {"with_header": False, "verbose": False})
+        for f in g.functions:
+            cg.add(f)
+        with tempfile.TemporaryDirectory() as tmp:
+            cg.generate(tmp + os.sep)
+            code = Path(tmp, cname).read_text()
+        (outdir / cname).write_text(f"/* {header} */\n{code}")
+        artefacts.append(outdir / cname)
+        for f in g.functions:
+            path = outdir / f"{f.name()}.casadi"
+            path.write_text(f"# {header}\n{f.serialize()}\n")
+            artefacts.append(path)
+            functions[f.name()] = {"group": g.name, "c_file": cname,
+                                   "serialized": path.name, **_signature(f), **_count_ops(f)}
+    layout = {"header": HEADER.format(modules="derivation/layout.py"), **lay.as_json(),
+              "functions": functions, "kappa_labels": lyapunov.derive().kappa_labels}
+    (outdir / "layout.json").write_text(json.dumps(layout, indent=1, sort_keys=True,
+                                                   ensure_ascii=False) + "\n")
+    artefacts.append(outdir / "layout.json")
+    manifest = {
+        "header": HEADER.format(modules="derivation/generate.py"),
+        "versions": {"sympy": sp.__version__, "casadi": ca.__version__},
+        "sources": {str(p.relative_to(ROOT)): _sha256(p) for p in source_files()},
+        "artefacts": {p.name: _sha256(p) for p in sorted(artefacts)},
+        "groups": {g.name: {"c_file": f"{g.name}.c",
+                            "functions": [f.name() for f in g.functions]} for g in gs},
+    }
+    (outdir / "manifest.json").write_text(json.dumps(manifest, indent=1, sort_keys=True) + "\n")
+    return manifest
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if os.environ.get("PYTHONHASHSEED") != "0":
+        # set iteration order must not leak into the artefacts: re-run with a fixed seed
+        env = {**os.environ, "PYTHONHASHSEED": "0"}
+        os.execve(sys.executable, [sys.executable, "-m", "derivation.generate", *argv], env)
+    outdir = Path(argv[0]) if argv else ROOT / "generated"
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        manifest = write(Path(tmp))
+        outdir.mkdir(parents=True, exist_ok=True)
+        for old in outdir.iterdir():
+            if old.suffix in {".c", ".casadi", ".json"}:
+                old.unlink()
+        for p in Path(tmp).iterdir():
+            shutil.copy2(p, outdir / p.name)
+    print(f"regenerated {len(manifest['artefacts'])} artefacts in {outdir} "
+          f"({time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

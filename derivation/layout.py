@@ -1,0 +1,159 @@
+"""The one authoritative ordering of states, inputs and parameters.
+
+Everything that indexes a vector in wtftc reads this ordering from
+``generated/layout.json``, which :mod:`derivation.generate` writes from this module.
+Names follow the paper (Bakhshi & Alfi 2020); where the paper reuses a letter for two
+things (DESIGN.md item 6) the code uses distinct names:
+
+* ``theta_hat_i``  fuzzy weight vectors (paper θ_i), ``theta_act_j`` actuator weights
+  (paper θ_j of θᵀu), ``theta_s`` shaft torsion;
+* ``mf_width``     Table 1's φ = 0.6 read as the Gaussian membership width (paper φ is
+  also the regressor, here ``phi_i``);
+* ``tau_young``    Table 1's τ = 0.2, the Young-inequality weight of eqs (24), (36)-(48);
+  ``tau_b`` is the pitch time constant of eq (4);
+* ``K_obs``        the observer gain K of eq (20); ``A_obs`` the observer matrix; the decay
+  rate "A" of eq (51) is ``kappa``.
+
+SI units everywhere (rad, rad/s, N m, kg m², s).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: number of Gaussian memberships per fuzzy input (structural: sets the weight counts)
+N_MF = 3
+#: number of blade pitch actuators (eq 49 read as three blade actuators, DESIGN.md item 9)
+N_BLADES = 3
+#: order of the strict-feedback chain, eqs (11)-(14)
+N_CHAIN = 4
+
+
+@dataclass(frozen=True)
+class Entry:
+    name: str
+    default: float
+    unit: str
+    doc: str
+
+
+def rule_count(i: int) -> int:
+    """Rules of the fuzzy system of chain step i (1-based): a full grid on x̂1..x̂i."""
+    return N_MF**i
+
+
+# --- plant states: eqs (1)-(4), pitch of eq (4) per blade (x4 = mean blade pitch) ---
+PLANT_STATES = [
+    Entry("omega_r", 1.26711, "rad/s", "rotor speed, x1 of eq (5)"),
+    Entry("theta_s", 0.0, "rad", "drivetrain torsion angle, x2 of eq (6)"),
+    Entry("omega_g", 1.26711, "rad/s", "generator speed referred to the LSS, x3 of eq (7)"),
+    *[Entry(f"beta_{j}", 0.0, "rad", f"pitch angle of blade {j}; x4 = mean, eq (8)")
+      for j in range(1, N_BLADES + 1)],
+]
+
+# --- controller states: fuzzy observer (21) and the adaptive weights (32), (37), (43), (49)
+CONTROLLER_STATES = [
+    *[Entry(f"xhat_{k}", 0.0, "-", f"observer state x̂{k} of eq (21)")
+      for k in range(1, N_CHAIN + 1)],
+    *[Entry(f"theta_hat_{i}[{m}]", 0.0, "-", f"fuzzy weight {m} of f̂{i}, eq (21)")
+      for i in range(1, N_CHAIN + 1) for m in range(rule_count(i))],
+]
+
+# --- plant parameters: eq (10); NREL 5-MW values referred to the low-speed shaft ---
+PLANT_PARAMS = [
+    Entry("J_r", 38_759_228.0, "kg m^2",
+          "rotor inertia (Jonkman et al. 2009, NREL/TP-500-38060, Table 5-1 rotor+hub "
+          "about the LSS; the 38,677,040.6 of ROSCO's tuning file omits the hub)"),
+    Entry("J_g", 534.116 * 97.0**2, "kg m^2",
+          "generator inertia 534.116 kg m² on the HSS × gearbox ratio 97² (Jonkman 2009)"),
+    Entry("k_s", 8.67637e8, "N m/rad", "drivetrain torsional stiffness (Jonkman 2009)"),
+    Entry("d_s", 6.215e6, "N m s/rad", "drivetrain torsional damping (Jonkman 2009)"),
+    Entry("tau_b", 0.108, "s",
+          "pitch time constant of eq (4): 2ζ/ω_n of the benchmark actuator "
+          "(ω_n = 11.11 rad/s, ζ = 0.6, Odgaard et al. 2013), its first-order equivalent"),
+]
+
+# --- fault parameters of eq (19), one per blade actuator (true plant) ---
+FAULT_INPUTS = [
+    *[Entry(f"rho_{j}", 1.0, "-", f"loss of effectiveness ρ of actuator {j}, eq (19)")
+      for j in range(1, N_BLADES + 1)],
+    *[Entry(f"lock_{j}", 0.0, "-", f"lock-in-place indicator σ of actuator {j}, eq (19)")
+      for j in range(1, N_BLADES + 1)],
+    *[Entry(f"ubar_{j}", 0.0, "rad", f"stuck command ū of actuator {j}, eq (19)")
+      for j in range(1, N_BLADES + 1)],
+]
+
+# --- controller parameters: Table 1 and the design choices of docs/paper-notes.md ---
+CONTROLLER_PARAMS = [
+    # Table 1's K = [1 1 5 5] is not Hurwitz (DESIGN.md item 1); the default places the
+    # observer poles at -2, -3, -4, -5. The paper's values stay available by name.
+    *[Entry(f"K_obs_{k}", v, "-", f"observer gain K{k} of eq (20)")
+      for k, v in zip(range(1, 5), (14.0, 71.0, 154.0, 120.0), strict=True)],
+    *[Entry(f"c_{k}", v, "-", f"backstepping gain c{k}, Table 1")
+      for k, v in zip(range(1, 5), (6.0, 6.0, 12.0, 9.0), strict=True)],
+    *[Entry(f"gamma_{k}", v, "-", f"learning rate γ{k}, Table 1")
+      for k, v in zip(range(1, 5), (50.0, 10.0, 20.0, 20.0), strict=True)],
+    *[Entry(f"r_{k}", 0.1, "-", f"σ-modification r{k} of the adaptive laws, Table 1")
+      for k in range(1, 5)],
+    Entry("tau_young", 0.2, "-", "Young-inequality weight τ of eqs (24), (36)-(49), Table 1"),
+    Entry("mf_width", 0.6, "-", "Gaussian membership width on normalized inputs, Table 1's φ"),
+    *[Entry(f"mf_centre_{m}", v, "-", f"centre of membership {m} on normalized inputs")
+      for m, v in zip(range(1, N_MF + 1), (-1.0, 0.0, 1.0), strict=True)],
+    *[Entry(f"x_offset_{k}", v, "-", f"normalization offset of x̂{k}: z = (x̂ - offset)/scale")
+      for k, v in zip(range(1, 5), (1.26711, 0.0, 0.0, 0.0), strict=True)],
+    *[Entry(f"x_scale_{k}", v, "-", f"normalization scale of x̂{k}")
+      for k, v in zip(range(1, 5), (0.2, 1.0, 1.0, 1.0), strict=True)],
+    Entry("tau_b_model", 0.108, "s",
+          "pitch time constant the controller assumes: θ_j = 1/(3 τ_b) of θᵀu, eq (14)"),
+    *[Entry(f"b_{j}", 1.0, "-", f"distribution b{j} of u0 to actuator {j}, eq (46)")
+      for j in range(1, N_BLADES + 1)],
+    Entry("control_sign", -1.0, "-",
+          "sign s of the applied command v_j = s b_j u0: +1 as written (diverges, "
+          "DESIGN.md item 2), -1 corrected"),
+    *[Entry(f"rho_hat_{j}", 1.0, "-", f"ρ of actuator {j} known to eq (49)")
+      for j in range(1, N_BLADES + 1)],
+    *[Entry(f"lock_hat_{j}", 0.0, "-", f"lock indicator of actuator {j} known to eq (49)")
+      for j in range(1, N_BLADES + 1)],
+    *[Entry(f"ubar_hat_{j}", 0.0, "rad", f"stuck command ū of actuator {j} known to eq (49)")
+      for j in range(1, N_BLADES + 1)],
+]
+
+#: the reference y_d and its first four derivatives, eqs (26), (37), (43), (49)
+REFERENCE = [Entry(f"yd_{m}", 1.27 if m == 0 else 0.0, f"rad/s^{m + 1}" if m else "rad/s",
+                   f"y_d^({m}), the rotor-speed reference and its derivative {m}")
+             for m in range(5)]
+
+#: parameters of the optimal weights θ*_i (eq 30 onwards) for Lyapunov evaluation
+THETA_STAR = [Entry(f"theta_star_{i}[{m}]", 0.0, "-", f"optimal fuzzy weight {m} of f{i}")
+              for i in range(1, N_CHAIN + 1) for m in range(rule_count(i))]
+
+#: paper values of Table 1 that differ from the defaults, kept by name for tests and docs
+PAPER_TABLE1 = {"K_obs": (1.0, 1.0, 5.0, 5.0)}
+
+
+def names(entries: list[Entry]) -> list[str]:
+    return [e.name for e in entries]
+
+
+def as_json() -> dict:
+    """The layout as emitted to generated/layout.json."""
+    groups = {
+        "plant_states": PLANT_STATES,
+        "controller_states": CONTROLLER_STATES,
+        "plant_params": PLANT_PARAMS,
+        "fault_inputs": FAULT_INPUTS,
+        "controller_params": CONTROLLER_PARAMS,
+        "reference": REFERENCE,
+        "theta_star": THETA_STAR,
+    }
+    out: dict = {
+        "n_mf": N_MF,
+        "n_blades": N_BLADES,
+        "n_chain": N_CHAIN,
+        "rule_counts": [rule_count(i) for i in range(1, N_CHAIN + 1)],
+        "paper_table1": {k: list(v) for k, v in PAPER_TABLE1.items()},
+    }
+    for key, entries in groups.items():
+        out[key] = [{"name": e.name, "default": e.default, "unit": e.unit, "doc": e.doc}
+                    for e in entries]
+    return out

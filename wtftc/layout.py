@@ -1,0 +1,83 @@
+"""The ordering of states, inputs and parameters, read from ``generated/layout.json``.
+
+Nothing here is retyped: names, defaults, units and sizes all come from the derivation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from functools import cache
+
+import numpy as np
+
+from wtftc.generated import layout_json
+
+GROUPS = ("plant_states", "controller_states", "plant_params", "fault_inputs",
+          "controller_params", "reference", "theta_star")
+
+
+@cache
+def layout() -> dict:
+    return layout_json()
+
+
+def names(group: str) -> list[str]:
+    _check_group(group)
+    return [e["name"] for e in layout()[group]]
+
+
+def units(group: str) -> list[str]:
+    _check_group(group)
+    return [e["unit"] for e in layout()[group]]
+
+
+def defaults(group: str) -> np.ndarray:
+    _check_group(group)
+    return np.array([e["default"] for e in layout()[group]], dtype=float)
+
+
+def index(group: str, name: str) -> int:
+    n = names(group)
+    try:
+        return n.index(name)
+    except ValueError:
+        raise KeyError(f"{name!r} is not in {group}; allowed: {', '.join(n)}") from None
+
+
+def vector(group: str, values: Mapping[str, float] | None = None) -> np.ndarray:
+    """Defaults of ``group`` with named overrides.
+
+    A name may also be a prefix of numbered entries (``K_obs`` sets ``K_obs_1..K_obs_4``
+    from a sequence). Unknown names raise a ValueError that lists what is allowed.
+    """
+    vec = defaults(group)
+    all_names = names(group)
+    for key, val in (values or {}).items():
+        if key in all_names:
+            vec[all_names.index(key)] = float(val)
+            continue
+        members = [n for n in all_names if n.rsplit("_", 1)[0] == key]
+        if not members:
+            prefixes = sorted({n.rsplit("_", 1)[0] for n in all_names if n[-1].isdigit()})
+            raise ValueError(f"{group}: unknown field {key!r} = {val!r}; allowed names: "
+                             f"{', '.join(all_names)} (or the prefixes {', '.join(prefixes)})")
+        seq = np.atleast_1d(np.asarray(val, dtype=float))
+        if seq.size != len(members):
+            raise ValueError(f"{group}: {key} needs {len(members)} values "
+                             f"({', '.join(members)}), got {seq.size}: {val!r}")
+        for n, x in zip(members, seq, strict=True):
+            vec[all_names.index(n)] = x
+    return vec
+
+
+def rule_counts() -> list[int]:
+    return list(layout()["rule_counts"])
+
+
+def paper_table1(key: str) -> np.ndarray:
+    return np.array(layout()["paper_table1"][key], dtype=float)
+
+
+def _check_group(group: str) -> None:
+    if group not in GROUPS:
+        raise KeyError(f"unknown layout group {group!r}; allowed: {', '.join(GROUPS)}")

@@ -1,0 +1,216 @@
+"""Verification of the generated functions, shared by the tests and ``wtftc verify``.
+
+* :func:`random_inputs`           sensible random arguments for any generated function;
+* :func:`compiled_vs_interpreted` compiled C against CasADi's virtual machine;
+* :func:`closed_loop_trajectory`  a fixed-step RK4 run of the paper's closed loop
+                                  (plant (1)-(4), faults (19), observer (21), eq (49));
+* :func:`alpha_dot_fd`            α̇_i against central differences of α_i along it.
+
+The verification run uses a time-varying reference y_d(t) = y0 + a sin(ω t) and a smooth
+disturbance d1(t) so that every reference derivative and the ẏ term are exercised.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wtftc import layout as lay
+from wtftc.generated import layout_json, load
+
+#: input name → layout group whose defaults centre the random values
+_GROUP_OF_INPUT = {
+    "x_plant": "plant_states", "x_ctrl": "controller_states", "p_plant": "plant_params",
+    "p_ctrl": "controller_params", "fault": "fault_inputs", "yd": "reference",
+    "theta_star": "theta_star",
+}
+
+
+def random_inputs(name: str, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Random arguments for generated function ``name``, near the layout's defaults.
+
+    Parameters vary by ±10 % around their defaults (keeping signs, so that inertias stay
+    positive and eq (49) stays invertible); states, commands and weights get O(1) values.
+    """
+    sig = layout_json()["functions"][name]
+    out = {}
+    for inp in sig["inputs"]:
+        n, shape = inp["name"], tuple(inp["shape"])
+        size = int(np.prod(shape))
+        if n in ("p_plant", "p_ctrl", "fault"):
+            base = lay.defaults(_GROUP_OF_INPUT[n])
+            val = base * (1 + 0.1 * rng.uniform(-1, 1, base.size))
+        elif n in _GROUP_OF_INPUT or n == "z":
+            groups = (["plant_states", "controller_states"] if n == "z"
+                      else [_GROUP_OF_INPUT[n]])
+            base = np.concatenate([lay.defaults(g) for g in groups])
+            val = base + 0.3 * rng.standard_normal(base.size)
+        elif n == "K_obs":
+            val = lay.vector("controller_params")[:4] * (1 + 0.2 * rng.uniform(-1, 1, 4))
+        elif n in ("Q", "P"):
+            m = rng.standard_normal(shape)
+            val = (m @ m.T + shape[0] * np.eye(shape[0])).reshape(-1, order="F")
+        else:
+            val = 0.5 * rng.standard_normal(size)
+        out[n] = np.asarray(val, dtype=float).reshape(shape, order="F")
+    return out
+
+
+def _evaluate(f, args: dict) -> dict[str, np.ndarray]:
+    res = f(**args)
+    return {k: np.array(v) for k, v in res.items()}
+
+
+def relative_error(a: np.ndarray, b: np.ndarray) -> float:
+    """‖a - b‖∞ / max(‖b‖∞, tiny): the error relative to the output's magnitude."""
+    a, b = np.asarray(a, float).ravel(), np.asarray(b, float).ravel()
+    if a.size == 0:
+        return 0.0
+    return float(np.max(np.abs(a - b)) / max(np.max(np.abs(b)), 1e-300))
+
+
+def compiled_vs_interpreted(n_points: int = 50, seed: int = 0) -> dict[str, float]:
+    """Largest relative difference, over random points, of every function's outputs."""
+    rng = np.random.default_rng(seed)
+    worst = {}
+    for name in sorted(layout_json()["functions"]):
+        fc, fi = load(name, "compiled"), load(name, "interpreted")
+        err = 0.0
+        for _ in range(n_points):
+            args = random_inputs(name, rng)
+            oc, oi = _evaluate(fc, args), _evaluate(fi, args)
+            err = max(err, *(relative_error(oc[k], oi[k]) for k in oi))
+        worst[name] = err
+    return worst
+
+
+@dataclass
+class Signals:
+    """Exogenous signals of the verification run: y_d(t) and its derivatives, d1(t)."""
+
+    y0: float = 1.27
+    amp: float = 0.02  # rad/s
+    omega: float = 0.8  # rad/s
+    d_amp: float = 0.01  # rad/s²
+    d_omega: float = 1.3  # rad/s
+
+    def yd(self, t: float) -> np.ndarray:
+        w, a = self.omega, self.amp
+        s, c = np.sin(w * t), np.cos(w * t)
+        return np.array([self.y0 + a * s, a * w * c, -a * w**2 * s, -a * w**3 * c,
+                         a * w**4 * s])
+
+    def d1(self, t: float) -> float:
+        return self.d_amp * np.sin(self.d_omega * t)
+
+
+@dataclass
+class Trajectory:
+    t: np.ndarray
+    z: np.ndarray  # (N, n_z): plant states then controller states
+    p_plant: np.ndarray
+    p_ctrl: np.ndarray
+    fault: np.ndarray
+    signals: Signals
+
+
+def initial_state(seed: int = 0) -> np.ndarray:
+    """Plant near rated speed, observer at rest, small seeded fuzzy weights."""
+    rng = np.random.default_rng(seed)
+    xp = lay.defaults("plant_states")
+    xp[0] *= 0.97
+    xc = lay.defaults("controller_states")
+    xc[0] = xp[0]
+    xc[4:] = 0.01 * rng.standard_normal(xc.size - 4)
+    return np.concatenate([xp, xc])
+
+
+def closed_loop_trajectory(t_final: float = 1.0, dt: float = 1e-3, z0=None, p_plant=None,
+                           p_ctrl=None, fault=None, signals: Signals | None = None,
+                           t0: float = 0.0) -> Trajectory:
+    """Fixed-step RK4 of ż = f(z, t) with the generated closed loop (dt < 0 runs backward)."""
+    f = load("closed_loop_paper")
+    sig = signals or Signals()
+    pp = lay.vector("plant_params", p_plant)
+    pc = lay.vector("controller_params", p_ctrl)
+    fl = lay.vector("fault_inputs", fault)
+    z = initial_state() if z0 is None else np.array(z0, dtype=float)
+    n = int(round(abs(t_final - t0) / abs(dt)))
+    h = (t_final - t0) / n if n else 0.0
+
+    def rhs(t, zz):
+        return np.array(f(z=zz, d1=sig.d1(t), yd=sig.yd(t), fault=fl, p_plant=pp,
+                          p_ctrl=pc)["z_dot"]).reshape(-1)
+
+    ts = t0 + h * np.arange(n + 1)
+    zs = np.empty((n + 1, z.size))
+    zs[0] = z
+    for k in range(n):
+        t = ts[k]
+        k1 = rhs(t, z)
+        k2 = rhs(t + h / 2, z + h / 2 * k1)
+        k3 = rhs(t + h / 2, z + h / 2 * k2)
+        k4 = rhs(t + h, z + h * k3)
+        z = z + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        if not np.all(np.isfinite(z)):
+            raise FloatingPointError(f"closed loop diverged at t = {ts[k + 1]:.6g} s; "
+                                     f"last finite state {zs[k].tolist()}")
+        zs[k + 1] = z
+    return Trajectory(ts, zs, pp, pc, fl, sig)
+
+
+def alpha_values(traj: Trajectory, k: int) -> dict[str, np.ndarray]:
+    """α_i, full and computable α̇_i, ∂α_i/∂y and ẏ̂ at sample k of a trajectory."""
+    n_plant = len(lay.names("plant_states"))
+    z = traj.z[k]
+    t = traj.t[k]
+    cl = load("closed_loop_paper")(z=z, d1=traj.signals.d1(t), yd=traj.signals.yd(t),
+                                   fault=traj.fault, p_plant=traj.p_plant, p_ctrl=traj.p_ctrl)
+    ydot = float(cl["ydot"])
+    out = load("alpha_derivatives")(x_ctrl=z[n_plant:], y=z[0], yd=traj.signals.yd(t),
+                                    p_ctrl=traj.p_ctrl, ydot=ydot)
+    res = {key: np.array(v).reshape(-1) for key, v in out.items()}
+    res["ydot"] = np.array([ydot])
+    return res
+
+
+@dataclass
+class FDResult:
+    h: np.ndarray
+    errors: np.ndarray  # (len(h), 3): relative error of each α̇_i
+    slopes: np.ndarray  # fitted log-log slope of each α̇_i on the truncation-dominated h
+    alpha_dot: np.ndarray  # the analytic α̇_i (full)
+    comp_minus_full: np.ndarray  # α̇_comp - α̇_full
+    ydot_term: np.ndarray  # ∂α_i/∂y (ẏ̂ - ẏ)
+
+
+def alpha_dot_fd(t_point: float = 0.5, h_values=(1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5),
+                 substep: float = 2e-4, **kwargs) -> FDResult:
+    """Central differences of α_i along the closed loop against the analytic α̇_i.
+
+    The state at t ± h is reached by RK4 from the state at t with steps ≤ ``substep``,
+    so the integration error (O(substep⁴)) stays far below the differencing error.
+    Slopes are fitted on h ≥ 1e-3·(largest h) where truncation, not rounding, dominates.
+    """
+    base = closed_loop_trajectory(t_final=t_point, dt=1e-3, **kwargs)
+    zt = base.z[-1]
+    at = alpha_values(base, len(base.t) - 1)
+    h_values = np.asarray(h_values, dtype=float)
+    errors = np.empty((h_values.size, 3))
+    for m, h in enumerate(h_values):
+        n = max(1, int(np.ceil(h / substep)))
+        fwd = closed_loop_trajectory(t_final=t_point + h, dt=h / n, z0=zt, t0=t_point, **kwargs)
+        bwd = closed_loop_trajectory(t_final=t_point - h, dt=h / n, z0=zt, t0=t_point, **kwargs)
+        a_plus = alpha_values(fwd, len(fwd.t) - 1)["alpha"]
+        a_minus = alpha_values(bwd, len(bwd.t) - 1)["alpha"]
+        fd = (a_plus - a_minus) / (2 * h)
+        errors[m] = np.abs(fd - at["alpha_dot_full"]) / np.maximum(
+            np.abs(at["alpha_dot_full"]), 1e-300)
+    sel = h_values >= 1e-3 * h_values.max()
+    slopes = np.array([np.polyfit(np.log(h_values[sel]), np.log(errors[sel, i]), 1)[0]
+                       for i in range(3)])
+    return FDResult(
+        h=h_values, errors=errors, slopes=slopes, alpha_dot=at["alpha_dot_full"],
+        comp_minus_full=at["alpha_dot_comp"] - at["alpha_dot_full"],
+        ydot_term=at["dalpha_dy"] * (at["ydot_hat"] - at["ydot"]))
