@@ -49,12 +49,24 @@ def membership(j: int, zz=z) -> sp.Expr:
     return sp.exp(-((zz - mf_centre[j]) ** 2) / (2 * mf_width**2))
 
 
+def normalized_membership(j: int) -> sp.Expr:
+    """ν_j = μ_j / Σ_l μ_l written as 1 / Σ_l exp(log μ_l - log μ_j).
+
+    log μ_l - log μ_j = (c_l - c_j)(2z - c_j - c_l) / (2w²) is linear in z, so ν_j is a
+    softmax of linear functions: identical to μ_j/Σμ_l (tests compare the two), but it
+    cannot form 0/0 when every μ_l underflows (|z| ≳ 24 with w = 0.6), and its
+    derivatives lose far less to cancellation away from the centres.
+    """
+    cj = mf_centre[j]
+    return 1 / sp.Add(*[
+        sp.exp((cl - cj) * (2 * z - cj - cl) / (2 * mf_width**2)) if l != j else sp.S.One
+        for l, cl in enumerate(mf_centre)])
+
+
 @cache
 def normalized_membership_derivatives(order: int) -> tuple[sp.Expr, ...]:
-    """d^order ν_j / dz^order for j = 0..N_MF-1, with ν_j = μ_j / Σ_l μ_l."""
-    mus = [membership(j) for j in range(N_MF)]
-    total = sum(mus)
-    return tuple(sp.diff(mu / total, z, order) for mu in mus)
+    """d^order ν_j / dz^order for j = 0..N_MF-1."""
+    return tuple(sp.diff(normalized_membership(j), z, order) for j in range(N_MF))
 
 
 def rule_multi_indices(n_inputs: int) -> list[tuple[int, ...]]:

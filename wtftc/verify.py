@@ -27,13 +27,20 @@ _GROUP_OF_INPUT = {
 }
 
 
-def random_inputs(name: str, rng: np.random.Generator) -> dict[str, np.ndarray]:
+def random_inputs(name: str, rng: np.random.Generator,
+                  z_span: float = 1.5) -> dict[str, np.ndarray]:
     """Random arguments for generated function ``name``, near the layout's defaults.
 
     Parameters vary by ±10 % around their defaults (keeping signs, so that inertias stay
-    positive and eq (49) stays invertible); states, commands and weights get O(1) values.
+    positive and eq (49) stays invertible); states, commands and weights get O(1) values;
+    observer states x̂_k are drawn where the fuzzy systems live, at normalized inputs
+    z_k = (x̂_k - offset_k)/scale_k uniform in [-z_span, z_span].
     """
     sig = layout_json()["functions"][name]
+    pc = lay.defaults("controller_params")
+    offsets = np.array([pc[lay.index("controller_params", f"x_offset_{k}")] for k in range(1, 5)])
+    scales = np.array([pc[lay.index("controller_params", f"x_scale_{k}")] for k in range(1, 5)])
+    n_plant = len(lay.names("plant_states"))
     out = {}
     for inp in sig["inputs"]:
         n, shape = inp["name"], tuple(inp["shape"])
@@ -46,6 +53,11 @@ def random_inputs(name: str, rng: np.random.Generator) -> dict[str, np.ndarray]:
                       else [_GROUP_OF_INPUT[n]])
             base = np.concatenate([lay.defaults(g) for g in groups])
             val = base + 0.3 * rng.standard_normal(base.size)
+            k0 = {"x_ctrl": 0, "z": n_plant}.get(n)
+            if k0 is not None:
+                val[k0:k0 + 4] = offsets + scales * rng.uniform(-z_span, z_span, 4)
+        elif n == "xhat":
+            val = offsets + scales * rng.uniform(-z_span, z_span, 4)
         elif n == "K_obs":
             val = lay.vector("controller_params")[:4] * (1 + 0.2 * rng.uniform(-1, 1, 4))
         elif n in ("Q", "P"):

@@ -1,0 +1,249 @@
+"""SymPy references for the generated functions, evaluated with lambdify (NumPy).
+
+The fuzzy quantities are rebuilt here from the *unfactored* normalized firing strengths
+(:func:`derivation.fuzzy.reference_regressor`) and differentiated by SymPy, so the
+generator's factorized evaluation and its derivative orders are checked, not assumed.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+import sympy as sp
+
+from derivation import backstepping as bs
+from derivation import fuzzy, lyapunov, observer, plant
+from derivation import layout as dlay
+
+X_OFFSET = sp.symbols("x_offset_1:5", real=True)
+X_SCALE = sp.symbols("x_scale_1:5", positive=True)
+FUZZY_PARAMS = [fuzzy.mf_width, *fuzzy.mf_centre]
+
+
+@cache
+def dphi_function(i: int, alpha: tuple[int, ...], module: str = "numpy"):
+    """Lambdified ∂^α φ_i(x̂1..x̂i) of the unfactored regressor, as a vector."""
+    xs = observer.xhat[:i]
+    phi = fuzzy.reference_regressor(xs, X_OFFSET[:i], X_SCALE[:i])
+    der = []
+    for p in phi:
+        for k, n in enumerate(alpha):
+            if n:
+                p = sp.diff(p, xs[k], n)
+        der.append(p)
+    args = [*xs, *X_OFFSET[:i], *X_SCALE[:i], *FUZZY_PARAMS]
+    return sp.lambdify(args, der, modules=module, cse=True), [a.name for a in args]
+
+
+def dphi(i: int, alpha, values: dict[str, float]) -> np.ndarray:
+    f, names = dphi_function(i, tuple(alpha))
+    return np.asarray(f(*[values[n] for n in names]), dtype=float)
+
+
+def theta_hat(values: dict[str, float], i: int) -> np.ndarray:
+    return np.array([values[f"theta_hat_{i}[{m}]"] for m in range(dlay.rule_count(i))])
+
+
+def fuzzy_symbol_values(values: dict[str, float]) -> dict[str, float]:
+    """Numbers for every L/B symbol the derivation created, from the unfactored φ."""
+    out = {}
+    for rb in bs.derive().rule_bases:
+        for sym, kind in rb.symbols().items():
+            if kind[0] == "L":
+                out[sym.name] = float(theta_hat(values, rb.i) @ dphi(rb.i, kind[1], values))
+            else:
+                out[sym.name] = float(dphi(rb.i, kind[1], values) @ dphi(rb.i, kind[2], values))
+    return out
+
+
+def magnitude(expr: sp.Expr, memo: dict | None = None) -> sp.Expr:
+    """The expression with every sum taken over absolute values (outside exp and divisors).
+
+    Floating-point evaluation of e is accurate to about ε·magnitude(e), not ε·|e|: where
+    large terms cancel (α̇3 at random states), |e| says nothing about attainable accuracy.
+    """
+    memo = {} if memo is None else memo
+    if expr in memo:
+        return memo[expr]
+    if expr.is_Add:
+        out = sp.Add(*[sp.Abs(magnitude(a, memo)) for a in expr.args])
+    elif expr.is_Mul:
+        out = sp.Mul(*[magnitude(a, memo) for a in expr.args])
+    elif expr.is_Pow and expr.exp.is_Integer and expr.exp > 0:
+        out = magnitude(expr.base, memo) ** expr.exp
+    else:
+        out = expr
+    memo[expr] = out
+    return out
+
+
+@cache
+def lambdified(key: str, exprs: tuple):
+    syms = sorted(set().union(*[sp.sympify(e).free_symbols for e in exprs]),
+                  key=lambda s: s.name)
+    return sp.lambdify(syms, list(exprs), modules="numpy", cse=True), [s.name for s in syms]
+
+
+def evaluate(key: str, exprs, values: dict[str, float]) -> np.ndarray:
+    f, names = lambdified(key, tuple(exprs))
+    return np.asarray(f(*[values[n] for n in names]), dtype=float).reshape(-1)
+
+
+def scale(key: str, exprs, values: dict[str, float]) -> np.ndarray:
+    """|magnitude(e)| of each expression at values: the scale of attainable accuracy."""
+    mags = tuple(sp.Abs(magnitude(sp.sympify(e))) for e in exprs)
+    return evaluate(key + "|mag|", mags, values)
+
+
+def named_values(args: dict[str, np.ndarray]) -> dict[str, float]:
+    """Map a generated function's arguments to SymPy symbol names via the layout."""
+    groups = {"x_plant": dlay.PLANT_STATES, "x_ctrl": dlay.CONTROLLER_STATES,
+              "p_plant": dlay.PLANT_PARAMS, "p_ctrl": dlay.CONTROLLER_PARAMS,
+              "fault": dlay.FAULT_INPUTS, "yd": dlay.REFERENCE}
+    out: dict[str, float] = {}
+    for key, val in args.items():
+        flat = np.asarray(val, dtype=float).reshape(-1, order="F")
+        if key in groups:
+            out.update({e.name: float(x) for e, x in zip(groups[key], flat, strict=True)})
+        elif key == "z":
+            entries = dlay.PLANT_STATES + dlay.CONTROLLER_STATES
+            out.update({e.name: float(x) for e, x in zip(entries, flat, strict=True)})
+        elif key == "v":
+            out.update({f"v_{j + 1}": float(x) for j, x in enumerate(flat)})
+        elif key == "xhat":
+            out.update({f"xhat_{k + 1}": float(x) for k, x in enumerate(flat)})
+        elif flat.size == 1:
+            out[key] = float(flat[0])
+    return out
+
+
+def pair(key: str, exprs, values: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(value, scale) of SymPy expressions at values."""
+    return evaluate(key, exprs, values), scale(key, exprs, values)
+
+
+def exact(value) -> tuple[np.ndarray, np.ndarray]:
+    """(value, |value|) for outputs computed directly in NumPy."""
+    v = np.asarray(value, dtype=float).reshape(-1)
+    return v, np.abs(v)
+
+
+def controller_reference(values: dict[str, float]) -> dict[str, tuple]:
+    """controller / alpha_derivatives outputs from the SymPy design."""
+    d = bs.derive()
+    vals = {**values, **fuzzy_symbol_values(values)}
+    out = {
+        "u0": pair("u0", [d.u0], vals),
+        "v": pair("v", bs.applied_commands(d.u0), vals),
+        "chi": pair("chi", d.chi, vals),
+        "alpha": pair("alpha", d.alpha, vals),
+        "alpha_dot": pair("alpha_dot_comp", d.alpha_dot_comp, vals),
+        "alpha_dot_comp": pair("alpha_dot_comp", d.alpha_dot_comp, vals),
+        "ydot_hat": pair("ydot_hat", [d.ydot_hat], vals),
+        "dalpha_dy": pair("dalpha_dy", d.dalpha_dy, vals),
+    }
+    if "ydot" in vals:
+        out["alpha_dot_full"] = pair("alpha_dot_full", d.alpha_dot_full, vals)
+    xhat_dot = pair("xhat_dot", d.xhat_dot, vals)
+    theta_dot, theta_scale = [], []
+    for i, (g_chi, r_i) in enumerate(bs.adaptive_law_coefficients(d)):
+        gc, gc_scale = pair(f"gchi{i}", [g_chi], vals)
+        th = theta_hat(vals, i + 1)
+        phi = dphi(i + 1, (0,) * (i + 1), vals)
+        theta_dot.append(gc[0] * phi - vals[r_i.name] * th)
+        theta_scale.append(gc_scale[0] * np.abs(phi) + np.abs(vals[r_i.name] * th))
+    out["x_ctrl_dot"] = (np.concatenate([xhat_dot[0], *theta_dot]),
+                         np.concatenate([xhat_dot[1], *theta_scale]))
+    return out
+
+
+def plant_reference(values: dict[str, float], targets: bool = False) -> dict[str, tuple]:
+    X = plant.chain_state()
+    out = {"y": exact([values["omega_r"]]), "X": pair("X", X, values)}
+    if targets:
+        f = plant.strict_feedback_f(X)
+        out["f_plus_d"] = pair("fpd", [f[0] + plant.d1, *f[1:]], values)
+    else:
+        out["x_plant_dot"] = pair("plant", plant.paper_rhs(), values)
+    return out
+
+
+def closed_loop_reference(values: dict[str, float]) -> dict[str, tuple]:
+    vals = {**values, "y": values["omega_r"]}
+    c = controller_reference(vals)
+    vals.update({f"v_{j + 1}": float(x) for j, x in enumerate(c["v"][0])})
+    p = plant_reference(vals)
+    xp, xs = p["x_plant_dot"]
+    return {"z_dot": (np.concatenate([xp, c["x_ctrl_dot"][0]]),
+                      np.concatenate([xs, c["x_ctrl_dot"][1]])),
+            "y": p["y"], "ydot": (xp[:1], xs[:1]), "u0": c["u0"], "v": c["v"]}
+
+
+def lyapunov_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
+    values = named_values(args)
+    values["y"] = values["omega_r"]
+    vals = {**values, **fuzzy_symbol_values(values)}
+    P = np.asarray(args["P"], dtype=float)
+    vals.update({f"P_{i}_{j}": P[i, j] for i in range(4) for j in range(4)})
+    ts_all = np.asarray(args["theta_star"], dtype=float).reshape(-1)
+    k = 0
+    for i in range(1, 5):
+        n = dlay.rule_count(i)
+        st, th = ts_all[k:k + n], theta_hat(vals, i)
+        k += n
+        vals[f"Lstar_{i}"] = float(st @ dphi(i, (0,) * i, vals))
+        vals[f"tt_{i}"] = float((st - th) @ (st - th))
+        vals[f"ts_{i}"] = float((st - th) @ th)
+    terms = lyapunov.derive()
+    return {"V": pair("V", terms.V, vals), "Vdot": pair("Vdot", terms.Vdot, vals)}
+
+
+def bound_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
+    vals = named_values(args)
+    ts_all = np.asarray(args["theta_star"], dtype=float).reshape(-1)
+    k = 0
+    for i in range(1, 5):
+        n = dlay.rule_count(i)
+        vals[f"star_norm2_{i}"] = float(ts_all[k:k + n] @ ts_all[k:k + n])
+        k += n
+    terms = lyapunov.derive()
+    return {"kappa_terms": pair("kappa", terms.kappa_terms, vals),
+            "zeta_theta": pair("zeta", [terms.zeta_theta], vals)}
+
+
+def observer_lyapunov_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
+    """P from SciPy's Bartels-Stewart solver: independent of the generated linear solve."""
+    from scipy.linalg import solve_continuous_lyapunov
+
+    K = np.asarray(args["K_obs"], dtype=float).reshape(-1)
+    vals = {f"K_obs_{k + 1}": K[k] for k in range(4)}
+    A = np.array(sp.lambdify(observer.K_obs, observer.A_obs())(*K), dtype=float)
+    Q = np.asarray(args["Q"], dtype=float)
+    P = solve_continuous_lyapunov(A.T, -(Q + Q.T) / 2)
+    # the solve's accuracy scales with ‖P‖ times the condition of the Lyapunov operator
+    P_scale = np.full(16, np.abs(P).max())
+    return {"P": (P.reshape(-1, order="F"), P_scale), "A_obs": exact(A.reshape(-1, order="F")),
+            "routh": pair("routh", observer.routh_hurwitz(), vals)}
+
+
+def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
+    """SymPy reference (value, scale) of each output of generated function ``name``."""
+    if name == "lyapunov":
+        return lyapunov_reference(args)
+    if name == "lyapunov_bound":
+        return bound_reference(args)
+    if name == "observer_lyapunov":
+        return observer_lyapunov_reference(args)
+    values = named_values(args)
+    if name == "plant_paper":
+        return plant_reference(values)
+    if name == "strict_feedback_targets":
+        return plant_reference(values, targets=True)
+    if name == "fuzzy_regressors":
+        return {f"phi_{i}": exact(dphi(i, (0,) * i, values)) for i in range(1, 5)}
+    if name in ("controller", "alpha_derivatives"):
+        return controller_reference(values)
+    if name == "closed_loop_paper":
+        return closed_loop_reference(values)
+    raise KeyError(name)
