@@ -310,13 +310,13 @@ def write(outdir: Path) -> dict:
             artefacts.append(path)
             functions[f.name()] = {"group": g.name, "c_file": cname,
                                    "serialized": path.name, **_signature(f), **_count_ops(f)}
-    layout = {"header": HEADER.format(modules="derivation/layout.py"), **lay.as_json(),
+    layout = {"_header": HEADER.format(modules="derivation/layout.py"), **lay.as_json(),
               "functions": functions, "kappa_labels": lyapunov.derive().kappa_labels}
     (outdir / "layout.json").write_text(json.dumps(layout, indent=1, sort_keys=True,
                                                    ensure_ascii=False) + "\n")
     artefacts.append(outdir / "layout.json")
     manifest = {
-        "header": HEADER.format(modules="derivation/generate.py"),
+        "_header": HEADER.format(modules="derivation/generate.py"),
         "versions": {"sympy": sp.__version__, "casadi": ca.__version__},
         "sources": {str(p.relative_to(ROOT)): _sha256(p) for p in source_files()},
         "artefacts": {p.name: _sha256(p) for p in sorted(artefacts)},
