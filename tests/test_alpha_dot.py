@@ -12,9 +12,9 @@ import pytest
 from wtftc import verify
 
 
-@pytest.fixture(scope="module", params=[-1.0, 1.0], ids=["sign-corrected", "sign-as-written"])
+@pytest.fixture(scope="module", params=[0.5, 1.7], ids=["t=0.5s", "t=1.7s"])
 def fd(request):
-    return verify.alpha_dot_fd(t_point=0.5, p_ctrl={"control_sign": request.param})
+    return verify.alpha_dot_fd(t_point=request.param)
 
 
 def test_error_falls_as_h_squared(fd):

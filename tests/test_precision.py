@@ -31,10 +31,11 @@ def _alpha_dot_exact(vals):
         for sym, kind in rb.symbols().items():
             if kind[0] == "L":
                 th = [exact[f"theta_hat_{rb.i}[{m}]"] for m in range(R.dlay.rule_count(rb.i))]
-                exact[sym.name] = mpmath.fsum(t * p for t, p in zip(th, dphi(rb.i, kind[1])))
+                dp = dphi(rb.i, kind[1])
+                exact[sym.name] = mpmath.fsum(t * p for t, p in zip(th, dp, strict=True))
             else:
                 exact[sym.name] = mpmath.fsum(
-                    p * q for p, q in zip(dphi(rb.i, kind[1]), dphi(rb.i, kind[2])))
+                    p * q for p, q in zip(dphi(rb.i, kind[1]), dphi(rb.i, kind[2]), strict=True))
     syms = sorted(set().union(*[e.free_symbols for e in d.alpha_dot_full]),
                   key=lambda s: s.name)
     f = sp.lambdify(syms, d.alpha_dot_full, modules="mpmath")

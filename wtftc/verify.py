@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import casadi as ca
 import numpy as np
 
 from wtftc import layout as lay
@@ -226,3 +227,49 @@ def alpha_dot_fd(t_point: float = 0.5, h_values=(1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3
         h=h_values, errors=errors, slopes=slopes, alpha_dot=at["alpha_dot_full"],
         comp_minus_full=at["alpha_dot_comp"] - at["alpha_dot_full"],
         ydot_term=at["dalpha_dy"] * (at["ydot_hat"] - at["ydot"]))
+
+
+def grad_V_dot_f() -> ca.Function:
+    """∇V·f: CasADi AD of the generated V along the generated closed loop (and ẏ_d).
+
+    Independent of the structured V̇ that the derivation writes out (eqs 22-48).
+    """
+    lyap = load("lyapunov", "interpreted")
+    cl = load("closed_loop_paper", "interpreted")
+    n_p = len(lay.names("plant_states"))
+    z = ca.SX.sym("z", n_p + len(lay.names("controller_states")))
+    yd = ca.SX.sym("yd", 5)
+    d1, fault = ca.SX.sym("d1"), ca.SX.sym("fault", len(lay.names("fault_inputs")))
+    ts = ca.SX.sym("theta_star", len(lay.names("theta_star")))
+    P = ca.SX.sym("P", 4, 4)
+    pp = ca.SX.sym("p_plant", len(lay.names("plant_params")))
+    pc = ca.SX.sym("p_ctrl", len(lay.names("controller_params")))
+    V = lyap(x_plant=z[:n_p], x_ctrl=z[n_p:], d1=d1, yd=yd, fault=fault, theta_star=ts, P=P,
+             p_plant=pp, p_ctrl=pc)["V"]
+    zdot = cl(z=z, d1=d1, yd=yd, fault=fault, p_plant=pp, p_ctrl=pc)["z_dot"]
+    yd_rate = ca.vertcat(yd[1:], 0)  # y_d⁽⁴⁾ is not an argument of V
+    dV = ca.jtimes(V, ca.vertcat(z, yd), ca.vertcat(zdot, yd_rate))
+    return ca.Function("grad_V_dot_f", [z, d1, yd, fault, ts, P, pp, pc], [dV],
+                       ["z", "d1", "yd", "fault", "theta_star", "P", "p_plant", "p_ctrl"],
+                       ["Vdot"])
+
+
+def vdot_identity_error(n_points: int = 200, seed: int = 3, control_sign: float = -1.0,
+                        lock_fraction: float | None = None) -> float:
+    """Largest relative difference between the structured V̇ (generated) and ∇V·f."""
+    rng = np.random.default_rng(seed)
+    g = grad_V_dot_f()
+    lyap = load("lyapunov")
+    worst = 0.0
+    for _ in range(n_points):
+        a = random_inputs("lyapunov", rng)
+        a["p_ctrl"][lay.index("controller_params", "control_sign")] = control_sign
+        # a partial lock on blade 2, so the actuation mismatch of eq (22) is exercised
+        lock = rng.uniform(0, 1) if lock_fraction is None else lock_fraction
+        a["fault"][lay.index("fault_inputs", "lock_2")] = lock
+        z = np.concatenate([a["x_plant"].ravel(), a["x_ctrl"].ravel()])
+        ref = np.array(g(z, a["d1"], a["yd"], a["fault"], a["theta_star"], a["P"],
+                         a["p_plant"], a["p_ctrl"])).ravel()
+        got = np.array(lyap(**a)["Vdot"]).ravel()
+        worst = max(worst, relative_error(got, ref))
+    return worst

@@ -1,0 +1,41 @@
+# wtftc: every target does its own set-up (a .venv with the project installed) first.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed-stamp
+
+.PHONY: help setup regenerate check-generated test lint run clean
+
+help:
+	@echo "make run              set up, check generated/, verify the generated controller code"
+	@echo "make test             set up, run the whole test suite"
+	@echo "make regenerate       rebuild generated/ from derivation/ (SymPy -> CasADi)"
+	@echo "make check-generated  fail with a diff if generated/ is stale"
+	@echo "make lint             ruff"
+
+$(STAMP): pyproject.toml
+	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "wtftc needs Python >= 3.11; set PYTHON=python3.11")'
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[dev]'
+	@touch $(STAMP)
+
+setup: $(STAMP)
+
+regenerate: setup
+	$(PY) -m derivation.generate generated
+
+check-generated: setup
+	$(PY) -m derivation.check_generated
+
+test: setup
+	$(PY) -m pytest -q
+
+lint: setup
+	$(VENV)/bin/ruff check .
+
+run: setup check-generated
+	$(VENV)/bin/wtftc verify --out out/verify
+
+clean:
+	rm -rf out .pytest_cache .ruff_cache
