@@ -221,6 +221,8 @@ def build_lyapunov(S: Symbols) -> list[ca.Function]:
                 Msx[i, j] = trk(M[i, j])
     bsx = ca.vertcat(*[trk(e) for e in rhs])
     p = ca.solve(Msx, bsx)
+    for _ in range(2):  # iterative refinement: CasADi's symbolic QR alone gives ~1e-12
+        p = p + ca.solve(Msx, bsx - ca.mtimes(Msx, p))
     Psx = ca.SX(4, 4)
     for u, val in zip(unknowns, ca.vertsplit(p), strict=True):
         _, i, j = u.name.split("_")

@@ -118,8 +118,8 @@ def derive() -> Terms:
     kappa_terms += [r[i] - 4 * gamma[i] / tau for i in range(1, N_CHAIN)]  # (2/τ) θ̃ᵀθ̃
     # (52) sums i = 2..4; eq (50) carries the i = 1 term as well, so it is kept here
     zeta_theta = sum(r[i] / (2 * gamma[i]) * STAR_NORM2[i] for i in range(N_CHAIN))
-    labels = [f"2 c_{k}" for k in range(1, 5)] + ["r_1 - 2 gamma_1/tau"] + [
-        f"r_{k} - 4 gamma_{k}/tau" for k in range(2, 5)]
+    labels = [f"2 c{k}" for k in range(1, 5)] + ["r1 - 2γ1/τ"] + [
+        f"r{k} - 4γ{k}/τ" for k in range(2, 5)]
     return Terms(V=V, Vdot=Vdot, kappa_terms=kappa_terms, kappa_labels=labels,
                  zeta_theta=zeta_theta)
 

@@ -174,7 +174,10 @@ def closed_loop_reference(values: dict[str, float]) -> dict[str, tuple]:
     c = controller_reference(vals)
     vals.update({f"v_{j + 1}": float(x) for j, x in enumerate(c["v"][0])})
     p = plant_reference(vals)
-    xp, xs = p["x_plant_dot"]
+    xp = p["x_plant_dot"][0]
+    # the commands carry their own rounding (relative to their scale) into the plant
+    v_mag = {f"v_{j + 1}": float(x) for j, x in enumerate(c["v"][1])}
+    xs = scale("plant", plant.paper_rhs(), {**vals, **v_mag})
     return {"z_dot": (np.concatenate([xp, c["x_ctrl_dot"][0]]),
                       np.concatenate([xs, c["x_ctrl_dot"][1]])),
             "y": p["y"], "ydot": (xp[:1], xs[:1]), "u0": c["u0"], "v": c["v"]}
@@ -213,17 +216,20 @@ def bound_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
 
 
 def observer_lyapunov_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
-    """P from SciPy's Bartels-Stewart solver: independent of the generated linear solve."""
-    from scipy.linalg import solve_continuous_lyapunov
+    """P from the Kronecker form of AᵀP + PA = -Q solved by mpmath at 40 digits."""
+    import mpmath
 
     K = np.asarray(args["K_obs"], dtype=float).reshape(-1)
     vals = {f"K_obs_{k + 1}": K[k] for k in range(4)}
     A = np.array(sp.lambdify(observer.K_obs, observer.A_obs())(*K), dtype=float)
     Q = np.asarray(args["Q"], dtype=float)
-    P = solve_continuous_lyapunov(A.T, -(Q + Q.T) / 2)
-    # the solve's accuracy scales with ‖P‖ times the condition of the Lyapunov operator
-    P_scale = np.full(16, np.abs(P).max())
-    return {"P": (P.reshape(-1, order="F"), P_scale), "A_obs": exact(A.reshape(-1, order="F")),
+    eye = np.eye(4)
+    with mpmath.workdps(40):
+        M = mpmath.matrix(np.kron(eye, A.T) + np.kron(A.T, eye))
+        rhs = mpmath.matrix(-((Q + Q.T) / 2).reshape(-1, order="F"))
+        P = np.array([float(x) for x in mpmath.lu_solve(M, rhs)])
+    # a linear solve is accurate relative to ‖P‖, not entry by entry
+    return {"P": (P, np.full(16, np.abs(P).max())), "A_obs": exact(A.reshape(-1, order="F")),
             "routh": pair("routh", observer.routh_hurwitz(), vals)}
 
 

@@ -42,7 +42,7 @@ def test_table1_does_not_give_the_bound_of_eq51():
     b = lyapunov.decay_bound()
     assert not b.holds
     failing = [lab for lab, v in zip(b.labels, b.kappa_terms, strict=True) if v <= 0]
-    assert len(failing) == 4 and all("gamma" in lab for lab in failing)
+    assert len(failing) == 4 and all("γ" in lab for lab in failing)
     ok = lyapunov.decay_bound({"gamma": [0.01] * 4, "r": [1.0] * 4})
     assert ok.holds  # r - 4γ/τ = 1 - 0.2 > 0
 

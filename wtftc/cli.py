@@ -13,6 +13,16 @@ from pathlib import Path
 from wtftc.generated import GeneratedArtefactError
 
 
+def _nonnegative_int(text: str) -> int:
+    try:
+        val = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if val < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {val}")
+    return val
+
+
 def _positive_int(text: str) -> int:
     try:
         val = int(text)
@@ -23,6 +33,15 @@ def _positive_int(text: str) -> int:
     return val
 
 
+def _version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("wtftc")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="wtftc",
@@ -30,6 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "control of wind turbines (Bakhshi & Alfi 2020), derived in SymPy, "
                     "generated with CasADi, verified.",
         epilog="Simulation commands (run, cases) arrive with the closed-loop simulator.")
+    p.add_argument("--version", action="version", version=f"wtftc {_version()}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     v = sub.add_parser(
         "verify", help="check, compile and verify the generated functions; write a summary",
@@ -42,7 +62,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output folder (default: out/verify)")
     v.add_argument("--points", type=_positive_int, default=50,
                    help="random points per function for the comparisons (default: 50)")
-    v.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    v.add_argument("--seed", type=_nonnegative_int, default=0,
+                   help="random seed, an integer >= 0 (default: 0)")
     sub.add_parser("functions", help="list the generated functions with inputs, outputs, size")
     return p
 
@@ -55,8 +76,10 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         if args.command == "verify":
+            from wtftc.io import ensure_writable_dir
             from wtftc.report import run_verification, to_markdown
 
+            ensure_writable_dir(args.out, "--out")
             print(f"wtftc verify → {args.out}/")
             summary = run_verification(args.out, n_points=args.points, seed=args.seed)
             print()

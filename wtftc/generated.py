@@ -85,18 +85,31 @@ def layout_json(folder: Path | None = None) -> dict:
 
 def compiler() -> str | None:
     """The C compiler to use: ``$CC``, else cc or gcc on PATH, else None."""
-    for cand in (os.environ.get("CC"), "cc", "gcc"):
+    env = os.environ.get("CC")
+    if env and not shutil.which(env):
+        warnings.warn(f"$CC={env!r} is not an executable on PATH; trying cc and gcc",
+                      RuntimeWarning, stacklevel=2)
+    for cand in (env, "cc", "gcc"):
         if cand and shutil.which(cand):
             return shutil.which(cand)
     return None
 
 
-def _compile(c_path: Path, cc: str) -> Path:
-    """Compile c_path into the cache (atomically) unless already there; return the .so."""
+def is_cached(c_path: Path, cc: str) -> bool:
+    """Whether the compiled object of c_path is already in the cache."""
+    return _cache_path(c_path, cc).exists()
+
+
+def _cache_path(c_path: Path, cc: str) -> Path:
     key = hashlib.sha256()
     key.update(c_path.read_bytes())
     key.update(" ".join((cc, *CFLAGS, ca.__version__)).encode())
-    out = cache_dir() / f"{c_path.stem}-{key.hexdigest()[:20]}.so"
+    return cache_dir() / f"{c_path.stem}-{key.hexdigest()[:20]}.so"
+
+
+def _compile(c_path: Path, cc: str) -> Path:
+    """Compile c_path into the cache (atomically) unless already there; return the .so."""
+    out = _cache_path(c_path, cc)
     if out.exists():
         return out
     out.parent.mkdir(parents=True, exist_ok=True)
