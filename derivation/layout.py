@@ -98,8 +98,10 @@ CONTROLLER_PARAMS = [
       for k in range(1, 5)],
     Entry("tau_young", 0.2, "-", "Young-inequality weight τ of eqs (24), (36)-(49), Table 1"),
     Entry("mf_width", 0.6, "-", "Gaussian membership width on normalized inputs, Table 1's φ"),
-    *[Entry(f"mf_centre_{m}", v, "-", f"centre of membership {m} on normalized inputs")
-      for m, v in zip(range(1, N_MF + 1), (-1.0, 0.0, 1.0), strict=True)],
+    # centres evenly spread on [-1, 1] (for N_MF = 3: -1, 0, 1)
+    *[Entry(f"mf_centre_{m}", -1.0 + 2.0 * (m - 1) / (N_MF - 1), "-",
+            f"centre of membership {m} on normalized inputs")
+      for m in range(1, N_MF + 1)],
     *[Entry(f"x_offset_{k}", v, "-", f"normalization offset of x̂{k}: z = (x̂ - offset)/scale")
       for k, v in zip(range(1, 5), (1.26711, 0.0, 0.0, 0.0), strict=True)],
     *[Entry(f"x_scale_{k}", v, "-", f"normalization scale of x̂{k}")
