@@ -80,7 +80,39 @@ class Translator:
             return b ** self(ex)
         if isinstance(e, sp.exp):
             return ca.exp(self(e.args[0]))
+        if e is sp.pi:
+            return ca.SX(float(sp.pi))
+        if isinstance(e, sp.Min):
+            return self._fold(ca.fmin, e.args)
+        if isinstance(e, sp.Max):
+            return self._fold(ca.fmax, e.args)
+        if isinstance(e, sp.Piecewise):
+            out = None
+            for val, cond in reversed(e.args):
+                if cond is sp.true:
+                    out = self(val)
+                else:
+                    if out is None:
+                        raise NotImplementedError(f"Piecewise without a default: {e}")
+                    out = ca.if_else(self(cond), self(val), out)
+            return out
+        if isinstance(e, sp.And):
+            return self._fold(ca.logic_and, e.args)
+        if isinstance(e, sp.Or):
+            return self._fold(ca.logic_or, e.args)
+        rel = {sp.GreaterThan: ca.ge, sp.StrictGreaterThan: ca.gt,
+               sp.LessThan: ca.le, sp.StrictLessThan: ca.lt}
+        for cls, fn in rel.items():
+            if isinstance(e, cls):
+                return fn(self(e.lhs), self(e.rhs))
         raise NotImplementedError(f"cannot translate {type(e).__name__}: {e}")
+
+
+    def _fold(self, fn, args):
+        out = self(args[0])
+        for a in args[1:]:
+            out = fn(out, self(a))
+        return out
 
 
 class FuzzyEvaluator:

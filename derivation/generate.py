@@ -30,7 +30,7 @@ import sympy as sp
 
 from derivation import backstepping as bs
 from derivation import layout as lay
-from derivation import lyapunov, observer, plant
+from derivation import lyapunov, observer, plant, turbine
 from derivation.casadi_build import FuzzyEvaluator, Translator
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -240,6 +240,43 @@ def build_lyapunov(S: Symbols) -> list[ca.Function]:
     return [lyap, bound, lyap_P]
 
 
+def build_turbine() -> list[ca.Function]:
+    """The simulator plants of derivation/turbine.py, with cp as an input."""
+    x_p = _vec("x_plant", len(lay.PLANT_STATES))
+    x_n = _vec("x_plant", len(lay.NREL_STATES))
+    p_t = _vec("p_turbine", len(lay.TURBINE_PARAMS))
+    af = _vec("actuator_faults", len(lay.ACTUATOR_FAULTS))
+    sf = _vec("sensor_faults", len(lay.SENSOR_FAULTS))
+    v = _vec("v", lay.N_BLADES)
+    wind, cp = ca.SX.sym("wind"), ca.SX.sym("cp")
+    common = {**_named(p_t, lay.TURBINE_PARAMS), **_named(af, lay.ACTUATOR_FAULTS),
+              **_named(sf, lay.SENSOR_FAULTS), "wind": wind, "cp": cp,
+              **{f"v_{j + 1}": v[j] for j in range(lay.N_BLADES)}}
+    out = []
+    for name, x, entries, rhs, loaded in (
+            ("turbine_paper", x_p, lay.PLANT_STATES, turbine.paper_rhs, False),
+            ("turbine_nrel5mw", x_n, lay.NREL_STATES, turbine.nrel5mw_rhs, True)):
+        tr = Translator({**common, **_named(x, entries)})
+        t_gen = tr(turbine.generator_torque()) if loaded else ca.SX(0.0)
+        outs = {
+            "x_plant_dot": ca.vertcat(*[tr(e) for e in rhs()]),
+            "T_aero": tr(turbine.aero_torque()),
+            "T_gen": t_gen,
+            "P_gen": t_gen * x[2],
+            "beta_meas": ca.vertcat(*[tr(e) for e in turbine.measured_pitch()]),
+        }
+        out.append(_function(name, {"x_plant": x, "v": v, "wind": wind, "cp": cp,
+                                    "actuator_faults": af, "sensor_faults": sf,
+                                    "p_turbine": p_t}, outs))
+    # (λ, β̄) at which the runtime evaluates Cp; the same for both plants (first 6 states)
+    tr = Translator({**common, **_named(x_p, lay.PLANT_STATES)})
+    out.append(_function("aero_operating_point",
+                         {"x_plant": x_p, "wind": wind, "p_turbine": p_t},
+                         {"tsr": tr(turbine.tip_speed_ratio()),
+                          "beta_mean": tr(turbine.mean_pitch())}))
+    return out
+
+
 def groups() -> list[Group]:
     S = Symbols()
     plant_fns = build_plant(S)
@@ -249,6 +286,7 @@ def groups() -> list[Group]:
         Group("plant", ["derivation/plant.py"], plant_fns),
         Group("controller", ["derivation/backstepping.py", "derivation/observer.py",
                              "derivation/fuzzy.py"], ctrl_fns),
+        Group("turbine", ["derivation/turbine.py", "derivation/plant.py"], build_turbine()),
         Group("closed_loop", ["derivation/plant.py", "derivation/backstepping.py",
                               "derivation/observer.py", "derivation/fuzzy.py"], [closed]),
         Group("lyapunov", ["derivation/lyapunov.py", "derivation/backstepping.py",

@@ -121,6 +121,51 @@ CONTROLLER_PARAMS = [
       for j in range(1, N_BLADES + 1)],
 ]
 
+# --- simulator plants (derivation/turbine.py) ---
+_T_RATED_LSS = 43_093.55 * 97.0  # rated generator torque 43,093.55 N m (HSS) × 97
+NREL_STATES = [
+    *PLANT_STATES[:3],
+    *[Entry(f"beta_{j}", 0.0, "rad", f"pitch angle of blade {j}") for j in range(1, N_BLADES + 1)],
+    *[Entry(f"beta_rate_{j}", 0.0, "rad/s", f"pitch rate of blade {j}")
+      for j in range(1, N_BLADES + 1)],
+]
+TURBINE_PARAMS = [
+    *PLANT_PARAMS,
+    Entry("air_density", 1.225, "kg/m^3", "air density (Jonkman 2009)"),
+    Entry("rotor_radius", 63.0, "m", "tip radius (Jonkman 2009)"),
+    Entry("gearbox_ratio", 97.0, "-", "gearbox ratio (Jonkman 2009)"),
+    Entry("gen_torque_rated", _T_RATED_LSS, "N m",
+          "rated generator torque referred to the LSS: 43,093.55 N m × 97 (Jonkman 2009)"),
+    Entry("gen_constant_power", 0.0, "-",
+          "generator torque above rated: 0 constant torque, 1 constant power"),
+    Entry("omega_g_rated", 1.26711, "rad/s",
+          "rated generator speed referred to the LSS, 122.90967/97 (Jonkman 2009)"),
+    Entry("gen_efficiency", 0.944, "-", "generator efficiency (Jonkman 2009), outputs only"),
+    Entry("omega_n_nominal", 11.11, "rad/s", "pitch actuator natural frequency (Odgaard 2013)"),
+    Entry("zeta_nominal", 0.6, "-", "pitch actuator damping ratio (Odgaard 2013)"),
+    Entry("pitch_min", 0.0, "rad", "blade pitch lower limit, 0° (Jonkman 2009)"),
+    Entry("pitch_max", 1.5707963267948966, "rad", "blade pitch upper limit, 90°"),
+    Entry("pitch_rate_max", 0.13962634015954636, "rad/s",
+          "blade pitch rate limit, 8°/s (Jonkman 2009; ROSCO's default is 10°/s)"),
+]
+ACTUATOR_FAULTS = [
+    *FAULT_INPUTS,
+    *[Entry(f"omega_n_{j}", 11.11, "rad/s",
+            f"actuator {j} natural frequency: 11.11 nominal, 5.73 hydraulic pressure drop, "
+            "3.42 high air content in oil (Odgaard 2013)") for j in range(1, N_BLADES + 1)],
+    *[Entry(f"zeta_{j}", 0.6, "-",
+            f"actuator {j} damping: 0.6 nominal, 0.45 pressure drop, 0.9 air in oil")
+      for j in range(1, N_BLADES + 1)],
+]
+SENSOR_FAULTS = [
+    *[Entry(f"sensor_gain_{j}", 1.0, "-", f"pitch sensor {j} gain (fault: ≠ 1)")
+      for j in range(1, N_BLADES + 1)],
+    *[Entry(f"sensor_fixed_{j}", 0.0, "-", f"pitch sensor {j} stuck (1) at sensor_value")
+      for j in range(1, N_BLADES + 1)],
+    *[Entry(f"sensor_value_{j}", 0.0, "rad", f"pitch sensor {j} fixed value")
+      for j in range(1, N_BLADES + 1)],
+]
+
 #: the reference y_d and its first four derivatives, eqs (26), (37), (43), (49)
 REFERENCE = [Entry(f"yd_{m}", 1.27 if m == 0 else 0.0, f"rad/s^{m + 1}" if m else "rad/s",
                    f"y_d^({m}), the rotor-speed reference and its derivative {m}")
@@ -148,6 +193,10 @@ def as_json() -> dict:
         "controller_params": CONTROLLER_PARAMS,
         "reference": REFERENCE,
         "theta_star": THETA_STAR,
+        "nrel5mw_states": NREL_STATES,
+        "turbine_params": TURBINE_PARAMS,
+        "actuator_faults": ACTUATOR_FAULTS,
+        "sensor_faults": SENSOR_FAULTS,
     }
     out: dict = {
         "n_mf": N_MF,

@@ -13,7 +13,7 @@ import numpy as np
 import sympy as sp
 
 from derivation import backstepping as bs
-from derivation import fuzzy, lyapunov, observer, plant
+from derivation import fuzzy, lyapunov, observer, plant, turbine
 from derivation import layout as dlay
 
 X_OFFSET = sp.symbols("x_offset_1:5", real=True)
@@ -233,8 +233,36 @@ def observer_lyapunov_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]
             "routh": pair("routh", observer.routh_hurwitz(), vals)}
 
 
+def turbine_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
+    entries = {"x_plant": dlay.NREL_STATES if name == "turbine_nrel5mw" else dlay.PLANT_STATES,
+               "p_turbine": dlay.TURBINE_PARAMS, "actuator_faults": dlay.ACTUATOR_FAULTS,
+               "sensor_faults": dlay.SENSOR_FAULTS}
+    vals: dict[str, float] = {}
+    for key, val in args.items():
+        flat = np.asarray(val, dtype=float).reshape(-1, order="F")
+        if key in entries:
+            vals.update({e.name: float(x) for e, x in zip(entries[key], flat, strict=True)})
+        elif key == "v":
+            vals.update({f"v_{j + 1}": float(x) for j, x in enumerate(flat)})
+        else:
+            vals[key] = float(flat[0])
+    if name == "aero_operating_point":
+        return {"tsr": pair("tsr", [turbine.tip_speed_ratio()], vals),
+                "beta_mean": pair("bmean", [turbine.mean_pitch()], vals)}
+    loaded = name == "turbine_nrel5mw"
+    rhs = turbine.nrel5mw_rhs() if loaded else turbine.paper_rhs()
+    t_gen = turbine.generator_torque() if loaded else sp.S.Zero
+    return {"x_plant_dot": pair(name, rhs, vals),
+            "T_aero": pair("taero", [turbine.aero_torque()], vals),
+            "T_gen": pair(f"tgen{loaded}", [t_gen], vals),
+            "P_gen": pair(f"pgen{loaded}", [t_gen * turbine.omega_g], vals),
+            "beta_meas": pair("bmeas", turbine.measured_pitch(), vals)}
+
+
 def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     """SymPy reference (value, scale) of each output of generated function ``name``."""
+    if name.startswith("turbine_") or name == "aero_operating_point":
+        return turbine_reference(name, args)
     if name == "lyapunov":
         return lyapunov_reference(args)
     if name == "lyapunov_bound":

@@ -13,7 +13,8 @@ import numpy as np
 from wtftc.generated import layout_json
 
 GROUPS = ("plant_states", "controller_states", "plant_params", "fault_inputs",
-          "controller_params", "reference", "theta_star")
+          "controller_params", "reference", "theta_star", "nrel5mw_states", "turbine_params",
+          "actuator_faults", "sensor_faults")
 
 
 @cache

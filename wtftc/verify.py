@@ -23,6 +23,7 @@ from wtftc.generated import layout_json, load
 #: input name → layout group whose defaults centre the random values
 _GROUP_OF_INPUT = {
     "x_plant": "plant_states", "x_ctrl": "controller_states", "p_plant": "plant_params",
+    "p_turbine": "turbine_params",
     "p_ctrl": "controller_params", "fault": "fault_inputs", "yd": "reference",
     "theta_star": "theta_star",
 }
@@ -38,6 +39,7 @@ def random_inputs(name: str, rng: np.random.Generator,
     z_k = (x̂_k - offset_k)/scale_k uniform in [-z_span, z_span].
     """
     sig = layout_json()["functions"][name]
+    special = _turbine_inputs(rng)
     pc = lay.defaults("controller_params")
     offsets = np.array([pc[lay.index("controller_params", f"x_offset_{k}")] for k in range(1, 5)])
     scales = np.array([pc[lay.index("controller_params", f"x_scale_{k}")] for k in range(1, 5)])
@@ -46,7 +48,9 @@ def random_inputs(name: str, rng: np.random.Generator,
     for inp in sig["inputs"]:
         n, shape = inp["name"], tuple(inp["shape"])
         size = int(np.prod(shape))
-        if n in ("p_plant", "p_ctrl", "fault"):
+        if n in special and special[n].size == size:
+            val = special[n]
+        elif n in ("p_plant", "p_ctrl", "fault", "p_turbine"):
             base = lay.defaults(_GROUP_OF_INPUT[n])
             val = base * (1 + 0.1 * rng.uniform(-1, 1, base.size))
         elif n in _GROUP_OF_INPUT or n == "z":
@@ -68,6 +72,23 @@ def random_inputs(name: str, rng: np.random.Generator,
             val = 0.5 * rng.standard_normal(size)
         out[n] = np.asarray(val, dtype=float).reshape(shape, order="F")
     return out
+
+
+def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
+    """Plant inputs that cross the actuator limits and exercise every fault."""
+    n = lay.layout()["n_blades"]
+    return {
+        "x_plant": np.concatenate([  # nrel5mw: ω_r, θ_s, ω_g, β_j (beyond 0..90°), β̇_j
+            [rng.uniform(0.8, 1.6), rng.uniform(-0.01, 0.01), rng.uniform(0.8, 1.6)],
+            rng.uniform(-0.1, 1.7, n), rng.uniform(-0.25, 0.25, n)]),
+        "wind": np.array([rng.uniform(3.0, 25.0)]),
+        "cp": np.array([rng.uniform(-0.1, 0.5)]),
+        "actuator_faults": np.concatenate([
+            rng.uniform(0.3, 1.0, n), rng.uniform(0, 1, n), rng.uniform(0, 0.5, n),
+            rng.uniform(3.0, 12.0, n), rng.uniform(0.4, 1.0, n)]),
+        "sensor_faults": np.concatenate([
+            rng.uniform(0.8, 1.2, n), rng.uniform(0, 1, n), rng.uniform(0, 0.5, n)]),
+    }
 
 
 def _evaluate(f, args: dict) -> dict[str, np.ndarray]:

@@ -1,0 +1,147 @@
+"""Turbine plants for the closed-loop simulator, in SymPy.
+
+Two plants share one interface (states, blade commands v_j, hub-height wind, the power
+coefficient cp evaluated by the runtime's Cp(λ, β) interpolant, per-blade faults):
+
+* ``paper``   eqs (1)-(4) exactly as printed, d1 = T_aero / J_r, no generator torque.
+              Unloaded (DESIGN.md item 3): its only steady state has T_aero = 0. Kept to
+              reproduce the paper. Eq (4) per blade, with eq (19) faults.
+* ``nrel5mw`` two-mass drivetrain referred to the low-speed shaft (eqs 1-3 plus the
+              generator torque -T_g/J_g that eq (3) lacks), generator torque above rated
+              (constant torque or constant power), and three second-order blade pitch
+              actuators (Odgaard et al. 2013 benchmark) with position and rate limits.
+
+The aerodynamic torque T_aero = ½ ρ π R² v³ Cp(λ, β̄) / ω_r with λ = ω_r R / v and
+β̄ the mean blade pitch (rigid rotor, uniform inflow); Cp comes in as the input ``cp``.
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+
+from derivation import plant
+from derivation.layout import N_BLADES
+
+J = range(1, N_BLADES + 1)
+
+# --- inputs common to both plants ---
+wind = sp.Symbol("wind", positive=True)  # hub-height wind speed [m/s]
+cp = sp.Symbol("cp", real=True)  # power coefficient at (λ, β̄), from the interpolant
+v = plant.v  # blade pitch commands [rad]
+# per-blade actuator faults (time-varying inputs of the step)
+rho, lock, ubar = plant.rho, plant.lock, plant.ubar  # eq (19)
+omega_n = sp.symbols("omega_n_1:4", positive=True)  # actuator natural frequency [rad/s]
+zeta = sp.symbols("zeta_1:4", positive=True)  # actuator damping ratio [-]
+ACTUATOR_FAULTS = [*rho, *lock, *ubar, *omega_n, *zeta]
+# pitch sensor faults (Odgaard et al. 2013): fixed value or gain
+sensor_gain = sp.symbols("sensor_gain_1:4", real=True)
+sensor_fixed = sp.symbols("sensor_fixed_1:4", real=True)  # 1 = stuck at the fixed value
+sensor_value = sp.symbols("sensor_value_1:4", real=True)  # [rad]
+SENSOR_FAULTS = [*sensor_gain, *sensor_fixed, *sensor_value]
+
+# --- parameters ---
+air_density = sp.Symbol("air_density", positive=True)  # [kg/m^3]
+rotor_radius = sp.Symbol("rotor_radius", positive=True)  # [m]
+gearbox_ratio = sp.Symbol("gearbox_ratio", positive=True)  # [-]
+gen_torque_rated = sp.Symbol("gen_torque_rated", positive=True)  # LSS [N m]
+gen_constant_power = sp.Symbol("gen_constant_power", real=True)  # 0 torque, 1 power
+omega_n0 = sp.Symbol("omega_n_nominal", positive=True)  # nominal actuator [rad/s]
+zeta0 = sp.Symbol("zeta_nominal", positive=True)
+pitch_min = sp.Symbol("pitch_min", real=True)  # [rad]
+pitch_max = sp.Symbol("pitch_max", real=True)  # [rad]
+pitch_rate_max = sp.Symbol("pitch_rate_max", positive=True)  # [rad/s]
+omega_g_rated = sp.Symbol("omega_g_rated", positive=True)  # LSS-referred [rad/s]
+
+# --- states ---
+beta = plant.beta
+beta_rate = sp.symbols("beta_rate_1:4", real=True)  # blade pitch rates [rad/s]
+omega_r, theta_s, omega_g = plant.omega_r, plant.theta_s, plant.omega_g
+
+PAPER_STATES = [omega_r, theta_s, omega_g, *beta]
+NREL_STATES = [omega_r, theta_s, omega_g, *beta, *beta_rate]
+
+
+def tip_speed_ratio() -> sp.Expr:
+    """λ = ω_r R / v."""
+    return omega_r * rotor_radius / wind
+
+
+def mean_pitch() -> sp.Expr:
+    """β̄: the effective pitch of a rigid rotor, the mean of the blades (x4 of eq 8)."""
+    return sum(beta) / N_BLADES
+
+
+def aero_torque() -> sp.Expr:
+    """T_aero = P_aero / ω_r = ½ ρ π R² v³ Cp / ω_r."""
+    return air_density * sp.pi * rotor_radius**2 * wind**3 * cp / (2 * omega_r)
+
+
+def generator_torque() -> sp.Expr:
+    """T_g above rated on the LSS: constant torque, or constant power P = T_rated ω_rated."""
+    const_power = gen_torque_rated * omega_g_rated / omega_g
+    return (1 - gen_constant_power) * gen_torque_rated + gen_constant_power * const_power
+
+
+def commanded_input(j: int) -> sp.Expr:
+    """Eq (19) on blade j's command, then clipped to the actuator's position range."""
+    u = plant.actuator_input(v[j], rho[j], lock[j], ubar[j])
+    return sp.Min(sp.Max(u, pitch_min), pitch_max)
+
+
+def paper_rhs() -> list[sp.Expr]:
+    """Eqs (1)-(4) as printed, d1 = T_aero/J_r; eq (4)'s τ_b scaled per blade by a fault.
+
+    A hydraulic fault changes blade j's time constant to τ_b · (2ζ_j/ω_n,j)/(2ζ_0/ω_n,0):
+    the first-order equivalent of the benchmark's second-order change.
+    """
+    rhs = plant.paper_rhs()
+    d1 = aero_torque() / plant.J_r
+    out = [e.subs(plant.d1, d1) for e in rhs[:3]]
+    for j in range(N_BLADES):
+        tau_j = plant.tau_b * (2 * zeta[j] / omega_n[j]) / (2 * zeta0 / omega_n0)
+        out.append((commanded_input(j) - beta[j]) / tau_j)  # (4)
+    return out
+
+
+def nrel5mw_rhs() -> list[sp.Expr]:
+    """Two-mass drivetrain on the LSS with generator torque, and 2nd-order actuators.
+
+    J_r ω̇_r = T_aero - k_s θ_s - d_s (ω_r - ω_g)          (eq 1, F ω_r = T_aero/J_r)
+    θ̇_s = ω_r - ω_g                                          (eq 2)
+    J_g ω̇_g = k_s θ_s + d_s (ω_r - ω_g) - T_g                (eq 3 + the missing -T_g)
+    β̈_j = ω_n,j² (u_j - β_j) - 2 ζ_j ω_n,j β̇_j               (Odgaard et al. 2013)
+
+    with u_j eq (19) clipped to [pitch_min, pitch_max]; the blade rate is held within
+    ±pitch_rate_max (the rate state stops growing outward at the limit) and the blade
+    stops at the position limits.
+    """
+    J_r, J_g, k_s, d_s = plant.J_r, plant.J_g, plant.k_s, plant.d_s
+    out = [
+        (aero_torque() - k_s * theta_s - d_s * (omega_r - omega_g)) / J_r,
+        omega_r - omega_g,
+        (k_s * theta_s + d_s * (omega_r - omega_g) - generator_torque()) / J_g,
+    ]
+    rates, accels = [], []
+    for j in range(N_BLADES):
+        w = beta_rate[j]
+        rate = sp.Min(sp.Max(w, -pitch_rate_max), pitch_rate_max)
+        # at a position limit the blade does not move further out
+        rate = sp.Piecewise((0, sp.And(beta[j] >= pitch_max, rate > 0)),
+                            (0, sp.And(beta[j] <= pitch_min, rate < 0)), (rate, True))
+        acc = omega_n[j] ** 2 * (commanded_input(j) - beta[j]) - 2 * zeta[j] * omega_n[j] * w
+        acc = sp.Piecewise((0, sp.And(w >= pitch_rate_max, acc > 0)),
+                           (0, sp.And(w <= -pitch_rate_max, acc < 0)), (acc, True))
+        rates.append(rate)
+        accels.append(acc)
+    return out + rates + accels
+
+
+def measured_pitch() -> list[sp.Expr]:
+    """Pitch sensors: gain fault g_j β_j, or stuck at a fixed value (benchmark faults)."""
+    return [(1 - sensor_fixed[j]) * sensor_gain[j] * beta[j] + sensor_fixed[j] * sensor_value[j]
+            for j in range(N_BLADES)]
+
+
+def generator_power() -> sp.Expr:
+    """Mechanical power at the generator shaft, T_g ω_g (efficiency applied at the edge)."""
+    return generator_torque() * omega_g
