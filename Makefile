@@ -4,10 +4,11 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: help setup regenerate check-generated test lint run clean
+.PHONY: help setup regenerate check-generated test lint run verify clean
 
 help:
-	@echo "make run              set up, check generated/, verify the generated controller code"
+	@echo "make run              set up, then the paper's three cases on both plants into results/"
+	@echo "make verify           set up, check generated/, verify the generated controller code"
 	@echo "make test             set up, run the whole test suite"
 	@echo "make regenerate       rebuild generated/ from derivation/ (SymPy -> CasADi)"
 	@echo "make check-generated  fail with a diff if generated/ is stale"
@@ -34,8 +35,11 @@ test: setup
 lint: setup
 	$(VENV)/bin/ruff check .
 
-run: setup check-generated
+run: setup
+	$(VENV)/bin/wtftc cases --out results
+
+verify: setup check-generated
 	$(VENV)/bin/wtftc verify --out out/verify
 
 clean:
-	rm -rf out .pytest_cache .ruff_cache
+	rm -rf out results .pytest_cache .ruff_cache

@@ -1,5 +1,7 @@
 """The ``wtftc`` command line.
 
+    wtftc cases [--out DIR]      the paper's three cases on both plants: figures, metrics table
+    wtftc run [options]          one run: traces (CSV, Parquet), metrics.json, config.toml
     wtftc verify [--out DIR]     check, compile and verify the generated controller code
     wtftc functions              list the generated functions, their inputs and sizes
 """
@@ -10,6 +12,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from wtftc.errors import ConfigError
 from wtftc.generated import GeneratedArtefactError
 
 
@@ -65,7 +68,82 @@ def build_parser() -> argparse.ArgumentParser:
     v.add_argument("--seed", type=_nonnegative_int, default=0,
                    help="random seed, an integer >= 0 (default: 0)")
     sub.add_parser("functions", help="list the generated functions with inputs, outputs, size")
+
+    r = sub.add_parser(
+        "run", help="simulate one case: traces, metrics and a config you can re-run",
+        description="Simulate one closed-loop run with fixed-step RK4. Options override the "
+                    "TOML --config file, which overrides the defaults (case 1, nrel5mw, the "
+                    "paper's controller with the corrected sign, the paper's random wind "
+                    "around 12 m/s, 60 s at dt = 1 ms). Writes traces.csv (units in the "
+                    "header), traces.parquet, metrics.json and config.toml into --out.",
+        epilog="Example: wtftc run --case 3 --plant nrel5mw --wind ntm --wind-mean 16 "
+               "--t-final 120 --out out/ntm16. Config file keys: case, plant, controller, "
+               "t_final_s, dt_s, seed, output_rate_hz, control_sign, reference_rad_s, "
+               "cp_table, label, [wind] (kind = constant | steps | paper_random | ntm | eog | "
+               "file, ...), [[fault]] (blade, type, onset_s, ...), [controller_params], "
+               "[turbine_params], [initial]. See docs/running.md.")
+    r.add_argument("--config", type=Path, help="TOML configuration file")
+    r.add_argument("--case", type=int, choices=(1, 2, 3),
+                   help="1 no fault, 2 fault with the controller unaware, 3 fault known to "
+                        "eq (49)")
+    r.add_argument("--plant", help="nrel5mw (default) or paper (eqs 1-4, unloaded)")
+    r.add_argument("--controller", help="paper (default)")
+    r.add_argument("--wind", help="wind kind: constant, steps, paper_random, ntm, eog, file")
+    r.add_argument("--wind-mean", type=float, help="mean/constant wind speed [m/s]")
+    r.add_argument("--wind-file", type=Path, help="OpenFAST .hh/.wnd or CSV (time_s, speed_mps)")
+    r.add_argument("--fault", choices=("default", "none"),
+                   help="default: blade 1 locked, blades 2-3 ρ = 0.5 from 20 s (cases 2, 3)")
+    r.add_argument("--t-final", type=float, help="simulated time [s] (default 60)")
+    r.add_argument("--dt", type=float, help="RK4 step [s] (default 0.001)")
+    r.add_argument("--seed", type=_nonnegative_int, help="random seed (default 0)")
+    r.add_argument("--sign", type=int, choices=(-1, 1),
+                   help="control sign: -1 corrected (default), +1 as written (diverges)")
+    r.add_argument("--out", type=Path, default=Path("out/run"), help="output folder")
+    r.add_argument("--quiet", action="store_true", help="no progress bar")
+
+    c = sub.add_parser(
+        "cases", help="the paper's three cases on both plants, figures and a metrics table",
+        description="Runs cases 1-3 on nrel5mw and on the paper's plant (plus case 1 with the "
+                    "control sign as written), writes each run's traces and metrics, the "
+                    "counterparts of the paper's Figs. 2-10, a comparison figure, V(t), and "
+                    "metrics.md / metrics.csv into --out.")
+    c.add_argument("--out", type=Path, default=Path("results"), help="output folder")
+    c.add_argument("--t-final", type=float, help="simulated time per run [s] (default 60)")
+    c.add_argument("--dt", type=float, help="RK4 step [s] (default 0.001)")
+    c.add_argument("--seed", type=_nonnegative_int, help="random seed (default 0)")
+    c.add_argument("--plant", action="append", choices=("nrel5mw", "paper"),
+                   help="restrict to one plant (repeatable)")
+    c.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
+
+
+def _run_overrides(args) -> dict:
+    from wtftc.cases import load_toml
+
+    cfg = load_toml(args.config) if getattr(args, "config", None) else {}
+    simple = {"case": "case", "plant": "plant", "controller": "controller",
+              "t_final": "t_final_s", "dt": "dt_s", "seed": "seed", "sign": "control_sign"}
+    for attr, key in simple.items():
+        val = getattr(args, attr, None)
+        if val is not None:
+            cfg[key] = val
+    wind = dict(cfg.get("wind", {})) if isinstance(cfg.get("wind"), dict) else cfg.get("wind")
+    if getattr(args, "wind", None) or getattr(args, "wind_mean", None) is not None \
+            or getattr(args, "wind_file", None):
+        wind = {} if not isinstance(wind, dict) else wind
+        if args.wind:
+            wind = {"kind": args.wind}
+        if args.wind_file:
+            wind.setdefault("kind", "file")
+            wind["path"] = str(args.wind_file)
+        if args.wind_mean is not None:
+            kind = wind.get("kind", "paper_random")
+            wind.setdefault("kind", kind)
+            wind["speed_mps" if kind in ("constant", "steps") else "mean_mps"] = args.wind_mean
+        cfg["wind"] = wind
+    if getattr(args, "fault", None) == "none":
+        cfg["fault"] = []
+    return cfg
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -86,6 +164,36 @@ def main(argv: list[str] | None = None) -> int:
             print(to_markdown(summary))
             print(f"written: {args.out}/summary.json, summary.md, alpha_dot_fd.png")
             return 0
+        if args.command == "run":
+            from wtftc import cases
+            from wtftc.io import ensure_writable_dir
+
+            rc = cases.make_config(_run_overrides(args))
+            ensure_writable_dir(args.out, "--out")
+            print(f"{rc.label}: case {rc.case} ({cases.CASES[rc.case]}) on {rc.plant}, "
+                  f"{rc.t_final:g} s at dt = {rc.dt:g} s")
+            res = cases.run(rc, progress=not args.quiet)
+            m = cases.metrics(rc, res)
+            paths = cases.write_outputs(args.out, rc, res, m)
+            print(cases.write_table(args.out, [m]))
+            if res.diverged:
+                print(f"DIVERGED at t = {res.diverged['t_s']:.4f} s: {res.diverged['reason']}")
+            print("written: " + ", ".join(str(p) for p in paths))
+            return 3 if res.diverged else 0
+        if args.command == "cases":
+            from wtftc import cases
+            from wtftc.io import ensure_writable_dir
+
+            over = _run_overrides(args)
+            plants = tuple(args.plant) if args.plant else ("nrel5mw", "paper")
+            cases.make_config({**over, "plant": plants[0]})  # validate before any work
+            ensure_writable_dir(args.out, "--out")
+            rows = cases.run_cases(args.out, plants, over, progress=not args.quiet)
+            print()
+            print(cases.write_table(args.out, rows))
+            print(f"written under {args.out}/: metrics.md, metrics.csv, <plant>/case<N>/, "
+                  "<plant>/figures/")
+            return 0
         if args.command == "functions":
             from wtftc.generated import layout_json
 
@@ -95,6 +203,9 @@ def main(argv: list[str] | None = None) -> int:
                 outs = ", ".join(o["name"] for o in f["outputs"])
                 print(f"{name}({ins}) -> ({outs})  {f['operations']} ops")
             return 0
+    except ConfigError as exc:
+        print(f"wtftc: error: {exc}", file=sys.stderr)
+        return 2
     except GeneratedArtefactError as exc:
         print(f"wtftc: error: {exc}", file=sys.stderr)
         return 1

@@ -64,3 +64,24 @@ def ensure_writable_dir(path: Path, option: str = "--out") -> Path:
     except OSError as exc:
         raise ValueError(f"{option} {path}: cannot write there ({exc.strerror})") from None
     return path
+
+
+def write_parquet(path: Path, columns: dict, units: dict) -> None:
+    """A Parquet table (pyarrow), units in each field's metadata and in the schema's."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    fields = [pa.field(n, pa.float64(), metadata={"unit": units[n]}) for n in columns]
+    schema = pa.schema(fields, metadata={"units": json.dumps(units)})
+    table = pa.table({n: pa.array(v, pa.float64()) for n, v in columns.items()}, schema=schema)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    os.close(fd)
+    try:
+        pq.write_table(table, tmp)
+        os.chmod(tmp, _umask_mode())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)

@@ -1,0 +1,126 @@
+"""The closed-loop simulator: integrator order, determinism, regulation, faults, signs."""
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from wtftc import cases
+from wtftc import layout as lay
+from wtftc import simulate as sim
+
+WIND_14 = {"kind": "constant", "speed_mps": 14.0}
+
+
+def _run(**over):
+    rc = cases.make_config({"t_final_s": 30.0, "wind": WIND_14, **over})
+    res = cases.run(rc, progress=False)
+    return rc, res, cases.metrics(rc, res)
+
+
+def test_rk4_converges_with_order_4_against_dop853():
+    """The simulator's RK4 step and mapaccum chunks on a smooth closed loop (the paper's
+    plant, observer and controller with d1(t) exogenous) against SciPy DOP853 at rtol 1e-12.
+
+    On the NREL 5-MW loop the paper's gains keep the blades on the 8°/s rate limit (a
+    relay-like limit cycle, docs/cases.md): that vector field is not smooth and no
+    fixed-step method shows order 4 there, so the order is measured where it exists.
+    """
+    from wtftc.generated import load
+    from wtftc.verify import Signals, initial_state
+
+    f = load("closed_loop_paper")
+    sig = Signals()
+    args = [sig.yd(0.0), lay.defaults("fault_inputs"), lay.defaults("plant_params"),
+            lay.defaults("controller_params")]
+    args[0][1:] = 0.0  # constant reference: the step holds it over each step
+    z0 = initial_state()
+    t_end = 1.0
+
+    def rhs(t, z):
+        return np.array(f(z, sig.d1(t), *args)[0]).ravel()
+
+    ref = solve_ivp(rhs, (0, t_end), z0, method="DOP853", rtol=1e-12, atol=1e-12).y[:, -1]
+    # below dt ≈ 1e-3 the observer/controller's fast modes are resolved (asymptotic range)
+    dts = np.array([1e-3, 5e-4, 2.5e-4, 1.25e-4])
+    errors = []
+    for dt in dts:
+        n = int(round(t_end / dt))
+        chunk = sim.rk4_step(f).mapaccum("chunk", n)
+        tk = np.arange(n) * dt
+        d3 = np.vstack([sig.d1(tk), sig.d1(tk + dt / 2), sig.d1(tk + dt)])
+        z_end = np.array(chunk(z0, d3, *args, dt)[0])[:, -1]
+        errors.append(np.max(np.abs(z_end - ref) / (np.abs(ref) + 1e-3)))
+    slope = np.polyfit(np.log(dts), np.log(errors), 1)[0]
+    assert 3.8 < slope < 4.2, (errors, slope)
+    assert errors[-1] < 1e-6
+
+
+def test_same_seed_same_numbers_and_seed_matters():
+    over = {"wind": {"kind": "paper_random"}, "t_final_s": 10.0}
+    a = _run(seed=3, **over)[1]
+    b = _run(seed=3, **over)[1]
+    c = _run(seed=4, **over)[1]
+    assert np.array_equal(a.outputs, b.outputs)
+    assert not np.array_equal(a.column("wind"), c.column("wind"))
+
+
+def test_case1_nrel5mw_regulates_rotor_speed():
+    """Corrected sign, IEC NTM class B at 16 m/s (above rated throughout): RMS error within
+    1 % of rated (the settling band) and no excursion beyond 3 %. Measured: 0.60 % and
+    2.1 %. The paper's random wind around 12 m/s dips below rated 11.4 m/s, where no pitch
+    controller can hold the speed (pitch at 0°, constant-torque generator): that run is
+    reported (docs/cases.md), not bounded here."""
+    rc, res, m = _run(wind={"kind": "ntm", "mean_mps": 16.0, "turbulence_class": "B"},
+                      t_final_s=60.0)
+    assert m["diverged"] is None
+    assert m["rms_speed_error_rad_s"] < 0.01 * rc.reference
+    assert m["max_abs_speed_error_rad_s"] < 0.03 * rc.reference
+    assert m["overspeed_peak_over_rated"] < 1.03
+
+
+def test_case3_is_not_worse_than_case2():
+    """The paper's setting (random wind around 12 m/s, default fault at 20 s), 40 s.
+
+    "Not worse" within 5 %: with the paper's gains the loop rides the rate limit and
+    absorbs the loss of effectiveness by itself, so eq (49)'s accommodation changes the
+    error by about 1 % either way (docs/cases.md gives the measured figures)."""
+    m2 = _run(case=2, t_final_s=40.0, wind={"kind": "paper_random"})[2]
+    m3 = _run(case=3, t_final_s=40.0, wind={"kind": "paper_random"})[2]
+    assert m2["diverged"] is None and m3["diverged"] is None
+    assert m3["rms_speed_error_after_fault_rad_s"] <= 1.05 * m2["rms_speed_error_after_fault_rad_s"]
+    assert m3["max_abs_speed_error_rad_s"] <= 1.05 * m2["max_abs_speed_error_rad_s"]
+
+
+def test_sign_as_written_is_reported_as_divergence():
+    rc, res, m = _run(control_sign=1, t_final_s=30.0)
+    assert m["diverged"] is not None, m["max_abs_speed_error_rad_s"]
+    assert 0 < m["diverged"]["t_s"] < 30.0
+    assert "last_finite_state" in m["diverged"] and m["diverged"]["reason"]
+    assert np.all(np.isfinite(res.outputs))  # nothing after the blow-up is reported
+
+
+def test_wind_step_up_raises_the_pitch():
+    wind = {"kind": "steps", "speed_mps": 14.0, "steps": [[10.0, 18.0]]}
+    rc, res, m = _run(wind=wind, t_final_s=25.0)
+    beta = np.degrees(np.mean([res.column(f"beta_{j}") for j in (1, 2, 3)], axis=0))
+    before = beta[(res.t > 8) & (res.t < 10)].mean()
+    after = beta[res.t > 22].mean()
+    assert after > before + 3.0  # the 18 m/s trim is about 7° above the 14 m/s one
+
+
+def test_default_fault_locks_blade_1_where_it_is():
+    rc, res, m = _run(case=2, t_final_s=30.0)
+    b1 = res.column("beta_1")
+    at_onset = b1[np.searchsorted(res.t, 20.0)]
+    np.testing.assert_allclose(b1[res.t > 25], at_onset, atol=np.radians(0.05))
+    locked = [f for f in m["config"]["fault_resolved"] if f["type"] == "lock"]
+    assert locked and locked[0]["angle_deg"] == pytest.approx(np.degrees(at_onset), abs=0.05)
+
+
+def test_too_large_dt_is_refused_with_the_reason():
+    rc = cases.make_config({"dt_s": 0.09, "t_final_s": 1.0, "wind": WIND_14,
+                            "controller_params": {"c": [60, 60, 60, 60]}})
+    from wtftc.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="RK4 is stable only"):
+        cases.run(rc, progress=False)

@@ -1,0 +1,191 @@
+"""Pitch faults per blade, scheduled in time (Odgaard, Stoustrup & Kinnaert 2013; eq 19).
+
+A fault configuration is a list of tables, each:
+
+    blade = 1            # 1..3
+    type = "lock"        # see FAULT_TYPES
+    onset_s = 20.0
+    end_s = 1e9          # optional: the fault disappears at end_s
+    ramp_s = 0.0         # 0: abrupt; > 0: linear transition over ramp_s at onset and end
+    # type-specific: rho (loss_of_effectiveness), angle_deg or "current" (lock),
+    #                value_deg (sensor_fixed), gain (sensor_gain)
+
+Types: eq (19) ``lock`` (lock-in-place at a given angle, or ``angle_deg = "current"``:
+wherever the blade is at onset) and ``loss_of_effectiveness`` (ρ); the benchmark's
+``pressure_drop`` (ω_n 5.73 rad/s, ζ 0.45) and ``air_in_oil`` (ω_n 3.42 rad/s, ζ 0.9);
+pitch sensor ``sensor_fixed`` and ``sensor_gain`` faults.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from wtftc import layout as lay
+from wtftc.errors import ConfigError
+
+#: actuator dynamics of the hydraulic faults (Odgaard et al. 2013): (ω_n rad/s, ζ)
+HYDRAULIC = {"pressure_drop": (5.73, 0.45), "air_in_oil": (3.42, 0.9)}
+FAULT_TYPES = ("lock", "loss_of_effectiveness", "pressure_drop", "air_in_oil",
+               "sensor_fixed", "sensor_gain")
+_KEYS = {"blade", "type", "onset_s", "end_s", "ramp_s", "rho", "angle_deg", "value_deg", "gain"}
+_TYPE_KEYS = {"lock": {"angle_deg"}, "loss_of_effectiveness": {"rho"}, "pressure_drop": set(),
+              "air_in_oil": set(), "sensor_fixed": {"value_deg"}, "sensor_gain": {"gain"}}
+
+
+@dataclass
+class Fault:
+    blade: int  # 1-based
+    type: str
+    onset_s: float
+    end_s: float = np.inf
+    ramp_s: float = 0.0
+    rho: float = 1.0
+    angle: float | None = None  # rad; None = wherever the blade is at onset
+    value: float = 0.0  # rad, sensor_fixed
+    gain: float = 1.0  # sensor_gain
+
+    def weight(self, t: np.ndarray) -> np.ndarray:
+        """0 before onset, 1 while active, linear over ramp_s at both ends."""
+        t = np.asarray(t, dtype=float)
+        if self.ramp_s > 0:
+            up = np.clip((t - self.onset_s) / self.ramp_s, 0.0, 1.0)
+            down = np.clip((self.end_s - t) / self.ramp_s, 0.0, 1.0)
+        else:
+            up = (t >= self.onset_s).astype(float)
+            down = (t < self.end_s).astype(float)
+        return np.minimum(up, down)
+
+    def describe(self) -> dict:
+        d = {"blade": self.blade, "type": self.type, "onset_s": self.onset_s,
+             "end_s": None if np.isinf(self.end_s) else self.end_s, "ramp_s": self.ramp_s}
+        if self.type == "loss_of_effectiveness":
+            d["rho"] = self.rho
+        if self.type == "lock":
+            d["angle_deg"] = "current" if self.angle is None else float(np.degrees(self.angle))
+        if self.type == "sensor_fixed":
+            d["value_deg"] = float(np.degrees(self.value))
+        if self.type == "sensor_gain":
+            d["gain"] = self.gain
+        return d
+
+
+def _num(tab: dict, key: str, where: str, default=None, lo=None, hi=None, lo_open=False):
+    val = tab.get(key, default)
+    if isinstance(val, bool) or not isinstance(val, int | float):
+        raise ConfigError(f"{where}.{key}", val, "a number")
+    val = float(val)
+    if not np.isfinite(val):
+        raise ConfigError(f"{where}.{key}", val, "a finite number")
+    if lo is not None and (val <= lo if lo_open else val < lo):
+        raise ConfigError(f"{where}.{key}", val, f"a number {'>' if lo_open else '>='} {lo}")
+    if hi is not None and val > hi:
+        raise ConfigError(f"{where}.{key}", val, f"a number <= {hi}")
+    return val
+
+
+def parse_faults(tables, where: str = "fault") -> list[Fault]:
+    """Validate a list of fault tables (as read from TOML) into :class:`Fault` objects."""
+    if tables is None:
+        return []
+    if isinstance(tables, dict):
+        tables = [tables]
+    if not isinstance(tables, list):
+        raise ConfigError(where, tables, "a list of fault tables")
+    n_blades = lay.layout()["n_blades"]
+    out = []
+    for k, tab in enumerate(tables):
+        w = f"{where}[{k}]"
+        if not isinstance(tab, dict):
+            raise ConfigError(w, tab, "a table with blade, type, onset_s, ...")
+        typ = tab.get("type")
+        if typ not in FAULT_TYPES:
+            raise ConfigError(f"{w}.type", typ, "one of " + ", ".join(FAULT_TYPES))
+        allowed = {"blade", "type", "onset_s", "end_s", "ramp_s"} | _TYPE_KEYS[typ]
+        for key in tab:
+            if key not in allowed:
+                raise ConfigError(f"{w}.{key}", tab[key],
+                                  f"a key of a {typ} fault: {', '.join(sorted(allowed))}")
+        blade = tab.get("blade")
+        if isinstance(blade, bool) or not isinstance(blade, int) or not 1 <= blade <= n_blades:
+            raise ConfigError(f"{w}.blade", blade, f"an integer 1..{n_blades}")
+        onset = _num(tab, "onset_s", w, 20.0, lo=0.0)
+        end = _num(tab, "end_s", w, np.inf, lo=onset, lo_open=True) if "end_s" in tab else np.inf
+        f = Fault(blade=blade, type=typ, onset_s=onset, end_s=end,
+                  ramp_s=_num(tab, "ramp_s", w, 0.0, lo=0.0))
+        if typ == "loss_of_effectiveness":
+            f.rho = _num(tab, "rho", w, 0.5, lo=0.0, hi=1.0, lo_open=True)
+        elif typ == "lock":
+            ang = tab.get("angle_deg", "current")
+            if ang != "current":
+                f.angle = np.radians(_num(tab, "angle_deg", w, lo=0.0, hi=90.0))
+        elif typ == "sensor_fixed":
+            f.value = np.radians(_num(tab, "value_deg", w, 0.0, lo=-90.0, hi=90.0))
+        elif typ == "sensor_gain":
+            f.gain = _num(tab, "gain", w, 1.2, lo=0.0, lo_open=True)
+        out.append(f)
+    return out
+
+
+#: the default fault of the paper's cases 2 and 3 (Fig. 6 gives no numbers; docs/cases.md)
+DEFAULT_FAULT = [
+    {"blade": 1, "type": "lock", "onset_s": 20.0, "angle_deg": "current"},
+    {"blade": 2, "type": "loss_of_effectiveness", "onset_s": 20.0, "rho": 0.5},
+    {"blade": 3, "type": "loss_of_effectiveness", "onset_s": 20.0, "rho": 0.5},
+]
+
+
+@dataclass
+class Schedule:
+    """Per-step fault inputs of the compiled loop, in the layout's order."""
+
+    faults: list[Fault] = field(default_factory=list)
+
+    def events(self) -> list[float]:
+        """Times at which a lock "wherever the blade is" must read the blade angle."""
+        return sorted({f.onset_s for f in self.faults if f.type == "lock" and f.angle is None})
+
+    def bind_current_angles(self, t: float, beta: np.ndarray) -> None:
+        for f in self.faults:
+            if f.type == "lock" and f.angle is None and f.onset_s == t:
+                f.angle = float(beta[f.blade - 1])
+
+    def actuator(self, t: np.ndarray) -> np.ndarray:
+        """(n_actuator_faults, len(t)): ρ_j, σ_j, ū_j, ω_n,j, ζ_j (layout actuator_faults)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        n = lay.layout()["n_blades"]
+        rho, lock, ubar = np.ones((n, t.size)), np.zeros((n, t.size)), np.zeros((n, t.size))
+        tp = lay.vector("turbine_params")
+        wn0 = tp[lay.index("turbine_params", "omega_n_nominal")]
+        z0 = tp[lay.index("turbine_params", "zeta_nominal")]
+        wn, zt = np.full((n, t.size), wn0), np.full((n, t.size), z0)
+        for f in self.faults:
+            j, w = f.blade - 1, f.weight(t)
+            if f.type == "loss_of_effectiveness":
+                rho[j] = rho[j] * (1 - w) + f.rho * w
+            elif f.type == "lock":
+                lock[j] = np.maximum(lock[j], w)
+                ubar[j] = np.where(w > 0, f.angle if f.angle is not None else np.nan, ubar[j])
+            elif f.type in HYDRAULIC:
+                wf, zf = HYDRAULIC[f.type]
+                wn[j] = wn[j] * (1 - w) + wf * w
+                zt[j] = zt[j] * (1 - w) + zf * w
+        return np.vstack([rho, lock, ubar, wn, zt])
+
+    def sensor(self, t: np.ndarray) -> np.ndarray:
+        """(n_sensor_faults, len(t)): gain_j, fixed_j, value_j (layout sensor_faults)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        n = lay.layout()["n_blades"]
+        gain, fixed, value = np.ones((n, t.size)), np.zeros((n, t.size)), np.zeros((n, t.size))
+        for f in self.faults:
+            j, w = f.blade - 1, f.weight(t)
+            if f.type == "sensor_gain":
+                gain[j] = 1 + (f.gain - 1) * w
+            elif f.type == "sensor_fixed":
+                fixed[j] = np.maximum(fixed[j], w)
+                value[j] = np.where(w > 0, f.value, value[j])
+        return np.vstack([gain, fixed, value])
+
+    def describe(self) -> list[dict]:
+        return [f.describe() for f in self.faults]

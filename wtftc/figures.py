@@ -1,0 +1,184 @@
+"""Figures of the paper's three cases: counterparts of Figs. 2-10, a comparison, V(t).
+
+Every figure is saved as PNG and PDF (atomically); axes carry units; pitch is shown in
+degrees (names ending _deg), speeds in rad/s.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from wtftc.io import atomic_savefig  # noqa: E402
+
+CASE_COLORS = {1: "tab:blue", 2: "tab:red", 3: "tab:green"}
+
+
+def _save(fig, out: Path, name: str) -> list[Path]:
+    paths = [out / f"{name}.png", out / f"{name}.pdf"]
+    fig.tight_layout()
+    for p in paths:
+        atomic_savefig(fig, p, dpi=130)
+    plt.close(fig)
+    return paths
+
+
+def _onset_line(ax, onset):
+    if onset is not None:
+        ax.axvline(onset, color="0.5", ls="--", lw=0.8)
+        ax.text(onset, ax.get_ylim()[1], " fault", va="top", fontsize=8, color="0.4")
+
+
+def _title(run, text):
+    diverged = run["metrics"]["diverged"]
+    extra = f" — DIVERGED at t = {diverged['t_s']:.2f} s" if diverged else ""
+    return f"{text} ({run['plant']}, case {run['case']}){extra}"
+
+
+def rotor_speed(run, out: Path, name: str, paper_fig: str) -> list[Path]:
+    res, m = run["result"], run["metrics"]
+    fig, ax = plt.subplots(figsize=(7, 3.6))
+    ax.plot(res.t, res.column("omega_r"), label="ω_r (plant)", color=CASE_COLORS[run["case"]])
+    ax.plot(res.t, res.column("y_d"), "k--", lw=1, label="y_d (reference)")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("rotor speed [rad/s]")
+    ax.grid(alpha=0.3)
+    _onset_line(ax, run["onset"])
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title(_title(run, f"{paper_fig}: rotor speed, RMS error "
+                              f"{m['rms_speed_error_rad_s']:.3g} rad/s"), fontsize=9)
+    return _save(fig, out, name)
+
+
+def control(run, out: Path, name: str, paper_fig: str) -> list[Path]:
+    res = run["result"]
+    fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
+    axes[0].plot(res.t, res.column("u0"), color="k", lw=1, label="u0, eq (49)")
+    axes[0].set_ylabel("control signal u0 [rad]")
+    axes[0].legend(fontsize=8)
+    for j in (1, 2, 3):
+        axes[1].plot(res.t, np.degrees(res.column(f"beta_{j}")), label=f"β_{j} blade {j}")
+    axes[1].plot(res.t, np.degrees(res.column("v_1")), "k:", lw=0.8, label="command v_j")
+    axes[1].set_ylabel("pitch [deg]")
+    axes[1].set_xlabel("time [s]")
+    axes[1].legend(fontsize=8, ncol=4)
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        _onset_line(ax, run["onset"])
+    axes[0].set_title(_title(run, f"{paper_fig}: control signal and blade pitch"), fontsize=9)
+    return _save(fig, out, name)
+
+
+def estimates(run, out: Path, name: str, paper_fig: str) -> list[Path]:
+    res = run["result"]
+    n_g = run["gearbox_ratio"]
+    beta_mean = np.mean([res.column(f"beta_{j}") for j in (1, 2, 3)], axis=0)
+    pairs = [("(a) rotor speed [rad/s]", res.column("omega_r"), res.column("xhat_1")),
+             ("(b) torsion angle [rad]", res.column("theta_s"), res.column("xhat_2")),
+             ("(c) generator speed, LSS [rad/s]", res.column("omega_g_hss") / n_g,
+              res.column("xhat_3")),
+             ("(d) mean pitch [rad]", beta_mean, res.column("xhat_4"))]
+    fig, axes = plt.subplots(2, 2, figsize=(9, 5.5), sharex=True)
+    for ax, (lab, x, xh) in zip(axes.ravel(), pairs, strict=True):
+        ax.plot(res.t, x, label="plant state", lw=1.2)
+        ax.plot(res.t, xh, "--", label="observer x̂", lw=1.2)
+        ax.set_ylabel(lab, fontsize=8)
+        ax.grid(alpha=0.3)
+        _onset_line(ax, run["onset"])
+    for ax in axes[1]:
+        ax.set_xlabel("time [s]")
+    axes[0, 0].legend(fontsize=8)
+    fig.suptitle(_title(run, f"{paper_fig}: state estimations (x̂2..x̂4 are formal states, "
+                              "DESIGN item 11)"), fontsize=9)
+    return _save(fig, out, name)
+
+
+def wind(run, out: Path, name: str = "fig02_wind") -> list[Path]:
+    res = run["result"]
+    fig, ax = plt.subplots(figsize=(7, 3.2))
+    ax.plot(res.t, res.column("wind"), color="tab:gray")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("hub-height wind speed [m/s]")
+    ax.grid(alpha=0.3)
+    ax.set_title(f"Fig. 2: wind speed ({run['metrics']['config']['wind_resolved']['kind']}, "
+                 f"seed {run['metrics']['seed']})", fontsize=9)
+    return _save(fig, out, name)
+
+
+def fault_shape(run, out: Path, name: str = "fig06_fault") -> list[Path]:
+    res, sched = run["result"], run["schedule"]
+    t = res.t
+    a = sched.actuator(t)
+    s = sched.sensor(t)
+    fig, axes = plt.subplots(3, 1, figsize=(7, 6), sharex=True)
+    for j in range(3):
+        axes[0].plot(t, a[j], label=f"ρ_{j + 1}")
+        axes[1].plot(t, a[3 + j], label=f"σ_{j + 1} (lock)")
+        axes[2].plot(t, a[9 + j], label=f"ω_n,{j + 1}")
+    axes[0].set_ylabel("effectiveness ρ [-]")
+    axes[1].set_ylabel("lock indicator σ [-]")
+    axes[2].set_ylabel("actuator ω_n [rad/s]")
+    axes[2].set_xlabel("time [s]")
+    if np.any(s[3:6] > 0) or np.any(s[:3] != 1):
+        axes[1].plot(t, s[3], "k:", label="sensor stuck")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, ncol=3)
+    locks = [f"blade {f['blade']} at {f.get('angle_deg', 0):.2f}°" for f in sched.describe()
+             if f["type"] == "lock"]
+    axes[0].set_title("Fig. 6: fault shape" + (f" (locked: {', '.join(locks)})" if locks
+                                               else ""), fontsize=9)
+    return _save(fig, out, name)
+
+
+def comparison(runs: list[dict], out: Path, name: str = "cases_comparison") -> list[Path]:
+    fig, axes = plt.subplots(3, 1, figsize=(8, 7.5), sharex=True)
+    for run in runs:
+        res, c = run["result"], run["case"]
+        lab = f"case {c}: {run['case_doc']}"
+        if run["metrics"]["diverged"]:
+            lab += f" (diverged at {run['metrics']['diverged']['t_s']:.1f} s)"
+        axes[0].plot(res.t, res.column("omega_r"), color=CASE_COLORS[c], label=lab, lw=1)
+        beta_mean = np.mean([res.column(f"beta_{j}") for j in (1, 2, 3)], axis=0)
+        axes[1].plot(res.t, np.degrees(beta_mean), color=CASE_COLORS[c], lw=1)
+        axes[2].plot(res.t, res.column("P_gen") / 1e6, color=CASE_COLORS[c], lw=1)
+    axes[0].plot(runs[0]["result"].t, runs[0]["result"].column("y_d"), "k--", lw=0.8,
+                 label="y_d")
+    axes[0].set_ylabel("rotor speed [rad/s]")
+    axes[1].set_ylabel("mean pitch [deg]")
+    axes[2].set_ylabel("generator power [MW]")
+    axes[2].set_xlabel("time [s]")
+    axes[0].legend(fontsize=8)
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        _onset_line(ax, runs[-1]["onset"])
+    axes[0].set_title(f"The paper's three cases on {runs[0]['plant']}", fontsize=9)
+    return _save(fig, out, name)
+
+
+def lyapunov_figure(run, V: np.ndarray, t: np.ndarray, bound, out: Path,
+                    name: str = "lyapunov") -> list[Path]:
+    fig, ax = plt.subplots(figsize=(7, 3.8))
+    ax.semilogy(t, np.maximum(V, 1e-300), label="V_4(t), eq (47)")
+    if bound.holds:
+        kappa = float(np.min(bound.kappa_terms))
+        ax.semilogy(t, V[0] * np.exp(-kappa * (t - t[0])) + bound.zeta_theta / kappa, "k--",
+                    label="eq (51) bound (θ* part of ζ)")
+        txt = "eq (51) bound shown"
+    else:
+        txt = ("eq (51) does not follow for these gains: " + "; ".join(
+            f"{lab} = {v:.3g}" for lab, v in zip(bound.labels, bound.kappa_terms, strict=True)
+            if v <= 0) + " (need > 0)")
+        ax.text(0.01, 0.02, txt, transform=ax.transAxes, fontsize=7, color="tab:red",
+                va="bottom", wrap=True)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("V [-]")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    ax.set_title(_title(run, "Lyapunov function V_4 along the run"), fontsize=9)
+    return _save(fig, out, name)

@@ -1,0 +1,324 @@
+"""The closed loop: generated plant + Cp interpolant + generated controller, fixed-step RK4.
+
+One CasADi function advances the whole loop by one RK4 step; ``mapaccum`` chains
+``CHUNK`` steps into one compiled call (C, cached by hash like the generated code), and
+the Python loop calls it chunk by chunk so that a progress bar moves and a divergence is
+caught within one chunk. The controller sees only measured signals (rotor speed); the
+plant state never enters it.
+
+Per step k (from t_k to t_k + dt) the exogenous inputs are the wind at t_k, t_k + dt/2,
+t_k + dt, and the fault inputs at t_k (held over the step). Outputs are reported at t_k
+from the state z_k.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from wtftc import layout as lay
+from wtftc.cp_table import CpTable, nrel5mw_cp_table
+from wtftc.errors import ConfigError
+from wtftc.generated import CFLAGS, cache_dir, compiler, load
+
+PLANTS = {
+    "nrel5mw": {"function": "turbine_nrel5mw", "states": "nrel5mw_states",
+                "doc": "NREL 5-MW: two-mass drivetrain, generator torque, 2nd-order "
+                       "limited actuators (default)"},
+    "paper": {"function": "turbine_paper", "states": "plant_states",
+              "doc": "eqs (1)-(4) as printed: UNLOADED, no generator torque (DESIGN item 3)"},
+}
+CONTROLLERS = {
+    "paper": {"function": "controller",
+              "doc": "Bakhshi & Alfi (2020) observer-based adaptive fuzzy backstepping, eq (49)"},
+}
+#: names of the per-step outputs, with units
+OUTPUTS = [
+    ("omega_r", "rad/s"), ("theta_s", "rad"), ("omega_g_hss", "rad/s"),
+    ("beta_1", "rad"), ("beta_2", "rad"), ("beta_3", "rad"),
+    ("beta_meas_1", "rad"), ("beta_meas_2", "rad"), ("beta_meas_3", "rad"),
+    ("u0", "rad"), ("v_1", "rad"), ("v_2", "rad"), ("v_3", "rad"),
+    ("wind", "m/s"), ("tsr", "-"), ("cp", "-"), ("T_aero", "N m"), ("T_gen", "N m"),
+    ("P_gen", "W"), ("xhat_1", "rad/s"), ("xhat_2", "-"), ("xhat_3", "-"), ("xhat_4", "-"),
+    ("y_d", "rad/s"),
+]
+CHUNK = 1000  # RK4 steps per compiled call
+
+
+class SimulationDiverged(RuntimeError):
+    def __init__(self, t: float, state: dict, reason: str):
+        self.t, self.state, self.reason = t, state, reason
+        super().__init__(f"diverged at t = {t:.4f} s: {reason}")
+
+
+def cp_interpolant(table: CpTable) -> ca.Function:
+    """Cubic B-spline Cp(λ, β) on the table grid; inputs clipped to the grid (no extrapolation)."""
+    f = ca.interpolant("cp_table", "bspline", [table.tsr, table.pitch_rad],
+                       np.asarray(table.cp, dtype=float).ravel(order="F"))
+    lam, b = ca.SX.sym("tsr"), ca.SX.sym("beta")
+    lam_c = ca.fmin(ca.fmax(lam, float(table.tsr[0])), float(table.tsr[-1]))
+    b_c = ca.fmin(ca.fmax(b, float(table.pitch_rad[0])), float(table.pitch_rad[-1]))
+    return ca.Function("cp", [lam, b], [f(ca.vertcat(lam_c, b_c))], ["tsr", "beta"], ["cp"])
+
+
+def steady_pitch(cp_fn: ca.Function, omega_r: float, torque: float, wind: float,
+                 air_density: float, rotor_radius: float,
+                 bracket=(0.0, np.radians(30.0))) -> float:
+    """Pitch at which the aerodynamic torque on the interpolant equals ``torque`` [rad].
+
+    Bisection on the feathering side; the lower end of the bracket when even it gives less
+    torque (below rated: the pitch rests at its limit).
+    """
+    lam = omega_r * rotor_radius / wind
+
+    def excess(beta):
+        c = float(cp_fn(lam, beta))
+        return 0.5 * air_density * np.pi * rotor_radius**2 * wind**3 * c / omega_r - torque
+
+    lo, hi = bracket
+    if excess(lo) <= 0:
+        return lo
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if excess(mid) > 0 else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def _closed_loop_rhs(plant: str, cp_fn: ca.Function, controller: str) -> ca.Function:
+    """ż = f(z, wind, faults, reference, parameters): z = [plant states, controller states]."""
+    pf = load(PLANTS[plant]["function"], "interpreted")
+    cf = load(CONTROLLERS[controller]["function"], "interpreted")
+    aero = load("aero_operating_point", "interpreted")
+    n_p = len(lay.names(PLANTS[plant]["states"]))
+    n_c = len(lay.names("controller_states"))
+    z = ca.SX.sym("z", n_p + n_c)
+    wind = ca.SX.sym("wind")
+    af = ca.SX.sym("actuator_faults", len(lay.names("actuator_faults")))
+    sf = ca.SX.sym("sensor_faults", len(lay.names("sensor_faults")))
+    ck = ca.SX.sym("ctrl_fault", len(lay.names("fault_inputs")))
+    yd = ca.SX.sym("yd", len(lay.names("reference")))
+    pt = ca.SX.sym("p_turbine", len(lay.names("turbine_params")))
+    pc = ca.SX.sym("p_ctrl", len(lay.names("controller_params")))
+    xp, xc = z[:n_p], z[n_p:]
+    # eq (49)'s known fault (ρ̂, σ̂, ū) replaces the controller's nominal values
+    i0 = lay.index("controller_params", "rho_hat_1")
+    pc_eff = ca.vertcat(pc[:i0], ck, pc[i0 + ck.numel():])
+    y = xp[0]  # measured rotor speed: the only signal the paper's controller uses
+    c = cf(x_ctrl=xc, y=y, yd=yd, p_ctrl=pc_eff)
+    op = aero(x_plant=xp[:6], wind=wind, p_turbine=pt)
+    cp = cp_fn(op["tsr"], op["beta_mean"])
+    p = pf(x_plant=xp, v=c["v"], wind=wind, cp=cp, actuator_faults=af, sensor_faults=sf,
+           p_turbine=pt)
+    zdot = ca.vertcat(p["x_plant_dot"], c["x_ctrl_dot"])
+    n_g = pt[lay.index("turbine_params", "gearbox_ratio")]
+    out = ca.vertcat(xp[0], xp[1], xp[2] * n_g, xp[3:6], p["beta_meas"], c["u0"], c["v"], wind,
+                     op["tsr"], cp, p["T_aero"], p["T_gen"], p["P_gen"], xc[:4], yd[0])
+    assert out.numel() == len(OUTPUTS)
+    return ca.Function("rhs", [z, wind, af, sf, ck, yd, pt, pc], [zdot, out],
+                       ["z", "wind", "actuator_faults", "sensor_faults", "ctrl_fault", "yd",
+                        "p_turbine", "p_ctrl"], ["z_dot", "out"])
+
+
+def rk4_step(rhs: ca.Function) -> ca.Function:
+    """Classical RK4 over one step dt (Kutta 1901), the exogenous input (input 1 of rhs, the
+    wind) at t, t + dt/2, t + dt; the other inputs held over the step."""
+    z = ca.MX.sym("z", rhs.size1_in(0))
+    w3 = ca.MX.sym("wind3", 3)
+    others = [ca.MX.sym(rhs.name_in(k), rhs.sparsity_in(k)) for k in range(2, rhs.n_in())]
+    dt = ca.MX.sym("dt")
+    first = rhs(z, w3[0], *others)
+    k1, out = first[0], first[1]  # ż and the reported outputs at the start of the step
+    k2 = rhs(z + dt / 2 * k1, w3[1], *others)[0]
+    k3 = rhs(z + dt / 2 * k2, w3[1], *others)[0]
+    k4 = rhs(z + dt * k3, w3[2], *others)[0]
+    z_next = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return ca.Function("rk4_step", [z, w3, *others, dt], [z_next, out],
+                       ["z", "wind3", *[rhs.name_in(k) for k in range(2, rhs.n_in())], "dt"],
+                       ["z_next", "out"])
+
+
+def _compile_function(f: ca.Function, label: str) -> ca.Function:
+    """Generate C for f, compile into the cache keyed by the source's hash, load it."""
+    cc = compiler()
+    if cc is None:
+        return f
+    with tempfile.TemporaryDirectory() as tmp:
+        cname = f"{label}.c"
+        cg = ca.CodeGenerator(cname, {"with_header": False})
+        cg.add(f)
+        cg.generate(tmp + os.sep)
+        src = Path(tmp, cname).read_bytes()
+        key = hashlib.sha256(src + " ".join((cc, *CFLAGS)).encode()).hexdigest()[:20]
+        so = cache_dir() / f"{label}-{key}.so"
+        if not so.exists():
+            so.parent.mkdir(parents=True, exist_ok=True)
+            print(f"  compiling the {label} loop (once; cached in {so.parent}) ...",
+                  file=sys.stderr, flush=True)
+            fd, tmp_so = tempfile.mkstemp(suffix=".so", dir=so.parent)
+            os.close(fd)
+            try:
+                proc = subprocess.run([cc, *CFLAGS, str(Path(tmp, cname)), "-o", tmp_so, "-lm"],
+                                      capture_output=True, text=True)
+                if proc.returncode != 0:
+                    raise RuntimeError(f"{cc} failed on the {label} loop:\n{proc.stderr[-2000:]}")
+                os.replace(tmp_so, so)
+            finally:
+                if os.path.exists(tmp_so):
+                    os.unlink(tmp_so)
+    return ca.external(f.name(), str(so))
+
+
+@cache
+def chunk_function(plant: str, controller: str, table_key: str, table: CpTable | None = None,
+                   n: int = CHUNK) -> ca.Function:
+    """``n`` RK4 steps in one compiled call (mapaccum over the step)."""
+    table = table or nrel5mw_cp_table()
+    rhs = _closed_loop_rhs(plant, cp_interpolant(table), controller)
+    step = rk4_step(rhs)
+    chunk = step.mapaccum(f"loop_{plant}_{controller}", n)
+    return _compile_function(chunk, f"loop_{plant}_{controller}_{table_key}")
+
+
+@cache
+def rhs_function(plant: str, controller: str, table_key: str,
+                 table: CpTable | None = None) -> ca.Function:
+    return _closed_loop_rhs(plant, cp_interpolant(table or nrel5mw_cp_table()), controller)
+
+
+@dataclass
+class Result:
+    t: np.ndarray
+    outputs: np.ndarray  # (N, len(OUTPUTS))
+    z_final: np.ndarray
+    diverged: dict | None
+    wall_s: float
+    steps: int
+    config: dict = field(default_factory=dict)
+    z: np.ndarray | None = None  # full state trajectory at the output times (N, n_z)
+
+    def column(self, name: str) -> np.ndarray:
+        return self.outputs[:, [n for n, _ in OUTPUTS].index(name)]
+
+
+def state_names(plant: str) -> list[str]:
+    return lay.names(PLANTS[plant]["states"]) + lay.names("controller_states")
+
+
+def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_schedule,
+             yd: np.ndarray, p_turbine: np.ndarray, p_ctrl: np.ndarray, t_final: float,
+             dt: float, table: CpTable | None = None, table_key: str = "nrel5mw",
+             decimate: int = 1, progress: bool = True, keep_states: bool = False) -> Result:
+    """Integrate from t = 0 to t_final with fixed dt; outputs every ``decimate`` steps.
+
+    ``schedule`` gives the plant's fault inputs, ``ctrl_schedule`` those eq (49) is told
+    (a :class:`wtftc.faults.Schedule`, or None for a fault-free controller).
+    """
+    n_steps = int(round(t_final / dt))
+    f = chunk_function(plant, controller, table_key, table)
+    n_c = f.size2_out(1)
+    z = np.array(z0, dtype=float)
+    names = state_names(plant)
+    outs, ts, zs = [], [], []
+    events = [int(round(e / dt)) for e in (schedule.events() if schedule else [])]
+    k = 0
+    t0 = time.perf_counter()
+    last_print = t0
+    diverged = None
+    nominal_ctrl = lay.defaults("fault_inputs")
+    while k < n_steps:
+        # bind "lock wherever the blade is" at its onset step, from the current state
+        for e in events:
+            if e == k:
+                schedule.bind_current_angles(e * dt, z[3:6])
+                if ctrl_schedule is not None:
+                    ctrl_schedule.bind_current_angles(e * dt, z[3:6])
+        stop = min([n_steps, k + n_c] + [e for e in events if e > k])
+        m = stop - k
+        tk = (k + np.arange(n_c)) * dt
+        w3 = np.vstack([wind(tk), wind(tk + dt / 2), wind(tk + dt)])
+        af = schedule.actuator(tk) if schedule else np.tile(
+            lay.defaults("actuator_faults")[:, None], (1, n_c))
+        sf = schedule.sensor(tk) if schedule else np.tile(
+            lay.defaults("sensor_faults")[:, None], (1, n_c))
+        ck = (ctrl_schedule.actuator(tk)[:len(nominal_ctrl)] if ctrl_schedule
+              else np.tile(nominal_ctrl[:, None], (1, n_c)))
+        zz, oo = f(z, w3, af, sf, ck, yd, p_turbine, p_ctrl, dt)
+        zz, oo = np.array(zz), np.array(oo)
+        # the state before step i is z (i = 0) or zz[:, i-1]
+        z_before = np.hstack([z[:, None], zz[:, :m - 1]])
+        bad = ~np.all(np.isfinite(oo[:, :m]), axis=0) | ~np.all(np.isfinite(zz[:, :m]), axis=0)
+        bad |= np.any(np.abs(zz[:, :m]) > 1e8, axis=0)
+        if np.any(bad):
+            i = int(np.argmax(bad))
+            m = i + 1
+            z_bad = zz[:, i]
+            blew = [n for n, a in zip(names, z_bad, strict=True)
+                    if not np.isfinite(a) or abs(a) > 1e8]
+            diverged = {"t_s": float((k + i + 1) * dt),
+                        "reason": "non-finite or |state| > 1e8 in " + ", ".join(blew[:8])
+                                  + (" ..." if len(blew) > 8 else ""),
+                        "last_finite_state": {n: float(a) for n, a in
+                                              zip(names, z_before[:, i], strict=True)}}
+        sel = np.arange(k, k + m)
+        keep = sel % decimate == 0
+        outs.append(oo[:, :m][:, keep].T)
+        ts.append(sel[keep] * dt)
+        if keep_states:
+            zs.append(z_before[:, :m][:, keep].T)
+        if diverged:
+            z = z_before[:, m - 1]
+            k += m
+            break
+        z = zz[:, m - 1]
+        k = stop
+        now = time.perf_counter()
+        if progress and now - last_print > 0.5:
+            _progress(k, n_steps, dt, now - t0)
+            last_print = now
+    if progress and time.perf_counter() - t0 > 0.5:
+        _progress(k, n_steps, dt, time.perf_counter() - t0, end=True)
+    return Result(t=np.concatenate(ts), outputs=np.vstack(outs), z_final=z, diverged=diverged,
+                  wall_s=time.perf_counter() - t0, steps=k,
+                  z=np.vstack(zs) if keep_states else None)
+
+
+def _progress(k: int, n: int, dt: float, wall: float, end: bool = False) -> None:
+    width = 30
+    done = int(width * k / max(n, 1))
+    rate = k * dt / max(wall, 1e-9)
+    print(f"\r    [{'#' * done}{'.' * (width - done)}] {k * dt:7.1f}/{n * dt:.1f} s "
+          f"simulated, {rate:6.0f}× real time", end="\n" if end else "", file=sys.stderr,
+          flush=True)
+
+
+def stability_limit(plant: str, controller: str, z0, wind0: float, yd, p_turbine, p_ctrl,
+                    table: CpTable | None = None, table_key: str = "nrel5mw") -> float:
+    """Largest |eigenvalue| of the closed-loop Jacobian at z0 (RK4: stable for |λ dt| < 2.78)."""
+    rhs = rhs_function(plant, controller, table_key, table)
+    z = ca.SX.sym("z", rhs.size1_in(0))
+    args = [lay.defaults("actuator_faults"), lay.defaults("sensor_faults"),
+            lay.defaults("fault_inputs"), yd, p_turbine, p_ctrl]
+    jac = ca.Function("closed_loop_jacobian", [z], [ca.jacobian(rhs(z, wind0, *args)[0], z)])
+    eig = np.linalg.eigvals(np.array(jac(z0)))
+    return float(np.max(np.abs(eig)))
+
+
+def check_dt(dt: float, lam_max: float) -> None:
+    """Refuse a dt beyond RK4's stability limit at the initial state, with the reason."""
+    if not (np.isfinite(dt) and dt > 0):
+        raise ConfigError("dt_s", dt, "a positive number of seconds")
+    limit = 2.78 / lam_max
+    if dt > limit:
+        raise ConfigError("dt_s", dt, f"at most {limit:.3g} s: the fastest mode of the "
+                          f"closed loop at the initial state has |λ| = {lam_max:.4g} 1/s and "
+                          "RK4 is stable only for |λ·dt| < 2.78")
