@@ -356,6 +356,9 @@ def run_cases(out_dir: Path, plants=("nrel5mw", "paper"), overrides: dict | None
             V, bound, _ = lyapunov_trace(r1["rc"], r1["result"])
             figures.lyapunov_figure(r1, V, r1["result"].t, bound, fdir)
             r1["metrics"]["eq51"] = {"holds": bound.holds, "report": bound.report()}
+            from wtftc.io import atomic_write_json
+
+            atomic_write_json(out_dir / plant / "case1" / "metrics.json", r1["metrics"])
     if sign_as_written:
         rc = make_config({**(overrides or {}), "plant": plants[0], "case": 1,
                           "control_sign": 1, "label": f"{plants[0]}_case1_sign_as_written"})
@@ -370,7 +373,7 @@ def run_cases(out_dir: Path, plants=("nrel5mw", "paper"), overrides: dict | None
 
 TABLE_COLUMNS = [
     ("label", "run", "{}"), ("rms_speed_error_rad_s", "RMS ω error [rad/s]", "{:.4f}"),
-    ("max_abs_speed_error_rad_s", "max |ω error| [rad/s]", "{:.4f}"),
+    ("max_abs_speed_error_rad_s", "max abs ω error [rad/s]", "{:.4f}"),
     ("rms_speed_error_after_fault_rad_s", "RMS after fault [rad/s]", "{:.4f}"),
     ("settling_time_s", "settled (±1 %) [s]", "{:.1f}"),
     ("overspeed_peak_over_rated", "peak ω / rated [-]", "{:.3f}"),
@@ -390,7 +393,8 @@ def _cell(m: dict, key: str, fmt: str | None) -> str:
         return f"{v['t_s']:.2f}" if v else "no"
     if v is None:
         return "—"
-    return fmt.format(v)
+    text = fmt.format(v)
+    return text[1:] if text.startswith("-") and float(text) == 0 else text
 
 
 def write_table(out_dir: Path, rows: list[dict]) -> str:

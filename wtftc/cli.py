@@ -169,7 +169,7 @@ def main(argv: list[str] | None = None) -> int:
             from wtftc.io import ensure_writable_dir
 
             rc = cases.make_config(_run_overrides(args))
-            ensure_writable_dir(args.out, "--out")
+            ensure_writable_dir(args.out, "--out", create=False)
             print(f"{rc.label}: case {rc.case} ({cases.CASES[rc.case]}) on {rc.plant}, "
                   f"{rc.t_final:g} s at dt = {rc.dt:g} s")
             res = cases.run(rc, progress=not args.quiet)
@@ -187,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
             over = _run_overrides(args)
             plants = tuple(args.plant) if args.plant else ("nrel5mw", "paper")
             cases.make_config({**over, "plant": plants[0]})  # validate before any work
-            ensure_writable_dir(args.out, "--out")
+            ensure_writable_dir(args.out, "--out", create=False)
             rows = cases.run_cases(args.out, plants, over, progress=not args.quiet)
             print()
             print(cases.write_table(args.out, rows))

@@ -51,11 +51,23 @@ def atomic_savefig(fig, path: Path, **kwargs) -> None:
             os.unlink(tmp)
 
 
-def ensure_writable_dir(path: Path, option: str = "--out") -> Path:
-    """Create path if needed and prove it writable; a clear error naming the option if not."""
+def ensure_writable_dir(path: Path, option: str = "--out", create: bool = True) -> Path:
+    """Prove that path is (or can become) a writable folder; a clear error naming the option.
+
+    With create=False nothing is created: the nearest existing ancestor must be a writable
+    folder, so that a run can be refused before any output exists.
+    """
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise ValueError(f"{option} {path}: exists and is not a folder")
+    if not create:
+        probe = path
+        while not probe.exists():
+            probe = probe.parent
+        if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
+            raise ValueError(f"{option} {path}: cannot write there ({probe} is not a "
+                             "writable folder)")
+        return path
     try:
         path.mkdir(parents=True, exist_ok=True)
         fd, probe = tempfile.mkstemp(prefix=".write-test.", dir=path)

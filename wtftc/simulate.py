@@ -73,7 +73,7 @@ def cp_interpolant(table: CpTable) -> ca.Function:
 
 def steady_pitch(cp_fn: ca.Function, omega_r: float, torque: float, wind: float,
                  air_density: float, rotor_radius: float,
-                 bracket=(0.0, np.radians(30.0))) -> float:
+                 bracket=(0.0, 0.5235987755982988)) -> float:  # 0..30°, the NREL table
     """Pitch at which the aerodynamic torque on the interpolant equals ``torque`` [rad].
 
     Bisection on the feathering side; the lower end of the bracket when even it gives less
@@ -285,7 +285,7 @@ def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_s
         if progress and now - last_print > 0.5:
             _progress(k, n_steps, dt, now - t0)
             last_print = now
-    if progress and time.perf_counter() - t0 > 0.5:
+    if progress:
         _progress(k, n_steps, dt, time.perf_counter() - t0, end=True)
     return Result(t=np.concatenate(ts), outputs=np.vstack(outs), z_final=z, diverged=diverged,
                   wall_s=time.perf_counter() - t0, steps=k,
@@ -293,9 +293,15 @@ def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_s
 
 
 def _progress(k: int, n: int, dt: float, wall: float, end: bool = False) -> None:
+    """A progress bar on a terminal; one summary line when stderr is a file or a pipe."""
+    rate = k * dt / max(wall, 1e-9)
+    if not sys.stderr.isatty():
+        if end:
+            print(f"    {k * dt:.1f} s simulated in {wall:.1f} s ({rate:.0f}× real time)",
+                  file=sys.stderr, flush=True)
+        return
     width = 30
     done = int(width * k / max(n, 1))
-    rate = k * dt / max(wall, 1e-9)
     print(f"\r    [{'#' * done}{'.' * (width - done)}] {k * dt:7.1f}/{n * dt:.1f} s "
           f"simulated, {rate:6.0f}× real time", end="\n" if end else "", file=sys.stderr,
           flush=True)

@@ -1,0 +1,113 @@
+"""`wtftc run` end to end, and bad input: one clear line, exit code 2, no output written."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+
+def wtftc(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "wtftc.cli", *map(str, args)],
+                          capture_output=True, text=True, cwd=cwd)
+
+
+def test_run_end_to_end(tmp_path):
+    out = tmp_path / "run"
+    p = wtftc("run", "--case", 3, "--t-final", 25, "--wind", "constant", "--wind-mean", 15,
+              "--out", out, "--quiet")
+    assert p.returncode == 0, p.stderr
+    names = {f.name for f in out.iterdir()}
+    assert {"traces.csv", "traces.parquet", "metrics.json", "config.toml", "metrics.md"} <= names
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["case"] == 3 and m["diverged"] is None and m["seed"] == 0
+    assert m["config"]["wind"] == {"kind": "constant", "speed_mps": 15.0}
+    assert [f["type"] for f in m["config"]["fault_resolved"]] == [
+        "lock", "loss_of_effectiveness", "loss_of_effectiveness"]
+    header = (out / "traces.csv").read_text().splitlines()[1]
+    assert header.startswith("time_s [s],omega_r [rad/s]")
+    data = np.loadtxt(out / "traces.csv", delimiter=",", skiprows=2)
+    assert data.shape[0] == 25 * 50  # 50 Hz output
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(out / "traces.parquet")
+    np.testing.assert_allclose(table.column("omega_r").to_numpy(), data[:, 1], rtol=1e-8)
+    assert table.schema.field("omega_r").metadata[b"unit"] == b"rad/s"
+    # the saved configuration re-runs to the same numbers
+    p2 = wtftc("run", "--config", out / "config.toml", "--out", tmp_path / "again", "--quiet")
+    assert p2.returncode == 0, p2.stderr
+    again = np.loadtxt(tmp_path / "again" / "traces.csv", delimiter=",", skiprows=2)
+    np.testing.assert_array_equal(again, data)
+
+
+def test_diverging_run_exits_3_with_time_and_state(tmp_path):
+    p = wtftc("run", "--sign", 1, "--t-final", 20, "--wind", "constant", "--wind-mean", 14,
+              "--out", tmp_path / "d", "--quiet")
+    assert p.returncode == 3
+    assert "DIVERGED at t =" in p.stdout
+    m = json.loads((tmp_path / "d" / "metrics.json").read_text())
+    assert m["diverged"]["t_s"] > 0 and m["diverged"]["last_finite_state"]
+
+
+def _bad_wind_file(tmp_path):
+    f = tmp_path / "w.csv"
+    f.write_text("time_s,speed_mps\n0,12\n2,13\n1,14\n")
+    return f
+
+
+def _bad_cp_table(tmp_path):
+    from wtftc.cp_table import nrel5mw_cp_table
+
+    src = nrel5mw_cp_table().source
+    text = open(src).read() if not src.startswith("NREL") else None
+    f = tmp_path / "cp.txt"
+    if text is None:
+        from importlib.resources import files
+
+        text = (files("wtftc") / "data" / "Cp_Ct_Cq.NREL5MW.txt").read_text()
+    lines = text.splitlines()
+    i = next(k for k, line in enumerate(lines) if "Power coefficient" in line)
+    # drop the last column of the first Cp row
+    lines[i + 2] = " ".join(lines[i + 2].split()[:-1])
+    f.write_text("\n".join(lines) + "\n")
+    return f
+
+
+@pytest.mark.parametrize("args,field", [
+    (["--case", "4"], "--case"),
+    (["--plant", "vestas"], "plant"),
+    (["--dt", "-0.001"], "dt_s"),
+    (["--dt", "5"], "dt_s"),
+    (["--wind", "hurricane"], "kind"),
+    (["--wind", "file", "--wind-file", "{wind}"], "wind.path"),
+    (["--config", "{cfg_unknown}"], "turbo"),
+    (["--config", "{cfg_cp}"], "cp_table"),
+    (["--config", "{cfg_fault}"], "fault[0].rho"),
+])
+def test_bad_input_is_one_clear_line_exit_2_no_output(tmp_path, args, field):
+    cfg_unknown = tmp_path / "u.toml"
+    cfg_unknown.write_text("case = 1\nturbo = true\n")
+    cfg_cp = tmp_path / "c.toml"
+    cfg_cp.write_text(f'cp_table = "{_bad_cp_table(tmp_path)}"\n')
+    cfg_fault = tmp_path / "f.toml"
+    cfg_fault.write_text('case = 2\n[[fault]]\nblade = 2\ntype = "loss_of_effectiveness"\n'
+                         'onset_s = 5.0\nrho = 1.5\n')
+    subs = {"{wind}": _bad_wind_file(tmp_path), "{cfg_unknown}": cfg_unknown,
+            "{cfg_cp}": cfg_cp, "{cfg_fault}": cfg_fault}
+    args = [str(subs.get(a, a)) for a in args]
+    out = tmp_path / "out"
+    p = wtftc("run", *args, "--out", out, "--quiet")
+    assert p.returncode == 2, (p.stdout, p.stderr)
+    assert "Traceback" not in p.stderr
+    assert field in p.stderr, p.stderr
+    assert not out.exists()
+
+
+def test_help_explains_the_commands():
+    p = wtftc("--help")
+    assert p.returncode == 0
+    for cmd in ("cases", "run", "verify"):
+        assert cmd in p.stdout
+    r = wtftc("run", "--help")
+    assert "--case" in r.stdout and "known to eq (49)" in r.stdout
