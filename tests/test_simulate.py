@@ -124,3 +124,38 @@ def test_too_large_dt_is_refused_with_the_reason():
 
     with pytest.raises(ConfigError, match="RK4 is stable only"):
         cases.run(rc, progress=False)
+
+
+def test_sensor_and_hydraulic_faults_act_from_their_onset():
+    faults = [{"blade": 3, "type": "sensor_gain", "onset_s": 5.0, "gain": 1.2},
+              {"blade": 2, "type": "sensor_fixed", "onset_s": 5.0, "value_deg": 30.0},
+              {"blade": 1, "type": "air_in_oil", "onset_s": 5.0, "ramp_s": 2.0}]
+    rc, res, m = _run(case=2, fault=faults, t_final_s=10.0)
+    after, before = res.t > 5.0, res.t < 5.0
+    np.testing.assert_allclose(res.column("beta_meas_3")[after],
+                               1.2 * res.column("beta_3")[after], rtol=1e-12)
+    np.testing.assert_allclose(res.column("beta_meas_2")[after], np.radians(30.0), rtol=1e-12)
+    np.testing.assert_allclose(res.column("beta_meas_1"), res.column("beta_1"), rtol=1e-12)
+    np.testing.assert_allclose(res.column("beta_meas_3")[before], res.column("beta_3")[before],
+                               rtol=1e-12)
+    # air in oil slows blade 1's actuator (ω_n 11.11 → 3.42 rad/s): it lags the others
+    lag = np.abs(res.column("beta_1") - res.column("beta_2"))
+    assert lag[res.t > 7.0].max() > 10 * max(lag[before].max(), 1e-6)
+    sched = res.schedule.actuator(np.array([4.0, 6.0, 8.0]))
+    wn1 = sched[lay.index("actuator_faults", "omega_n_1")]
+    np.testing.assert_allclose(wn1, [11.11, (11.11 + 3.42) / 2, 3.42])
+
+
+def test_another_turbines_cp_table_is_used(tmp_path):
+    from dataclasses import replace
+
+    from wtftc.cp_table import nrel5mw_cp_table, write_cp_table
+
+    t = nrel5mw_cp_table()
+    path = tmp_path / "Cp_Ct_Cq.scaled.txt"
+    write_cp_table(replace(t, cp=t.cp * 1.1), path)
+    rc, res, m = _run(cp_table=str(path), t_final_s=2.0)
+    rc0, res0, m0 = _run(t_final_s=2.0)
+    # 10 % more Cp at the same wind: the rated balance needs more pitch
+    assert res.column("beta_1")[0] > res0.column("beta_1")[0] + np.radians(0.3)  # 0.7° here
+    assert m["config"]["cp_table"] == str(path)
