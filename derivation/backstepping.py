@@ -2,7 +2,7 @@
 
 Reading of the paper (docs/paper-notes.md gives the reasons and the tests):
 
-* transformed errors (index typos of eqs 36, 41, 45 corrected, DESIGN.md item 4):
+* transformed errors (index typos of eqs 36, 41, 45 corrected, paper-notes defect 4):
 
       χ1 = y - y_d                       (26)
       χ2 = x̂2 - α1 - ẏ_d                 (31: x̂2 = χ2 + α1 + ẏ_d)
@@ -13,7 +13,7 @@ Reading of the paper (docs/paper-notes.md gives the reasons and the tests):
   (49) (with "ÿ_d^(4)" of eq 49 read as y_d⁽⁴⁾), and a time-varying reference is
   tracked: the y_d⁽ⁱ⁾ of χ_{i+1} cancels the -y_d⁽ⁱ⁾ of χ̇_i.
 * α̇_i is the total derivative of α_i along the closed loop. It contains ẏ, which is not
-  measured (DESIGN.md item 5): the controller uses the *computable* part, with ẏ replaced
+  measured (paper-notes defect 5): the controller uses the *computable* part, with ẏ replaced
   by its estimate ẏ̂ = x̂2 + f̂1; the remainder is ∂α_i/∂y (ẏ - ẏ̂). α_{i+1} is built on
   the computable α̇_i.
 * the fuzzy systems enter only through the L/B symbols of :mod:`derivation.fuzzy`.
@@ -160,7 +160,7 @@ def _differentiate(d: Design, i: int) -> None:
 
 
 def applied_commands(u0) -> list[sp.Expr]:
-    """v_j = s b_j u0: the command sent to blade j; s = control_sign (DESIGN.md item 2)."""
+    """v_j = s b_j u0: the command sent to blade j; s = control_sign (paper-notes defect 2)."""
     return [control_sign * bj * u0 for bj in b]
 
 

@@ -1,11 +1,11 @@
 """Fuzzy logic systems f̂_i = θ̂_iᵀ φ_i(x̂1..x̂i) of eq (21), in SymPy.
 
-Membership functions (Table 1's φ = 0.6 read as the width, DESIGN.md item 6):
+Membership functions (Table 1's φ = 0.6 read as the width, paper-notes defect 6):
 
     μ_j(z) = exp(-(z - c_j)² / (2 w²)),    z_k = (x̂_k - offset_k) / scale_k
 
-Rules form the full grid over the inputs x̂1..x̂i (triangular regressors, DESIGN.md
-item 7), with product inference and normalized firing strengths
+Rules form the full grid over the inputs x̂1..x̂i (triangular regressors, paper-notes
+defect 7), with product inference and normalized firing strengths
 
     φ_m(z) = Π_k μ_{m_k}(z_k) / Σ_{m'} Π_k μ_{m'_k}(z_k).
 

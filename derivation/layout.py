@@ -3,7 +3,7 @@
 Everything that indexes a vector in wtftc reads this ordering from
 ``generated/layout.json``, which :mod:`derivation.generate` writes from this module.
 Names follow the paper (Bakhshi & Alfi 2020); where the paper reuses a letter for two
-things (DESIGN.md item 6) the code uses distinct names:
+things (paper-notes defect 6) the code uses distinct names:
 
 * ``theta_hat_i``  fuzzy weight vectors (paper θ_i), ``theta_act_j`` actuator weights
   (paper θ_j of θᵀu), ``theta_s`` shaft torsion;
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 #: number of Gaussian memberships per fuzzy input (structural: sets the weight counts)
 N_MF = 3
-#: number of blade pitch actuators (eq 49 read as three blade actuators, DESIGN.md item 9)
+#: number of blade pitch actuators (eq 49 read as three blade actuators, paper-notes defect 9)
 N_BLADES = 3
 #: order of the strict-feedback chain, eqs (11)-(14)
 N_CHAIN = 4
@@ -54,7 +54,7 @@ PLANT_STATES = [
 # --- controller states: fuzzy observer (21) and the adaptive weights (32), (37), (43), (49)
 CONTROLLER_STATES = [
     Entry("xhat_1", 1.26711, "rad/s", "observer state x̂1 of eq (21), the estimate of ω_r"),
-    *[Entry(f"xhat_{k}", 0.0, "-", f"observer state x̂{k} of eq (21) (formal, DESIGN.md 11)")
+    *[Entry(f"xhat_{k}", 0.0, "-", f"observer state x̂{k} of eq (21) (formal, paper-notes defect 11)")
       for k in range(2, N_CHAIN + 1)],
     *[Entry(f"theta_hat_{i}[{m}]", 0.0, "-", f"fuzzy weight {m} of f̂{i}, eq (21)")
       for i in range(1, N_CHAIN + 1) for m in range(rule_count(i))],
@@ -86,7 +86,7 @@ FAULT_INPUTS = [
 
 # --- controller parameters: Table 1 and the design choices of docs/paper-notes.md ---
 CONTROLLER_PARAMS = [
-    # Table 1's K = [1 1 5 5] is not Hurwitz (DESIGN.md item 1); the default places the
+    # Table 1's K = [1 1 5 5] is not Hurwitz (paper-notes defect 1); the default places the
     # observer poles at -2, -3, -4, -5. The paper's values stay available by name.
     *[Entry(f"K_obs_{k}", v, "-", f"observer gain K{k} of eq (20)")
       for k, v in zip(range(1, 5), (14.0, 71.0, 154.0, 120.0), strict=True)],
@@ -112,7 +112,7 @@ CONTROLLER_PARAMS = [
       for j in range(1, N_BLADES + 1)],
     Entry("control_sign", -1.0, "-",
           "sign s of the applied command v_j = s b_j u0: +1 as written (diverges, "
-          "DESIGN.md item 2), -1 corrected"),
+          "paper-notes defect 2), -1 corrected"),
     *[Entry(f"rho_hat_{j}", 1.0, "-", f"ρ of actuator {j} known to eq (49)")
       for j in range(1, N_BLADES + 1)],
     *[Entry(f"lock_hat_{j}", 0.0, "-", f"lock indicator of actuator {j} known to eq (49)")

@@ -2,7 +2,7 @@
 
 * P from AᵀP + PA = -Q (eq 22) as a linear system in the entries of P; the generator
   solves it. The Routh-Hurwitz conditions of A say whether a P > 0 exists
-  (Table 1's K = [1 1 5 5]: it does not, DESIGN.md item 1).
+  (Table 1's K = [1 1 5 5]: it does not, paper-notes defect 1).
 * V_o = ½ eᵀPe (22), V_i = V_{i-1} + ½χ_i² + θ̃_iᵀθ̃_i/(2γ_i) (30, 35, 40, 47),
   with e = X - X̂ and θ̃_i = θ*_i - θ̂_i; θ*_i are parameters (fit them on a trajectory
   with :func:`wtftc.lyapunov.fit_theta_star`).

@@ -2,7 +2,7 @@
 
 Only symbols and expressions live here; :mod:`derivation.generate` turns them into code.
 
-The pitch of eq (4) is modelled per blade (three actuators, DESIGN.md item 9): each blade
+The pitch of eq (4) is modelled per blade (three actuators, paper-notes defect 9): each blade
 follows eq (4) with its own command u_j, and the chain state x4 of eq (8) is their mean,
 so that ẋ4 = -a5 x4 + Σ_j θ_j u_j with θ_j = a5/3, which is eq (14)'s θᵀu.
 """

@@ -4,7 +4,7 @@ Two plants share one interface (states, blade commands v_j, hub-height wind, the
 coefficient cp evaluated by the runtime's Cp(λ, β) interpolant, per-blade faults):
 
 * ``paper``   eqs (1)-(4) exactly as printed, d1 = T_aero / J_r, no generator torque.
-              Unloaded (DESIGN.md item 3): its only steady state has T_aero = 0. Kept to
+              Unloaded (paper-notes defect 3): its only steady state has T_aero = 0. Kept to
               reproduce the paper. Eq (4) per blade, with eq (19) faults.
 * ``nrel5mw`` two-mass drivetrain referred to the low-speed shaft (eqs 1-3 plus the
               generator torque -T_g/J_g that eq (3) lacks), generator torque above rated

@@ -16,7 +16,7 @@ def test_vdot_structured_form_equals_grad_V_dot_f(control_sign):
 
 
 def test_table1_observer_gain_is_not_hurwitz():
-    """DESIGN.md item 1: s⁴+s³+s²+5s+5 has roots 0.740 ± 1.569j: no P > 0 exists."""
+    """paper-notes defect 1: s⁴+s³+s²+5s+5 has roots 0.740 ± 1.569j: no P > 0 exists."""
     res = lyapunov.observer_lyapunov(lay.paper_table1("K_obs"))
     assert not res.hurwitz and res.P is None
     unstable = res.eigenvalues[res.eigenvalues.real > 0]
@@ -38,7 +38,7 @@ def test_corrected_gain_places_poles_and_gives_P():
 
 
 def test_table1_does_not_give_the_bound_of_eq51():
-    """DESIGN.md item 8: r_i/(2γ_i) = 0.001..0.005 against 2/τ = 10."""
+    """paper-notes defect 8: r_i/(2γ_i) = 0.001..0.005 against 2/τ = 10."""
     b = lyapunov.decay_bound()
     assert not b.holds
     failing = [lab for lab, v in zip(b.labels, b.kappa_terms, strict=True) if v <= 0]

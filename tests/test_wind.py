@@ -126,7 +126,7 @@ def test_step_at_time_zero_replaces_initial_speed():
 # ----------------------------------------------------------------- paper_random
 
 
-def test_paper_random_mean_std_over_run_and_band_limit():
+def test_paper_random_mean_std_over_the_period_and_band_limit():
     t_final = 200.0
     w = wind_from_config({"kind": "paper_random", "mean_mps": 12.0, "std_mps": 1.5,
                           "cutoff_hz": 0.2}, t_final=t_final, seed=3)
@@ -135,12 +135,20 @@ def test_paper_random_mean_std_over_run_and_band_limit():
     n = int(round(period / dt))
     t = np.arange(n) * dt
     v = w(t)
-    run = v[t <= t_final]
-    assert abs(run.mean() - 12.0) < 1e-12 and abs(run.std() - 1.5) < 1e-12
+    assert period >= 600.0
+    assert abs(v.mean() - 12.0) < 1e-12 and abs(v.std() - 1.5) < 1e-12
     power = np.abs(np.fft.rfft(v - v.mean())) ** 2
     f = np.fft.rfftfreq(n, dt)
     assert power[f > 0.2 * (1 + 1e-9)].sum() < 1e-20 * power.sum()
     assert power[(f > 0.15) & (f <= 0.2)].sum() > 0.1 * power.sum()  # the band is used
+
+
+def test_paper_random_short_run_is_the_start_of_a_long_one():
+    """Same seed: a 5 s run is the first 5 s of a 60 s run (not a re-scaled slice)."""
+    short = wind_from_config({"kind": "paper_random"}, t_final=2.0, seed=0)
+    long = wind_from_config({"kind": "paper_random"}, t_final=60.0, seed=0)
+    t = np.linspace(0, 2.0, 41)
+    np.testing.assert_array_equal(short(t), long(t))
 
 
 def test_paper_random_is_gaussian_on_a_long_run():

@@ -51,7 +51,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="wtftc: observer-based adaptive fuzzy backstepping fault-tolerant pitch "
                     "control of wind turbines (Bakhshi & Alfi 2020), derived in SymPy, "
                     "generated with CasADi, verified.",
-        epilog="Simulation commands (run, cases) arrive with the closed-loop simulator.")
+        epilog="Start with `wtftc cases` (the paper's three cases) or `wtftc run --help`. "
+               "Docs: docs/running.md, docs/cases.md, docs/paper-notes.md.")
     p.add_argument("--version", action="version", version=f"wtftc {_version()}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     v = sub.add_parser(
@@ -77,7 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "around 12 m/s, 60 s at dt = 1 ms). Writes traces.csv (units in the "
                     "header), traces.parquet, metrics.json and config.toml into --out.",
         epilog="Example: wtftc run --case 3 --plant nrel5mw --wind ntm --wind-mean 16 "
-               "--t-final 120 --out out/ntm16. Config file keys: case, plant, controller, "
+               "--t-final 60 --out out/ntm16. Config file keys: case, plant, controller, "
                "t_final_s, dt_s, seed, output_rate_hz, control_sign, reference_rad_s, "
                "cp_table, label, [wind] (kind = constant | steps | paper_random | ntm | eog | "
                "file, ...), [[fault]] (blade, type, onset_s, ...), [controller_params], "
@@ -98,7 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=_nonnegative_int, help="random seed (default 0)")
     r.add_argument("--sign", type=int, choices=(-1, 1),
                    help="control sign: -1 corrected (default), +1 as written (diverges)")
-    r.add_argument("--out", type=Path, default=Path("out/run"), help="output folder")
+    r.add_argument("--out", type=Path, default=Path("out/run"),
+                   help="output folder (default: out/run under the current folder)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
 
     c = sub.add_parser(
@@ -176,6 +178,7 @@ def main(argv: list[str] | None = None) -> int:
             m = cases.metrics(rc, res)
             paths = cases.write_outputs(args.out, rc, res, m)
             print(cases.write_table(args.out, [m]))
+            paths += [args.out / "metrics.md", args.out / "metrics.csv"]
             if res.diverged:
                 print(f"DIVERGED at t = {res.diverged['t_s']:.4f} s: {res.diverged['reason']}")
             print("written: " + ", ".join(str(p) for p in paths))

@@ -61,12 +61,17 @@ def control(run, out: Path, name: str, paper_fig: str) -> list[Path]:
     axes[0].plot(res.t, res.column("u0"), color="k", lw=1, label="u0, eq (49)")
     axes[0].set_ylabel("control signal u0 [rad]")
     axes[0].legend(fontsize=8)
+    lo, hi = run["pitch_limits_deg"]
+    cmd = np.clip(np.degrees(res.column("v_1")), lo, hi)
+    axes[1].plot(res.t, cmd, color="0.6", lw=0.6, label=f"command v_1, clipped to {lo:g}-{hi:g}°")
     for j in (1, 2, 3):
         axes[1].plot(res.t, np.degrees(res.column(f"beta_{j}")), label=f"β_{j} blade {j}")
-    axes[1].plot(res.t, np.degrees(res.column("v_1")), "k:", lw=0.8, label="command v_j")
+    betas = np.degrees([res.column(f"beta_{j}") for j in (1, 2, 3)])
+    margin = max(2.0, 0.1 * (betas.max() - betas.min()))
+    axes[1].set_ylim(betas.min() - margin, betas.max() + margin)
     axes[1].set_ylabel("pitch [deg]")
     axes[1].set_xlabel("time [s]")
-    axes[1].legend(fontsize=8, ncol=4)
+    axes[1].legend(fontsize=7, ncol=2, loc="upper left")
     for ax in axes:
         ax.grid(alpha=0.3)
         _onset_line(ax, run["onset"])
@@ -93,8 +98,8 @@ def estimates(run, out: Path, name: str, paper_fig: str) -> list[Path]:
     for ax in axes[1]:
         ax.set_xlabel("time [s]")
     axes[0, 0].legend(fontsize=8)
-    fig.suptitle(_title(run, f"{paper_fig}: state estimations (x̂2..x̂4 are formal states, "
-                              "DESIGN item 11)"), fontsize=9)
+    fig.suptitle(_title(run, f"{paper_fig}: state estimations (x̂2..x̂4 are formal states: "
+                              "docs/paper-notes.md)"), fontsize=9)
     return _save(fig, out, name)
 
 
@@ -151,7 +156,10 @@ def comparison(runs: list[dict], out: Path, name: str = "cases_comparison") -> l
                  label="y_d")
     axes[0].set_ylabel("rotor speed [rad/s]")
     axes[1].set_ylabel("mean pitch [deg]")
-    axes[2].set_ylabel("generator power [MW]")
+    axes[2].set_ylabel("generator power T_g·ω_g [MW]")
+    if runs[0]["plant"] == "paper":
+        axes[2].text(0.5, 0.5, "the paper's plant is unloaded: no generator torque",
+                     transform=axes[2].transAxes, ha="center", va="center", color="tab:red")
     axes[2].set_xlabel("time [s]")
     axes[0].legend(fontsize=8)
     for ax in axes:
@@ -163,22 +171,31 @@ def comparison(runs: list[dict], out: Path, name: str = "cases_comparison") -> l
 
 def lyapunov_figure(run, V: np.ndarray, t: np.ndarray, bound, out: Path,
                     name: str = "lyapunov") -> list[Path]:
-    fig, ax = plt.subplots(figsize=(7, 3.8))
-    ax.semilogy(t, np.maximum(V, 1e-300), label="V_4(t), eq (47)")
+    fig, ax = plt.subplots(figsize=(7.5, 4.4))
+    ax.plot(t, V, label="V_4(t), eq (47)")
     if bound.holds:
         kappa = float(np.min(bound.kappa_terms))
-        ax.semilogy(t, V[0] * np.exp(-kappa * (t - t[0])) + bound.zeta_theta / kappa, "k--",
-                    label="eq (51) bound (θ* part of ζ)")
-        txt = "eq (51) bound shown"
+        ax.plot(t, V[0] * np.exp(-kappa * (t - t[0])) + bound.zeta_theta / kappa, "k--",
+                label="eq (51) bound (θ* part of ζ)")
     else:
-        txt = ("eq (51) does not follow for these gains: " + "; ".join(
-            f"{lab} = {v:.3g}" for lab, v in zip(bound.labels, bound.kappa_terms, strict=True)
-            if v <= 0) + " (need > 0)")
-        ax.text(0.01, 0.02, txt, transform=ax.transAxes, fontsize=7, color="tab:red",
-                va="bottom", wrap=True)
+        txt = ("No eq (51) bound: it does not follow for these gains, "
+               + "; ".join(f"{lab} = {v:.3g}" for lab, v in
+                           zip(bound.labels, bound.kappa_terms, strict=True) if v <= 0)
+               + " (each must be > 0).")
+        fig.text(0.02, 0.01, txt, fontsize=7, color="tab:red", va="bottom", wrap=True)
+    finite = V[np.isfinite(V) & (V > 0)]
+    if finite.size and finite.max() > 100 * finite.min():
+        ax.set_yscale("log")  # a divergence spans decades
+    else:
+        ax.ticklabel_format(axis="y", useOffset=True, style="sci", scilimits=(-3, 3))
     ax.set_xlabel("time [s]")
-    ax.set_ylabel("V [-]")
-    ax.grid(alpha=0.3, which="both")
+    ax.set_ylabel("V_4 [-] (½eᵀPe + Σ ½χ² + Σ θ̃ᵀθ̃/2γ)")
+    ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    ax.set_title(_title(run, "Lyapunov function V_4 along the run"), fontsize=9)
-    return _save(fig, out, name)
+    ax.set_title(_title(run, "Lyapunov function V_4 along the run, θ* fitted on it"), fontsize=9)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    paths = [out / f"{name}.png", out / f"{name}.pdf"]
+    for p in paths:
+        atomic_savefig(fig, p, dpi=130)
+    plt.close(fig)
+    return paths

@@ -1,7 +1,7 @@
 """Lyapunov analysis on the generated functions: eqs (22)-(25) and (50)-(52).
 
 * :func:`observer_lyapunov`  P of AᵀP + PA = -Q, and whether A is Hurwitz (a P > 0
-  exists only then; Table 1's K = [1 1 5 5] fails, DESIGN.md item 1);
+  exists only then; Table 1's K = [1 1 5 5] fails, paper-notes defect 1);
 * :func:`fit_theta_star`     the optimal weights θ*_i by least squares of f_i(X) + d_i
   on the regressors φ_i(x̂) along a trajectory;
 * :func:`decay_bound`        the decay-rate candidates of eq (51) and ζ of eq (52).

@@ -73,7 +73,7 @@ def run_verification(out_dir: Path, n_points: int = 50, seed: int = 0) -> dict:
     _step("α̇1..α̇3 against central differences along a closed-loop RK4 run")
     t0 = time.perf_counter()
     # One control sign: with d1 exogenous, the plant of eqs (1)-(4) has no path from pitch
-    # to rotor speed (DESIGN.md items 2-3), so s = ±1 give the same α trajectories here.
+    # to rotor speed (paper-notes defects 2-3), so s = ±1 give the same α trajectories here.
     fd = {"paper plant, d1(t) exogenous, y_d(t) sinusoidal": verify.alpha_dot_fd()}
     summary["alpha_dot_fd"] = {
         label: {"h_s": r.h.tolist(), "rel_error": r.errors.T.tolist(),

@@ -11,10 +11,12 @@ Kinds (fields, units and defaults in ``docs/wind.md``):
   for which the paper gives no numbers. Taken to be band-limited Gaussian noise: complex
   Gaussian Fourier coefficients (independent normal real and imaginary parts, so the
   process is Gaussian whatever the number of components) on the frequencies
-  k/T, k = 1..K, k/T <= ``cutoff_hz``, i.e. white noise through an ideal low-pass, then
-  shifted and scaled so that the sample mean and sample standard deviation over the run
-  (grid samples in [0, t_final]) are exactly ``mean_mps`` and ``std_mps``. The defaults
-  (1 m/s, 0.1 Hz) are ours; docs/wind.md says why this reading.
+  k/T, k = 1..K, k/T <= ``cutoff_hz``, i.e. white noise through an ideal low-pass, over a
+  period T >= max(600 s, t_final + margin), then shifted and scaled so that the sample
+  mean and standard deviation over that period are exactly ``mean_mps`` and ``std_mps``.
+  A run shorter than 10 minutes is therefore the start of the same series whatever its
+  length (the same seed gives the same wind), and a short run is not inflated to the full
+  std. The defaults (1 m/s, 0.1 Hz) are ours; docs/wind.md says why this reading.
 - ``ntm``: IEC 61400-1 ed. 3 normal turbulence model (6.3.1.3), longitudinal component at
   hub height, Kaimal spectrum (Annex B), synthesized by random phases and an inverse FFT
   (Shinozuka's spectral representation, as TurbSim does at a single point); see below.
@@ -306,7 +308,7 @@ def _paper_random(p, f, t_final, seed) -> SampledWind:
                   unit=' [m/s] (use kind = "constant" for no variation)')
     fc = _number(p["cutoff_hz"], f["cutoff_hz"], lo=0.0, hi=10.0, unit=" [Hz]")
     dt = min(0.05, 1.0 / (20.0 * fc))  # >= 20 samples per period of the highest frequency
-    n = _grid(t_final + SYNTH_MARGIN_S, dt, f["cutoff_hz"])
+    n = _grid(max(NTM_MIN_PERIOD_S, t_final + SYNTH_MARGIN_S), dt, f["cutoff_hz"])
     period = n * dt
     k_max = min(int(math.floor(fc * period + 1e-9)), n // 2 - 1)
     if k_max < 1:
@@ -317,18 +319,17 @@ def _paper_random(p, f, t_final, seed) -> SampledWind:
     coef[1:k_max + 1] = rng.standard_normal(k_max) + 1j * rng.standard_normal(k_max)
     x = np.fft.irfft(coef, n=n)
     t = np.arange(n) * dt
-    run = t <= t_final
-    xr = x[run]
-    sd = xr.std()
-    if not sd > 0.0:  # a run shorter than a sample or two: nothing to normalize
-        raise ConfigError("t_final_s", t_final, f"a run of at least a few samples of {dt:g} s")
-    v = mean + (x - xr.mean()) * (std / sd)
-    _check_positive(t, v, f["std_mps"], std, "lower std_mps or raise mean_mps")
+    v = mean + (x - x.mean()) * (std / x.std())
+    run = t <= t_final + dt
+    _check_positive(t[run], v[run], f["std_mps"], std, "lower std_mps or raise mean_mps")
     return SampledWind("paper_random", t, v, seed=seed,
                        parameters={"mean_mps": mean, "std_mps": std, "cutoff_hz": fc},
                        derived={"dt_s": dt, "synthesis_period_s": period,
                                 "n_frequencies": k_max,
-                                "normalization": "sample mean and std over [0, t_final]"})
+                                "normalization": "sample mean and std over the synthesis "
+                                                 "period",
+                                "run_mean_mps": float(v[run].mean()),
+                                "run_std_mps": float(v[run].std())})
 
 
 def _ntm(p, f, t_final, seed) -> SampledWind:
