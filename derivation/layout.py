@@ -54,7 +54,8 @@ PLANT_STATES = [
 # --- controller states: fuzzy observer (21) and the adaptive weights (32), (37), (43), (49)
 CONTROLLER_STATES = [
     Entry("xhat_1", 1.26711, "rad/s", "observer state x̂1 of eq (21), the estimate of ω_r"),
-    *[Entry(f"xhat_{k}", 0.0, "-", f"observer state x̂{k} of eq (21) (formal, paper-notes defect 11)")
+    *[Entry(f"xhat_{k}", 0.0, "-",
+            f"observer state x̂{k} of eq (21) (formal, paper-notes defect 11)")
       for k in range(2, N_CHAIN + 1)],
     *[Entry(f"theta_hat_{i}[{m}]", 0.0, "-", f"fuzzy weight {m} of f̂{i}, eq (21)")
       for i in range(1, N_CHAIN + 1) for m in range(rule_count(i))],

@@ -1,4 +1,4 @@
-"""Derivation checks of the paper's defects (paper-notes defects 2, 3, 7, 9; docs/paper-notes.md)."""
+"""Derivation checks of the paper's defects 2, 3, 7 and 9 (docs/paper-notes.md)."""
 
 import casadi as ca
 import numpy as np

@@ -36,7 +36,8 @@ PLANTS = {
                 "doc": "NREL 5-MW: two-mass drivetrain, generator torque, 2nd-order "
                        "limited actuators (default)"},
     "paper": {"function": "turbine_paper", "states": "plant_states",
-              "doc": "eqs (1)-(4) as printed: UNLOADED, no generator torque (paper-notes defect 3)"},
+              "doc": "eqs (1)-(4) as printed: UNLOADED, no generator torque "
+                     "(paper-notes defect 3)"},
 }
 CONTROLLERS = {
     "paper": {"function": "controller",
