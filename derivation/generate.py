@@ -29,8 +29,8 @@ import casadi as ca
 import sympy as sp
 
 from derivation import backstepping as bs
+from derivation import controllers, lyapunov, observer, plant, turbine
 from derivation import layout as lay
-from derivation import lyapunov, observer, plant, turbine
 from derivation.casadi_build import FuzzyEvaluator, Translator
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -274,6 +274,14 @@ def build_turbine() -> list[ca.Function]:
                          {"x_plant": x_p, "wind": wind, "p_turbine": p_t},
                          {"tsr": tr(turbine.tip_speed_ratio()),
                           "beta_mean": tr(turbine.mean_pitch())}))
+    # T_aero and ∂T_aero/∂β = (∂T_aero/∂Cp)(∂Cp/∂β); ∂Cp/∂β from the runtime's interpolant
+    dcp = ca.SX.sym("dcp_dbeta")
+    tr = Translator({**common, **_named(x_p, lay.PLANT_STATES), "dcp_dbeta": dcp})
+    dT = sp.diff(turbine.aero_torque(), turbine.cp) * sp.Symbol("dcp_dbeta")
+    out.append(_function("aero_torque_sensitivity",
+                         {"x_plant": x_p, "wind": wind, "cp": cp, "dcp_dbeta": dcp,
+                          "p_turbine": p_t},
+                         {"T_aero": tr(turbine.aero_torque()), "dT_dbeta": tr(dT)}))
     return out
 
 
@@ -287,6 +295,9 @@ def groups() -> list[Group]:
         Group("controller", ["derivation/backstepping.py", "derivation/observer.py",
                              "derivation/fuzzy.py"], ctrl_fns),
         Group("turbine", ["derivation/turbine.py", "derivation/plant.py"], build_turbine()),
+        Group("controllers", ["derivation/controllers.py", "derivation/pi_baseline.py",
+                              "derivation/backstepping.py", "derivation/observer.py",
+                              "derivation/fuzzy.py"], controllers.build(ctrl_fns[0])),
         Group("closed_loop", ["derivation/plant.py", "derivation/backstepping.py",
                               "derivation/observer.py", "derivation/fuzzy.py"], [closed]),
         Group("lyapunov", ["derivation/lyapunov.py", "derivation/backstepping.py",
@@ -350,7 +361,11 @@ def write(outdir: Path) -> dict:
             artefacts.append(path)
             functions[f.name()] = {"group": g.name, "c_file": cname,
                                    "serialized": path.name, **_signature(f), **_count_ops(f)}
+    reg = controllers.as_json()
+    extra_groups = {g: [{"name": e.name, "default": e.default, "unit": e.unit, "doc": e.doc}
+                        for e in entries] for g, entries in reg.pop("groups").items()}
     layout = {"_header": HEADER.format(modules="derivation/layout.py"), **lay.as_json(),
+              **extra_groups, **reg,
               "functions": functions, "kappa_labels": lyapunov.derive().kappa_labels}
     (outdir / "layout.json").write_text(json.dumps(layout, indent=1, sort_keys=True,
                                                    ensure_ascii=False) + "\n")

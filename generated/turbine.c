@@ -33,6 +33,7 @@ extern "C" {
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_f1 CASADI_PREFIX(f1)
 #define casadi_f2 CASADI_PREFIX(f2)
+#define casadi_f3 CASADI_PREFIX(f3)
 #define casadi_fmax CASADI_PREFIX(fmax)
 #define casadi_fmin CASADI_PREFIX(fmin)
 #define casadi_s0 CASADI_PREFIX(s0)
@@ -772,6 +773,118 @@ CASADI_SYMBOL_EXPORT int aero_operating_point_work(casadi_int *sz_arg, casadi_in
 
 CASADI_SYMBOL_EXPORT int aero_operating_point_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
   if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 2*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* aero_torque_sensitivity:(x_plant[6],wind,cp,dcp_dbeta,p_turbine[17])->(T_aero,dT_dbeta) */
+static int casadi_f3(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2, a3, a4, a5, a6, a7;
+  a0=5.0000000000000000e-01;
+  a1=3.1415926535897931e+00;
+  a2=arg[2]? arg[2][0] : 0;
+  a2=(a1*a2);
+  a3=arg[4]? arg[4][5] : 0;
+  a2=(a2*a3);
+  a4=arg[0]? arg[0][0] : 0;
+  a2=(a2/a4);
+  a5=arg[4]? arg[4][6] : 0;
+  a5=casadi_sq(a5);
+  a2=(a2*a5);
+  a6=arg[1]? arg[1][0] : 0;
+  a7=casadi_sq(a6);
+  a6=(a6*a7);
+  a2=(a2*a6);
+  a2=(a0*a2);
+  if (res[0]!=0) res[0][0]=a2;
+  a2=arg[3]? arg[3][0] : 0;
+  a1=(a1*a2);
+  a1=(a1*a3);
+  a1=(a1/a4);
+  a1=(a1*a5);
+  a1=(a1*a6);
+  a0=(a0*a1);
+  if (res[1]!=0) res[1][0]=a0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int aero_torque_sensitivity(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f3(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int aero_torque_sensitivity_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void aero_torque_sensitivity_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void aero_torque_sensitivity_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void aero_torque_sensitivity_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int aero_torque_sensitivity_n_in(void) { return 5;}
+
+CASADI_SYMBOL_EXPORT casadi_int aero_torque_sensitivity_n_out(void) { return 2;}
+
+CASADI_SYMBOL_EXPORT casadi_real aero_torque_sensitivity_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* aero_torque_sensitivity_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x_plant";
+    case 1: return "wind";
+    case 2: return "cp";
+    case 3: return "dcp_dbeta";
+    case 4: return "p_turbine";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* aero_torque_sensitivity_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "T_aero";
+    case 1: return "dT_dbeta";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* aero_torque_sensitivity_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s2;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s5;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* aero_torque_sensitivity_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    case 1: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int aero_torque_sensitivity_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 5;
+  if (sz_res) *sz_res = 2;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int aero_torque_sensitivity_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 5*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 2*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

@@ -13,8 +13,9 @@ import numpy as np
 import sympy as sp
 
 from derivation import backstepping as bs
-from derivation import fuzzy, lyapunov, observer, plant, turbine
+from derivation import fuzzy, lyapunov, observer, pi_baseline, plant, turbine
 from derivation import layout as dlay
+from derivation.controllers import MEAS
 
 X_OFFSET = sp.symbols("x_offset_1:5", real=True)
 X_SCALE = sp.symbols("x_scale_1:5", positive=True)
@@ -259,8 +260,58 @@ def turbine_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple
             "beta_meas": pair("bmeas", turbine.measured_pitch(), vals)}
 
 
+def _flat(args, key):
+    return np.asarray(args[key], dtype=float).reshape(-1, order="F")
+
+
+def controller_uniform_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
+    """ctrl_<name> / init_<name> of derivation/controllers.py from the SymPy laws."""
+    meas = _flat(args, "meas")
+    vals = {n: float(x) for n, x in zip(MEAS, meas, strict=True)}
+    if name.endswith("_pi"):
+        pc = _flat(args, "p_ctrl")
+        vals.update({e.name: float(x) for e, x in zip(pi_baseline.PARAMS, pc, strict=True)})
+        if name.startswith("init"):
+            return {"x_ctrl0": pair("pi_init", [pi_baseline.initial_integrator()], vals)}
+        vals.update({"yd_0": float(_flat(args, "yd")[0]),
+                     "dT_dbeta": float(_flat(args, "sched")[0]),
+                     "pi_integrator": float(_flat(args, "x_ctrl")[0])})
+        cmd, xi_dot, diag = pi_baseline.law()
+        c = pair("pi_cmd", [cmd], vals)
+        return {"v": (np.repeat(c[0], 3), np.repeat(c[1], 3)), "u0": c,
+                "x_ctrl_dot": pair("pi_xdot", [xi_dot], vals),
+                "diag": pair("pi_diag", diag, vals)}
+    if name.startswith("init"):
+        n_w = len(dlay.CONTROLLER_STATES) - 4
+        x0 = np.concatenate([[meas[0], 0.0, meas[0], meas[2:].mean()], np.zeros(n_w)])
+        return {"x_ctrl0": exact(x0)}
+    # the paper's design with eq (49) told the known fault
+    a = {"x_ctrl": args["x_ctrl"], "yd": args["yd"]}
+    pc = _flat(args, "p_ctrl").copy()
+    i0 = [e.name for e in dlay.CONTROLLER_PARAMS].index("rho_hat_1")
+    pc[i0:i0 + 9] = _flat(args, "known_fault")
+    a["p_ctrl"] = pc
+    values = named_values(a)
+    values["y"] = float(meas[0])
+    r = controller_reference(values)
+    xc = _flat(args, "x_ctrl")
+    return {"v": r["v"], "x_ctrl_dot": r["x_ctrl_dot"], "u0": r["u0"], "diag": exact(xc[:4])}
+
+
 def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     """SymPy reference (value, scale) of each output of generated function ``name``."""
+    if name.startswith(("ctrl_", "init_")):
+        return controller_uniform_reference(name, args)
+    if name == "aero_torque_sensitivity":
+        vals = named_values({})
+        vals.update({e.name: float(x) for e, x in zip(
+            dlay.PLANT_STATES, _flat(args, "x_plant"), strict=True)})
+        vals.update({e.name: float(x) for e, x in zip(
+            dlay.TURBINE_PARAMS, _flat(args, "p_turbine"), strict=True)})
+        vals.update({k: float(_flat(args, k)[0]) for k in ("wind", "cp", "dcp_dbeta")})
+        dT = sp.diff(turbine.aero_torque(), turbine.cp) * sp.Symbol("dcp_dbeta")
+        return {"T_aero": pair("taero", [turbine.aero_torque()], vals),
+                "dT_dbeta": pair("dTdb", [dT], vals)}
     if name.startswith("turbine_") or name == "aero_operating_point":
         return turbine_reference(name, args)
     if name == "lyapunov":

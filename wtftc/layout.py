@@ -80,5 +80,7 @@ def paper_table1(key: str) -> np.ndarray:
 
 
 def _check_group(group: str) -> None:
-    if group not in GROUPS:
-        raise KeyError(f"unknown layout group {group!r}; allowed: {', '.join(GROUPS)}")
+    groups = [k for k, v in layout().items()
+              if isinstance(v, list) and v and isinstance(v[0], dict) and "default" in v[0]]
+    if group not in groups:
+        raise KeyError(f"unknown layout group {group!r}; allowed: {', '.join(groups)}")

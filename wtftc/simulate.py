@@ -39,20 +39,28 @@ PLANTS = {
               "doc": "eqs (1)-(4) as printed: UNLOADED, no generator torque "
                      "(paper-notes defect 3)"},
 }
-CONTROLLERS = {
-    "paper": {"function": "controller",
-              "doc": "Bakhshi & Alfi (2020) observer-based adaptive fuzzy backstepping, eq (49)"},
-}
-#: names of the per-step outputs, with units
+#: per-step outputs common to every controller, with units; then y_d and the controller's
+#: four diagnostics (named in generated/layout.json, e.g. x̂1..x̂4 for the paper's design)
 OUTPUTS = [
     ("omega_r", "rad/s"), ("theta_s", "rad"), ("omega_g_hss", "rad/s"),
     ("beta_1", "rad"), ("beta_2", "rad"), ("beta_3", "rad"),
     ("beta_meas_1", "rad"), ("beta_meas_2", "rad"), ("beta_meas_3", "rad"),
     ("u0", "rad"), ("v_1", "rad"), ("v_2", "rad"), ("v_3", "rad"),
     ("wind", "m/s"), ("tsr", "-"), ("cp", "-"), ("T_aero", "N m"), ("T_gen", "N m"),
-    ("P_gen", "W"), ("xhat_1", "rad/s"), ("xhat_2", "-"), ("xhat_3", "-"), ("xhat_4", "-"),
-    ("y_d", "rad/s"),
+    ("P_gen", "W"), ("dT_dbeta", "N m/rad"), ("y_d", "rad/s"),
 ]
+
+
+def controllers() -> dict:
+    """The registered controllers (derivation/controllers.py, via generated/layout.json)."""
+    return lay.layout()["controllers"]
+
+
+def output_spec(controller: str) -> list[tuple[str, str]]:
+    diag = controllers()[controller]["diag"]
+    return OUTPUTS + [(n, "rad/s" if n == "xhat_1" else "-") for n in diag]
+
+
 CHUNK = 1000  # RK4 steps per compiled call
 
 
@@ -95,13 +103,66 @@ def steady_pitch(cp_fn: ca.Function, omega_r: float, torque: float, wind: float,
     return 0.5 * (lo + hi)
 
 
-def _closed_loop_rhs(plant: str, cp_fn: ca.Function, controller: str) -> ca.Function:
-    """ż = f(z, wind, faults, reference, parameters): z = [plant states, controller states]."""
+def pitch_sensitivity_schedule(table: CpTable, p_turbine: np.ndarray) -> ca.Function:
+    """∂T_aero/∂β [N m/rad] against pitch on the steady above-rated operating curve.
+
+    For each table pitch, the wind at which rated speed and rated torque balance (bisection
+    on the Cp interpolant), then ∂T_aero/∂β there (the generated aero_torque_sensitivity,
+    with ∂Cp/∂β by AD of the interpolant). Linear in between, held beyond the ends. This
+    is the gain schedule of the PI baseline (and of the physical designs to come).
+    """
+    cp_fn = cp_interpolant(table)
+    lam, b = ca.SX.sym("tsr"), ca.SX.sym("beta")
+    dcp_fn = ca.Function("dcp", [lam, b], [ca.jacobian(cp_fn(lam, b), b)])
+    sens = load("aero_torque_sensitivity")
+    tp = dict(zip(lay.names("turbine_params"), p_turbine, strict=True))
+    omega, torque, R = tp["omega_g_rated"], tp["gen_torque_rated"], tp["rotor_radius"]
+    x6 = np.array([omega, 0, omega, 0, 0, 0], dtype=float)
+    betas, grads = [], []
+    for beta in table.pitch_rad:
+        if beta < 0:
+            continue
+        x6[3:6] = beta
+
+        def excess(v, beta=beta):
+            return float(sens(x_plant=x6, wind=v, cp=cp_fn(omega * R / v, beta), dcp_dbeta=0,
+                              p_turbine=p_turbine)["T_aero"]) - torque
+
+        lo, hi = 3.0, 45.0
+        if excess(lo) > 0 or excess(hi) < 0:
+            continue
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if excess(mid) > 0 else (mid, hi)
+        v = 0.5 * (lo + hi)
+        g = float(sens(x_plant=x6, wind=v, cp=cp_fn(omega * R / v, beta),
+                       dcp_dbeta=dcp_fn(omega * R / v, beta), p_turbine=p_turbine)["dT_dbeta"])
+        betas.append(float(beta))
+        grads.append(g)
+    if len(betas) < 2:
+        raise ConfigError("cp_table", table.source, "a table with an above-rated operating "
+                          "range at rated speed and torque (none found)")
+    interp = ca.interpolant("dTdbeta_table", "linear", [np.array(betas)], np.array(grads))
+    bb = ca.SX.sym("beta")
+    bc = ca.fmin(ca.fmax(bb, betas[0]), betas[-1])
+    return ca.Function("pitch_sensitivity", [bb], [interp(bc)], ["beta"], ["dT_dbeta"])
+
+
+def _closed_loop_rhs(plant: str, table: CpTable, controller: str,
+                     p_turbine_sched: np.ndarray) -> ca.Function:
+    """ż = f(z, wind, faults, reference, parameters): z = [plant states, controller states].
+
+    The controller sees only the measurements [ω_r, ω_g, β_meas,j] and the pitch-scheduled
+    sensitivity; the plant state never enters it.
+    """
+    reg = controllers()[controller]
+    cp_fn = cp_interpolant(table)
+    sched_fn = pitch_sensitivity_schedule(table, p_turbine_sched)
     pf = load(PLANTS[plant]["function"], "interpreted")
-    cf = load(CONTROLLERS[controller]["function"], "interpreted")
+    cf = load(reg["function"], "interpreted")
     aero = load("aero_operating_point", "interpreted")
     n_p = len(lay.names(PLANTS[plant]["states"]))
-    n_c = len(lay.names("controller_states"))
+    n_c = len(lay.names(reg["states"]))
     z = ca.SX.sym("z", n_p + n_c)
     wind = ca.SX.sym("wind")
     af = ca.SX.sym("actuator_faults", len(lay.names("actuator_faults")))
@@ -109,22 +170,23 @@ def _closed_loop_rhs(plant: str, cp_fn: ca.Function, controller: str) -> ca.Func
     ck = ca.SX.sym("ctrl_fault", len(lay.names("fault_inputs")))
     yd = ca.SX.sym("yd", len(lay.names("reference")))
     pt = ca.SX.sym("p_turbine", len(lay.names("turbine_params")))
-    pc = ca.SX.sym("p_ctrl", len(lay.names("controller_params")))
+    pc = ca.SX.sym("p_ctrl", len(lay.names(reg["params"])))
     xp, xc = z[:n_p], z[n_p:]
-    # eq (49)'s known fault (ρ̂, σ̂, ū) replaces the controller's nominal values
-    i0 = lay.index("controller_params", "rho_hat_1")
-    pc_eff = ca.vertcat(pc[:i0], ck, pc[i0 + ck.numel():])
-    y = xp[0]  # measured rotor speed: the only signal the paper's controller uses
-    c = cf(x_ctrl=xc, y=y, yd=yd, p_ctrl=pc_eff)
+    n_g = pt[lay.index("turbine_params", "gearbox_ratio")]
     op = aero(x_plant=xp[:6], wind=wind, p_turbine=pt)
     cp = cp_fn(op["tsr"], op["beta_mean"])
+    sensors = pf(x_plant=xp, v=ca.DM.zeros(3), wind=wind, cp=cp, actuator_faults=af,
+                 sensor_faults=sf, p_turbine=pt)["beta_meas"]  # independent of v
+    meas = ca.vertcat(xp[0], xp[2] * n_g, sensors)
+    sched = sched_fn(ca.sum1(sensors) / 3)
+    c = cf(x_ctrl=xc, meas=meas, yd=yd, sched=sched, p_ctrl=pc, known_fault=ck)
     p = pf(x_plant=xp, v=c["v"], wind=wind, cp=cp, actuator_faults=af, sensor_faults=sf,
            p_turbine=pt)
     zdot = ca.vertcat(p["x_plant_dot"], c["x_ctrl_dot"])
-    n_g = pt[lay.index("turbine_params", "gearbox_ratio")]
-    out = ca.vertcat(xp[0], xp[1], xp[2] * n_g, xp[3:6], p["beta_meas"], c["u0"], c["v"], wind,
-                     op["tsr"], cp, p["T_aero"], p["T_gen"], p["P_gen"], xc[:4], yd[0])
-    assert out.numel() == len(OUTPUTS)
+    out = ca.vertcat(xp[0], xp[1], xp[2] * n_g, xp[3:6], sensors, c["u0"], c["v"], wind,
+                     op["tsr"], cp, p["T_aero"], p["T_gen"], p["P_gen"], sched, yd[0],
+                     c["diag"])
+    assert out.numel() == len(output_spec(controller))
     return ca.Function("rhs", [z, wind, af, sf, ck, yd, pt, pc], [zdot, out],
                        ["z", "wind", "actuator_faults", "sensor_faults", "ctrl_fault", "yd",
                         "p_turbine", "p_ctrl"], ["z_dot", "out"])
@@ -181,19 +243,20 @@ def _compile_function(f: ca.Function, label: str) -> ca.Function:
 
 @cache
 def chunk_function(plant: str, controller: str, table_key: str, table: CpTable | None = None,
-                   n: int = CHUNK) -> ca.Function:
+                   sched_params: tuple | None = None, n: int = CHUNK) -> ca.Function:
     """``n`` RK4 steps in one compiled call (mapaccum over the step)."""
-    table = table or nrel5mw_cp_table()
-    rhs = _closed_loop_rhs(plant, cp_interpolant(table), controller)
-    step = rk4_step(rhs)
+    step = rk4_step(rhs_function(plant, controller, table_key, table, sched_params))
     chunk = step.mapaccum(f"loop_{plant}_{controller}", n)
     return _compile_function(chunk, f"loop_{plant}_{controller}_{table_key}")
 
 
 @cache
-def rhs_function(plant: str, controller: str, table_key: str,
-                 table: CpTable | None = None) -> ca.Function:
-    return _closed_loop_rhs(plant, cp_interpolant(table or nrel5mw_cp_table()), controller)
+def rhs_function(plant: str, controller: str, table_key: str, table: CpTable | None = None,
+                 sched_params: tuple | None = None) -> ca.Function:
+    """The closed-loop right-hand side; sched_params: the turbine parameters (a tuple)
+    the pitch-sensitivity schedule is built for (default: the layout's)."""
+    pt = np.array(sched_params) if sched_params else lay.vector("turbine_params")
+    return _closed_loop_rhs(plant, table or nrel5mw_cp_table(), controller, pt)
 
 
 @dataclass
@@ -208,12 +271,14 @@ class Result:
     z: np.ndarray | None = None  # full state trajectory at the output times (N, n_z)
     schedule: object = None  # the plant's fault schedule (wtftc.faults.Schedule), if any
 
+    names: list = field(default_factory=list)  # output names, in column order
+
     def column(self, name: str) -> np.ndarray:
-        return self.outputs[:, [n for n, _ in OUTPUTS].index(name)]
+        return self.outputs[:, self.names.index(name)]
 
 
-def state_names(plant: str) -> list[str]:
-    return lay.names(PLANTS[plant]["states"]) + lay.names("controller_states")
+def state_names(plant: str, controller: str = "paper") -> list[str]:
+    return lay.names(PLANTS[plant]["states"]) + lay.names(controllers()[controller]["states"])
 
 
 def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_schedule,
@@ -226,10 +291,10 @@ def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_s
     (a :class:`wtftc.faults.Schedule`, or None for a fault-free controller).
     """
     n_steps = int(round(t_final / dt))
-    f = chunk_function(plant, controller, table_key, table)
+    f = chunk_function(plant, controller, table_key, table, tuple(p_turbine))
     n_c = f.size2_out(1)
     z = np.array(z0, dtype=float)
-    names = state_names(plant)
+    names = state_names(plant, controller)
     outs, ts, zs = [], [], []
     events = [int(round(e / dt)) for e in (schedule.events() if schedule else [])]
     k = 0
@@ -291,7 +356,8 @@ def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_s
         _progress(k, n_steps, dt, time.perf_counter() - t0, end=True)
     return Result(t=np.concatenate(ts), outputs=np.vstack(outs), z_final=z, diverged=diverged,
                   wall_s=time.perf_counter() - t0, steps=k,
-                  z=np.vstack(zs) if keep_states else None)
+                  z=np.vstack(zs) if keep_states else None,
+                  names=[n for n, _ in output_spec(controller)])
 
 
 def _progress(k: int, n: int, dt: float, wall: float, end: bool = False) -> None:
@@ -312,7 +378,7 @@ def _progress(k: int, n: int, dt: float, wall: float, end: bool = False) -> None
 def stability_limit(plant: str, controller: str, z0, wind0: float, yd, p_turbine, p_ctrl,
                     table: CpTable | None = None, table_key: str = "nrel5mw") -> float:
     """Largest |eigenvalue| of the closed-loop Jacobian at z0 (RK4: stable for |λ dt| < 2.78)."""
-    rhs = rhs_function(plant, controller, table_key, table)
+    rhs = rhs_function(plant, controller, table_key, table, tuple(p_turbine))
     z = ca.SX.sym("z", rhs.size1_in(0))
     args = [lay.defaults("actuator_faults"), lay.defaults("sensor_faults"),
             lay.defaults("fault_inputs"), yd, p_turbine, p_ctrl]

@@ -50,6 +50,11 @@ def random_inputs(name: str, rng: np.random.Generator,
         size = int(np.prod(shape))
         if n in special and special[n].size == size:
             val = special[n]
+        elif n in ("x_ctrl", "p_ctrl") and size != len(lay.names(_GROUP_OF_INPUT[n])):
+            group = _group_of_size(n, size)
+            base = lay.defaults(group)
+            val = (base * (1 + 0.1 * rng.uniform(-1, 1, base.size)) if n == "p_ctrl"
+                   else base + 0.05 * rng.standard_normal(base.size))
         elif n in ("p_plant", "p_ctrl", "fault", "p_turbine"):
             base = lay.defaults(_GROUP_OF_INPUT[n])
             val = base * (1 + 0.1 * rng.uniform(-1, 1, base.size))
@@ -74,6 +79,15 @@ def random_inputs(name: str, rng: np.random.Generator,
     return out
 
 
+def _group_of_size(kind: str, size: int) -> str:
+    """The registered controller's states/params group with this many entries."""
+    key = "states" if kind == "x_ctrl" else "params"
+    for reg in lay.layout()["controllers"].values():
+        if len(lay.names(reg[key])) == size:
+            return reg[key]
+    raise KeyError(f"no controller {key} group of size {size}")
+
+
 def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
     """Plant inputs that cross the actuator limits and exercise every fault."""
     n = lay.layout()["n_blades"]
@@ -88,6 +102,12 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
             rng.uniform(3.0, 12.0, n), rng.uniform(0.4, 1.0, n)]),
         "sensor_faults": np.concatenate([
             rng.uniform(0.8, 1.2, n), rng.uniform(0, 1, n), rng.uniform(0, 0.5, n)]),
+        "meas": np.concatenate([[rng.uniform(1.0, 1.5), rng.uniform(100.0, 145.0)],
+                                rng.uniform(-0.05, 1.65, n)]),
+        "sched": np.array([-rng.uniform(2e6, 3e7)]),
+        "known_fault": np.concatenate([rng.uniform(0.5, 1.0, n), rng.uniform(0, 0.7, n),
+                                       rng.uniform(0, 0.3, n)]),
+        "dcp_dbeta": np.array([rng.uniform(-2.0, 0.2)]),
     }
 
 

@@ -1,0 +1,59 @@
+"""A gain-scheduled PI pitch controller: the plain baseline (not from the paper).
+
+The standard above-rated design (Jonkman et al. 2009, section 7.2; ROSCO's pitch loop):
+the rotor-speed error drives a PI on the collective pitch whose gains are scheduled on the
+pitch sensitivity ∂T_aero/∂β, so that the closed rotor-speed loop
+J ė = (∂T_aero/∂β) Δβ behaves as a second-order system of natural frequency ω_n and
+damping ζ at every operating point:
+
+    K_p = 2 ζ ω_n J / (-∂T_aero/∂β),      K_i = ω_n² J / (-∂T_aero/∂β)
+    β_cmd = K_p e + x_I,   ẋ_I = K_i e     (e = ω_r - ω_ref, x_I in rad)
+
+with J the drivetrain inertia on the LSS (rotor + generator). Anti-windup by conditional
+integration: x_I stops integrating when β_cmd is at a pitch limit and e pushes it
+further out. The same command goes to the three blades.
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+
+from derivation.layout import N_BLADES, Entry
+
+omega_r, omega_g_hss = sp.symbols("omega_r omega_g_hss", real=True)
+beta_meas = sp.symbols(f"beta_meas_1:{N_BLADES + 1}", real=True)
+yd0 = sp.Symbol("yd_0", real=True)
+dTdbeta = sp.Symbol("dT_dbeta", real=True)  # scheduled pitch sensitivity [N m/rad], < 0
+x_I = sp.Symbol("pi_integrator", real=True)
+
+STATES = [Entry("pi_integrator", 0.0, "rad", "PI integrator x_I (pitch units)")]
+PARAMS = [
+    Entry("pi_omega_n", 0.6, "rad/s", "closed-loop natural frequency (ROSCO NREL5MW PC_omega)"),
+    Entry("pi_zeta", 0.7, "-", "closed-loop damping ratio (ROSCO NREL5MW PC_zeta)"),
+    Entry("pi_inertia", 38_759_228.0 + 534.116 * 97.0**2, "kg m^2",
+          "drivetrain inertia on the LSS: J_r + N² J_g (Jonkman 2009)"),
+    Entry("pi_pitch_min", 0.0, "rad", "command lower limit"),
+    Entry("pi_pitch_max", 1.5707963267948966, "rad", "command upper limit"),
+    Entry("pi_dTdbeta_min", 1.0e5, "N m/rad",
+          "smallest |∂T/∂β| used in the schedule (bounds the gains near rated)"),
+]
+wn, zeta, J, bmin, bmax, gmin = sp.symbols(
+    "pi_omega_n pi_zeta pi_inertia pi_pitch_min pi_pitch_max pi_dTdbeta_min", real=True)
+
+
+def law():
+    """(β_cmd, ẋ_I, diagnostics) of the PI above."""
+    e = omega_r - yd0
+    g = sp.Max(-dTdbeta, gmin)  # -∂T/∂β > 0 above rated
+    kp = 2 * zeta * wn * J / g
+    ki = wn**2 * J / g
+    raw = kp * e + x_I
+    cmd = sp.Min(sp.Max(raw, bmin), bmax)
+    saturated_out = sp.Or(sp.And(raw >= bmax, e > 0), sp.And(raw <= bmin, e < 0))
+    xI_dot = sp.Piecewise((0, saturated_out), (ki * e, True))
+    return cmd, xI_dot, [e, x_I, kp, ki]
+
+
+def initial_integrator():
+    """x_I at start: the measured mean pitch, so that the command starts where the blades are."""
+    return sum(beta_meas) / N_BLADES
