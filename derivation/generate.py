@@ -296,6 +296,7 @@ def groups() -> list[Group]:
                              "derivation/fuzzy.py"], ctrl_fns),
         Group("turbine", ["derivation/turbine.py", "derivation/plant.py"], build_turbine()),
         Group("controllers", ["derivation/controllers.py", "derivation/pi_baseline.py",
+                              "derivation/physical.py",
                               "derivation/backstepping.py", "derivation/observer.py",
                               "derivation/fuzzy.py"], controllers.build(ctrl_fns[0])),
         Group("closed_loop", ["derivation/plant.py", "derivation/backstepping.py",

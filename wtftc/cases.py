@@ -191,7 +191,9 @@ def trim(rc: RunConfig) -> np.ndarray:
 
     reg = sim.controllers()[rc.controller]
     meas0 = np.array([omega, omega * get["gearbox_ratio"], beta0, beta0, beta0])
-    xc = np.array(load(reg["init"])(meas=meas0, p_ctrl=rc.p_ctrl)["x_ctrl0"]).ravel()
+    sched0 = float(sim.pitch_sensitivity_schedule(table, rc.p_turbine)(beta0))
+    xc = np.array(load(reg["init"])(meas=meas0, sched=sched0, p_ctrl=rc.p_ctrl)["x_ctrl0"])
+    xc = xc.ravel()
     return np.concatenate([xp, xc])
 
 

@@ -1,0 +1,155 @@
+"""A physically consistent adaptive fuzzy backstepping AFTC (ours, not the paper's).
+
+Chain of relative degree 2, ω_r ← β̄ ← u (the simpler of the two chains in the design
+notes; the three-state chain through θ_s is not implemented yet). The design model:
+
+    J ω̇_r = T_aero(ω_r, β̄, v_wind) - T_g        (rigid drivetrain on the LSS)
+    τ_a β̄̇ = u - β̄                               (the actuators' first-order equivalent)
+
+with T_aero = G β̄ + (T_aero - G β̄): G = ∂T_aero/∂β < 0 is scheduled from the Cp table
+(the `sched` input), the rest is the unknown aerodynamic residual, approximated by a
+fuzzy system f̂ = θ̂ᵀφ(ω_r) (memberships as in derivation/fuzzy.py). With b = G/J and
+h0 = -T_g/J (constant generator torque, known to the controller):
+
+    z1 = ω_r - y_d,            ż1 = b β̄ + h0 + f - ẏ_d
+    α1 = (-c1 z1 - h0 - f̂ + ẏ_d) / b                         (desired mean pitch)
+    z2 = β̄ - α1,               ż2 = (u - β̄)/τ_a - α̇1
+    U  = β̄ + τ_a (-c2 z2 - b z1 + α̇1)                        (mean pitch command)
+    θ̂̇ = κ (γ z1 φ - σ θ̂)                                     (adaptation)
+
+V = ½z1² + ½z2² + θ̃ᵀθ̃/(2γ) gives V̇ = -c1 z1² - c2 z2² + z1 ε + σ θ̃ᵀθ̂ - z2 (α̇1 - α̇1c) for
+κ = 1. α̇1 is the total derivative of α1 (SymPy); ω̇_r is not measured, so the controller
+uses the computable part with ω̇_r → b β̄ + h0 + f̂, and ḃ (the schedule's rate) → 0; both
+remainders are generated. Anti-windup: κ = 0 (conditional integration) when U is at a
+pitch limit and z1 pushes it further out, or when |θ̂| is at its bound and the update
+points outward (projection onto the ball |θ̂| ≤ θ_max). Accommodation (eq 49's structure
+for three blades): the free blades get v = (3U - Σ σ̂_j ū_j) / Σ (1 - σ̂_j) ρ̂_j, so that
+the mean of the effective blade inputs is U.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cache
+
+import sympy as sp
+
+from derivation import fuzzy
+from derivation.layout import N_BLADES, N_MF, Entry
+
+omega_r = sp.Symbol("omega_r", real=True)
+beta_meas = sp.symbols(f"beta_meas_1:{N_BLADES + 1}", real=True)
+yd = sp.symbols("yd_0:3", real=True)
+dT_dbeta = sp.Symbol("dT_dbeta", real=True)
+omega_dot = sp.Symbol("omega_dot", real=True)  # true ω̇_r (unmeasured), for the full α̇1
+b_dot = sp.Symbol("b_dot", real=True)  # true rate of b = G/J (unmeasured)
+kappa = sp.Symbol("kappa", real=True)  # 1 integrate, 0 frozen (anti-windup), set by the generator
+rho_hat = sp.symbols(f"rho_hat_1:{N_BLADES + 1}", real=True)
+lock_hat = sp.symbols(f"lock_hat_1:{N_BLADES + 1}", real=True)
+ubar_hat = sp.symbols(f"ubar_hat_1:{N_BLADES + 1}", real=True)
+
+STATES = [Entry(f"phys_theta_hat[{m}]", 0.0, "rad/s^2", f"fuzzy weight {m} of f̂(ω_r)")
+          for m in range(N_MF)]
+PARAMS = [
+    # c1, c2, γ chosen among (1, 4, 0.5), (2, 6, 0.5), (2, 6, 2), (3, 8, 1) on 60 s of NTM
+    # class B at 16 m/s: (2, 6, 2) had the lowest RMS speed error (docs/controllers.md)
+    Entry("phys_c1", 2.0, "1/s", "backstepping gain c1 (speed error)"),
+    Entry("phys_c2", 6.0, "1/s", "backstepping gain c2 (pitch error)"),
+    Entry("phys_gamma", 2.0, "-", "adaptation rate γ"),
+    Entry("phys_sigma", 0.01, "1/s", "σ-modification of the adaptive law"),
+    Entry("phys_theta_max", 2.0, "rad/s^2", "projection bound |θ̂| ≤ θ_max"),
+    Entry("phys_inertia", 38_759_228.0 + 534.116 * 97.0**2, "kg m^2",
+          "drivetrain inertia on the LSS, J_r + N² J_g (Jonkman 2009)"),
+    Entry("phys_gen_torque", 43_093.55 * 97.0, "N m",
+          "generator torque on the LSS above rated (constant torque, Jonkman 2009)"),
+    Entry("phys_tau_a", 0.108, "s", "actuator first-order equivalent 2ζ/ω_n (Odgaard 2013)"),
+    Entry("phys_pitch_min", 0.0, "rad", "pitch command lower limit"),
+    Entry("phys_pitch_max", 1.5707963267948966, "rad", "pitch command upper limit"),
+    Entry("phys_dTdbeta_min", 1.0e5, "N m/rad", "smallest |∂T/∂β| used (bounds 1/b)"),
+    Entry("mf_width", 0.6, "-", "Gaussian membership width on normalized ω_r"),
+    *[Entry(f"mf_centre_{m}", -1.0 + 2.0 * (m - 1) / (N_MF - 1), "-",
+            f"centre of membership {m}") for m in range(1, N_MF + 1)],
+    Entry("x_offset_1", 1.26711, "rad/s", "normalization offset of ω_r (rated)"),
+    Entry("x_scale_1", 0.1, "rad/s", "normalization scale of ω_r"),
+]
+c1, c2, gam, sig, th_max, J, T_g, tau_a, bmin, bmax, gmin = sp.symbols(
+    "phys_c1 phys_c2 phys_gamma phys_sigma phys_theta_max phys_inertia phys_gen_torque "
+    "phys_tau_a phys_pitch_min phys_pitch_max phys_dTdbeta_min", real=True)
+
+
+@dataclass
+class PhysicalDesign:
+    rule_base: fuzzy.RuleBase
+    b: sp.Expr = sp.S.Zero
+    h0: sp.Expr = sp.S.Zero
+    z1: sp.Expr = sp.S.Zero
+    z2: sp.Expr = sp.S.Zero
+    alpha1: sp.Expr = sp.S.Zero
+    alpha1_dot_full: sp.Expr = sp.S.Zero
+    alpha1_dot_comp: sp.Expr = sp.S.Zero
+    U: sp.Expr = sp.S.Zero
+    v_free: sp.Expr = sp.S.Zero
+    omega_dot_hat: sp.Expr = sp.S.Zero
+    adapt_gain: sp.Expr = sp.S.Zero  # γ z1 (times φ) of the adaptive law
+    raw: list = field(default_factory=list)
+
+
+def beta_mean() -> sp.Expr:
+    return sum(beta_meas) / N_BLADES
+
+
+@cache
+def derive() -> PhysicalDesign:
+    rb = fuzzy.RuleBase(1)  # f̂(ω_r): the input x̂_1 of the rule base is ω_r here
+    d = PhysicalDesign(rule_base=rb)
+    g = -sp.Max(-dT_dbeta, gmin)  # G ≤ -gmin < 0 above rated
+    b_sym = sp.Symbol("b_sched", real=True)  # b as a symbol: its rate is b_dot
+    d.b = g / J
+    d.h0 = -T_g / J
+    F = rb.L()
+    x2 = beta_mean()
+    d.z1 = omega_r - yd[0]
+    alpha1 = (-c1 * d.z1 - d.h0 - F + yd[1]) / b_sym
+    d.omega_dot_hat = b_sym * x2 + d.h0 + F
+    # total derivative along the loop: ω_r, y_d, the weights (through L/B), b
+    xdot = [omega_dot]
+    rates = {omega_r: omega_dot, yd[0]: yd[1], yd[1]: yd[2], b_sym: b_dot}
+    full = sp.S.Zero
+    for s in sorted(alpha1.free_symbols, key=lambda q: q.name):
+        if s in rates:
+            rate = rates[s]
+        elif s in rb.symbols():
+            rate = rb.rate(s, xdot, d.z1, kappa * gam, kappa * sig)
+        else:
+            continue
+        full += sp.diff(alpha1, s) * rate
+    # rb.rate may have created symbols L1_1, B1_0_0 used above: all generated by the caller
+    comp = full.subs({omega_dot: d.omega_dot_hat, b_dot: 0})
+    d.alpha1 = alpha1.subs(b_sym, d.b)
+    d.alpha1_dot_full = full.subs(b_sym, d.b)
+    d.alpha1_dot_comp = comp.subs(b_sym, d.b)
+    d.omega_dot_hat = d.omega_dot_hat.subs(b_sym, d.b)
+    d.z2 = x2 - d.alpha1
+    d.U = x2 + tau_a * (-c2 * d.z2 - d.b * d.z1 + d.alpha1_dot_comp)
+    lock_sum = sum(lh * ub for lh, ub in zip(lock_hat, ubar_hat, strict=True))
+    gain = sum((1 - lh) * rh for lh, rh in zip(lock_hat, rho_hat, strict=True))
+    u_clip = sp.Min(sp.Max(d.U, bmin), bmax)
+    d.v_free = (N_BLADES * u_clip - lock_sum) / gain  # eq (49)'s structure, 3 blades
+    d.adapt_gain = gam * d.z1
+    return d
+
+
+def freeze_conditions(d: PhysicalDesign, theta_norm2, theta_dot_dir) -> sp.Expr:
+    """κ = 0 when the command is saturated and z1 pushes it out, or |θ̂| is at its bound
+    and the update points outward; else 1. The saturation test uses the command computed
+    with κ = 1 (U itself contains κ through α̇1)."""
+    U1 = d.U.subs(kappa, 1)
+    sat_out = sp.Or(sp.And(U1 >= bmax, d.z1 > 0), sp.And(U1 <= bmin, d.z1 < 0))
+    proj_out = sp.And(theta_norm2 >= th_max**2, theta_dot_dir > 0)
+    return sp.Piecewise((0, sp.Or(sat_out, proj_out)), (1, True))
+
+
+def initial_residual() -> sp.Expr:
+    """f at an equilibrium on the measured pitch: 0 = b β̄ + h0 + f  ⇒  f = -h0 - b β̄."""
+    d = derive()
+    return -d.h0 - d.b * beta_mean()
