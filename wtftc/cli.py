@@ -88,7 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="1 no fault, 2 fault with the controller unaware, 3 fault known to "
                         "eq (49)")
     r.add_argument("--plant", help="nrel5mw (default) or paper (eqs 1-4, unloaded)")
-    r.add_argument("--controller", help="paper (default)")
+    r.add_argument("--controller",
+                   help="paper (default; Bakhshi & Alfi 2020), pi (gain-scheduled PI baseline) "
+                        "or physical (our physically consistent backstepping AFTC)")
     r.add_argument("--wind", help="wind kind: constant, steps, paper_random, ntm, eog, file")
     r.add_argument("--wind-mean", type=float, help="mean/constant wind speed [m/s]")
     r.add_argument("--wind-file", type=Path, help="OpenFAST .hh/.wnd or CSV (time_s, speed_mps)")
