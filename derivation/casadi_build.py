@@ -100,6 +100,8 @@ class Translator:
             return self._fold(ca.logic_and, e.args)
         if isinstance(e, sp.Or):
             return self._fold(ca.logic_or, e.args)
+        if isinstance(e, sp.Not):
+            return ca.logic_not(self(e.args[0]))
         rel = {sp.GreaterThan: ca.ge, sp.StrictGreaterThan: ca.gt,
                sp.LessThan: ca.le, sp.StrictLessThan: ca.lt}
         for cls, fn in rel.items():

@@ -29,7 +29,7 @@ import casadi as ca
 import sympy as sp
 
 from derivation import backstepping as bs
-from derivation import controllers, lyapunov, observer, plant, turbine
+from derivation import controllers, fdi, lyapunov, observer, plant, turbine
 from derivation import layout as lay
 from derivation.casadi_build import FuzzyEvaluator, Translator
 
@@ -285,6 +285,43 @@ def build_turbine() -> list[ca.Function]:
     return out
 
 
+FDI_STATES = fdi.states(lay.N_BLADES)
+
+
+def build_fdi() -> list[ca.Function]:
+    """Per-blade residual, detection latch and least-squares estimates (derivation/fdi.py)."""
+    n = len(fdi.PER_BLADE)
+    x = _vec("x_fdi", n * lay.N_BLADES)
+    v = _vec("v", lay.N_BLADES)
+    bm = _vec("beta_meas", lay.N_BLADES)
+    p = _vec("p_fdi", len(fdi.PARAMS))
+    params = _named(p, fdi.PARAMS)
+    rhs, rho, lock, ubar, rho_est, c_est, latch, rms = [], [], [], [], [], [], [], []
+    init = []
+    for j in range(lay.N_BLADES):
+        xs = x[j * n:(j + 1) * n]
+        tr = Translator({**params, "v": v[j], "beta_m": bm[j],
+                         **{s.name: xs[k] for k, s in enumerate(fdi.STATE_SYMBOLS)}})
+        rhs += [tr(e) for e in fdi.blade_rhs()]
+        r_, l_, u_ = fdi.accommodation()
+        rho.append(tr(r_))
+        lock.append(tr(l_))
+        ubar.append(tr(u_))
+        r1, ce, r0 = fdi.estimates()
+        rho_est.append(tr(sp.Piecewise((r1, fdi.is_locked()), (r0, True))))
+        c_est.append(tr(ce))
+        latch.append(xs[3])
+        rms.append(ca.sqrt(ca.fmax(xs[2], 0)))
+        init += [Translator({"b": bm[j]})(e) for e in fdi.initial(sp.Symbol("b"))]
+    known = ca.vertcat(*rho, *lock, *ubar)
+    f = _function("fdi", {"x_fdi": x, "v": v, "beta_meas": bm, "p_fdi": p},
+                  {"x_fdi_dot": ca.vertcat(*rhs), "known_fault": known,
+                   "rho_hat": ca.vertcat(*rho_est), "c_hat": ca.vertcat(*c_est),
+                   "latch": ca.vertcat(*latch), "residual_rms": ca.vertcat(*rms)})
+    g = _function("init_fdi", {"beta_meas": bm}, {"x_fdi0": ca.vertcat(*init)})
+    return [f, g]
+
+
 def groups() -> list[Group]:
     S = Symbols()
     plant_fns = build_plant(S)
@@ -299,6 +336,7 @@ def groups() -> list[Group]:
                               "derivation/physical.py",
                               "derivation/backstepping.py", "derivation/observer.py",
                               "derivation/fuzzy.py"], controllers.build(ctrl_fns[0])),
+        Group("fdi", ["derivation/fdi.py"], build_fdi()),
         Group("closed_loop", ["derivation/plant.py", "derivation/backstepping.py",
                               "derivation/observer.py", "derivation/fuzzy.py"], [closed]),
         Group("lyapunov", ["derivation/lyapunov.py", "derivation/backstepping.py",
@@ -363,8 +401,9 @@ def write(outdir: Path) -> dict:
             functions[f.name()] = {"group": g.name, "c_file": cname,
                                    "serialized": path.name, **_signature(f), **_count_ops(f)}
     reg = controllers.as_json()
+    groups_extra = {**reg.pop("groups"), "fdi_states": FDI_STATES, "fdi_params": fdi.PARAMS}
     extra_groups = {g: [{"name": e.name, "default": e.default, "unit": e.unit, "doc": e.doc}
-                        for e in entries] for g, entries in reg.pop("groups").items()}
+                        for e in entries] for g, entries in groups_extra.items()}
     layout = {"_header": HEADER.format(modules="derivation/layout.py"), **lay.as_json(),
               **extra_groups, **reg,
               "functions": functions, "kappa_labels": lyapunov.derive().kappa_labels}

@@ -132,7 +132,10 @@ def derive() -> PhysicalDesign:
     d.z2 = x2 - d.alpha1
     d.U = x2 + tau_a * (-c2 * d.z2 - d.b * d.z1 + d.alpha1_dot_comp)
     lock_sum = sum(lh * ub for lh, ub in zip(lock_hat, ubar_hat, strict=True))
-    gain = sum((1 - lh) * rh for lh, rh in zip(lock_hat, rho_hat, strict=True))
+    # Σ(1-σ̂)ρ̂, kept ≥ 0.3: with every blade reported locked there is no authority left,
+    # and dividing by ~0 would only turn a misdiagnosis into a divergence
+    gain = sp.Max(sum((1 - lh) * rh for lh, rh in zip(lock_hat, rho_hat, strict=True)),
+                  sp.Rational(3, 10))
     u_clip = sp.Min(sp.Max(d.U, bmin), bmax)
     d.v_free = (N_BLADES * u_clip - lock_sum) / gain  # eq (49)'s structure, 3 blades
     d.adapt_gain = gam * d.z1

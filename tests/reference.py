@@ -13,7 +13,7 @@ import numpy as np
 import sympy as sp
 
 from derivation import backstepping as bs
-from derivation import fuzzy, lyapunov, observer, physical, pi_baseline, plant, turbine
+from derivation import fdi, fuzzy, lyapunov, observer, physical, pi_baseline, plant, turbine
 from derivation import layout as dlay
 from derivation.controllers import MEAS
 
@@ -366,8 +366,44 @@ def controller_uniform_reference(name: str, args: dict[str, np.ndarray]) -> dict
     return {"v": r["v"], "x_ctrl_dot": r["x_ctrl_dot"], "u0": r["u0"], "diag": exact(xc[:4])}
 
 
+def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
+    bm = _flat(args, "beta_meas")
+    if name == "init_fdi":
+        vals = {"b": 0.0}
+        out = []
+        for b in bm:
+            vals["b"] = float(b)
+            out.append(evaluate("fdi_init", fdi.initial(sp.Symbol("b")), vals))
+        return {"x_fdi0": exact(np.concatenate(out))}
+    x, v, p = _flat(args, "x_fdi"), _flat(args, "v"), _flat(args, "p_fdi")
+    n = len(fdi.PER_BLADE)
+    base = {e.name: float(y) for e, y in zip(fdi.PARAMS, p, strict=True)}
+    rhs, known, rho, c, latch, rms = [], [[], [], []], [], [], [], []
+    r1, ce, r0 = fdi.estimates()
+    for j in range(3):
+        xs = x[j * n:(j + 1) * n]
+        vals = {**base, "v": float(v[j]), "beta_m": float(bm[j]),
+                **{sy.name: float(y) for sy, y in zip(fdi.STATE_SYMBOLS, xs, strict=True)}}
+        rhs.append(pair("fdi_rhs", fdi.blade_rhs(), vals))
+        for k, a in enumerate(fdi.accommodation()):
+            known[k].append(pair(f"fdi_acc{k}", [a], vals))
+        rho.append(pair("fdi_rho", [sp.Piecewise((r1, fdi.is_locked()), (r0, True))], vals))
+        c.append(pair("fdi_c", [ce], vals))
+        latch.append(exact([xs[3]]))
+        rms.append(exact([np.sqrt(max(xs[2], 0.0))]))
+
+    def cat(parts):
+        return (np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]))
+
+    return {"x_fdi_dot": cat(rhs), "known_fault": cat(known[0] + known[1] + known[2]),
+            "rho_hat": cat(rho), "c_hat": cat(c), "latch": cat(latch),
+            "residual_rms": cat(rms)}
+
+
 def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     """SymPy reference (value, scale) of each output of generated function ``name``."""
+    if name in ("fdi", "init_fdi"):
+        return fdi_reference(name, args)
     if name.endswith("physical") or name.startswith("closed_loop_physical"):
         return physical_reference(name, args)
     if name.startswith(("ctrl_", "init_")):

@@ -48,6 +48,10 @@ OUTPUTS = [
     ("u0", "rad"), ("v_1", "rad"), ("v_2", "rad"), ("v_3", "rad"),
     ("wind", "m/s"), ("tsr", "-"), ("cp", "-"), ("T_aero", "N m"), ("T_gen", "N m"),
     ("P_gen", "W"), ("dT_dbeta", "N m/rad"), ("y_d", "rad/s"),
+    *[(f"fdi_latch_{j}", "-") for j in (1, 2, 3)],
+    *[(f"fdi_rho_hat_{j}", "-") for j in (1, 2, 3)],
+    *[(f"fdi_c_hat_{j}", "rad") for j in (1, 2, 3)],
+    *[(f"fdi_residual_rms_{j}", "rad") for j in (1, 2, 3)],
 ]
 
 
@@ -161,9 +165,11 @@ def _closed_loop_rhs(plant: str, table: CpTable, controller: str,
     pf = load(PLANTS[plant]["function"], "interpreted")
     cf = load(reg["function"], "interpreted")
     aero = load("aero_operating_point", "interpreted")
+    fdi = load("fdi", "interpreted")
     n_p = len(lay.names(PLANTS[plant]["states"]))
     n_c = len(lay.names(reg["states"]))
-    z = ca.SX.sym("z", n_p + n_c)
+    n_f = len(lay.names("fdi_states"))
+    z = ca.SX.sym("z", n_p + n_c + n_f)
     wind = ca.SX.sym("wind")
     af = ca.SX.sym("actuator_faults", len(lay.names("actuator_faults")))
     sf = ca.SX.sym("sensor_faults", len(lay.names("sensor_faults")))
@@ -171,7 +177,8 @@ def _closed_loop_rhs(plant: str, table: CpTable, controller: str,
     yd = ca.SX.sym("yd", len(lay.names("reference")))
     pt = ca.SX.sym("p_turbine", len(lay.names("turbine_params")))
     pc = ca.SX.sym("p_ctrl", len(lay.names(reg["params"])))
-    xp, xc = z[:n_p], z[n_p:]
+    use_fdi = ca.SX.sym("use_fdi")  # 1: the accommodation is fed by the FDI, 0: by ctrl_fault
+    xp, xc, xf = z[:n_p], z[n_p:n_p + n_c], z[n_p + n_c:]
     n_g = pt[lay.index("turbine_params", "gearbox_ratio")]
     op = aero(x_plant=xp[:6], wind=wind, p_turbine=pt)
     cp = cp_fn(op["tsr"], op["beta_mean"])
@@ -179,17 +186,23 @@ def _closed_loop_rhs(plant: str, table: CpTable, controller: str,
                  sensor_faults=sf, p_turbine=pt)["beta_meas"]  # independent of v
     meas = ca.vertcat(xp[0], xp[2] * n_g, sensors)
     sched = sched_fn(ca.sum1(sensors) / 3)
-    c = cf(x_ctrl=xc, meas=meas, yd=yd, sched=sched, p_ctrl=pc, known_fault=ck)
+    # the FDI's outputs depend on its states and the measurements only (no algebraic loop)
+    p_fdi = ca.DM(lay.defaults("fdi_params"))
+    fd0 = fdi(x_fdi=xf, v=ca.DM.zeros(3), beta_meas=sensors, p_fdi=p_fdi)
+    known = (1 - use_fdi) * ck + use_fdi * fd0["known_fault"]
+    c = cf(x_ctrl=xc, meas=meas, yd=yd, sched=sched, p_ctrl=pc, known_fault=known)
+    fd = fdi(x_fdi=xf, v=c["v"], beta_meas=sensors, p_fdi=p_fdi)
     p = pf(x_plant=xp, v=c["v"], wind=wind, cp=cp, actuator_faults=af, sensor_faults=sf,
            p_turbine=pt)
-    zdot = ca.vertcat(p["x_plant_dot"], c["x_ctrl_dot"])
+    zdot = ca.vertcat(p["x_plant_dot"], c["x_ctrl_dot"], fd["x_fdi_dot"])
     out = ca.vertcat(xp[0], xp[1], xp[2] * n_g, xp[3:6], sensors, c["u0"], c["v"], wind,
                      op["tsr"], cp, p["T_aero"], p["T_gen"], p["P_gen"], sched, yd[0],
+                     fd0["latch"], fd0["rho_hat"], fd0["c_hat"], fd0["residual_rms"],
                      c["diag"])
     assert out.numel() == len(output_spec(controller))
-    return ca.Function("rhs", [z, wind, af, sf, ck, yd, pt, pc], [zdot, out],
+    return ca.Function("rhs", [z, wind, af, sf, ck, yd, pt, pc, use_fdi], [zdot, out],
                        ["z", "wind", "actuator_faults", "sensor_faults", "ctrl_fault", "yd",
-                        "p_turbine", "p_ctrl"], ["z_dot", "out"])
+                        "p_turbine", "p_ctrl", "use_fdi"], ["z_dot", "out"])
 
 
 def rk4_step(rhs: ca.Function) -> ca.Function:
@@ -278,13 +291,15 @@ class Result:
 
 
 def state_names(plant: str, controller: str = "paper") -> list[str]:
-    return lay.names(PLANTS[plant]["states"]) + lay.names(controllers()[controller]["states"])
+    return (lay.names(PLANTS[plant]["states"]) + lay.names(controllers()[controller]["states"])
+            + lay.names("fdi_states"))
 
 
 def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_schedule,
              yd: np.ndarray, p_turbine: np.ndarray, p_ctrl: np.ndarray, t_final: float,
              dt: float, table: CpTable | None = None, table_key: str = "nrel5mw",
-             decimate: int = 1, progress: bool = True, keep_states: bool = False) -> Result:
+             decimate: int = 1, progress: bool = True, keep_states: bool = False,
+             use_fdi: bool = False) -> Result:
     """Integrate from t = 0 to t_final with fixed dt; outputs every ``decimate`` steps.
 
     ``schedule`` gives the plant's fault inputs, ``ctrl_schedule`` those eq (49) is told
@@ -319,7 +334,7 @@ def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_s
             lay.defaults("sensor_faults")[:, None], (1, n_c))
         ck = (ctrl_schedule.actuator(tk)[:len(nominal_ctrl)] if ctrl_schedule
               else np.tile(nominal_ctrl[:, None], (1, n_c)))
-        zz, oo = f(z, w3, af, sf, ck, yd, p_turbine, p_ctrl, dt)
+        zz, oo = f(z, w3, af, sf, ck, yd, p_turbine, p_ctrl, float(use_fdi), dt)
         zz, oo = np.array(zz), np.array(oo)
         # the state before step i is z (i = 0) or zz[:, i-1]
         z_before = np.hstack([z[:, None], zz[:, :m - 1]])
@@ -381,7 +396,7 @@ def stability_limit(plant: str, controller: str, z0, wind0: float, yd, p_turbine
     rhs = rhs_function(plant, controller, table_key, table, tuple(p_turbine))
     z = ca.SX.sym("z", rhs.size1_in(0))
     args = [lay.defaults("actuator_faults"), lay.defaults("sensor_faults"),
-            lay.defaults("fault_inputs"), yd, p_turbine, p_ctrl]
+            lay.defaults("fault_inputs"), yd, p_turbine, p_ctrl, 0.0]
     jac = ca.Function("closed_loop_jacobian", [z], [ca.jacobian(rhs(z, wind0, *args)[0], z)])
     eig = np.linalg.eigvals(np.array(jac(z0)))
     return float(np.max(np.abs(eig)))

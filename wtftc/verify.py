@@ -113,7 +113,22 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
         "omega_dot": np.array([rng.uniform(-0.2, 0.2)]),
         "b_dot": np.array([rng.uniform(-0.05, 0.05)]),
         "d": np.array([rng.uniform(-0.05, 0.05)]),
+        "x_fdi": np.concatenate([_fdi_blade(rng) for _ in range(n)]),
+        "beta_meas": rng.uniform(-0.05, 1.65, n),
+        "p_fdi": lay.defaults("fdi_params") * (1 + 0.1 * rng.uniform(-1, 1, len(
+            lay.names("fdi_params")))),
     }
+
+
+def _fdi_blade(rng: np.random.Generator) -> np.ndarray:
+    """Plausible FDI states of one blade (derivation/fdi.py order), limits and latch crossed."""
+    s1 = rng.uniform(0.3, 1.0)
+    mb, mm = rng.uniform(0, 0.5), rng.uniform(0, 0.5)
+    var = rng.uniform(1e-5, 1e-2)
+    return np.array([rng.uniform(-0.05, 1.65), rng.uniform(-0.25, 0.25), rng.uniform(0, 1e-5),
+                     rng.uniform(0, 1), rng.uniform(0, 1.2), s1 * (mb**2 + var), s1 * mb, s1,
+                     s1 * (mb * mm + rng.uniform(-1, 1) * var), s1 * mm, rng.uniform(0, 0.5),
+                     rng.uniform(0, 1e-3), rng.uniform(0, 1e-3)])
 
 
 def _evaluate(f, args: dict) -> dict[str, np.ndarray]:
