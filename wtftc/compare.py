@@ -1,0 +1,163 @@
+"""`wtftc compare`: controllers × faults × winds on the NREL 5-MW plant, one table.
+
+Every cell is one run of :mod:`wtftc.cases`; its exact configuration (`config.toml`) and
+metrics (`metrics.json`) are written to ``<out>/<wind>/<fault>/<controller>/`` so that any
+cell re-runs alone with ``wtftc run --config <that config.toml>``.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+
+from wtftc import cases
+from wtftc.errors import ConfigError
+from wtftc.io import atomic_savefig, atomic_write_json, atomic_write_text
+
+ONSET_S = 20.0
+#: controller variants: (registered controller, case when a fault is present)
+CONTROLLERS = {
+    "paper": ("paper", 3, "Bakhshi & Alfi, corrected sign, eq (49) told the fault"),
+    "physical_fdi": ("physical", 4, "physical AFTC with wtftc's own FDI (no oracle)"),
+    "physical_known": ("physical", 3, "physical AFTC told the fault (oracle)"),
+    "physical_unaccommodated": ("physical", 2, "physical backstepping, no accommodation"),
+    "pi": ("pi", 2, "gain-scheduled PI baseline"),
+}
+FAULTS = {
+    "none": None,
+    "loss_of_effectiveness": [{"blade": 2, "type": "loss_of_effectiveness", "rho": 0.5,
+                               "onset_s": ONSET_S}],
+    "lock": [{"blade": 1, "type": "lock", "angle_deg": "current", "onset_s": ONSET_S}],
+    "pressure_drop": [{"blade": 2, "type": "pressure_drop", "onset_s": ONSET_S}],
+    "air_in_oil": [{"blade": 2, "type": "air_in_oil", "onset_s": ONSET_S}],
+}
+WINDS = {
+    "paper_random_12": {"kind": "paper_random"},
+    "ntm_B_16": {"kind": "ntm", "mean_mps": 16.0, "turbulence_class": "B"},
+    "eog_rated": {"kind": "eog", "mean_mps": 11.4, "start_s": 30.0},
+}
+COLUMNS = [
+    ("rms_speed_error_rad_s", "RMS ω error [rad/s]", "{:.4f}"),
+    ("max_abs_speed_error_rad_s", "max abs ω error [rad/s]", "{:.4f}"),
+    ("overspeed_peak_over_rated", "peak ω / rated [-]", "{:.3f}"),
+    ("pitch_rate_rms_deg_s", "pitch-rate RMS [deg/s]", "{:.2f}"),
+    ("actuator_travel_deg", "travel [deg]", "{:.0f}"),
+    ("mean_electrical_power_W", "mean power [MW]", "{:.3f}"),
+    ("detection_delay_s", "detection delay [s]", "{:.2f}"),
+    ("diverged_at_s", "diverged at [s]", "{:.2f}"),
+]
+
+
+def _check(kind: str, names, allowed: dict) -> list[str]:
+    names = list(names) if names else list(allowed)
+    for n in names:
+        if n not in allowed:
+            raise ConfigError(kind, n, "one of " + ", ".join(allowed))
+    return names
+
+
+def cell_config(controller: str, fault: str, wind: str, t_final: float, dt: float,
+                seed: int) -> dict:
+    name, case, _ = CONTROLLERS[controller]
+    cfg = {"controller": name, "case": 1 if FAULTS[fault] is None else case,
+           "wind": copy.deepcopy(WINDS[wind]), "t_final_s": t_final, "dt_s": dt,
+           "seed": seed, "label": f"{wind}/{fault}/{controller}"}
+    if FAULTS[fault] is not None:
+        cfg["fault"] = copy.deepcopy(FAULTS[fault])
+    return cfg
+
+
+def _row(controller, fault, wind, m) -> dict:
+    delays = [b.get("detection_delay_s") for b in m["fdi"]["blades"].values()
+              if b.get("detection_delay_s") is not None]
+    row = {"controller": controller, "fault": fault, "wind": wind,
+           **{k: m.get(k) for k, _, _ in COLUMNS[:6]},
+           "detection_delay_s": min(delays) if delays and controller == "physical_fdi"
+           else None,
+           "diverged_at_s": m["diverged"]["t_s"] if m["diverged"] else None,
+           "false_alarms": len(m["fdi"]["false_alarms"])}
+    row["mean_electrical_power_W"] = (row["mean_electrical_power_W"] or 0.0) / 1e6
+    return row
+
+
+def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_final=60.0,
+                dt=1e-3, seed=0, progress=True) -> list[dict]:
+    ctrl_names = _check("controllers", controllers, CONTROLLERS)
+    fault_names = _check("faults", faults, FAULTS)
+    wind_names = _check("winds", winds, WINDS)
+    # validate every cell before running any
+    configs = {(w, f, c): cases.make_config(cell_config(c, f, w, t_final, dt, seed))
+               for w in wind_names for f in fault_names for c in ctrl_names}
+    rows = []
+    n = len(configs)
+    for k, ((w, f, c), rc) in enumerate(configs.items(), 1):
+        if progress:
+            print(f"[{k}/{n}] {w} / {f} / {c}", flush=True)
+        res = cases.run(rc, progress=False)
+        m = cases.metrics(rc, res)
+        d = Path(out_dir) / w / f / c
+        atomic_write_json(d / "metrics.json", m)
+        atomic_write_text(d / "config.toml", cases.to_toml(rc.raw))
+        rows.append(_row(c, f, w, m))
+    write_compare_table(out_dir, rows)
+    figure(out_dir, rows, ctrl_names, fault_names, wind_names)
+    return rows
+
+
+def _fmt(v, fmt):
+    return "—" if v is None else fmt.format(v)
+
+
+def write_compare_table(out_dir: Path, rows: list[dict]) -> str:
+    head = ["wind", "fault", "controller"] + [h for _, h, _ in COLUMNS] + ["false alarms"]
+    md = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in rows:
+        md.append("| " + " | ".join([r["wind"], r["fault"], r["controller"]]
+                                    + [_fmt(r[k], f) for k, _, f in COLUMNS]
+                                    + [str(r["false_alarms"])]) + " |")
+    csv = [",".join(["wind", "fault", "controller"] + [k for k, _, _ in COLUMNS]
+                    + ["false_alarms"])]
+    for r in rows:
+        csv.append(",".join([r["wind"], r["fault"], r["controller"]]
+                            + ["" if r[k] is None else f"{r[k]:.6g}" for k, _, _ in COLUMNS]
+                            + [str(r["false_alarms"])]))
+    text = "\n".join(md) + "\n"
+    atomic_write_text(Path(out_dir) / "compare.md", text)
+    atomic_write_text(Path(out_dir) / "compare.csv", "\n".join(csv) + "\n")
+    return text
+
+
+def figure(out_dir: Path, rows, ctrl_names, fault_names, wind_names) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(len(wind_names), 1, figsize=(10, 3.2 * len(wind_names)),
+                             squeeze=False)
+    width = 0.8 / len(ctrl_names)
+    for ax, w in zip(axes[:, 0], wind_names, strict=True):
+        for i, c in enumerate(ctrl_names):
+            vals, hatch = [], []
+            for f in fault_names:
+                r = next(r for r in rows if r["wind"] == w and r["fault"] == f
+                         and r["controller"] == c)
+                vals.append(r["rms_speed_error_rad_s"])
+                hatch.append(r["diverged_at_s"] is not None)
+            x = np.arange(len(fault_names)) + (i - (len(ctrl_names) - 1) / 2) * width
+            bars = ax.bar(x, vals, width, label=c)
+            for b, h in zip(bars, hatch, strict=True):
+                if h:
+                    b.set_hatch("xx")
+        ax.set_xticks(np.arange(len(fault_names)), fault_names, fontsize=8)
+        ax.set_ylabel("RMS ω error [rad/s]")
+        ax.set_title(f"wind: {w} (hatched: diverged)", fontsize=9)
+        ax.grid(axis="y", alpha=0.3)
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", ncol=len(ctrl_names), fontsize=8)
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.25 / len(wind_names)))
+    for ext in ("png", "pdf"):
+        atomic_savefig(fig, Path(out_dir) / f"compare.{ext}", dpi=120)
+    plt.close(fig)
