@@ -84,10 +84,10 @@ def test_compiled_and_interpreted_agree_to_1e12():
 
 def test_compiled_code_is_cached_by_hash(tmp_path, monkeypatch):
     monkeypatch.setenv("WTFTC_CACHE", str(tmp_path))
-    so = gen._compile(gen.verified_path("plant.c"), gen.compiler())
+    so = gen.compile_cached(gen.verified_path("plant.c"), gen.compiler())
     assert so.parent == tmp_path and so.suffix == ".so"
     mtime = so.stat().st_mtime_ns
-    assert gen._compile(gen.verified_path("plant.c"), gen.compiler()) == so
+    assert gen.compile_cached(gen.verified_path("plant.c"), gen.compiler()) == so
     assert so.stat().st_mtime_ns == mtime  # reused, not rebuilt
 
 

@@ -107,7 +107,7 @@ def _cache_path(c_path: Path, cc: str) -> Path:
     return cache_dir() / f"{c_path.stem}-{key.hexdigest()[:20]}.so"
 
 
-def _compile(c_path: Path, cc: str) -> Path:
+def compile_cached(c_path: Path, cc: str) -> Path:
     """Compile c_path into the cache (atomically) unless already there; return the .so."""
     out = _cache_path(c_path, cc)
     if out.exists():
@@ -154,7 +154,7 @@ def load(name: str, mode: str = "auto", folder: Path | None = None) -> ca.Functi
     try:
         if cc is None:
             raise RuntimeError("no C compiler found (set $CC, or install gcc)")
-        so = _compile(c_path, cc)
+        so = compile_cached(c_path, cc)
         return ca.external(name, str(so))
     except RuntimeError as exc:
         if mode == "compiled":

@@ -11,7 +11,7 @@ from wtftc import layout as lay
 from wtftc import lyapunov, verify
 from wtftc.generated import (
     CFLAGS,
-    _compile,
+    compile_cached,
     compiler,
     is_cached,
     layout_json,
@@ -47,7 +47,7 @@ def run_verification(out_dir: Path, n_points: int = 50, seed: int = 0) -> dict:
             continue
         _step(f"compiling {info['c_file']} with {cc} {' '.join(CFLAGS)}")
         t0 = time.perf_counter()
-        _compile(c_path, cc)
+        compile_cached(c_path, cc)
         compile_s[group] = time.perf_counter() - t0
     summary["compile_seconds"] = compile_s
     summary["compiled"] = cc is not None

@@ -13,9 +13,7 @@ from the state z_k.
 
 from __future__ import annotations
 
-import hashlib
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -29,7 +27,7 @@ import numpy as np
 from wtftc import layout as lay
 from wtftc.cp_table import CpTable, nrel5mw_cp_table
 from wtftc.errors import ConfigError
-from wtftc.generated import CFLAGS, cache_dir, compiler, load
+from wtftc.generated import cache_dir, compile_cached, compiler, is_cached, load
 
 PLANTS = {
     "nrel5mw": {"function": "turbine_nrel5mw", "states": "nrel5mw_states",
@@ -224,7 +222,7 @@ def rk4_step(rhs: ca.Function) -> ca.Function:
 
 
 def _compile_function(f: ca.Function, label: str) -> ca.Function:
-    """Generate C for f, compile into the cache keyed by the source's hash, load it."""
+    """Generate C for f and load it through the loader's hash-keyed compile cache."""
     cc = compiler()
     if cc is None:
         return f
@@ -233,24 +231,11 @@ def _compile_function(f: ca.Function, label: str) -> ca.Function:
         cg = ca.CodeGenerator(cname, {"with_header": False})
         cg.add(f)
         cg.generate(tmp + os.sep)
-        src = Path(tmp, cname).read_bytes()
-        key = hashlib.sha256(src + " ".join((cc, *CFLAGS)).encode()).hexdigest()[:20]
-        so = cache_dir() / f"{label}-{key}.so"
-        if not so.exists():
-            so.parent.mkdir(parents=True, exist_ok=True)
-            print(f"  compiling the {label} loop (once; cached in {so.parent}) ...",
+        c_path = Path(tmp, cname)
+        if not is_cached(c_path, cc):
+            print(f"  compiling the {label} loop (once; cached in {cache_dir()}) ...",
                   file=sys.stderr, flush=True)
-            fd, tmp_so = tempfile.mkstemp(suffix=".so", dir=so.parent)
-            os.close(fd)
-            try:
-                proc = subprocess.run([cc, *CFLAGS, str(Path(tmp, cname)), "-o", tmp_so, "-lm"],
-                                      capture_output=True, text=True)
-                if proc.returncode != 0:
-                    raise RuntimeError(f"{cc} failed on the {label} loop:\n{proc.stderr[-2000:]}")
-                os.replace(tmp_so, so)
-            finally:
-                if os.path.exists(tmp_so):
-                    os.unlink(tmp_so)
+        so = compile_cached(c_path, cc)
     return ca.external(f.name(), str(so))
 
 
