@@ -115,6 +115,20 @@ def _physical(sym: dict) -> dict:
             "diag": ca.vertcat(tr(d.z1), tr(d.z2), tr(d.alpha1), extra["kappa"]), "x0": x0}
 
 
+EXTERNAL_STATES = [lay.Entry("external_hold", 0.0, "-", "unused (a controller has a state)")]
+EXTERNAL_PARAMS = [lay.Entry(f"external_pitch_cmd_{j}", 0.0, "rad",
+                             f"pitch command of blade {j}, held over the call")
+                   for j in range(1, lay.N_BLADES + 1)]
+
+
+def _external(sym: dict) -> dict:
+    """Commands from outside the compiled loop (ROSCO's libdiscon, wtftc/rosco.py), held
+    over one call: the plant, the FDI and the measurements still run compiled."""
+    v = sym["p_ctrl"][:lay.N_BLADES]
+    return {"v": v, "x_ctrl_dot": ca.SX(1, 1), "u0": ca.sum1(v) / lay.N_BLADES,
+            "diag": ca.vertcat(v, 0), "x0": ca.DM.zeros(1)}
+
+
 REGISTRY: dict[str, Controller] = {
     "paper": Controller(
         "paper", "Bakhshi & Alfi (2020) observer-based adaptive fuzzy backstepping, eq (49)",
@@ -130,6 +144,10 @@ REGISTRY: dict[str, Controller] = {
                     "scheduled ∂T/∂β, anti-windup, eq (49)-style accommodation (ours)",
         physical.STATES, physical.PARAMS, "physical_states", "physical_params",
         ["z1", "z2", "alpha1", "kappa"], _physical),
+    "external": Controller(
+        "external", "pitch commands from outside the compiled loop (ROSCO's libdiscon)",
+        EXTERNAL_STATES, EXTERNAL_PARAMS, "external_states", "external_params",
+        ["pitch_cmd_1", "pitch_cmd_2", "pitch_cmd_3", "unused"], _external),
 }
 
 

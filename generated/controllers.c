@@ -38,6 +38,8 @@ extern "C" {
 #define casadi_f5 CASADI_PREFIX(f5)
 #define casadi_f6 CASADI_PREFIX(f6)
 #define casadi_f7 CASADI_PREFIX(f7)
+#define casadi_f8 CASADI_PREFIX(f8)
+#define casadi_f9 CASADI_PREFIX(f9)
 #define casadi_fmax CASADI_PREFIX(fmax)
 #define casadi_fmin CASADI_PREFIX(fmin)
 #define casadi_s0 CASADI_PREFIX(s0)
@@ -5565,8 +5567,201 @@ CASADI_SYMBOL_EXPORT int init_physical_work_bytes(casadi_int *sz_arg, casadi_int
   return 0;
 }
 
-/* alpha_physical:(x_ctrl[3],meas[5],yd[5],sched,p_ctrl[17],omega_dot,b_dot)->(alpha1,alpha1_dot_full,alpha1_dot_comp,omega_dot_hat,kappa) */
+/* ctrl_external:(x_ctrl,meas[5],yd[5],sched,p_ctrl[3],known_fault[9])->(v[3],x_ctrl_dot,u0,diag[4]) */
 static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2, a3, a4, a5;
+  a0=arg[4]? arg[4][0] : 0;
+  if (res[0]!=0) res[0][0]=a0;
+  a1=arg[4]? arg[4][1] : 0;
+  if (res[0]!=0) res[0][1]=a1;
+  a2=arg[4]? arg[4][2] : 0;
+  if (res[0]!=0) res[0][2]=a2;
+  a3=0.;
+  if (res[1]!=0) res[1][0]=a3;
+  a4=(a0+a1);
+  a4=(a4+a2);
+  a5=3.;
+  a4=(a4/a5);
+  if (res[2]!=0) res[2][0]=a4;
+  if (res[3]!=0) res[3][0]=a0;
+  if (res[3]!=0) res[3][1]=a1;
+  if (res[3]!=0) res[3][2]=a2;
+  if (res[3]!=0) res[3][3]=a3;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int ctrl_external(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f6(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int ctrl_external_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void ctrl_external_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void ctrl_external_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void ctrl_external_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int ctrl_external_n_in(void) { return 6;}
+
+CASADI_SYMBOL_EXPORT casadi_int ctrl_external_n_out(void) { return 4;}
+
+CASADI_SYMBOL_EXPORT casadi_real ctrl_external_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* ctrl_external_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x_ctrl";
+    case 1: return "meas";
+    case 2: return "yd";
+    case 3: return "sched";
+    case 4: return "p_ctrl";
+    case 5: return "known_fault";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* ctrl_external_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "v";
+    case 1: return "x_ctrl_dot";
+    case 2: return "u0";
+    case 3: return "diag";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* ctrl_external_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    case 1: return casadi_s1;
+    case 2: return casadi_s1;
+    case 3: return casadi_s2;
+    case 4: return casadi_s5;
+    case 5: return casadi_s4;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* ctrl_external_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s5;
+    case 1: return casadi_s2;
+    case 2: return casadi_s2;
+    case 3: return casadi_s6;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int ctrl_external_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 6;
+  if (sz_res) *sz_res = 4;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int ctrl_external_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 6*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 4*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* init_external:(meas[5],sched,p_ctrl[3])->(x_ctrl0) */
+static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0;
+  a0=0.;
+  if (res[0]!=0) res[0][0]=a0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int init_external(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f7(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int init_external_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void init_external_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void init_external_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void init_external_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int init_external_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int init_external_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real init_external_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* init_external_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "meas";
+    case 1: return "sched";
+    case 2: return "p_ctrl";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* init_external_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "x_ctrl0";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* init_external_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s1;
+    case 1: return casadi_s2;
+    case 2: return casadi_s5;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* init_external_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int init_external_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int init_external_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* alpha_physical:(x_ctrl[3],meas[5],yd[5],sched,p_ctrl[17],omega_dot,b_dot)->(alpha1,alpha1_dot_full,alpha1_dot_comp,omega_dot_hat,kappa) */
+static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
@@ -5906,7 +6101,7 @@ static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int alpha_physical(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f6(arg, res, iw, w, mem);
+  return casadi_f8(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int alpha_physical_checkout(void) {
@@ -5997,7 +6192,7 @@ CASADI_SYMBOL_EXPORT int alpha_physical_work_bytes(casadi_int *sz_arg, casadi_in
 }
 
 /* closed_loop_physical_model:(z[5],d,yd[5],sched,p_ctrl[17])->(z_dot[5],omega_dot) */
-static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f9(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
@@ -6214,7 +6409,7 @@ static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int closed_loop_physical_model(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f7(arg, res, iw, w, mem);
+  return casadi_f9(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int closed_loop_physical_model_checkout(void) {

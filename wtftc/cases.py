@@ -57,6 +57,10 @@ class RunConfig:
     table_key: str = "nrel5mw"
 
     @property
+    def uses_rosco(self) -> bool:
+        return self.raw["controller"] == "rosco"
+
+    @property
     def label(self) -> str:
         return self.raw.get("label") or f"{self.plant}_case{self.case}"
 
@@ -95,11 +99,20 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     if raw["plant"] not in sim.PLANTS:
         raise ConfigError("plant", raw["plant"], "one of " + ", ".join(
             f"{k} ({v['doc']})" for k, v in sim.PLANTS.items()))
-    regs = sim.controllers()
-    if raw["controller"] not in regs:
+    regs = {k: v for k, v in sim.controllers().items() if k != "external"}
+    use_rosco = raw["controller"] == "rosco"
+    if raw["controller"] not in regs and not use_rosco:
         raise ConfigError("controller", raw["controller"], "one of " + ", ".join(
-            f"{k} ({v['doc']})" for k, v in regs.items()))
-    ctrl_group = regs[raw["controller"]]["params"]
+            [f"{k} ({v['doc']})" for k, v in regs.items()]
+            + ["rosco (NREL's ROSCO through its ControllerInterface; optional extra)"]))
+    if use_rosco:
+        from wtftc import rosco
+
+        reason = rosco.available()
+        if reason:
+            raise ConfigError("controller", "rosco", reason)
+    internal = "external" if use_rosco else raw["controller"]
+    ctrl_group = sim.controllers()[internal]["params"]
     t_final = float(_number(raw, "t_final_s", lo=0, hi=36000))
     # the upper bound is only a sanity cap: the real limit is checked against the closed
     # loop's fastest mode before the run (simulate.check_dt)
@@ -160,7 +173,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
 
         table = read_cp_table(Path(raw["cp_table"]))
         table_key = hashlib.sha256(Path(raw["cp_table"]).read_bytes()).hexdigest()[:12]
-    return RunConfig(raw=raw, case=case, plant=raw["plant"], controller=raw["controller"],
+    return RunConfig(raw=raw, case=case, plant=raw["plant"], controller=internal,
                      t_final=t_final, dt=dt, seed=seed, decimate=decimate, reference=ref,
                      p_turbine=p_turbine, p_ctrl=p_ctrl, wind=wind, faults=faults,
                      omega_offset=offset, table=table, table_key=table_key)
@@ -200,6 +213,18 @@ def trim(rc: RunConfig) -> np.ndarray:
 
 
 def run(rc: RunConfig, progress: bool = True, keep_states: bool = False) -> sim.Result:
+    if rc.uses_rosco:
+        from wtftc import rosco
+
+        if rc.case in (3, 4):
+            raise ConfigError("case", rc.case, "1 or 2 with controller = rosco (ROSCO has no "
+                              "fault accommodation)")
+        res = rosco.run(rc, progress=progress)
+        res.config = {**rc.raw, "wind_resolved": rc.wind.describe(),
+                      "fault_resolved": res.schedule.describe() if res.schedule else [],
+                      "rosco": {"version": rosco.ROSCO_VERSION,
+                                "control_dt_s": rosco.CONTROL_DT}}
+        return res
     z0 = trim(rc)
     yd = np.zeros(len(lay.names("reference")))
     yd[0] = rc.reference
@@ -241,7 +266,7 @@ def metrics(rc: RunConfig, res: sim.Result) -> dict:
     m = {
         "label": rc.label, "case": rc.case, "case_doc": CASES[rc.case], "plant": rc.plant,
         "fdi": fdi_report(rc, res),
-        "controller": rc.controller, "control_sign": rc.raw["control_sign"],
+        "controller": rc.raw["controller"], "control_sign": rc.raw["control_sign"],
         "reference_rad_s": rc.reference,
         "rms_speed_error_rad_s": float(np.sqrt(np.mean(e**2))),
         "max_abs_speed_error_rad_s": float(np.max(np.abs(e))),

@@ -89,8 +89,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "eq (49)")
     r.add_argument("--plant", help="nrel5mw (default) or paper (eqs 1-4, unloaded)")
     r.add_argument("--controller",
-                   help="paper (default; Bakhshi & Alfi 2020), pi (gain-scheduled PI baseline) "
-                        "or physical (our physically consistent backstepping AFTC)")
+                   help="paper (default; Bakhshi & Alfi 2020), pi (gain-scheduled PI baseline), "
+                        "physical (our physically consistent backstepping AFTC) or rosco "
+                        "(NREL's ROSCO; pip install 'wtftc[rosco]')")
     r.add_argument("--wind", help="wind kind: constant, steps, paper_random, ntm, eog, file")
     r.add_argument("--wind-mean", type=float, help="mean/constant wind speed [m/s]")
     r.add_argument("--wind-file", type=Path, help="OpenFAST .hh/.wnd or CSV (time_s, speed_mps)")
@@ -107,13 +108,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     k = sub.add_parser(
         "compare", help="controllers × faults × winds on the NREL 5-MW: one table, figures",
-        description="Runs every combination of controller (paper, physical_fdi, "
-                    "physical_known, physical_unaccommodated, pi), fault (none, "
+        description="Runs every combination of controller (rosco when installed, paper, "
+                    "physical_fdi, physical_known, physical_unaccommodated, pi), fault (none, "
                     "loss_of_effectiveness, lock, pressure_drop, air_in_oil; from 20 s) and "
                     "wind (paper_random_12, ntm_B_16, eog_rated) and writes compare.md, "
                     "compare.csv, compare.png/pdf, and each cell's config.toml and "
                     "metrics.json under <out>/<wind>/<fault>/<controller>/ (re-run one with "
-                    "wtftc run --config). ROSCO in the loop is not available yet.")
+                    "wtftc run --config). ROSCO needs the optional extra: "
+                    "pip install 'wtftc[rosco]'.")
     k.add_argument("--out", type=Path, default=Path("results/compare"), help="output folder")
     k.add_argument("--controllers", nargs="+", help="subset of controllers")
     k.add_argument("--faults", nargs="+", help="subset of faults")

@@ -19,6 +19,7 @@ from wtftc.io import atomic_savefig, atomic_write_json, atomic_write_text
 ONSET_S = 20.0
 #: controller variants: (registered controller, case when a fault is present)
 CONTROLLERS = {
+    "rosco": ("rosco", 2, "NREL ROSCO 2.10.6 through its ControllerInterface (optional extra)"),
     "paper": ("paper", 3, "Bakhshi & Alfi, corrected sign, eq (49) told the fault"),
     "physical_fdi": ("physical", 4, "physical AFTC with wtftc's own FDI (no oracle)"),
     "physical_known": ("physical", 3, "physical AFTC told the fault (oracle)"),
@@ -84,7 +85,15 @@ def _row(controller, fault, wind, m) -> dict:
 
 def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_final=60.0,
                 dt=1e-3, seed=0, progress=True) -> list[dict]:
+    from wtftc import rosco
+
     ctrl_names = _check("controllers", controllers, CONTROLLERS)
+    reason = rosco.available()
+    if reason and "rosco" in ctrl_names:
+        if controllers and "rosco" in controllers:
+            raise ConfigError("controllers", "rosco", reason)
+        print(f"note: {reason}; the matrix runs without it", flush=True)
+        ctrl_names.remove("rosco")
     fault_names = _check("faults", faults, FAULTS)
     wind_names = _check("winds", winds, WINDS)
     # validate every cell before running any
