@@ -21,8 +21,9 @@ V = ½z1² + ½z2² + θ̃ᵀθ̃/(2γ) gives V̇ = -c1 z1² - c2 z2² + z1 ε +
 κ = 1. α̇1 is the total derivative of α1 (SymPy); ω̇_r is not measured, so the controller
 uses the computable part with ω̇_r → b β̄ + h0 + f̂, and ḃ (the schedule's rate) → 0; both
 remainders are generated. Anti-windup: κ = 0 (conditional integration) when U is at a
-pitch limit and z1 pushes it further out, or when |θ̂| is at its bound and the update
-points outward (projection onto the ball |θ̂| ≤ θ_max). Accommodation (eq 49's structure
+pitch position limit, or asks for a pitch rate (U - β̄)/τ_a beyond the rate limit, and z1
+pushes it further out; or when |θ̂| is at its bound and the update points outward
+(projection onto the ball |θ̂| ≤ θ_max). Accommodation (eq 49's structure
 for three blades): the free blades get v = (3U - Σ σ̂_j ū_j) / Σ (1 - σ̂_j) ρ̂_j, so that
 the mean of the effective blade inputs is U.
 """
@@ -66,15 +67,17 @@ PARAMS = [
     Entry("phys_pitch_min", 0.0, "rad", "pitch command lower limit"),
     Entry("phys_pitch_max", 1.5707963267948966, "rad", "pitch command upper limit"),
     Entry("phys_dTdbeta_min", 1.0e5, "N m/rad", "smallest |∂T/∂β| used (bounds 1/b)"),
+    Entry("phys_rate_max", 0.13962634015954636, "rad/s",
+          "actuator rate limit 8°/s, for the anti-windup (Jonkman 2009)"),
     Entry("mf_width", 0.6, "-", "Gaussian membership width on normalized ω_r"),
     *[Entry(f"mf_centre_{m}", -1.0 + 2.0 * (m - 1) / (N_MF - 1), "-",
             f"centre of membership {m}") for m in range(1, N_MF + 1)],
     Entry("x_offset_1", 1.26711, "rad/s", "normalization offset of ω_r (rated)"),
     Entry("x_scale_1", 0.1, "rad/s", "normalization scale of ω_r"),
 ]
-c1, c2, gam, sig, th_max, J, T_g, tau_a, bmin, bmax, gmin = sp.symbols(
+c1, c2, gam, sig, th_max, J, T_g, tau_a, bmin, bmax, gmin, rmax = sp.symbols(
     "phys_c1 phys_c2 phys_gamma phys_sigma phys_theta_max phys_inertia phys_gen_torque "
-    "phys_tau_a phys_pitch_min phys_pitch_max phys_dTdbeta_min", real=True)
+    "phys_tau_a phys_pitch_min phys_pitch_max phys_dTdbeta_min phys_rate_max", real=True)
 
 
 @dataclass
@@ -147,7 +150,10 @@ def freeze_conditions(d: PhysicalDesign, theta_norm2, theta_dot_dir) -> sp.Expr:
     and the update points outward; else 1. The saturation test uses the command computed
     with κ = 1 (U itself contains κ through α̇1)."""
     U1 = d.U.subs(kappa, 1)
-    sat_out = sp.Or(sp.And(U1 >= bmax, d.z1 > 0), sp.And(U1 <= bmin, d.z1 < 0))
+    # the model's pitch rate (U - β̄)/τ_a beyond the actuator's rate limit: rate saturation
+    rate = (U1 - beta_mean()) / tau_a
+    sat_out = sp.Or(sp.And(U1 >= bmax, d.z1 > 0), sp.And(U1 <= bmin, d.z1 < 0),
+                    sp.And(rate >= rmax, d.z1 > 0), sp.And(rate <= -rmax, d.z1 < 0))
     proj_out = sp.And(theta_norm2 >= th_max**2, theta_dot_dir > 0)
     return sp.Piecewise((0, sp.Or(sat_out, proj_out)), (1, True))
 
