@@ -336,6 +336,12 @@ def controller_uniform_reference(name: str, args: dict[str, np.ndarray]) -> dict
     """ctrl_<name> / init_<name> of derivation/controllers.py from the SymPy laws."""
     meas = _flat(args, "meas")
     vals = {n: float(x) for n, x in zip(MEAS, meas, strict=True)}
+    if name.endswith("_external"):  # commands held from outside: v = p_ctrl
+        if name.startswith("init"):
+            return {"x_ctrl0": exact([0.0])}
+        v = _flat(args, "p_ctrl")
+        return {"v": exact(v), "x_ctrl_dot": exact([0.0]), "u0": exact([v.mean()]),
+                "diag": exact(np.concatenate([v, [0.0]]))}
     if name.endswith("_pi"):
         pc = _flat(args, "p_ctrl")
         vals.update({e.name: float(x) for e, x in zip(pi_baseline.PARAMS, pc, strict=True)})
