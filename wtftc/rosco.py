@@ -47,6 +47,9 @@ def available() -> str | None:
 
 
 def _import():
+    # unbuffered Fortran output, so that ROSCO's prints land while stdout is silenced
+    # (gfortran reads this when the library loads)
+    os.environ.setdefault("GFORTRAN_UNBUFFERED_PRECONNECTED", "y")
     try:
         import wisdem  # noqa: F401
     except ImportError:
