@@ -80,6 +80,8 @@ class Translator:
             return b ** self(ex)
         if isinstance(e, sp.exp):
             return ca.exp(self(e.args[0]))
+        if isinstance(e, sp.Abs):
+            return ca.fabs(self(e.args[0]))
         if e is sp.pi:
             return ca.SX(float(sp.pi))
         if isinstance(e, sp.Min):

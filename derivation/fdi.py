@@ -17,8 +17,9 @@ pitch β_m,j.
   σ̂_j = 1, ū_j = c_j when ρ₁ < ρ_lock, else σ̂_j = 0 and ρ̂_j = ρ₀ clipped to [ρ_min, 1];
   before detection, the nominal values.
 
-The hydraulic faults (pressure drop, air in oil) change the dynamics, not the gain: they
-are detected and isolated, and ρ̂ ≈ 1 says so; their ω_n, ζ are not estimated here.
+The hydraulic faults (pressure drop, air in oil) change the dynamics, not the gain: a
+bank of the benchmark's two faulty actuator models runs beside the nominal one, and
+after a detection with ρ̂ ≈ 1 the model with the smallest residual gives (ω̂_n, ζ̂).
 """
 
 from __future__ import annotations
@@ -31,11 +32,17 @@ v, beta_m = sp.symbols("v beta_m", real=True)
 bh, bhd, e, D, q = sp.symbols("beta_hat beta_hat_rate mean_sq latch confidence", real=True)
 S_bb, S_b, S_1, S_mb, S_m = sp.symbols("S_bb S_b S_1 S_mb S_m", real=True)
 xd, R_m, R_h = sp.symbols("deriv_filter rate_msq_meas rate_msq_model", real=True)
-STATE_SYMBOLS = [bh, bhd, e, D, q, S_bb, S_b, S_1, S_mb, S_m, xd, R_m, R_h]
+# the model bank: the benchmark's hydraulic faults as alternative actuator models
+bp, bpd, ep, ba, bad, ea = sp.symbols(
+    "beta_pd beta_pd_rate mean_sq_pd beta_air beta_air_rate mean_sq_air", real=True)
+STATE_SYMBOLS = [bh, bhd, e, D, q, S_bb, S_b, S_1, S_mb, S_m, xd, R_m, R_h,
+                 bp, bpd, ep, ba, bad, ea]
 PER_BLADE = ["beta_hat", "beta_hat_rate", "mean_sq", "latch", "confidence", "S_bb", "S_b",
-             "S_1", "S_mb", "S_m", "deriv_filter", "rate_msq_meas", "rate_msq_model"]
+             "S_1", "S_mb", "S_m", "deriv_filter", "rate_msq_meas", "rate_msq_model",
+             "beta_pd", "beta_pd_rate", "mean_sq_pd", "beta_air", "beta_air_rate",
+             "mean_sq_air"]
 UNITS = ["rad", "rad/s", "rad^2", "-", "-", "rad^2", "rad", "-", "rad^2", "rad", "rad",
-         "rad^2/s^2", "rad^2/s^2"]
+         "rad^2/s^2", "rad^2/s^2", "rad", "rad/s", "rad^2", "rad", "rad/s", "rad^2"]
 
 
 def states(n_blades: int) -> list[Entry]:
@@ -60,6 +67,10 @@ PARAMS = [
           "lock-in-place when the measured pitch rate's RMS is below this fraction of the "
           "model's (the blade does not follow its command)"),
     Entry("fdi_T_d", 0.05, "s", "time constant of the measured-pitch derivative filter"),
+    Entry("fdi_omega_pd", 5.73, "rad/s", "hydraulic pressure drop model ω_n (Odgaard 2013)"),
+    Entry("fdi_zeta_pd", 0.45, "-", "hydraulic pressure drop model ζ (Odgaard 2013)"),
+    Entry("fdi_omega_air", 3.42, "rad/s", "high air content in oil model ω_n (Odgaard 2013)"),
+    Entry("fdi_zeta_air", 0.9, "-", "high air content in oil model ζ (Odgaard 2013)"),
     Entry("fdi_rho_min", 0.3, "-", "smallest ρ̂ passed to the accommodation"),
     Entry("fdi_T_engage", 3.0, "s",
           "after detection, the accommodation is engaged linearly over this time (1.5 "
@@ -69,25 +80,50 @@ PARAMS = [
 wn, zt, bmin, bmax, rmax, T_f, r_thr, k_D, T_w, rho_lock, rho_min, T_e, T_d = sp.symbols(
     "fdi_omega_n fdi_zeta fdi_pitch_min fdi_pitch_max fdi_rate_max fdi_T_f fdi_r_thr "
     "fdi_k_latch fdi_T_w fdi_rho_lock fdi_rho_min fdi_T_engage fdi_T_d", real=True)
+w_pd, z_pd, w_air, z_air = sp.symbols("fdi_omega_pd fdi_zeta_pd fdi_omega_air fdi_zeta_air",
+                                      real=True)
+
+
+def actuator_model(b, bdot, w, z) -> list[sp.Expr]:
+    """β̈ = ω²(sat(v) - β) - 2ζω β̇ with the plant's position and rate limits: [β̇, β̈]."""
+    u = sp.Min(sp.Max(v, bmin), bmax)
+    rate = sp.Min(sp.Max(bdot, -rmax), rmax)
+    rate = sp.Piecewise((0, sp.And(b >= bmax, rate > 0)), (0, sp.And(b <= bmin, rate < 0)),
+                        (rate, True))
+    acc = w**2 * (u - b) - 2 * z * w * bdot
+    acc = sp.Piecewise((0, sp.And(bdot >= rmax, acc > 0)), (0, sp.And(bdot <= -rmax, acc < 0)),
+                       (acc, True))
+    return [rate, acc]
 
 
 def blade_rhs() -> list[sp.Expr]:
     """Time derivatives of one blade's FDI states."""
-    u = sp.Min(sp.Max(v, bmin), bmax)
-    rate = sp.Min(sp.Max(bhd, -rmax), rmax)
-    rate = sp.Piecewise((0, sp.And(bh >= bmax, rate > 0)), (0, sp.And(bh <= bmin, rate < 0)),
-                        (rate, True))
-    acc = wn**2 * (u - bh) - 2 * zt * wn * bhd
-    acc = sp.Piecewise((0, sp.And(bhd >= rmax, acc > 0)), (0, sp.And(bhd <= -rmax, acc < 0)),
-                       (acc, True))
+    rate, acc = actuator_model(bh, bhd, wn, zt)
     r = beta_m - bh
     latch = sp.Piecewise((k_D * (1 - D), e >= r_thr**2), (0, True))
     confidence = sp.Piecewise((1 / T_e, sp.And(D >= sp.Rational(1, 2), q < 1)), (0, True))
     stats = [bh * bh, bh, 1, beta_m * bh, beta_m]
     rate_meas = (beta_m - xd) / T_d  # filtered derivative of the measured pitch
+    pd = actuator_model(bp, bpd, w_pd, z_pd)
+    air = actuator_model(ba, bad, w_air, z_air)
     return [rate, acc, (r**2 - e) / T_f, latch, confidence,
             *[(x - s) / T_w for x, s in zip(stats, [S_bb, S_b, S_1, S_mb, S_m], strict=True)],
-            rate_meas, (rate_meas**2 - R_m) / T_f, (rate**2 - R_h) / T_f]
+            rate_meas, (rate_meas**2 - R_m) / T_f, (rate**2 - R_h) / T_f,
+            *pd, ((beta_m - bp) ** 2 - ep) / T_w, *air, ((beta_m - ba) ** 2 - ea) / T_w]
+
+
+def dynamics_estimate() -> tuple[sp.Expr, sp.Expr]:
+    """(ω̂_n, ζ̂): after detection of a fault that is neither a lock nor a loss of
+    effectiveness (ρ̂ within 0.1 of 1), the bank model with the smallest residual
+    (window T_w) when it explains the measurement better than the nominal one."""
+    _, _, rho = estimates()
+    hydraulic = sp.And(D >= sp.Rational(1, 2), sp.Not(is_locked()), sp.Abs(rho - 1) < 0.1)
+    e_nom = e  # the nominal model's residual mean square (window T_f)
+    pd_best = sp.And(hydraulic, ep < ea, ep < e_nom)
+    air_best = sp.And(hydraulic, ea <= ep, ea < e_nom)
+    w_hat = sp.Piecewise((w_pd, pd_best), (w_air, air_best), (wn, True))
+    z_hat = sp.Piecewise((z_pd, pd_best), (z_air, air_best), (zt, True))
+    return w_hat, z_hat
 
 
 def estimates() -> tuple[sp.Expr, sp.Expr, sp.Expr]:
@@ -125,4 +161,5 @@ def initial(beta_meas0) -> list[sp.Expr]:
     with unit weight and a small spread so that the first estimates are defined."""
     b0 = beta_meas0
     spread = sp.Rational(1, 10**4)
-    return [b0, 0, 0, 0, 0, b0**2 + spread, b0, 1, b0**2 + spread, b0, b0, 0, 0]
+    return [b0, 0, 0, 0, 0, b0**2 + spread, b0, 1, b0**2 + spread, b0, b0, 0, 0,
+            b0, 0, 0, b0, 0, 0]

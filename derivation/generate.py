@@ -297,6 +297,7 @@ def build_fdi() -> list[ca.Function]:
     p = _vec("p_fdi", len(fdi.PARAMS))
     params = _named(p, fdi.PARAMS)
     rhs, rho, lock, ubar, rho_est, c_est, latch, rms = [], [], [], [], [], [], [], []
+    w_hat, z_hat = [], []
     init = []
     for j in range(lay.N_BLADES):
         xs = x[j * n:(j + 1) * n]
@@ -312,12 +313,16 @@ def build_fdi() -> list[ca.Function]:
         c_est.append(tr(ce))
         latch.append(xs[3])
         rms.append(ca.sqrt(ca.fmax(xs[2], 0)))
+        wh, zh = fdi.dynamics_estimate()
+        w_hat.append(tr(wh))
+        z_hat.append(tr(zh))
         init += [Translator({"b": bm[j]})(e) for e in fdi.initial(sp.Symbol("b"))]
     known = ca.vertcat(*rho, *lock, *ubar)
     f = _function("fdi", {"x_fdi": x, "v": v, "beta_meas": bm, "p_fdi": p},
                   {"x_fdi_dot": ca.vertcat(*rhs), "known_fault": known,
                    "rho_hat": ca.vertcat(*rho_est), "c_hat": ca.vertcat(*c_est),
-                   "latch": ca.vertcat(*latch), "residual_rms": ca.vertcat(*rms)})
+                   "latch": ca.vertcat(*latch), "residual_rms": ca.vertcat(*rms),
+                   "omega_n_hat": ca.vertcat(*w_hat), "zeta_hat": ca.vertcat(*z_hat)})
     g = _function("init_fdi", {"beta_meas": bm}, {"x_fdi0": ca.vertcat(*init)})
     return [f, g]
 

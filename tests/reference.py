@@ -384,7 +384,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     x, v, p = _flat(args, "x_fdi"), _flat(args, "v"), _flat(args, "p_fdi")
     n = len(fdi.PER_BLADE)
     base = {e.name: float(y) for e, y in zip(fdi.PARAMS, p, strict=True)}
-    rhs, known, rho, c, latch, rms = [], [[], [], []], [], [], [], []
+    rhs, known, rho, c, latch, rms, wh, zh = [], [[], [], []], [], [], [], [], [], []
     r1, ce, r0 = fdi.estimates()
     for j in range(3):
         xs = x[j * n:(j + 1) * n]
@@ -397,13 +397,16 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         c.append(pair("fdi_c", [ce], vals))
         latch.append(exact([xs[3]]))
         rms.append(exact([np.sqrt(max(xs[2], 0.0))]))
+        w_hat, z_hat = fdi.dynamics_estimate()
+        wh.append(pair("fdi_wh", [w_hat], vals))
+        zh.append(pair("fdi_zh", [z_hat], vals))
 
     def cat(parts):
         return (np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]))
 
     return {"x_fdi_dot": cat(rhs), "known_fault": cat(known[0] + known[1] + known[2]),
             "rho_hat": cat(rho), "c_hat": cat(c), "latch": cat(latch),
-            "residual_rms": cat(rms)}
+            "residual_rms": cat(rms), "omega_n_hat": cat(wh), "zeta_hat": cat(zh)}
 
 
 def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:

@@ -20,7 +20,7 @@ import numpy as np
 from wtftc import layout as lay
 from wtftc import simulate as sim
 from wtftc.errors import ConfigError
-from wtftc.faults import DEFAULT_FAULT, Schedule, parse_faults
+from wtftc.faults import DEFAULT_FAULT, HYDRAULIC, Schedule, parse_faults
 from wtftc.wind import wind_from_config
 
 CASES = {1: "no fault", 2: "fault, controller unaware", 3: "fault known to eq (49)",
@@ -323,6 +323,11 @@ def fdi_report(rc: RunConfig, res: sim.Result) -> dict:
                 b["rho_error"] = rho_hat - f.rho
             if f.type == "lock" and f.angle is not None:
                 b["stuck_angle_error_deg"] = float(np.degrees(c_hat - f.angle))
+            if f.type in HYDRAULIC:
+                w_hat = float(res.column(f"fdi_omega_n_hat_{j}")[-1])
+                b["omega_n_hat_rad_s"] = w_hat
+                b["zeta_hat"] = float(res.column(f"fdi_zeta_hat_{j}")[-1])
+                b["dynamics_identified"] = bool(np.isclose(w_hat, HYDRAULIC[f.type][0]))
         elif t_det is not None:
             out["false_alarms"].append(f"blade {j} at {t_det:.2f} s (no actuator fault)")
             out["isolation_correct"] = False

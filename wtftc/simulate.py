@@ -50,6 +50,8 @@ OUTPUTS = [
     *[(f"fdi_rho_hat_{j}", "-") for j in (1, 2, 3)],
     *[(f"fdi_c_hat_{j}", "rad") for j in (1, 2, 3)],
     *[(f"fdi_residual_rms_{j}", "rad") for j in (1, 2, 3)],
+    *[(f"fdi_omega_n_hat_{j}", "rad/s") for j in (1, 2, 3)],
+    *[(f"fdi_zeta_hat_{j}", "-") for j in (1, 2, 3)],
 ]
 
 
@@ -196,6 +198,7 @@ def _closed_loop_rhs(plant: str, table: CpTable, controller: str,
     out = ca.vertcat(xp[0], xp[1], xp[2] * n_g, xp[3:6], sensors, c["u0"], c["v"], wind,
                      op["tsr"], cp, p["T_aero"], p["T_gen"], p["P_gen"], sched, yd[0],
                      fd0["latch"], fd0["rho_hat"], fd0["c_hat"], fd0["residual_rms"],
+                     fd0["omega_n_hat"], fd0["zeta_hat"],
                      c["diag"])
     assert out.numel() == len(output_spec(controller))
     return ca.Function("rhs", [z, wind, af, sf, ck, yd, pt, pc, use_fdi], [zdot, out],

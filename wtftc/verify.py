@@ -128,7 +128,9 @@ def _fdi_blade(rng: np.random.Generator) -> np.ndarray:
     return np.array([rng.uniform(-0.05, 1.65), rng.uniform(-0.25, 0.25), rng.uniform(0, 1e-5),
                      rng.uniform(0, 1), rng.uniform(0, 1.2), s1 * (mb**2 + var), s1 * mb, s1,
                      s1 * (mb * mm + rng.uniform(-1, 1) * var), s1 * mm, rng.uniform(0, 0.5),
-                     rng.uniform(0, 1e-3), rng.uniform(0, 1e-3)])
+                     rng.uniform(0, 1e-3), rng.uniform(0, 1e-3),
+                     rng.uniform(-0.05, 1.65), rng.uniform(-0.25, 0.25), rng.uniform(0, 1e-5),
+                     rng.uniform(-0.05, 1.65), rng.uniform(-0.25, 0.25), rng.uniform(0, 1e-5)])
 
 
 def _evaluate(f, args: dict) -> dict[str, np.ndarray]:
