@@ -39,3 +39,9 @@ def test_unknown_controller_fault_or_wind_is_refused(tmp_path):
         assert p.returncode == 2 and "Traceback" not in p.stderr
         assert bad in p.stderr and flag.lstrip("-") in p.stderr
         assert not out.exists()
+
+
+def test_too_short_a_run_for_the_faults_is_refused(tmp_path):
+    p = wtftc("compare", "--out", tmp_path / "x", "--t-final", 15, "--quiet")
+    assert p.returncode == 2 and "t-final" in p.stderr and "onset" in p.stderr
+    assert not (tmp_path / "x").exists()

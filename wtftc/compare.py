@@ -96,6 +96,9 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
         ctrl_names.remove("rosco")
     fault_names = _check("faults", faults, FAULTS)
     wind_names = _check("winds", winds, WINDS)
+    if t_final <= ONSET_S and any(FAULTS[f] is not None for f in fault_names):
+        raise ConfigError("t-final", t_final, f"more than {ONSET_S:g} s, the faults' onset "
+                          "(or --faults none)")
     # validate every cell before running any
     configs = {(w, f, c): cases.make_config(cell_config(c, f, w, t_final, dt, seed))
                for w in wind_names for f in fault_names for c in ctrl_names}
