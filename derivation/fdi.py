@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import sympy as sp
 
+from derivation import turbine
 from derivation.layout import Entry
 
 v, beta_m = sp.symbols("v beta_m", real=True)
@@ -85,15 +86,9 @@ w_pd, z_pd, w_air, z_air = sp.symbols("fdi_omega_pd fdi_zeta_pd fdi_omega_air fd
 
 
 def actuator_model(b, bdot, w, z) -> list[sp.Expr]:
-    """β̈ = ω²(sat(v) - β) - 2ζω β̇ with the plant's position and rate limits: [β̇, β̈]."""
+    """The plant's actuator law (derivation/turbine.py) on v_j clipped to the limits."""
     u = sp.Min(sp.Max(v, bmin), bmax)
-    rate = sp.Min(sp.Max(bdot, -rmax), rmax)
-    rate = sp.Piecewise((0, sp.And(b >= bmax, rate > 0)), (0, sp.And(b <= bmin, rate < 0)),
-                        (rate, True))
-    acc = w**2 * (u - b) - 2 * z * w * bdot
-    acc = sp.Piecewise((0, sp.And(bdot >= rmax, acc > 0)), (0, sp.And(bdot <= -rmax, acc < 0)),
-                       (acc, True))
-    return [rate, acc]
+    return turbine.limited_actuator(b, bdot, u, w, z, bmin, bmax, rmax)
 
 
 def blade_rhs() -> list[sp.Expr]:

@@ -341,7 +341,7 @@ def groups() -> list[Group]:
                               "derivation/physical.py",
                               "derivation/backstepping.py", "derivation/observer.py",
                               "derivation/fuzzy.py"], controllers.build(ctrl_fns[0])),
-        Group("fdi", ["derivation/fdi.py"], build_fdi()),
+        Group("fdi", ["derivation/fdi.py", "derivation/turbine.py"], build_fdi()),
         Group("closed_loop", ["derivation/plant.py", "derivation/backstepping.py",
                               "derivation/observer.py", "derivation/fuzzy.py"], [closed]),
         Group("lyapunov", ["derivation/lyapunov.py", "derivation/backstepping.py",

@@ -103,6 +103,22 @@ def paper_rhs() -> list[sp.Expr]:
     return out
 
 
+def limited_actuator(b, w, u, wn, zt, b_min, b_max, r_max) -> list[sp.Expr]:
+    """[β̇, β̈] of the benchmark's pitch actuator (Odgaard et al. 2013) with limits:
+
+    β̈ = ω_n² (u - β) - 2 ζ ω_n β̇ on the rate state w; the blade rate is w held within
+    ±r_max (w stops growing outward at the limit) and the blade stops at [b_min, b_max].
+    Written once: the plant and the FDI's model bank both use it.
+    """
+    rate = sp.Min(sp.Max(w, -r_max), r_max)
+    rate = sp.Piecewise((0, sp.And(b >= b_max, rate > 0)), (0, sp.And(b <= b_min, rate < 0)),
+                        (rate, True))
+    acc = wn**2 * (u - b) - 2 * zt * wn * w
+    acc = sp.Piecewise((0, sp.And(w >= r_max, acc > 0)), (0, sp.And(w <= -r_max, acc < 0)),
+                       (acc, True))
+    return [rate, acc]
+
+
 def nrel5mw_rhs() -> list[sp.Expr]:
     """Two-mass drivetrain on the LSS with generator torque, and 2nd-order actuators.
 
@@ -123,14 +139,8 @@ def nrel5mw_rhs() -> list[sp.Expr]:
     ]
     rates, accels = [], []
     for j in range(N_BLADES):
-        w = beta_rate[j]
-        rate = sp.Min(sp.Max(w, -pitch_rate_max), pitch_rate_max)
-        # at a position limit the blade does not move further out
-        rate = sp.Piecewise((0, sp.And(beta[j] >= pitch_max, rate > 0)),
-                            (0, sp.And(beta[j] <= pitch_min, rate < 0)), (rate, True))
-        acc = omega_n[j] ** 2 * (commanded_input(j) - beta[j]) - 2 * zeta[j] * omega_n[j] * w
-        acc = sp.Piecewise((0, sp.And(w >= pitch_rate_max, acc > 0)),
-                           (0, sp.And(w <= -pitch_rate_max, acc < 0)), (acc, True))
+        rate, acc = limited_actuator(beta[j], beta_rate[j], commanded_input(j), omega_n[j],
+                                     zeta[j], pitch_min, pitch_max, pitch_rate_max)
         rates.append(rate)
         accels.append(acc)
     return out + rates + accels
