@@ -165,7 +165,7 @@ class FuzzyEvaluator:
         return out
 
     def symbol_values(self, rule_bases: list[fuzzy.RuleBase]) -> dict[str, ca.SX]:
-        """SX for every L/B symbol the derivation created."""
+        """SX for every L/B/φ symbol the derivation created."""
         out = {}
         for rb in rule_bases:
             for sym, kind in rb.symbols().items():
@@ -173,4 +173,6 @@ class FuzzyEvaluator:
                     out[sym.name] = self.L(rb.i, kind[1])
                 else:
                     out[sym.name] = self.B(rb.i, kind[1], kind[2])
+            for sym, m in rb.phi_symbols().items():
+                out[sym.name] = self.phi(rb.i)[m]
         return out

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import casadi as ca
 import sympy as sp
 
+from derivation import drivetrain, physical, pi_baseline
 from derivation import layout as lay
-from derivation import physical, pi_baseline
 from derivation.casadi_build import FuzzyEvaluator, Translator
 
 MEAS = ["omega_r", "omega_g_hss", *[f"beta_meas_{j}" for j in range(1, lay.N_BLADES + 1)]]
@@ -45,6 +45,7 @@ class Controller:
     params_group: str
     diag_names: list[str]
     build: Callable  # (symbols dict) -> dict of CasADi outputs v, x_ctrl_dot, u0, diag, x0
+    sources: tuple[str, ...] = ()  # derivation modules it is derived in (for the manifest)
 
 
 def _paper(sym: dict, controller_fn: ca.Function) -> dict:
@@ -115,6 +116,41 @@ def _physical(sym: dict) -> dict:
             "diag": ca.vertcat(tr(d.z1), tr(d.z2), tr(d.alpha1), extra["kappa"]), "x0": x0}
 
 
+def design_translator(module, sym: dict) -> tuple[Translator, object]:
+    """SX for every symbol a :class:`derivation.design.ControllerDesign` may use (bound by
+    name at the uniform inputs, plus any extra SX in ``sym`` such as true rates for the
+    verification functions), its intermediates (κ) bound in order."""
+    d = module.derive()
+    params = {e.name: sym["p_ctrl"][k] for k, e in enumerate(module.PARAMS)}
+    states = {e.name: sym["x_ctrl"][k] for k, e in enumerate(module.STATES)}
+    meas = {n: sym["meas"][k] for k, n in enumerate(MEAS)}
+    fz = FuzzyEvaluator(ca.vertcat(*[meas[n] for n in d.fuzzy_inputs]), params,
+                        [ca.vertcat(*[states[w] for w in d.weights])])
+    kf = sym["known_fault"]
+    names = {**meas, **{f"yd_{m}": sym["yd"][m] for m in range(len(lay.REFERENCE))},
+             "dT_dbeta": sym["sched"][0], **params, **states,
+             **fz.symbol_values([d.rule_base]),
+             **{f"{kind}_{j + 1}": kf[k * lay.N_BLADES + j]
+                for k, kind in enumerate(("rho_hat", "lock_hat", "ubar_hat"))
+                for j in range(lay.N_BLADES)},
+             **{s.name: sym[s.name] for s in d.check_inputs if s.name in sym}}
+    tr = Translator(names)
+    for s, e in d.intermediates:
+        tr.symbols[s.name] = tr(e)
+    return tr, d
+
+
+def from_design(module) -> Callable:
+    """The build function of a controller derived as a ControllerDesign."""
+    def build(sym: dict) -> dict:
+        tr, d = design_translator(module, sym)
+        return {"v": ca.repmat(tr(d.v), lay.N_BLADES, 1),
+                "x_ctrl_dot": ca.vertcat(*[tr(e) for e in d.x_dot]), "u0": tr(d.u0),
+                "diag": ca.vertcat(*[tr(e) for e in d.diag]),
+                "x0": ca.vertcat(*[tr(e) for e in d.x0])}
+    return build
+
+
 EXTERNAL_STATES = [lay.Entry("external_hold", 0.0, "-", "unused (a controller has a state)")]
 EXTERNAL_PARAMS = [lay.Entry(f"external_pitch_cmd_{j}", 0.0, "rad",
                              f"pitch command of blade {j}, held over the call")
@@ -138,12 +174,19 @@ REGISTRY: dict[str, Controller] = {
         "pi", "gain-scheduled PI on collective pitch with anti-windup (baseline, "
               "Jonkman 2009 / ROSCO)",
         pi_baseline.STATES, pi_baseline.PARAMS, "pi_states", "pi_params",
-        ["speed_error", "integrator", "Kp", "Ki"], _pi),
+        ["speed_error", "integrator", "Kp", "Ki"], _pi, ("derivation/pi_baseline.py",)),
     "physical": Controller(
         "physical", "physically consistent adaptive fuzzy backstepping AFTC, ω_r ← β ← u, "
                     "scheduled ∂T/∂β, anti-windup, eq (49)-style accommodation (ours)",
         physical.STATES, physical.PARAMS, "physical_states", "physical_params",
-        ["z1", "z2", "alpha1", "kappa"], _physical),
+        ["z1", "z2", "alpha1", "kappa"], _physical, ("derivation/physical.py",)),
+    "drivetrain": Controller(
+        "drivetrain", "adaptive fuzzy backstepping AFTC through the drivetrain, "
+                      "ω_g - (d_s/J_g)θ_s ← θ_s ← ω_r ← β ← u, scheduled ∂T/∂β, anti-windup, "
+                      "eq (49)-style accommodation (ours)",
+        drivetrain.STATES, drivetrain.PARAMS, "drivetrain_states", "drivetrain_params",
+        ["z1", "z3", "z4", "kappa"], from_design(drivetrain),
+        ("derivation/drivetrain.py", "derivation/design.py")),
     "external": Controller(
         "external", "pitch commands from outside the compiled loop (ROSCO's libdiscon)",
         EXTERNAL_STATES, EXTERNAL_PARAMS, "external_states", "external_params",
@@ -171,6 +214,15 @@ def build(controller_fn: ca.Function) -> list[ca.Function]:
                                [ca.densify(ca.SX(res["x0"]))], ["meas", "sched", "p_ctrl"],
                                ["x_ctrl0"]))
     return out + build_verification()
+
+
+def sources() -> list[str]:
+    """The derivation modules behind the controllers group (for the artefact headers)."""
+    out = ["derivation/controllers.py", "derivation/casadi_build.py", "derivation/fuzzy.py",
+           "derivation/backstepping.py", "derivation/observer.py"]
+    for c in REGISTRY.values():
+        out += [m for m in c.sources if m not in out]
+    return out
 
 
 def as_json() -> dict:
@@ -221,4 +273,44 @@ def build_verification() -> list[ca.Function]:
     loop = ca.Function("closed_loop_physical_model", [z, dist, yd, sched, pc],
                        [ca.cse(zdot), b * z[1] + h0 + dist],
                        ["z", "d", "yd", "sched", "p_ctrl"], ["z_dot", "omega_dot"])
+    return [alpha, loop, *design_checks("drivetrain", drivetrain)]
+
+
+def design_checks(name: str, module) -> list[ca.Function]:
+    """alpha_<name>: the design's named check expressions (α_i, α̇_i full and computable,
+    ...) at the uniform inputs plus the true rates; closed_loop_<name>_model: the module's
+    design model closed by the controller (z = [model states, controller states]), with
+    the true rates along it, for finite-difference checks of the α̇_i."""
+    d = module.derive()
+    n_x = len(module.STATES)
+    sym = {"x_ctrl": ca.SX.sym("x_ctrl", n_x), "meas": ca.SX.sym("meas", len(MEAS)),
+           "yd": ca.SX.sym("yd", len(lay.REFERENCE)), "sched": ca.SX.sym("sched", 1),
+           "p_ctrl": ca.SX.sym("p_ctrl", len(module.PARAMS)),
+           "known_fault": ca.DM([e.default for e in lay.FAULT_INPUTS]),
+           **{s.name: ca.SX.sym(s.name) for s in d.check_inputs}}
+    tr, _ = design_translator(module, sym)
+    ins = ["x_ctrl", "meas", "yd", "sched", "p_ctrl", *[s.name for s in d.check_inputs]]
+    alpha = ca.Function(f"alpha_{name}", [sym[k] for k in ins],
+                        [ca.cse(tr(e)) for e in d.checks.values()], ins, list(d.checks))
+    dist = sp.Symbol("dm_residual", real=True)
+    dm = module.design_model(dist)
+    n_m = len(dm["states"])
+    z = ca.SX.sym("z", n_m + n_x)
+    dsx = ca.SX.sym("d")
+    base = {**{s.name: z[k] for k, s in enumerate(dm["states"])}, dist.name: dsx,
+            "dT_dbeta": sym["sched"][0],
+            **{e.name: sym["p_ctrl"][k] for k, e in enumerate(module.PARAMS)}}
+    trm = Translator(base)
+    s2 = {**sym, "x_ctrl": z[n_m:], "meas": ca.vertcat(*[trm(dm["meas"][n]) for n in MEAS])}
+    for s in d.check_inputs:
+        s2[s.name] = trm(dm["true_rates"][s.name])
+    tr2, _ = design_translator(module, s2)
+    zdot = ca.vertcat(*[trm(e) for e in dm["rates"]],
+                      (tr2(d.u0) - trm(dm["beta_mean"])) / trm(dm["tau"]),
+                      *[tr2(e) for e in d.x_dot])
+    true = ca.vertcat(*[s2[s.name] for s in d.check_inputs])
+    loop = ca.Function(f"closed_loop_{name}_model",
+                       [z, dsx, sym["yd"], sym["sched"], sym["p_ctrl"]],
+                       [ca.cse(zdot), ca.cse(true)], ["z", "d", "yd", "sched", "p_ctrl"],
+                       ["z_dot", "true_rates"])
     return [alpha, loop]

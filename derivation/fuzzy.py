@@ -81,6 +81,7 @@ class RuleBase:
         self.i = i
         self._L: dict[tuple[int, ...], sp.Symbol] = {}
         self._B: dict[tuple[tuple[int, ...], tuple[int, ...]], sp.Symbol] = {}
+        self._phi: dict[int, sp.Symbol] = {}
 
     def zero(self) -> tuple[int, ...]:
         return (0,) * self.i
@@ -99,11 +100,20 @@ class RuleBase:
                 f"B{self.i}_" + "".join(map(str, a)) + "_" + "".join(map(str, b)), real=True)
         return self._B[key]
 
+    def phi(self, m: int) -> sp.Symbol:
+        """φ_i[m], the m-th regressor entry (0-based rule m), for adaptive laws."""
+        if m not in self._phi:
+            self._phi[m] = sp.Symbol(f"phi{self.i}_{m}", real=True)
+        return self._phi[m]
+
     def symbols(self) -> dict[sp.Symbol, tuple]:
-        """Every symbol created so far → ("L", α) or ("B", α, β)."""
+        """Every L/B symbol created so far → ("L", α) or ("B", α, β)."""
         out: dict[sp.Symbol, tuple] = {s: ("L", a) for a, s in self._L.items()}
         out.update({s: ("B", a, b) for (a, b), s in self._B.items()})
         return out
+
+    def phi_symbols(self) -> dict[sp.Symbol, int]:
+        return {s: m for m, s in self._phi.items()}
 
     def rate(self, sym: sp.Symbol, xhat_dot, chi, gamma, r) -> sp.Expr:
         """Time derivative of one L or B symbol along the closed loop (module docstring)."""
@@ -119,6 +129,24 @@ class RuleBase:
         _, a, b = kind
         return sum((self.B(shift(a, k), b) + self.B(a, shift(b, k))) * xhat_dot[k]
                    for k in range(self.i))
+
+
+def total_derivative(expr: sp.Expr, rates: dict, rule_base: RuleBase, xhat_dot, chi,
+                     gamma, r) -> sp.Expr:
+    """d/dt expr along the loop: Σ ∂expr/∂s · ṡ over its free symbols s, with ṡ from
+    ``rates`` (symbol → rate) or, for the L/B symbols of ``rule_base``, from
+    :meth:`RuleBase.rate` with the adaptive law θ̂̇ = γ χ φ - r θ̂. Symbols with neither
+    are constants. Summed in symbol-name order, so the result is reproducible."""
+    out = sp.S.Zero
+    for s in sorted(expr.free_symbols, key=lambda q: q.name):
+        if s in rates:
+            rate = rates[s]
+        elif s in rule_base.symbols():
+            rate = rule_base.rate(s, xhat_dot, chi, gamma, r)
+        else:
+            continue
+        out += sp.diff(expr, s) * rate
+    return out
 
 
 def reference_regressor(xhat, offsets, scales) -> list[sp.Expr]:

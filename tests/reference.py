@@ -13,7 +13,17 @@ import numpy as np
 import sympy as sp
 
 from derivation import backstepping as bs
-from derivation import fdi, fuzzy, lyapunov, observer, physical, pi_baseline, plant, turbine
+from derivation import (
+    drivetrain,
+    fdi,
+    fuzzy,
+    lyapunov,
+    observer,
+    physical,
+    pi_baseline,
+    plant,
+    turbine,
+)
 from derivation import layout as dlay
 from derivation.controllers import MEAS
 
@@ -409,8 +419,79 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
             "residual_rms": cat(rms), "omega_n_hat": cat(wh), "zeta_hat": cat(zh)}
 
 
+#: controllers derived as a derivation.design.ControllerDesign, by registered name
+DESIGNS = {"drivetrain": drivetrain}
+
+
+def design_reference(cname: str, name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
+    """ctrl_/init_/alpha_/closed_loop_<cname>_model of a ControllerDesign, from its SymPy
+    expressions with the fuzzy terms from the unfactored regressor."""
+    module = DESIGNS[cname]
+    d = module.derive()
+    pc = _flat(args, "p_ctrl")
+    vals = {e.name: float(x) for e, x in zip(module.PARAMS, pc, strict=True)}
+    kf = (_flat(args, "known_fault") if "known_fault" in args
+          else np.array([e.default for e in dlay.FAULT_INPUTS]))
+    for k, n in enumerate(["rho_hat", "lock_hat", "ubar_hat"]):
+        vals.update({f"{n}_{j + 1}": float(kf[3 * k + j]) for j in range(3)})
+    if "sched" in args:
+        vals["dT_dbeta"] = float(_flat(args, "sched")[0])
+    if "yd" in args:
+        vals.update({f"yd_{m}": float(x) for m, x in enumerate(_flat(args, "yd"))})
+    model = name.startswith("closed_loop_")
+    if model:
+        z = _flat(args, "z")
+        dm = module.design_model(sp.Symbol("dm_residual", real=True))
+        n_m = len(dm["states"])
+        vals.update({s.name: float(x) for s, x in zip(dm["states"], z, strict=False)})
+        vals["dm_residual"] = float(_flat(args, "d")[0])
+        xc = z[n_m:]
+        for n in MEAS:
+            vals[n] = float(evaluate(f"{cname}_dm_{n}", [dm["meas"][n]], vals)[0])
+        for s in d.check_inputs:
+            vals[s.name] = float(evaluate(f"{cname}_dm_{s.name}", [dm["true_rates"][s.name]],
+                                          vals)[0])
+    else:
+        vals.update({n: float(x) for n, x in zip(MEAS, _flat(args, "meas"), strict=True)})
+        xc = (_flat(args, "x_ctrl") if "x_ctrl" in args
+              else np.array([e.default for e in module.STATES]))
+        for s in d.check_inputs:
+            if s.name in args:
+                vals[s.name] = float(_flat(args, s.name)[0])
+    vals.update({e.name: float(x) for e, x in zip(module.STATES, xc, strict=True)})
+    if name.startswith("init"):
+        return {"x_ctrl0": pair(f"{cname}_x0", d.x0, vals)}
+    vals["xhat_1"] = vals[d.fuzzy_inputs[0]]  # the reference regressor's input symbol
+    theta = np.array([vals[w] for w in d.weights])
+    for sym, kind in d.rule_base.symbols().items():
+        if kind[0] == "L":
+            vals[sym.name] = float(theta @ dphi(1, kind[1], vals))
+        else:
+            vals[sym.name] = float(dphi(1, kind[1], vals) @ dphi(1, kind[2], vals))
+    phi = dphi(1, (0,), vals)
+    vals.update({sym.name: float(phi[m]) for sym, m in d.rule_base.phi_symbols().items()})
+    for sym, e in d.intermediates:
+        vals[sym.name] = float(evaluate(f"{cname}_{sym.name}", [e], vals)[0])
+    x_dot = pair(f"{cname}_xdot", d.x_dot, vals)
+    if name.startswith("alpha"):
+        return {k: pair(f"{cname}_{k}", [e], vals) for k, e in d.checks.items()}
+    if model:
+        rates = pair(f"{cname}_dm_rates", dm["rates"], vals)
+        bdot = pair(f"{cname}_dm_bdot", [(d.u0 - dm["beta_mean"]) / dm["tau"]], vals)
+        true = pair(f"{cname}_dm_true", [dm["true_rates"][s.name] for s in d.check_inputs],
+                    vals)
+        return {"z_dot": tuple(np.concatenate([rates[k], bdot[k], x_dot[k]]) for k in (0, 1)),
+                "true_rates": true}
+    v = pair(f"{cname}_v", [d.v], vals)
+    return {"v": (np.repeat(v[0], 3), np.repeat(v[1], 3)), "u0": pair(f"{cname}_u0", [d.u0], vals),
+            "x_ctrl_dot": x_dot, "diag": pair(f"{cname}_diag", d.diag, vals)}
+
+
 def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     """SymPy reference (value, scale) of each output of generated function ``name``."""
+    for cname in DESIGNS:
+        if name.endswith(f"_{cname}") or name == f"closed_loop_{cname}_model":
+            return design_reference(cname, name, args)
     if name in ("fdi", "init_fdi"):
         return fdi_reference(name, args)
     if name.endswith("physical") or name.startswith("closed_loop_physical"):

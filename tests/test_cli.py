@@ -75,7 +75,7 @@ def _bad_cp_table(tmp_path):
 
 
 @pytest.mark.parametrize("args,field", [
-    (["--case", "4"], "--case"),
+    (["--case", "5"], "--case"),
     (["--plant", "vestas"], "plant"),
     (["--dt", "-0.001"], "dt_s"),
     (["--dt", "5"], "dt_s"),

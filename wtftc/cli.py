@@ -84,14 +84,13 @@ def build_parser() -> argparse.ArgumentParser:
                "file, ...), [[fault]] (blade, type, onset_s, ...), [controller_params], "
                "[turbine_params], [initial]. See docs/running.md.")
     r.add_argument("--config", type=Path, help="TOML configuration file")
-    r.add_argument("--case", type=int, choices=(1, 2, 3),
+    r.add_argument("--case", type=int, choices=(1, 2, 3, 4),
                    help="1 no fault, 2 fault with the controller unaware, 3 fault known to "
-                        "eq (49)")
+                        "eq (49), 4 fault detected by wtftc's FDI")
     r.add_argument("--plant", help="nrel5mw (default) or paper (eqs 1-4, unloaded)")
     r.add_argument("--controller",
-                   help="paper (default; Bakhshi & Alfi 2020), pi (gain-scheduled PI baseline), "
-                        "physical (our physically consistent backstepping AFTC) or rosco "
-                        "(NREL's ROSCO; pip install 'wtftc[rosco]')")
+                   help="; ".join(f"{k}: {v['doc']}" for k, v in _controllers().items())
+                   + "; rosco: NREL's ROSCO (pip install 'wtftc[rosco]'). Default: paper")
     r.add_argument("--wind", help="wind kind: constant, steps, paper_random, ntm, eog, file")
     r.add_argument("--wind-mean", type=float, help="mean/constant wind speed [m/s]")
     r.add_argument("--wind-file", type=Path, help="OpenFAST .hh/.wnd or CSV (time_s, speed_mps)")
@@ -109,7 +108,8 @@ def build_parser() -> argparse.ArgumentParser:
     k = sub.add_parser(
         "compare", help="controllers × faults × winds on the NREL 5-MW: one table, figures",
         description="Runs every combination of controller (rosco when installed, paper, "
-                    "physical_fdi, physical_known, physical_unaccommodated, pi), fault (none, "
+                    "physical_fdi, physical_known, physical_unaccommodated, drivetrain_fdi, "
+                    "pi), fault (none, "
                     "loss_of_effectiveness, lock, pressure_drop, air_in_oil; from 20 s) and "
                     "wind (paper_random_12, ntm_B_16, eog_rated) and writes compare.md, "
                     "compare.csv, compare.png/pdf, and each cell's config.toml and "
@@ -167,6 +167,13 @@ def _run_overrides(args) -> dict:
     if getattr(args, "fault", None) == "none":
         cfg["fault"] = []
     return cfg
+
+
+def _controllers() -> dict:
+    """The registered controllers for the help text (external is internal plumbing)."""
+    from wtftc.simulate import controllers
+
+    return {k: v for k, v in controllers().items() if k != "external"}
 
 
 def main(argv: list[str] | None = None) -> int:

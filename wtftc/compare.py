@@ -24,6 +24,8 @@ CONTROLLERS = {
     "physical_fdi": ("physical", 4, "physical AFTC with wtftc's own FDI (no oracle)"),
     "physical_known": ("physical", 3, "physical AFTC told the fault (oracle)"),
     "physical_unaccommodated": ("physical", 2, "physical backstepping, no accommodation"),
+    "drivetrain_fdi": ("drivetrain", 4, "drivetrain-chain AFTC (θ_s ← ω_r ← β ← u) with "
+                                        "wtftc's own FDI: the measured alternative"),
     "pi": ("pi", 2, "gain-scheduled PI baseline"),
 }
 FAULTS = {
@@ -75,7 +77,7 @@ def _row(controller, fault, wind, m) -> dict:
               if b.get("detection_delay_s") is not None]
     row = {"controller": controller, "fault": fault, "wind": wind,
            **{k: m.get(k) for k, _, _ in COLUMNS[:6]},
-           "detection_delay_s": min(delays) if delays and controller == "physical_fdi"
+           "detection_delay_s": min(delays) if delays and CONTROLLERS[controller][1] == 4
            else None,
            "diverged_at_s": m["diverged"]["t_s"] if m["diverged"] else None,
            "false_alarms": len(m["fdi"]["false_alarms"])}

@@ -50,8 +50,14 @@ def random_inputs(name: str, rng: np.random.Generator,
         size = int(np.prod(shape))
         if n in special and special[n].size == size:
             val = special[n]
+        elif n == "z" and name == "closed_loop_drivetrain_model":
+            # [ω_r, θ_s, ω_g, β̄] near rated and the steady twist, then the controller states
+            twist = lay.defaults("drivetrain_states")[-1]
+            val = np.concatenate([[rng.uniform(1.1, 1.45), twist * rng.uniform(0.5, 1.5),
+                                   rng.uniform(1.1, 1.45), rng.uniform(0.0, 0.4)],
+                                  rng.uniform(-0.5, 1.0, 3), [twist * rng.uniform(0.5, 1.5)]])
         elif n in ("x_ctrl", "p_ctrl") and size != len(lay.names(_GROUP_OF_INPUT[n])):
-            group = _group_of_size(n, size)
+            group = _group_of(name, n, size)
             base = lay.defaults(group)
             val = (base * (1 + 0.1 * rng.uniform(-1, 1, base.size)) if n == "p_ctrl"
                    else base + 0.05 * rng.standard_normal(base.size))
@@ -79,10 +85,15 @@ def random_inputs(name: str, rng: np.random.Generator,
     return out
 
 
-def _group_of_size(kind: str, size: int) -> str:
-    """The registered controller's states/params group with this many entries."""
+def _group_of(name: str, kind: str, size: int) -> str:
+    """The states/params group of the registered controller a function belongs to (by its
+    name: ctrl_<c>, init_<c>, alpha_<c>, closed_loop_<c>_model), else the one of this size."""
     key = "states" if kind == "x_ctrl" else "params"
-    for reg in lay.layout()["controllers"].values():
+    regs = lay.layout()["controllers"]
+    for c, reg in regs.items():
+        if name.endswith(f"_{c}") or name == f"closed_loop_{c}_model":
+            return reg[key]
+    for reg in regs.values():
         if len(lay.names(reg[key])) == size:
             return reg[key]
     raise KeyError(f"no controller {key} group of size {size}")

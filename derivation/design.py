@@ -1,0 +1,91 @@
+"""What a controller module hands to the generator: SymPy expressions only.
+
+A controller derived in SymPy (derivation/drivetrain.py, say) returns a
+:class:`ControllerDesign`; :func:`derivation.controllers.from_design` translates it into the
+uniform ``ctrl_<name>``/``init_<name>`` functions. The symbols it may use are bound by name:
+
+* the measurements ``omega_r``, ``omega_g_hss``, ``beta_meas_1..3``;
+* the reference ``yd_0..yd_4`` (y_d and its derivatives), the schedule ``dT_dbeta``;
+* the eq (49) fault estimates ``rho_hat_j``, ``lock_hat_j``, ``ubar_hat_j``;
+* its own states and parameters, by their layout names;
+* the fuzzy symbols L/B/φ of its rule base (inputs: the named measurements);
+* ``intermediates``, bound in order (an anti-windup switch κ used by later expressions).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+from derivation import fuzzy
+from derivation.layout import N_MF, Entry
+
+
+@dataclass
+class ControllerDesign:
+    rule_base: fuzzy.RuleBase
+    fuzzy_inputs: list[str]  # measurement names feeding the rule base, in order
+    weights: list[str]  # state names of the rule base's weights θ̂ (rule order)
+    v: sp.Expr  # the command of each free blade [rad]
+    u0: sp.Expr  # the controller's scalar (mean pitch) command [rad]
+    x_dot: list[sp.Expr]  # controller state derivatives, in state order
+    diag: list[sp.Expr]  # four diagnostics
+    x0: list[sp.Expr]  # initial controller state from the measurements
+    intermediates: list[tuple[sp.Symbol, sp.Expr]] = field(default_factory=list)
+    #: named expressions for verification (α_i, α̇_i full and computable, ...), and the
+    #: extra inputs they need (true derivatives the controller cannot measure)
+    checks: dict[str, sp.Expr] = field(default_factory=dict)
+    check_inputs: list[sp.Symbol] = field(default_factory=list)
+
+
+N_BLADES = 3
+rho_hat = sp.symbols(f"rho_hat_1:{N_BLADES + 1}", real=True)
+lock_hat = sp.symbols(f"lock_hat_1:{N_BLADES + 1}", real=True)
+ubar_hat = sp.symbols(f"ubar_hat_1:{N_BLADES + 1}", real=True)
+
+
+def free_blade_command(u_mean: sp.Expr) -> sp.Expr:
+    """Eq (49)'s accommodation for three blades: the free blades get
+    v = (3U - Σ σ̂_j ū_j) / Σ (1 - σ̂_j) ρ̂_j, so that the mean effective input is U.
+
+    The divisor is kept ≥ 0.3: with every blade reported locked no authority is left, and
+    dividing by ~0 would only turn a misdiagnosis into a divergence.
+    """
+    lock_sum = sum(lh * ub for lh, ub in zip(lock_hat, ubar_hat, strict=True))
+    gain = sp.Max(sum((1 - lh) * rh for lh, rh in zip(lock_hat, rho_hat, strict=True)),
+                  sp.Rational(3, 10))
+    return (N_BLADES * u_mean - lock_sum) / gain
+
+
+def freeze(command, beta_mean, tau, pitch_min, pitch_max, rate_max, push, theta_norm2,
+           theta_dot_dir, theta_max) -> sp.Expr:
+    """κ: 0 (adaptation frozen) when the pitch command is saturated in position, or in
+    the rate (command - β̄)/τ of the first-order actuator model, and the error ``push``
+    (> 0: overspeed, more pitch wanted) drives it further out; or when |θ̂| is at its
+    bound and the update points outward (projection onto |θ̂| ≤ θ_max). Else 1."""
+    rate = (command - beta_mean) / tau
+    sat_out = sp.Or(sp.And(command >= pitch_max, push > 0),
+                    sp.And(command <= pitch_min, push < 0),
+                    sp.And(rate >= rate_max, push > 0), sp.And(rate <= -rate_max, push < 0))
+    proj_out = sp.And(theta_norm2 >= theta_max**2, theta_dot_dir > 0)
+    return sp.Piecewise((0, sp.Or(sat_out, proj_out)), (1, True))
+
+
+def actuator_and_fuzzy_params(prefix: str) -> list[Entry]:
+    """The parameters a pitch backstepping design shares: the actuator model and limits
+    its anti-windup tests, and the memberships of its f̂(ω_r)."""
+    return [
+        Entry(f"{prefix}_tau_a", 0.108, "s",
+              "actuator first-order equivalent 2ζ/ω_n (Odgaard 2013)"),
+        Entry(f"{prefix}_pitch_min", 0.0, "rad", "pitch command lower limit"),
+        Entry(f"{prefix}_pitch_max", 1.5707963267948966, "rad", "pitch command upper limit"),
+        Entry(f"{prefix}_dTdbeta_min", 1.0e5, "N m/rad", "smallest |∂T/∂β| used (bounds 1/b)"),
+        Entry(f"{prefix}_rate_max", 0.13962634015954636, "rad/s",
+              "actuator rate limit 8°/s, for the anti-windup (Jonkman 2009)"),
+        Entry("mf_width", 0.6, "-", "Gaussian membership width on normalized ω_r"),
+        *[Entry(f"mf_centre_{m}", -1.0 + 2.0 * (m - 1) / (N_MF - 1), "-",
+                f"centre of membership {m}") for m in range(1, N_MF + 1)],
+        Entry("x_offset_1", 1.26711, "rad/s", "normalization offset of ω_r (rated)"),
+        Entry("x_scale_1", 0.1, "rad/s", "normalization scale of ω_r"),
+    ]
