@@ -156,3 +156,15 @@ def reference_regressor(xhat, offsets, scales) -> list[sp.Expr]:
               for m in rule_multi_indices(len(xhat))]
     total = sp.Add(*firing)
     return [w / total for w in firing]
+
+
+def reference_regressor_derivative(xhat, offsets, scales, alpha) -> list[sp.Expr]:
+    """∂^α φ_i of the unfactored regressor (α a multi-index over xhat), by SymPy: the
+    slow, obvious way, for tests and for the benchmark's lambdify baseline."""
+    out = []
+    for p in reference_regressor(xhat, offsets, scales):
+        for k, n in enumerate(alpha):
+            if n:
+                p = sp.diff(p, xhat[k], n)
+        out.append(p)
+    return out

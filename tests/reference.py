@@ -36,13 +36,7 @@ FUZZY_PARAMS = [fuzzy.mf_width, *fuzzy.mf_centre]
 def dphi_function(i: int, alpha: tuple[int, ...], module: str = "numpy"):
     """Lambdified ∂^α φ_i(x̂1..x̂i) of the unfactored regressor, as a vector."""
     xs = observer.xhat[:i]
-    phi = fuzzy.reference_regressor(xs, X_OFFSET[:i], X_SCALE[:i])
-    der = []
-    for p in phi:
-        for k, n in enumerate(alpha):
-            if n:
-                p = sp.diff(p, xs[k], n)
-        der.append(p)
+    der = fuzzy.reference_regressor_derivative(xs, X_OFFSET[:i], X_SCALE[:i], alpha)
     args = [*xs, *X_OFFSET[:i], *X_SCALE[:i], *FUZZY_PARAMS]
     return sp.lambdify(args, der, modules=module, cse=True), [a.name for a in args]
 

@@ -95,28 +95,28 @@ def compiler() -> str | None:
     return None
 
 
-def is_cached(c_path: Path, cc: str) -> bool:
+def is_cached(c_path: Path, cc: str, flags: tuple[str, ...] = CFLAGS) -> bool:
     """Whether the compiled object of c_path is already in the cache."""
-    return _cache_path(c_path, cc).exists()
+    return _cache_path(c_path, cc, flags).exists()
 
 
-def _cache_path(c_path: Path, cc: str) -> Path:
+def _cache_path(c_path: Path, cc: str, flags: tuple[str, ...] = CFLAGS) -> Path:
     key = hashlib.sha256()
     key.update(c_path.read_bytes())
-    key.update(" ".join((cc, *CFLAGS, ca.__version__)).encode())
+    key.update(" ".join((cc, *flags, ca.__version__)).encode())
     return cache_dir() / f"{c_path.stem}-{key.hexdigest()[:20]}.so"
 
 
-def compile_cached(c_path: Path, cc: str) -> Path:
+def compile_cached(c_path: Path, cc: str, flags: tuple[str, ...] = CFLAGS) -> Path:
     """Compile c_path into the cache (atomically) unless already there; return the .so."""
-    out = _cache_path(c_path, cc)
+    out = _cache_path(c_path, cc, flags)
     if out.exists():
         return out
     out.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(suffix=".so", dir=out.parent)
     os.close(fd)
     try:
-        proc = subprocess.run([cc, *CFLAGS, str(c_path), "-o", tmp, "-lm"],
+        proc = subprocess.run([cc, *flags, str(c_path), "-o", tmp, "-lm"],
                               capture_output=True, text=True)
         if proc.returncode != 0:
             raise RuntimeError(f"{cc} failed on {c_path.name}:\n{proc.stderr[-2000:]}")

@@ -60,9 +60,10 @@ def controllers() -> dict:
     return lay.layout()["controllers"]
 
 
-def output_spec(controller: str) -> list[tuple[str, str]]:
+def output_spec(controller: str, fdi: bool = True) -> list[tuple[str, str]]:
     diag = controllers()[controller]["diag"]
-    return OUTPUTS + [(n, "rad/s" if n == "xhat_1" else "-") for n in diag]
+    base = OUTPUTS if fdi else [o for o in OUTPUTS if not o[0].startswith("fdi_")]
+    return base + [(n, "rad/s" if n == "xhat_1" else "-") for n in diag]
 
 
 CHUNK = 1000  # RK4 steps per compiled call
@@ -153,11 +154,14 @@ def pitch_sensitivity_schedule(table: CpTable, p_turbine: np.ndarray) -> ca.Func
 
 
 def _closed_loop_rhs(plant: str, table: CpTable, controller: str,
-                     p_turbine_sched: np.ndarray) -> ca.Function:
-    """ż = f(z, wind, faults, reference, parameters): z = [plant states, controller states].
+                     p_turbine_sched: np.ndarray, with_fdi: bool = True) -> ca.Function:
+    """ż = f(z, wind, faults, reference, parameters): z = [plant states, controller states,
+    FDI states].
 
     The controller sees only the measurements [ω_r, ω_g, β_meas,j] and the pitch-scheduled
-    sensitivity; the plant state never enters it.
+    sensitivity; the plant state never enters it. ``with_fdi=False`` leaves the FDI out
+    (no FDI states, no ``use_fdi`` input, no fdi_* outputs): the loop of cases 1-3 without
+    the monitor, as the benchmark runs it.
     """
     reg = controllers()[controller]
     cp_fn = cp_interpolant(table)
@@ -168,7 +172,7 @@ def _closed_loop_rhs(plant: str, table: CpTable, controller: str,
     fdi = load("fdi", "interpreted")
     n_p = len(lay.names(PLANTS[plant]["states"]))
     n_c = len(lay.names(reg["states"]))
-    n_f = len(lay.names("fdi_states"))
+    n_f = len(lay.names("fdi_states")) if with_fdi else 0
     z = ca.SX.sym("z", n_p + n_c + n_f)
     wind = ca.SX.sym("wind")
     af = ca.SX.sym("actuator_faults", len(lay.names("actuator_faults")))
@@ -186,24 +190,34 @@ def _closed_loop_rhs(plant: str, table: CpTable, controller: str,
                  sensor_faults=sf, p_turbine=pt)["beta_meas"]  # independent of v
     meas = ca.vertcat(xp[0], xp[2] * n_g, sensors)
     sched = sched_fn(ca.sum1(sensors) / 3)
-    # the FDI's outputs depend on its states and the measurements only (no algebraic loop)
-    p_fdi = ca.DM(lay.defaults("fdi_params"))
-    fd0 = fdi(x_fdi=xf, v=ca.DM.zeros(3), beta_meas=sensors, p_fdi=p_fdi)
-    known = (1 - use_fdi) * ck + use_fdi * fd0["known_fault"]
+    if with_fdi:
+        # the FDI's outputs depend on its states and the measurements only (no algebraic
+        # loop)
+        p_fdi = ca.DM(lay.defaults("fdi_params"))
+        fd0 = fdi(x_fdi=xf, v=ca.DM.zeros(3), beta_meas=sensors, p_fdi=p_fdi)
+        known = (1 - use_fdi) * ck + use_fdi * fd0["known_fault"]
+    else:
+        known = ck
     c = cf(x_ctrl=xc, meas=meas, yd=yd, sched=sched, p_ctrl=pc, known_fault=known)
-    fd = fdi(x_fdi=xf, v=c["v"], beta_meas=sensors, p_fdi=p_fdi)
     p = pf(x_plant=xp, v=c["v"], wind=wind, cp=cp, actuator_faults=af, sensor_faults=sf,
            p_turbine=pt)
-    zdot = ca.vertcat(p["x_plant_dot"], c["x_ctrl_dot"], fd["x_fdi_dot"])
-    out = ca.vertcat(xp[0], xp[1], xp[2] * n_g, xp[3:6], sensors, c["u0"], c["v"], wind,
-                     op["tsr"], cp, p["T_aero"], p["T_gen"], p["P_gen"], sched, yd[0],
-                     fd0["latch"], fd0["rho_hat"], fd0["c_hat"], fd0["residual_rms"],
-                     fd0["omega_n_hat"], fd0["zeta_hat"],
-                     c["diag"])
-    assert out.numel() == len(output_spec(controller))
-    return ca.Function("rhs", [z, wind, af, sf, ck, yd, pt, pc, use_fdi], [zdot, out],
-                       ["z", "wind", "actuator_faults", "sensor_faults", "ctrl_fault", "yd",
-                        "p_turbine", "p_ctrl", "use_fdi"], ["z_dot", "out"])
+    out = [xp[0], xp[1], xp[2] * n_g, xp[3:6], sensors, c["u0"], c["v"], wind, op["tsr"], cp,
+           p["T_aero"], p["T_gen"], p["P_gen"], sched, yd[0]]
+    names = ["z", "wind", "actuator_faults", "sensor_faults", "ctrl_fault", "yd", "p_turbine",
+             "p_ctrl"]
+    if with_fdi:
+        fd = fdi(x_fdi=xf, v=c["v"], beta_meas=sensors, p_fdi=p_fdi)
+        zdot = ca.vertcat(p["x_plant_dot"], c["x_ctrl_dot"], fd["x_fdi_dot"])
+        out += [fd0["latch"], fd0["rho_hat"], fd0["c_hat"], fd0["residual_rms"],
+                fd0["omega_n_hat"], fd0["zeta_hat"]]
+        ins = [z, wind, af, sf, ck, yd, pt, pc, use_fdi]
+        names.append("use_fdi")
+    else:
+        zdot = ca.vertcat(p["x_plant_dot"], c["x_ctrl_dot"])
+        ins = [z, wind, af, sf, ck, yd, pt, pc]
+    out = ca.vertcat(*out, c["diag"])
+    assert out.numel() == len(output_spec(controller, with_fdi))
+    return ca.Function("rhs", ins, [zdot, out], names, ["z_dot", "out"])
 
 
 def rk4_step(rhs: ca.Function) -> ca.Function:
@@ -224,7 +238,20 @@ def rk4_step(rhs: ca.Function) -> ca.Function:
                        ["z_next", "out"])
 
 
-def _compile_function(f: ca.Function, label: str) -> ca.Function:
+#: flags of the closed-loop chunks (the verified generated functions keep CFLAGS);
+#: -fno-semantic-interposition lets gcc inline CasADi's helpers (fmin, fmax, sq) instead of
+#: calling them through the PLT; results are bit-identical to -O2 (docs/performance.md)
+LOOP_CFLAGS = ("-O2", "-fno-semantic-interposition", "-fPIC", "-shared")
+
+
+def compiled(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
+             quiet: bool = False) -> ca.Function:
+    """f as generated C, compiled once and cached (or f itself with no compiler)."""
+    return _compile_function(f, label, flags, quiet)
+
+
+def _compile_function(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
+                      quiet: bool = False) -> ca.Function:
     """Generate C for f and load it through the loader's hash-keyed compile cache."""
     cc = compiler()
     if cc is None:
@@ -235,29 +262,63 @@ def _compile_function(f: ca.Function, label: str) -> ca.Function:
         cg.add(f)
         cg.generate(tmp + os.sep)
         c_path = Path(tmp, cname)
-        if not is_cached(c_path, cc):
+        if not quiet and not is_cached(c_path, cc, flags):
             print(f"  compiling the {label} loop (once; cached in {cache_dir()}) ...",
                   file=sys.stderr, flush=True)
-        so = compile_cached(c_path, cc)
+        so = compile_cached(c_path, cc, flags)
     return ca.external(f.name(), str(so))
 
 
 @cache
 def chunk_function(plant: str, controller: str, table_key: str, table: CpTable | None = None,
-                   sched_params: tuple | None = None, n: int = CHUNK) -> ca.Function:
+                   sched_params: tuple | None = None, n: int = CHUNK,
+                   fdi: bool = True) -> ca.Function:
     """``n`` RK4 steps in one compiled call (mapaccum over the step)."""
-    step = rk4_step(rhs_function(plant, controller, table_key, table, sched_params))
-    chunk = step.mapaccum(f"loop_{plant}_{controller}", n)
-    return _compile_function(chunk, f"loop_{plant}_{controller}_{table_key}")
+    step = rk4_step(rhs_function(plant, controller, table_key, table, sched_params, fdi))
+    tag = "" if fdi else "_nofdi"
+    chunk = step.mapaccum(f"loop_{plant}_{controller}{tag}", n)
+    return _compile_function(chunk, f"loop_{plant}_{controller}{tag}_{table_key}_{n}")
 
 
 @cache
 def rhs_function(plant: str, controller: str, table_key: str, table: CpTable | None = None,
-                 sched_params: tuple | None = None) -> ca.Function:
+                 sched_params: tuple | None = None, fdi: bool = True) -> ca.Function:
     """The closed-loop right-hand side; sched_params: the turbine parameters (a tuple)
-    the pitch-sensitivity schedule is built for (default: the layout's)."""
+    the pitch-sensitivity schedule is built for (default: the layout's); fdi=False: without
+    the FDI (see :func:`_closed_loop_rhs`)."""
     pt = np.array(sched_params) if sched_params else lay.vector("turbine_params")
-    return _closed_loop_rhs(plant, table or nrel5mw_cp_table(), controller, pt)
+    return _closed_loop_rhs(plant, table or nrel5mw_cp_table(), controller, pt, fdi)
+
+
+class Buffered:
+    """A CasADi function called through ``Function.buffer()`` on NumPy arrays it owns.
+
+    Skips the DM conversion at the Python boundary (measured at about 65 ns an element:
+    2 µs a step for the loop's outputs). Every array bound to the buffer stays referenced
+    by this object for its whole life (a dropped one would corrupt the heap); calls copy
+    the inputs in and return copies of the results, shaped as CasADi's (rows, columns).
+    """
+
+    def __init__(self, f: ca.Function):
+        self.f = f
+        self._buf, self._trigger = f.buffer()
+        self._in = [np.zeros((f.size2_in(i), f.size1_in(i))) for i in range(f.n_in())]
+        self._out = [np.zeros((f.size2_out(i), f.size1_out(i))) for i in range(f.n_out())]
+        for i, a in enumerate(self._in):
+            self._buf.set_arg(i, memoryview(a))
+        for i, r in enumerate(self._out):
+            self._buf.set_res(i, memoryview(r))
+
+    def __call__(self, *args) -> list[np.ndarray]:
+        for a, x in zip(self._in, args, strict=True):
+            x = np.asarray(x, dtype=float)
+            cols, rows = a.shape
+            if x.size == rows and cols > 1:  # a column repeated, as a DM call broadcasts
+                a[...] = x.reshape(1, rows)
+            else:
+                a[...] = x.reshape((rows, cols), order="F").T
+        self._trigger()
+        return [r.T.copy() for r in self._out]
 
 
 @dataclass
@@ -287,17 +348,19 @@ def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_s
              yd: np.ndarray, p_turbine: np.ndarray, p_ctrl: np.ndarray, t_final: float,
              dt: float, table: CpTable | None = None, table_key: str = "nrel5mw",
              decimate: int = 1, progress: bool = True, keep_states: bool = False,
-             use_fdi: bool = False) -> Result:
+             use_fdi: bool = False, fdi: bool = True) -> Result:
     """Integrate from t = 0 to t_final with fixed dt; outputs every ``decimate`` steps.
 
     ``schedule`` gives the plant's fault inputs, ``ctrl_schedule`` those eq (49) is told
     (a :class:`wtftc.faults.Schedule`, or None for a fault-free controller).
     """
     n_steps = int(round(t_final / dt))
-    f = chunk_function(plant, controller, table_key, table, tuple(p_turbine))
+    f = chunk_function(plant, controller, table_key, table, tuple(p_turbine), fdi=fdi)
     n_c = f.size2_out(1)
     z = np.array(z0, dtype=float)
-    names = state_names(plant, controller)
+    names = state_names(plant, controller)[:f.size1_in(0)]
+    extra = [float(use_fdi)] if fdi else []
+    call = Buffered(f)
     outs, ts, zs = [], [], []
     events = [int(round(e / dt)) for e in (schedule.events() if schedule else [])]
     k = 0
@@ -322,8 +385,7 @@ def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_s
             lay.defaults("sensor_faults")[:, None], (1, n_c))
         ck = (ctrl_schedule.actuator(tk)[:len(nominal_ctrl)] if ctrl_schedule
               else np.tile(nominal_ctrl[:, None], (1, n_c)))
-        zz, oo = f(z, w3, af, sf, ck, yd, p_turbine, p_ctrl, float(use_fdi), dt)
-        zz, oo = np.array(zz), np.array(oo)
+        zz, oo = call(z, w3, af, sf, ck, yd, p_turbine, p_ctrl, *extra, dt)
         # the state before step i is z (i = 0) or zz[:, i-1]
         z_before = np.hstack([z[:, None], zz[:, :m - 1]])
         bad = ~np.all(np.isfinite(oo[:, :m]), axis=0) | ~np.all(np.isfinite(zz[:, :m]), axis=0)
@@ -360,7 +422,7 @@ def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_s
     return Result(t=np.concatenate(ts), outputs=np.vstack(outs), z_final=z, diverged=diverged,
                   wall_s=time.perf_counter() - t0, steps=k,
                   z=np.vstack(zs) if keep_states else None,
-                  names=[n for n, _ in output_spec(controller)])
+                  names=[n for n, _ in output_spec(controller, fdi)])
 
 
 def _progress(k: int, n: int, dt: float, wall: float, end: bool = False) -> None:

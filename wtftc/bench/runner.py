@@ -1,0 +1,441 @@
+"""`wtftc bench`: one closed loop through every method, at equal accuracy, in one process.
+
+Protocol (docs/performance.md):
+
+1. Reference: SciPy's DOP853 at rtol = atol = 1e-12 on the compiled right-hand side,
+   integrated piecewise between the fault onsets, ω_r sampled every 10 ms over 60 s.
+2. Equal accuracy, not equal dt: the largest RK4 step on a ladder whose ω_r trajectory is
+   within TARGET (1e-6) of the reference, relative to max |ω_r|; every RK4 method runs
+   there (they compute the same arithmetic: checked). Where no step on the ladder reaches
+   the target (a loop that rides the pitch-rate limit converges only to first order), the
+   RK4 methods run at the default dt = 1 ms and the target becomes the error RK4 has
+   there; the adaptive solvers get the loosest rtol on their ladder that meets the target.
+3. Timing: median of repeated runs with the spread (min-max), warm-up and compilation
+   apart; slow methods on a shorter horizon (column horizon_s), reported per step and per
+   simulated second. Peak memory: the rise of the process's peak resident set while the
+   method runs (/proc/self/clear_refs resets it, Linux).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from wtftc import simulate as sim
+from wtftc.bench.problem import LOOPS, Problem
+from wtftc.faults import Schedule
+from wtftc.generated import layout_json, manifest
+
+TARGET = 1e-6
+DT_LADDER = (1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1e-4)
+DT_DEFAULT = 1e-3
+RTOL_LADDER = (1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)
+OUT_DT = 0.01  # the grid on which trajectories are compared [s]
+
+
+def log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+# --- measurement helpers ---
+def _vm_kb(field_name: str) -> int:
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith(field_name + ":"):
+                return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
+class PeakMemory:
+    """Rise of the peak resident set [MB] over a block (Linux; 0 elsewhere)."""
+
+    def __enter__(self):
+        try:
+            Path("/proc/self/clear_refs").write_text("5")
+        except OSError:
+            pass
+        self.base = _vm_kb("VmRSS")
+        return self
+
+    def __exit__(self, *exc):
+        self.mb = max(_vm_kb("VmHWM") - self.base, 0) / 1024.0
+
+
+def count_ops(f: ca.Function) -> int:
+    """Arithmetic operations of an SX function (CasADi's instruction list without inputs,
+    outputs, constants; a call to an interpolant counts as one)."""
+    skip = {ca.OP_CONST, ca.OP_INPUT, ca.OP_OUTPUT, ca.OP_PARAMETER}
+    return sum(f.instruction_id(k) not in skip for k in range(f.n_instructions()))
+
+
+def rel_error(a: np.ndarray, ref: np.ndarray) -> float:
+    n = min(len(a), len(ref))
+    return float(np.max(np.abs(a[:n] - ref[:n])) / np.max(np.abs(ref[:n])))
+
+
+@dataclass
+class Timing:
+    method: str
+    step: str  # "dt = ..." or "rtol = ..."
+    horizon_s: float
+    ns_per_step: float
+    spread_ns: tuple[float, float]
+    steps_per_s: float  # steps per simulated second
+    realtime: float  # simulated seconds per wall second
+    ops_per_step: float | None
+    peak_mb: float
+    warmup_s: float
+    error_vs_reference: float | None  # on the horizon, relative to max |ω_r|
+    diff_vs_default: float | None  # same, against wtftc's default path at the same step
+    note: str = ""
+    ratio_to_default: float | None = None  # wall per simulated second / the default's
+
+    @property
+    def ops_per_ns(self) -> float | None:
+        return self.ops_per_step / self.ns_per_step if self.ops_per_step else None
+
+
+@dataclass
+class LoopReport:
+    loop: str
+    controller: str
+    plant: str
+    target: float
+    target_reached: bool
+    dt: float
+    rtol: dict[str, float]
+    rk4_errors: dict[str, float]
+    adaptive_errors: dict[str, dict[str, float]]
+    reference_s: float
+    reference_nfev: int
+    timings: list[Timing] = field(default_factory=list)
+
+
+# --- the methods ---
+def reference(p: Problem, cache: Path | None) -> tuple[np.ndarray, dict]:
+    """ω_r on the OUT_DT grid from DOP853 at rtol = atol = 1e-12 (cached on disk by the
+    generated code's manifest, the problem and SciPy's version)."""
+    from scipy import __version__ as scipy_version
+
+    key = hashlib.sha256(json.dumps([manifest()["artefacts"], p.name, p.config.raw,
+                                     p.t_final, scipy_version], sort_keys=True,
+                                    default=str).encode()).hexdigest()[:16]
+    path = cache / f"reference_{p.name}_{key}.npz" if cache else None
+    if path and path.exists():
+        d = np.load(path)
+        return d["omega"], {"wall_s": float(d["wall_s"]), "nfev": int(d["nfev"])}
+    log(f"  reference: DOP853 at rtol 1e-12 over {p.t_final:g} s ...")
+    t0 = time.perf_counter()
+    omega, nfev = _solve_ivp(p, p.rhs_numpy, "DOP853", 1e-12, p.t_final)
+    info = {"wall_s": time.perf_counter() - t0, "nfev": nfev}
+    if path:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp.npz")
+        np.savez(tmp, omega=omega, **info)
+        os.replace(tmp, path)
+    return omega, info
+
+
+def _solve_ivp(p: Problem, rhs_factory, method: str, rtol: float, t_final: float,
+               ) -> tuple[np.ndarray, int]:
+    """ω_r on the OUT_DT grid over [0, t_final], piecewise between events."""
+    from scipy.integrate import solve_ivp
+
+    grid = np.arange(0.0, t_final + OUT_DT / 2, OUT_DT)
+    z = p.z0.copy()
+    out, nfev = [], 0
+    segs = p.segments(t_final)
+    for k, (a, b) in enumerate(segs):
+        last = k == len(segs) - 1
+        te = grid[(grid >= a - 1e-9) & ((grid <= b + 1e-9) if last else (grid < b - 1e-9))]
+        te = np.concatenate([te, [b]]) if not last else te
+        sol = solve_ivp(rhs_factory(k), (a, b), z, method=method, rtol=rtol,
+                        atol=rtol * np.maximum(np.abs(p.z0), 1e-3), t_eval=te)
+        if sol.status != 0:
+            raise RuntimeError(f"{method} failed at rtol {rtol}: {sol.message}")
+        nfev += sol.nfev
+        z = sol.y[:, -1]
+        out.append(sol.y[0] if last else sol.y[0][:-1])
+    return np.concatenate(out), nfev
+
+
+def rk4_default(p: Problem, dt: float, t_final: float) -> sim.Result:
+    """wtftc's default path: the compiled whole-trajectory chunks (simulate.run_loop)."""
+    rc = p.config
+    return sim.run_loop(rc.plant, rc.controller, p.z0, rc.wind, Schedule(list(rc.faults)),
+                        Schedule(list(rc.faults)), p.yd, rc.p_turbine, rc.p_ctrl, t_final, dt,
+                        rc.table, rc.table_key, decimate=int(round(OUT_DT / dt)),
+                        progress=False, fdi=False)
+
+
+def step_inputs(p: Problem, dt: float, n: int):
+    """Per-step inputs as the chunked loop gets them: wind at t, t + dt/2, t + dt; faults
+    at t (held over the step)."""
+    tk = np.arange(n) * dt
+    w3 = np.vstack([p.config.wind(tk), p.config.wind(tk + dt / 2), p.config.wind(tk + dt)])
+    _, af, sf, ck = p.inputs(tk)
+    return w3, af, sf, ck
+
+
+def rk4_python_loop(p: Problem, f, dt: float, t_final: float) -> np.ndarray:
+    """A compiled (or VM) one-step function called from a Python loop; ω_r on the grid."""
+    n = int(round(t_final / dt))
+    every = int(round(OUT_DT / dt))
+    w3, af, sf, ck = step_inputs(p, dt, n)
+    rc = p.config
+    call = sim.Buffered(f)
+    z = p.z0.copy()
+    out = []
+    for k in range(n):
+        if k % every == 0:
+            out.append(z[0])
+        z = call(z, w3[:, k], af[:, k], sf[:, k], ck[:, k], p.yd, rc.p_turbine, rc.p_ctrl,
+                 dt)[0][:, 0]
+    return np.array(out)
+
+
+def _timed(fn, repeats: int) -> tuple[list[float], object, float]:
+    """(wall times of `repeats` runs after one warm-up, last result, warm-up wall)."""
+    t0 = time.perf_counter()
+    res = fn()
+    warm = time.perf_counter() - t0
+    walls = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        res = fn()
+        walls.append(time.perf_counter() - t0)
+    return walls, res, warm
+
+
+def _timing(method, step, horizon, steps, walls, ops, peak, warm, err, diff, note=""):
+    ns = [w / steps * 1e9 for w in walls]
+    med = float(np.median(ns))
+    return Timing(method, step, horizon, med, (float(min(ns)), float(max(ns))),
+                  steps / horizon, horizon / (med * 1e-9 * steps), ops, peak, warm, err, diff,
+                  note)
+
+
+def bench_loop(name: str, quick: bool = False, cache: Path | None = None) -> LoopReport:
+    controller, plant = LOOPS[name]
+    p = Problem(name, controller, plant)
+    log(f"{name}: {controller} controller on {plant}, case 3, NTM B 16 m/s, 60 s")
+    ref, ref_info = reference(p, cache)
+
+    # 1. the step at equal accuracy (RK4), on wtftc's default path
+    rk4_err = {}
+    dt_star = None
+    for dt in DT_LADDER:
+        res = rk4_default(p, dt, p.t_final)
+        rk4_err[f"{dt:g}"] = e = rel_error(res.column("omega_r"), ref)
+        log(f"  RK4 dt = {dt:g} s: error {e:.2e}")
+        if e <= TARGET:
+            dt_star = dt
+            break
+    reached = dt_star is not None
+    if not reached:
+        dt_star = DT_DEFAULT
+    target = TARGET if reached else rk4_err[f"{DT_DEFAULT:g}"]
+
+    # 2. the adaptive solvers' rtol at that accuracy (on the compiled rhs)
+    adaptive_err: dict[str, dict[str, float]] = {}
+    rtol_star: dict[str, float] = {}
+    for method in ("RK45", "DOP853"):
+        adaptive_err[method] = {}
+        for rtol in RTOL_LADDER:
+            om, nfev = _solve_ivp(p, p.rhs_numpy, method, rtol, p.t_final)
+            e = rel_error(om, ref)
+            adaptive_err[method][f"{rtol:g}"] = e
+            log(f"  {method} rtol = {rtol:g}: error {e:.2e} ({nfev} evaluations)")
+            if e <= target:
+                rtol_star[method] = rtol
+                break
+        else:
+            rtol_star[method] = RTOL_LADDER[-1]
+
+    report = LoopReport(name, controller, plant, target, reached, dt_star, rtol_star, rk4_err,
+                        adaptive_err, ref_info["wall_s"], ref_info["nfev"])
+    reps = 2 if quick else 5
+    step_fn = sim.rk4_step(p.rhs)
+    ops = count_ops(step_fn.expand())
+    rhs_ops = count_ops(p.rhs)
+
+    # wtftc default: compiled chunks over the whole trajectory
+    with PeakMemory() as pm:
+        walls, res, warm = _timed(lambda: rk4_default(p, dt_star, p.t_final), reps)
+    base = res.column("omega_r")
+    n = int(round(p.t_final / dt_star))
+    report.timings.append(_timing("wtftc: compiled trajectory (default)", f"dt = {dt_star:g}",
+                                  p.t_final, n, walls, ops, pm.mb, warm,
+                                  rel_error(base, ref), 0.0))
+
+    def vs_default(om):
+        return rel_error(om, base[:len(om)])
+
+    def vs_ref(om):
+        return rel_error(om, ref[:len(om)])
+
+    # wtftc's compiled step from a Python loop
+    h = 2.0 if quick else 5.0
+    f_step = sim.compiled(step_fn, f"bench_step_{name}", quiet=True)
+    with PeakMemory() as pm:
+        walls, om, warm = _timed(lambda: rk4_python_loop(p, f_step, dt_star, h), reps)
+    report.timings.append(_timing("wtftc: compiled step, Python loop", f"dt = {dt_star:g}", h,
+                                  int(round(h / dt_star)), walls, ops, pm.mb, warm, vs_ref(om),
+                                  vs_default(om)))
+
+    # CasADi's SX virtual machine: the same step, not compiled
+    h = 0.2 if quick else 1.0
+    vm = step_fn.expand()
+    with PeakMemory() as pm:
+        walls, om, warm = _timed(lambda: rk4_python_loop(p, vm, dt_star, h), max(2, reps // 2))
+    report.timings.append(_timing("CasADi SX virtual machine (no compiler)",
+                                  f"dt = {dt_star:g}", h, int(round(h / dt_star)), walls, ops,
+                                  pm.mb, warm, vs_ref(om), vs_default(om)))
+
+    # numba: the hand-written loop
+    report.timings.extend(_numba(p, name, dt_star, reps, base, ref))
+
+    # what a user would write: lambdify, in a Python RK4 loop and under solve_ivp
+    report.timings.extend(_lambdify(p, dt_star, rtol_star, quick, base, ref, rhs_ops))
+    for t in report.timings:
+        t.ratio_to_default = (t.ns_per_step * t.steps_per_s) / (
+            report.timings[0].ns_per_step * report.timings[0].steps_per_s)
+    return report
+
+
+def _numba(p: Problem, name: str, dt: float, reps: int, base, ref) -> list[Timing]:
+    try:
+        from wtftc.bench import numba_loop
+    except ImportError as exc:
+        log(f"  numba baseline skipped: {exc} (pip install 'wtftc[bench]')")
+        return []
+    t0 = time.perf_counter()
+    setup = numba_loop.prepare(p.controller, p.config)
+    prep = time.perf_counter() - t0
+    with PeakMemory() as pm:
+        walls, om, warm = _timed(lambda: numba_loop.omega_trajectory(
+            setup, p, dt, p.t_final, every=int(round(OUT_DT / dt))), reps)
+    n = int(round(p.t_final / dt))
+    return [_timing("numba: hand-written RK4 loop (@njit)", f"dt = {dt:g}", p.t_final, n, walls,
+                    None, pm.mb, warm + prep, rel_error(om, ref), rel_error(om, base),
+                    "warm-up includes the JIT compilation")]
+
+
+def _lambdify(p: Problem, dt: float, rtol: dict, quick: bool, base, ref,
+              rhs_ops: int) -> list[Timing]:
+    from wtftc.bench import lambdify_loop as ll
+
+    out = []
+    t0 = time.perf_counter()
+    loop = ll.LambdifiedLoop(p)
+    setup = time.perf_counter() - t0
+    h = 0.05 if quick else 0.2
+    n = int(round(h / dt))
+    with PeakMemory() as pm:
+        walls, om, warm = _timed(lambda: ll.rk4(loop, p, dt, n, int(round(OUT_DT / dt))), 2)
+    out.append(_timing("SymPy lambdify (NumPy, cse) + Python RK4", f"dt = {dt:g}", h, n, walls,
+                       None, pm.mb, warm + setup, rel_error(om, ref), rel_error(om, base),
+                       "warm-up includes lambdify"))
+    from scipy.integrate import solve_ivp
+
+    h = 0.1 if quick else 0.5
+    for method, r in rtol.items():
+        def fac(k, method=method):
+            _, af, sf, ck = p.inputs(p.segments()[k][0] + 1e-9)
+            af, sf, ck = af[:, 0], sf[:, 0], ck[:, 0]
+            return lambda t, z: loop(z, float(p.config.wind(t)), af, sf, ck)
+
+        def run(method=method, r=r):
+            sol = solve_ivp(fac(0), (0.0, h), p.z0, method=method, rtol=r,
+                            atol=r * np.maximum(np.abs(p.z0), 1e-3))
+            return sol
+
+        with PeakMemory() as pm:
+            walls, sol, warm = _timed(run, 2)
+        steps = len(sol.t) - 1
+        out.append(_timing(f"SciPy solve_ivp {method} on the lambdify rhs", f"rtol = {r:g}",
+                           h, steps, walls, None, pm.mb, warm, None, None,
+                           f"{sol.nfev} rhs evaluations for {steps} steps"))
+    return out
+
+
+# --- report ---
+COLUMNS = ["method", "step", "horizon [s]", "ns per step", "spread [ns]", "× real time",
+           "time ratio to default", "ops per step", "ops per ns", "peak memory [MB]",
+           "warm-up [s]", "error vs reference", "diff vs default"]
+
+
+def _row(t: Timing) -> list[str]:
+    def g(x, fmt):
+        return "—" if x is None else fmt.format(x)
+    return [t.method, t.step, f"{t.horizon_s:g}", f"{t.ns_per_step:,.0f}",
+            f"{t.spread_ns[0]:,.0f}-{t.spread_ns[1]:,.0f}", f"{t.realtime:,.1f}",
+            g(t.ratio_to_default, "{:,.2f}"), g(t.ops_per_step, "{:,}"),
+            g(t.ops_per_ns, "{:.2f}"), f"{t.peak_mb:.1f}", f"{t.warmup_s:.2f}",
+            g(t.error_vs_reference, "{:.1e}"), g(t.diff_vs_default, "{:.1e}")]
+
+
+def markdown(reports: list[LoopReport], extra: dict) -> str:
+    lines = [f"# wtftc bench ({extra['date']}, {extra['machine']})", ""]
+    for r in reports:
+        lines += [f"## {r.loop}: `{r.controller}` on `{r.plant}`, case 3, NTM B 16 m/s, 60 s",
+                  "",
+                  (f"Equal accuracy: ω_r within {r.target:.1e} of DOP853 at rtol 1e-12 "
+                   f"(relative to max |ω_r|) at RK4 dt = {r.dt:g} s"
+                   if r.target_reached else
+                   f"The 1e-6 target is not reached by RK4 at any dt on the ladder (down to "
+                   f"{DT_LADDER[-1]:g} s: error {r.rk4_errors[f'{DT_LADDER[-1]:g}']:.1e}); "
+                   f"every method is timed at the accuracy of RK4 at dt = {r.dt:g} s, "
+                   f"{r.target:.1e}") +
+                  "; adaptive rtol: " + ", ".join(f"{k} {v:g}" for k, v in r.rtol.items()) +
+                  f". Reference: {r.reference_nfev:,} evaluations, {r.reference_s:.0f} s.",
+                  "", "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+        lines += ["| " + " | ".join(_row(t)) + " |" for t in r.timings]
+        lines += ["", "RK4 error against the reference by dt: " + ", ".join(
+            f"{k} s: {v:.1e}" for k, v in r.rk4_errors.items()), ""]
+    for k, v in extra.items():
+        if k not in ("date", "machine"):
+            lines.append(f"- {k}: {v}")
+    return "\n".join(lines) + "\n"
+
+
+def machine() -> str:
+    cpu = platform.processor() or "cpu"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, " \
+           f"CasADi {ca.__version__}"
+
+
+def run(out: Path, loops: list[str] | None = None, quick: bool = False) -> list[LoopReport]:
+    from wtftc.io import atomic_write_json, atomic_write_text, ensure_writable_dir
+
+    ensure_writable_dir(out, "--out")
+    loops = loops or list(LOOPS)
+    reports = [bench_loop(name, quick, cache=out / "cache") for name in loops]
+    extra = {"date": time.strftime("%Y-%m-%d %H:%M"), "machine": machine(),
+             "generated functions": len(layout_json()["functions"])}
+    text = markdown(reports, extra)
+    atomic_write_text(out / "bench.md", text)
+    atomic_write_json(out / "bench.json", {"machine": extra, "loops": [
+        {**{k: v for k, v in asdict(r).items() if k != "timings"},
+         "timings": [{**asdict(t), "ops_per_ns": t.ops_per_ns} for t in r.timings]}
+        for r in reports]})
+    print(text)
+    return reports
