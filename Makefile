@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: help setup regenerate check-generated test lint run verify clean
+.PHONY: help setup regenerate check-generated test lint run verify bench clean
 
 help:
 	@echo "make run              set up, then the paper's three cases on both plants into results/"
@@ -12,6 +12,7 @@ help:
 	@echo "make test             set up, run the whole test suite"
 	@echo "make regenerate       rebuild generated/ from derivation/ (SymPy -> CasADi)"
 	@echo "make check-generated  fail with a diff if generated/ is stale"
+	@echo "make bench            set up, time the closed loop through every method (out/bench/)"
 	@echo "make lint             ruff"
 
 $(STAMP): pyproject.toml
@@ -37,6 +38,9 @@ lint: setup
 
 run: setup
 	$(VENV)/bin/wtftc cases --out results
+
+bench: setup
+	$(VENV)/bin/wtftc bench --out out/bench
 
 verify: setup check-generated
 	$(VENV)/bin/wtftc verify --out out/verify

@@ -10,14 +10,12 @@ loss of effectiveness and the accommodation.
 import numpy as np
 import pytest
 
-pytest.importorskip("numba", reason="numba is the optional 'bench' extra (pip install numba)")
-
-from wtftc import cases  # noqa: E402
-from wtftc import layout as lay  # noqa: E402
-from wtftc import simulate as sim  # noqa: E402
-from wtftc.bench import numba_loop as nl  # noqa: E402
-from wtftc.cp_table import nrel5mw_cp_table  # noqa: E402
-from wtftc.faults import DEFAULT_FAULT  # noqa: E402
+from wtftc import cases
+from wtftc import layout as lay
+from wtftc import simulate as sim
+from wtftc.bench import numba_loop as nl
+from wtftc.cp_table import nrel5mw_cp_table
+from wtftc.faults import DEFAULT_FAULT
 
 T_FINAL = 3.0
 FAULT_AT_1S = [dict(f, onset_s=1.0) for f in DEFAULT_FAULT]

@@ -225,23 +225,59 @@ def run(rc: RunConfig, progress: bool = True, keep_states: bool = False) -> sim.
                       "rosco": {"version": rosco.ROSCO_VERSION,
                                 "control_dt_s": rosco.CONTROL_DT}}
         return res
-    z0 = trim(rc)
-    yd = np.zeros(len(lay.names("reference")))
-    yd[0] = rc.reference
-    lam = sim.stability_limit(rc.plant, rc.controller, z0, float(rc.wind(0.0)), yd,
-                              rc.p_turbine, rc.p_ctrl, rc.table, rc.table_key)
-    sim.check_dt(rc.dt, lam)
-    schedule = Schedule(copy.deepcopy(rc.faults)) if rc.faults else None
-    ctrl_schedule = Schedule(copy.deepcopy(rc.faults)) if rc.case == 3 else None  # oracle
-    res = sim.run_loop(rc.plant, rc.controller, z0, rc.wind, schedule, ctrl_schedule, yd,
-                       rc.p_turbine, rc.p_ctrl, rc.t_final, rc.dt, rc.table, rc.table_key,
-                       decimate=rc.decimate, progress=progress, keep_states=keep_states,
-                       use_fdi=rc.case == 4)
-    res.config = {**rc.raw, "wind_resolved": rc.wind.describe(),
-                  "fault_resolved": schedule.describe() if schedule else [],
-                  "stability": {"max_abs_eigenvalue_1_s": lam, "dt_limit_s": 2.78 / lam}}
-    res.schedule = schedule
-    return res
+    return run_batch([rc], progress=progress, keep_states=keep_states)[0]
+
+
+def run_batch(rcs: list[RunConfig], threads: int = 1, progress: bool = True,
+              keep_states: bool = False) -> list[sim.Result]:
+    """Many independent runs of one loop in one compiled call per chunk (the Python API for
+    seeds and fault cases): the same results as :func:`run` on each, bit for bit.
+
+    The runs must share what the compiled loop is built for: plant, controller, Cp table,
+    turbine parameters, dt, t_final and output decimation; wind, faults, seed, case and
+    controller gains may differ. ``threads``: CasADi threads over the runs (use the cores).
+    """
+    if not rcs:
+        raise ConfigError("runs", "[]", "at least one run configuration")
+    if threads < 1:
+        raise ConfigError("threads", threads, "a positive integer")
+    first = rcs[0]
+    for i, rc in enumerate(rcs):
+        if rc.uses_rosco:
+            raise ConfigError(f"runs[{i}].controller", rc.controller,
+                              "a generated controller (ROSCO runs one at a time)")
+        for key in ("plant", "controller", "table_key", "dt", "t_final", "decimate"):
+            if getattr(rc, key) != getattr(first, key):
+                raise ConfigError(f"runs[{i}].{key}", getattr(rc, key),
+                                  f"{getattr(first, key)!r}, as in runs[0]: a batch shares "
+                                  "one compiled loop")
+        if not np.array_equal(rc.p_turbine, first.p_turbine):
+            raise ConfigError(f"runs[{i}].turbine", "different parameters",
+                              "the turbine parameters of runs[0]")
+    runs, schedules, stab = [], [], []
+    for rc in rcs:
+        z0 = trim(rc)
+        yd = np.zeros(len(lay.names("reference")))
+        yd[0] = rc.reference
+        lam = sim.stability_limit(rc.plant, rc.controller, z0, float(rc.wind(0.0)), yd,
+                                  rc.p_turbine, rc.p_ctrl, rc.table, rc.table_key)
+        sim.check_dt(rc.dt, lam)
+        schedule = Schedule(copy.deepcopy(rc.faults)) if rc.faults else None
+        ctrl_schedule = Schedule(copy.deepcopy(rc.faults)) if rc.case == 3 else None
+        runs.append(sim.Run(z0, rc.wind, schedule, ctrl_schedule, yd, rc.p_ctrl,
+                            rc.case == 4))
+        schedules.append(schedule)
+        stab.append(lam)
+    results = sim.run_loops(first.plant, first.controller, runs, first.p_turbine,
+                            first.t_final, first.dt, first.table, first.table_key,
+                            decimate=first.decimate, progress=progress,
+                            keep_states=keep_states, threads=threads)
+    for rc, res, schedule, lam in zip(rcs, results, schedules, stab, strict=True):
+        res.config = {**rc.raw, "wind_resolved": rc.wind.describe(),
+                      "fault_resolved": schedule.describe() if schedule else [],
+                      "stability": {"max_abs_eigenvalue_1_s": lam, "dt_limit_s": 2.78 / lam}}
+        res.schedule = schedule
+    return results
 
 
 def metrics(rc: RunConfig, res: sim.Result) -> dict:

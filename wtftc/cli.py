@@ -4,6 +4,7 @@
     wtftc run [options]          one run: traces (CSV, Parquet), metrics.json, config.toml
     wtftc verify [--out DIR]     check, compile and verify the generated controller code
     wtftc functions              list the generated functions, their inputs and sizes
+    wtftc bench [--out DIR]      the same closed loop through every method, at equal accuracy
 """
 
 from __future__ import annotations
@@ -124,6 +125,24 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--seed", type=_nonnegative_int, default=0, help="random seed")
     k.add_argument("--quiet", action="store_true", help="no progress lines")
 
+    b = sub.add_parser(
+        "bench", help="time the closed loop through wtftc's paths and the alternatives",
+        description="Runs the paper's case 3 and the physical AFTC's on nrel5mw (NTM class B, "
+                    "16 m/s, 60 s) through wtftc's compiled trajectory, its compiled step from "
+                    "a Python loop, CasADi's virtual machine, a hand-written numba RK4, SymPy "
+                    "lambdify in a Python RK4 loop and SciPy's solve_ivp, each at the step or "
+                    "tolerance that matches a DOP853 reference at rtol 1e-12 (equal accuracy, "
+                    "not equal dt), then batches of runs on 1 and 2 threads. Writes bench.md "
+                    "and bench.json into --out. Needs the source tree (derivation/) for the "
+                    "lambdify baseline and the 'bench' extra (numba, scipy): "
+                    "pip install -e '.[bench]'. Takes about 5-8 minutes.")
+    b.add_argument("--out", type=Path, default=Path("out/bench"),
+                   help="output folder (default: out/bench)")
+    b.add_argument("--loops", nargs="+", metavar="LOOP",
+                   help="subset of loops: paper_case3, physical_case3 (default: both)")
+    b.add_argument("--quick", action="store_true",
+                   help="fewer repeats and shorter horizons for the slow methods (a smoke run)")
+
     c = sub.add_parser(
         "cases", help="the paper's three cases on both plants, figures and a metrics table",
         description="Runs cases 1-3 on nrel5mw and on the paper's plant (plus case 1 with the "
@@ -236,6 +255,12 @@ def main(argv: list[str] | None = None) -> int:
             print(compare.write_compare_table(args.out, rows))
             print(f"written under {args.out}/: compare.md, compare.csv, compare.png, "
                   "<wind>/<fault>/<controller>/{config.toml,metrics.json}")
+            return 0
+        if args.command == "bench":
+            from wtftc.bench import runner
+
+            runner.run(args.out, args.loops, quick=args.quick)
+            print(f"written: {args.out}/bench.md, {args.out}/bench.json")
             return 0
         if args.command == "functions":
             from wtftc.generated import layout_json

@@ -10,14 +10,16 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from wtftc.errors import ConfigError
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def require_source_tree() -> Path:
     """The repository root with derivation/, importable; a clear error without it."""
     if not (ROOT / "derivation" / "__init__.py").exists():
-        raise RuntimeError(f"the benchmark's lambdify baseline needs wtftc's source tree "
-                           f"(derivation/ in {ROOT}); run it from a clone of the repository")
+        raise ConfigError("source tree", str(ROOT), "a clone of the wtftc repository "
+                          "(the bench's lambdify baseline needs derivation/ beside wtftc/)")
     if str(ROOT) not in sys.path:
         sys.path.insert(0, str(ROOT))
     return ROOT

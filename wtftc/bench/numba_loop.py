@@ -42,11 +42,11 @@ import copy
 import re
 from dataclasses import dataclass, field
 
-import casadi as ca
 import numpy as np
 from numba import njit
 
 from wtftc import layout as lay
+from wtftc import spline
 
 #: numba options: IEEE arithmetic (no fastmath: same rounding rules as the C of CasADi),
 #: and C semantics for a division by zero (no Python exception checks in the hot loop)
@@ -797,48 +797,12 @@ class Prepared:
         return zdot
 
 
-def _c_constants(fn: ca.Function) -> tuple[str, dict[str, np.ndarray]]:
-    """CasADi's generated C of fn and its constant arrays (printed with 17 significant
-    digits: exact round trip), by name."""
-    cg = ca.CodeGenerator("numba_bench_extract.c", {"with_header": False})
-    cg.add(fn)
-    code = cg.dump()
-    arrays = {}
-    for kind, name, body in re.findall(
-            r"static const casadi_(real|int) (casadi_[cs]\d+)\[\d+\]\s*=\s*\{([^}]*)\};", code):
-        vals = [t for t in body.replace("\n", " ").split(",") if t.strip()]
-        arrays[name] = np.array([float(t) for t in vals] if kind == "real"
-                                else [int(t) for t in vals])
-    return code, arrays
-
-
-def not_a_knot(x: np.ndarray) -> np.ndarray:
-    """Cubic not-a-knot knot vector on the grid x (x_2 and x_{n-1} are not knots)."""
-    x = np.asarray(x, dtype=float)
-    return np.concatenate([[x[0]] * 4, x[2:-2], [x[-1]] * 4])
-
-
 def cp_spline_data(table) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(knots λ, knots β, coefficients) of wtftc.simulate.cp_interpolant(table), read from
-    the constants of CasADi's own code for it: the coefficients CasADi solved for when it
-    built the interpolant, to the last bit."""
+    """(knots λ, knots β, coefficients) of wtftc.simulate.cp_interpolant(table): the
+    coefficients CasADi solved for when it built the interpolant, to the last bit."""
     from wtftc.simulate import cp_interpolant
 
-    code, arr = _c_constants(cp_interpolant(table))
-    m = re.search(r"nd_boor_eval\)?\(\s*[^,]+,\s*2\s*,\s*(casadi_c\d+)\s*,\s*(casadi_s\d+)\s*,"
-                  r"\s*(casadi_s\d+)\s*,\s*(casadi_s\d+)\s*,\s*(casadi_c\d+)", code)
-    if m is None:
-        raise RuntimeError("no 2-D casadi_nd_boor_eval call in CasADi's code for the Cp "
-                           "interpolant: the extraction needs updating for this CasADi")
-    knots, offset, degree, strides, coef = (arr[g] for g in m.groups())
-    n_l, n_b = len(table.tsr), len(table.pitch_rad)
-    kx, ky = knots[offset[0]:offset[1]], knots[offset[1]:offset[2]]
-    if (list(degree) != [3, 3] or list(strides) != [1, n_l] or coef.size != n_l * n_b
-            or not np.array_equal(kx, not_a_knot(table.tsr))
-            or not np.array_equal(ky, not_a_knot(table.pitch_rad))):
-        raise RuntimeError("CasADi's Cp spline is not the cubic not-a-knot tensor spline on "
-                           "the table grid this module evaluates")
-    return kx.copy(), ky.copy(), coef.copy()
+    return spline.spline_data(cp_interpolant(table), table.tsr, table.pitch_rad)
 
 
 def sched_data(table, p_turbine: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -846,7 +810,7 @@ def sched_data(table, p_turbine: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     read from CasADi's code for it (computed once by wtftc)."""
     from wtftc.simulate import pitch_sensitivity_schedule
 
-    code, arr = _c_constants(pitch_sensitivity_schedule(table, p_turbine))
+    code, arr = spline.c_constants(pitch_sensitivity_schedule(table, p_turbine))
     m = re.search(r"casadi_interpn\(\s*[^,]+,\s*1\s*,\s*(casadi_c\d+)\s*,\s*casadi_s\d+\s*,"
                   r"\s*(casadi_c\d+)", code)
     if m is None:
