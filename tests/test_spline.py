@@ -59,3 +59,18 @@ def test_derivatives_and_compiled_code_agree(cps):
     rng = np.random.default_rng(2)
     lam, beta = rng.uniform(2, 14, n), rng.uniform(0, 0.5, n)
     np.testing.assert_array_equal(np.array(comp(lam, beta)), np.array(fast.map(n)(lam, beta)))
+
+
+def test_schedule_lookup_is_casadis_linear_interpolant():
+    """The loop's pitch-sensitivity schedule (uniform-grid lookup) against CasADi's 'linear'
+    interpolant on the same breakpoints, inside, on them and beyond (held): bit-identical
+    (the same arithmetic, measured 0)."""
+    from wtftc import layout as lay
+
+    table, pt = nrel5mw_cp_table(), lay.vector("turbine_params")
+    betas, _ = sim.schedule_points(table, pt)
+    fast = sim.sched_loop_function(table, pt)
+    assert fast.is_a("MXFunction")
+    x = np.concatenate([np.random.default_rng(3).uniform(-0.3, 1.0, 3000), betas])
+    np.testing.assert_array_equal(np.array(fast(x)),
+                                  np.array(sim.pitch_sensitivity_schedule(table, pt)(x)))

@@ -146,6 +146,16 @@ class Schedule:
         """Times at which a lock "wherever the blade is" must read the blade angle."""
         return sorted({f.onset_s for f in self.faults if f.type == "lock" and f.angle is None})
 
+    def constant_between(self, a: float, b: float) -> bool:
+        """Whether every fault input is the same at all times in [a, b] (no onset, end or
+        ramp inside): the loop then passes one column for the whole chunk."""
+        for f in self.faults:
+            if not (b < f.onset_s or a >= f.onset_s + f.ramp_s):
+                return False
+            if not (b < f.end_s - f.ramp_s or a >= f.end_s):
+                return False
+        return True
+
     def bind_current_angles(self, t: float, beta: np.ndarray) -> None:
         for f in self.faults:
             if f.type == "lock" and f.angle is None and f.onset_s == t:

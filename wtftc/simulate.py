@@ -76,6 +76,7 @@ class SimulationDiverged(RuntimeError):
         super().__init__(f"diverged at t = {t:.4f} s: {reason}")
 
 
+@cache
 def cp_interpolant(table: CpTable) -> ca.Function:
     """Cubic B-spline Cp(λ, β) on the table grid; inputs clipped to the grid (no extrapolation)."""
     f = ca.interpolant("cp_table", "bspline", [table.tsr, table.pitch_rad],
@@ -120,6 +121,30 @@ def steady_pitch(cp_fn: ca.Function, omega_r: float, torque: float, wind: float,
 
 
 def pitch_sensitivity_schedule(table: CpTable, p_turbine: np.ndarray) -> ca.Function:
+    """The schedule of :func:`_pitch_sensitivity_schedule`, built once per table (by
+    identity) and turbine parameters: every run and every trim needs it, and the bisections
+    behind it take about 0.15 s."""
+    return _schedule_function(*schedule_points(table, p_turbine))
+
+
+def sched_loop_function(table: CpTable, p_turbine: np.ndarray) -> ca.Function:
+    """:func:`pitch_sensitivity_schedule` for the closed loop: by uniform-grid lookup
+    (wtftc.spline) where its breakpoints are uniform (the table's pitch grid), else CasADi's
+    interpolant."""
+    betas, grads = schedule_points(table, p_turbine)
+    if spline.is_uniform(betas):
+        return spline.fast_linear(betas, grads, "pitch_sensitivity", "beta", "dT_dbeta")
+    return _schedule_function(betas, grads)
+
+
+def schedule_points(table: CpTable, p_turbine: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Breakpoints (pitch [rad], ∂T_aero/∂β [N m/rad]) of the schedule, computed once per
+    table (by identity) and turbine parameters."""
+    return _schedule_points(table, tuple(float(v) for v in p_turbine))
+
+
+@cache
+def _schedule_points(table: CpTable, p_turbine: tuple) -> tuple[np.ndarray, np.ndarray]:
     """∂T_aero/∂β [N m/rad] against pitch on the steady above-rated operating curve.
 
     For each table pitch, the wind at which rated speed and rated torque balance (bisection
@@ -127,6 +152,7 @@ def pitch_sensitivity_schedule(table: CpTable, p_turbine: np.ndarray) -> ca.Func
     with ∂Cp/∂β by AD of the interpolant). Linear in between, held beyond the ends. This
     is the gain schedule of the PI baseline (and of the physical designs to come).
     """
+    p_turbine = np.array(p_turbine)
     cp_fn = cp_interpolant(table)
     lam, b = ca.SX.sym("tsr"), ca.SX.sym("beta")
     dcp_fn = ca.Function("dcp", [lam, b], [ca.jacobian(cp_fn(lam, b), b)])
@@ -158,7 +184,11 @@ def pitch_sensitivity_schedule(table: CpTable, p_turbine: np.ndarray) -> ca.Func
     if len(betas) < 2:
         raise ConfigError("cp_table", table.source, "a table with an above-rated operating "
                           "range at rated speed and torque (none found)")
-    interp = ca.interpolant("dTdbeta_table", "linear", [np.array(betas)], np.array(grads))
+    return np.array(betas), np.array(grads)
+
+
+def _schedule_function(betas: np.ndarray, grads: np.ndarray) -> ca.Function:
+    interp = ca.interpolant("dTdbeta_table", "linear", [betas], grads)
     bb = ca.SX.sym("beta")
     bc = ca.fmin(ca.fmax(bb, betas[0]), betas[-1])
     return ca.Function("pitch_sensitivity", [bb], [interp(bc)], ["beta"], ["dT_dbeta"])
@@ -176,7 +206,7 @@ def _closed_loop_rhs(plant: str, table: CpTable, controller: str,
     """
     reg = controllers()[controller]
     cp_fn = cp_loop_function(table)
-    sched_fn = pitch_sensitivity_schedule(table, p_turbine_sched)
+    sched_fn = sched_loop_function(table, p_turbine_sched)
     pf = load(PLANTS[plant]["function"], "interpreted")
     cf = load(reg["function"], "interpreted")
     aero = load("aero_operating_point", "interpreted")
@@ -249,10 +279,15 @@ def rk4_step(rhs: ca.Function) -> ca.Function:
                        ["z_next", "out"])
 
 
-#: flags of the closed-loop chunks (the verified generated functions keep CFLAGS);
+#: flags of the closed-loop chunks (the verified generated functions keep CFLAGS):
 #: -fno-semantic-interposition lets gcc inline CasADi's helpers (fmin, fmax, sq) instead of
-#: calling them through the PLT; results are bit-identical to -O2 (docs/performance.md)
-LOOP_CFLAGS = ("-O2", "-fno-semantic-interposition", "-fPIC", "-shared")
+#: calling them through the PLT; -fno-math-errno lets it treat sqrt, exp, ... as pure
+#: functions (inline sqrtsd, no errno bookkeeping): 1.4-1.9× on the paper's loop. Both are
+#: bit-identical to plain -O2 (docs/performance.md, tests/test_bench.py)
+LOOP_CFLAGS = ("-O2", "-fno-semantic-interposition", "-fno-math-errno", "-fPIC", "-shared")
+#: opt-in: -ffast-math also reassociates and assumes no NaN/inf: about 1.5× more on the
+#: paper's loop, results differ at 1e-12..1e-9 relative (not bit-identical to the default)
+FAST_MATH_CFLAGS = ("-O2", "-fno-semantic-interposition", "-ffast-math", "-fPIC", "-shared")
 
 
 def compiled(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
@@ -283,12 +318,14 @@ def _compile_function(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_
 @cache
 def chunk_function(plant: str, controller: str, table_key: str, table: CpTable | None = None,
                    sched_params: tuple | None = None, n: int = CHUNK,
-                   fdi: bool = True) -> ca.Function:
-    """``n`` RK4 steps in one compiled call (mapaccum over the step)."""
+                   fdi: bool = True, fast_math: bool = False) -> ca.Function:
+    """``n`` RK4 steps in one compiled call (mapaccum over the step); ``fast_math``: compiled
+    with FAST_MATH_CFLAGS instead of LOOP_CFLAGS."""
     step = rk4_step(rhs_function(plant, controller, table_key, table, sched_params, fdi))
     tag = "" if fdi else "_nofdi"
     chunk = step.mapaccum(f"loop_{plant}_{controller}{tag}", n)
-    return _compile_function(chunk, f"loop_{plant}_{controller}{tag}_{table_key}_{n}")
+    return _compile_function(chunk, f"loop_{plant}_{controller}{tag}_{table_key}_{n}",
+                             FAST_MATH_CFLAGS if fast_math else LOOP_CFLAGS)
 
 
 @cache
@@ -320,7 +357,9 @@ class Buffered:
         for i, r in enumerate(self._out):
             self._buf.set_res(i, memoryview(r))
 
-    def __call__(self, *args) -> list[np.ndarray]:
+    def __call__(self, *args, copy: bool = True) -> list[np.ndarray]:
+        """Results as (rows, columns) arrays; ``copy=False``: views of the buffers, valid
+        until the next call (no copy of what the caller does not keep)."""
         for a, x in zip(self._in, args, strict=True):
             x = np.asarray(x, dtype=float)
             cols, rows = a.shape
@@ -332,7 +371,7 @@ class Buffered:
             else:
                 a[...] = x.reshape((rows, cols), order="F").T
         self._trigger()
-        return [r.T.copy() for r in self._out]
+        return [r.T.copy() for r in self._out] if copy else [r.T for r in self._out]
 
 
 @dataclass
@@ -375,7 +414,7 @@ def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_s
              yd: np.ndarray, p_turbine: np.ndarray, p_ctrl: np.ndarray, t_final: float,
              dt: float, table: CpTable | None = None, table_key: str = "nrel5mw",
              decimate: int = 1, progress: bool = True, keep_states: bool = False,
-             use_fdi: bool = False, fdi: bool = True) -> Result:
+             use_fdi: bool = False, fdi: bool = True, fast_math: bool = False) -> Result:
     """Integrate from t = 0 to t_final with fixed dt; outputs every ``decimate`` steps.
 
     ``schedule`` gives the plant's fault inputs, ``ctrl_schedule`` those eq (49) is told
@@ -383,7 +422,7 @@ def run_loop(plant: str, controller: str, z0: np.ndarray, wind, schedule, ctrl_s
     """
     run = Run(z0, wind, schedule, ctrl_schedule, yd, p_ctrl, use_fdi)
     return run_loops(plant, controller, [run], p_turbine, t_final, dt, table, table_key,
-                     decimate, progress, keep_states, fdi)[0]
+                     decimate, progress, keep_states, fdi, fast_math=fast_math)[0]
 
 
 @cache
@@ -397,7 +436,8 @@ def _mapped(f: ca.Function, n_runs: int, threads: int) -> ca.Function:
 def run_loops(plant: str, controller: str, runs: list[Run], p_turbine: np.ndarray,
               t_final: float, dt: float, table: CpTable | None = None,
               table_key: str = "nrel5mw", decimate: int = 1, progress: bool = True,
-              keep_states: bool = False, fdi: bool = True, threads: int = 1) -> list[Result]:
+              keep_states: bool = False, fdi: bool = True, threads: int = 1,
+              fast_math: bool = False) -> list[Result]:
     """Integrate independent runs of one loop (same plant, controller, turbine, dt) together:
     each compiled chunk call advances all of them (``Function.map``, on ``threads`` threads).
 
@@ -405,7 +445,8 @@ def run_loops(plant: str, controller: str, runs: list[Run], p_turbine: np.ndarra
     that diverges is recorded and frozen while the others go on.
     """
     n_steps = int(round(t_final / dt))
-    f = chunk_function(plant, controller, table_key, table, tuple(p_turbine), fdi=fdi)
+    f = chunk_function(plant, controller, table_key, table, tuple(p_turbine), fdi=fdi,
+                       fast_math=fast_math)
     n_runs = len(runs)
     fm = _mapped(f, n_runs, threads)
     n_c = f.size2_out(1)
@@ -421,6 +462,8 @@ def run_loops(plant: str, controller: str, runs: list[Run], p_turbine: np.ndarra
     events = sorted({int(round(e / dt)) for r in runs if r.schedule
                      for e in r.schedule.events()})
     nominal_ctrl = lay.defaults("fault_inputs")
+    nominal_act = lay.defaults("actuator_faults")[:, None]
+    nominal_sen = lay.defaults("sensor_faults")[:, None]
     yd = np.column_stack([r.yd for r in runs])
     pc = np.column_stack([r.p_ctrl for r in runs])
     extra = [np.array([[float(r.use_fdi) for r in runs]])] if fdi else []
@@ -437,51 +480,61 @@ def run_loops(plant: str, controller: str, runs: list[Run], p_turbine: np.ndarra
         stop = min([n_steps, k + n_c] + [e for e in events if e > k])
         m = stop - k
         tk = (k + np.arange(n_c)) * dt
+        # faults constant over the chunk's steps (the usual case): one column per run,
+        # repeated by the buffered call
+        if all(s is None or s.constant_between(tk[0], tk[m - 1])
+               for r in runs for s in (r.schedule, r.ctrl_schedule)):
+            tf = tk[:1]
+            held = [nominal_act, nominal_sen, nominal_ctrl[:, None]]
+        else:
+            tf = tk
+            held = [np.tile(nominal_act, (1, n_c)), np.tile(nominal_sen, (1, n_c)),
+                    np.tile(nominal_ctrl[:, None], (1, n_c))]
         w3, af, sf, ck = [], [], [], []
         for r in runs:
             w3.append(np.vstack([r.wind(tk), r.wind(tk + dt / 2), r.wind(tk + dt)]))
             s = r.schedule
-            af.append(s.actuator(tk) if s else np.tile(
-                lay.defaults("actuator_faults")[:, None], (1, n_c)))
-            sf.append(s.sensor(tk) if s else np.tile(
-                lay.defaults("sensor_faults")[:, None], (1, n_c)))
-            ck.append(r.ctrl_schedule.actuator(tk)[:len(nominal_ctrl)] if r.ctrl_schedule
-                      else np.tile(nominal_ctrl[:, None], (1, n_c)))
+            af.append(s.actuator(tf) if s else held[0])
+            sf.append(s.sensor(tf) if s else held[1])
+            ck.append(r.ctrl_schedule.actuator(tf)[:len(nominal_ctrl)] if r.ctrl_schedule
+                      else held[2])
         zz_all, oo_all = call(z, np.hstack(w3), np.hstack(af), np.hstack(sf), np.hstack(ck),
-                              yd, p_turbine, pc, *extra, dt)
+                              yd, p_turbine, pc, *extra, dt, copy=False)
+        first = (-k) % decimate  # the first step of this chunk on the output grid
         for b in range(n_runs):
             if diverged[b]:
                 continue
-            zz = zz_all[:, b * n_c:(b + 1) * n_c]
-            oo = oo_all[:, b * n_c:(b + 1) * n_c]
+            zz = zz_all[:, b * n_c:b * n_c + m]  # views, valid until the next call
+            oo = oo_all[:, b * n_c:b * n_c + m]
             mb = m
-            # the state before step i is z (i = 0) or zz[:, i-1]
-            z_before = np.hstack([z[:, b:b + 1], zz[:, :mb - 1]])
-            bad = ~np.all(np.isfinite(oo[:, :mb]), axis=0) | \
-                ~np.all(np.isfinite(zz[:, :mb]), axis=0)
-            bad |= np.any(np.abs(zz[:, :mb]) > 1e8, axis=0)
-            if np.any(bad):
+            z_prev = z[:, b].copy()
+            if not (np.abs(zz).max() <= 1e8 and np.isfinite(oo).all()):
+                bad = ~np.all(np.isfinite(oo), axis=0) | ~np.all(np.isfinite(zz), axis=0)
+                bad |= np.any(np.abs(zz) > 1e8, axis=0)
                 i = int(np.argmax(bad))
                 mb = i + 1
-                z_bad = zz[:, i]
-                blew = [n for n, a in zip(names, z_bad, strict=True)
+                blew = [n for n, a in zip(names, zz[:, i], strict=True)
                         if not np.isfinite(a) or abs(a) > 1e8]
+                before = zz[:, i - 1] if i > 0 else z_prev
                 diverged[b] = {"t_s": float((k + i + 1) * dt),
                                "reason": "non-finite or |state| > 1e8 in "
                                          + ", ".join(blew[:8])
                                          + (" ..." if len(blew) > 8 else ""),
                                "last_finite_state": {n: float(a) for n, a in
-                                                     zip(names, z_before[:, i], strict=True)}}
-            sel = np.arange(k, k + mb)
-            keep = sel % decimate == 0
-            outs[b].append(oo[:, :mb][:, keep].T)
-            ts[b].append(sel[keep] * dt)
+                                                     zip(names, before, strict=True)}}
+            outs[b].append(oo[:, first:mb:decimate].T.copy())
+            ts[b].append(np.arange(k + first, k + mb, decimate) * dt)
             if keep_states:
-                zs[b].append(z_before[:, :mb][:, keep].T)
+                # the state before step i is z (i = 0) or zz[:, i-1]
+                z_before = np.hstack([z_prev[:, None], zz[:, :mb - 1]])
+                zs[b].append(z_before[:, first::decimate].T.copy())
             steps[b] = k + mb
             # a diverged run is frozen at its last finite state (its column computes on,
             # unread, so that the batch keeps its shape)
-            z[:, b] = z_before[:, mb - 1] if diverged[b] else zz[:, mb - 1]
+            if diverged[b]:
+                z[:, b] = zz[:, mb - 2] if mb > 1 else z_prev
+            else:
+                z[:, b] = zz[:, mb - 1]
         k = stop
         now = time.perf_counter()
         if progress and now - last_print > 0.5:

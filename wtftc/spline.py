@@ -140,3 +140,21 @@ def fast_cp(interpolant: ca.Function, x: np.ndarray, y: np.ndarray) -> ca.Functi
         out = out * tau + row
     return ca.Function("cp", [lam, beta], [out], ["tsr", "beta"], ["cp"],
                        {"never_inline": True})
+
+
+def fast_linear(grid: np.ndarray, values: np.ndarray, name: str, in_name: str,
+                out_name: str) -> ca.Function:
+    """Linear interpolation on a uniform grid, held beyond its ends, with the arithmetic of
+    CasADi's 'linear' interpolant ((1 - a) v_j + a v_j+1, a = (x - g_j)/(g_j+1 - g_j)),
+    the interval found by one floor instead of a search."""
+    grid, values = np.asarray(grid, dtype=float), np.asarray(values, dtype=float)
+    n = len(grid)
+    h = float(grid[1] - grid[0])
+    x = ca.MX.sym(in_name)
+    xc = ca.fmin(ca.fmax(x, float(grid[0])), float(grid[-1]))
+    j = ca.fmin(ca.fmax(ca.floor((xc - float(grid[0])) * (1 / h)), 0), n - 2)
+    g, v = ca.MX(ca.DM(grid)), ca.MX(ca.DM(values))
+    g0, g1 = g.get_nz(False, j), g.get_nz(False, j + 1)
+    a = (xc - g0) / (g1 - g0)
+    out = (1 - a) * v.get_nz(False, j) + a * v.get_nz(False, j + 1)
+    return ca.Function(name, [x], [out], [in_name], [out_name], {"never_inline": True})

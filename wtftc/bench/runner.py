@@ -213,13 +213,14 @@ def solve(p: Problem, method: str, rtol: float, t_final: float,
     return Solution(np.array(out), nfev, steps, t_final, False)
 
 
-def rk4_default(p: Problem, dt: float, t_final: float) -> sim.Result:
+def rk4_default(p: Problem, dt: float, t_final: float, fast_math: bool = False,
+                ) -> sim.Result:
     """wtftc's default path: the compiled whole-trajectory chunks (simulate.run_loop)."""
     rc = p.config
     return sim.run_loop(rc.plant, rc.controller, p.z0, rc.wind, Schedule(list(rc.faults)),
                         Schedule(list(rc.faults)), p.yd, rc.p_turbine, rc.p_ctrl, t_final, dt,
                         rc.table, rc.table_key, decimate=int(round(OUT_DT / dt)),
-                        progress=False, fdi=False)
+                        progress=False, fdi=False, fast_math=fast_math)
 
 
 def step_inputs(p: Problem, dt: float, n: int):
@@ -328,6 +329,14 @@ def bench_loop(name: str, quick: bool = False, cache: Path | None = None) -> Loo
     report.timings.append(_timing("wtftc: compiled trajectory (default)", f"dt = {dt_star:g}",
                                   p.t_final, n, walls, ops, pm.mb, warm,
                                   rel_error(base, ref), 0.0))
+
+    # the same, compiled with -ffast-math (opt-in: not bit-identical)
+    with PeakMemory() as pm:
+        walls, res_fm, warm = _timed(lambda: rk4_default(p, dt_star, p.t_final, True), reps)
+    om = res_fm.column("omega_r")
+    report.timings.append(_timing("wtftc: compiled trajectory, -ffast-math (opt-in)",
+                                  f"dt = {dt_star:g}", p.t_final, n, walls, ops, pm.mb, warm,
+                                  rel_error(om, ref), rel_error(om, base)))
 
     def vs_default(om):
         return rel_error(om, base[:len(om)])
