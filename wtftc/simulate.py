@@ -357,6 +357,24 @@ class Buffered:
         for i, r in enumerate(self._out):
             self._buf.set_res(i, memoryview(r))
 
+    def put(self, i: int, value, run: int = 0, n_runs: int = 1) -> None:
+        """Write input i of run ``run`` (of n_runs side by side) in place: ``value`` is
+        (rows, columns) of that run, or one column (rows,) held over its columns."""
+        a = self._in[i]
+        w = a.shape[0] // n_runs
+        seg = a[run * w:(run + 1) * w]
+        v = np.asarray(value, dtype=float)
+        if v.ndim == 2 and v.shape[1] > 1:
+            seg[...] = v.T
+        else:
+            seg[...] = v.reshape(1, -1)
+
+    def evaluate(self) -> list[np.ndarray]:
+        """Evaluate on the inputs in place; results as (rows, columns) views of the
+        buffers, valid until the next evaluation."""
+        self._trigger()
+        return [r.T for r in self._out]
+
     def __call__(self, *args, copy: bool = True) -> list[np.ndarray]:
         """Results as (rows, columns) arrays; ``copy=False``: views of the buffers, valid
         until the next call (no copy of what the caller does not keep)."""
@@ -464,9 +482,17 @@ def run_loops(plant: str, controller: str, runs: list[Run], p_turbine: np.ndarra
     nominal_ctrl = lay.defaults("fault_inputs")
     nominal_act = lay.defaults("actuator_faults")[:, None]
     nominal_sen = lay.defaults("sensor_faults")[:, None]
-    yd = np.column_stack([r.yd for r in runs])
-    pc = np.column_stack([r.p_ctrl for r in runs])
-    extra = [np.array([[float(r.use_fdi) for r in runs]])] if fdi else []
+    # the run-independent inputs are written once
+    assert f.name_in() == ["z", "wind3", "actuator_faults", "sensor_faults", "ctrl_fault", "yd",
+                           "p_turbine", "p_ctrl", *(["use_fdi"] if fdi else []), "dt"], \
+        f.name_in()
+    for b, r in enumerate(runs):
+        call.put(5, r.yd, b, n_runs)
+        call.put(6, p_turbine, b, n_runs)
+        call.put(7, r.p_ctrl, b, n_runs)
+        if fdi:
+            call.put(8, [float(r.use_fdi)], b, n_runs)
+        call.put(9 if fdi else 8, [dt], b, n_runs)
     k = 0
     t0 = time.perf_counter()
     last_print = t0
@@ -480,26 +506,20 @@ def run_loops(plant: str, controller: str, runs: list[Run], p_turbine: np.ndarra
         stop = min([n_steps, k + n_c] + [e for e in events if e > k])
         m = stop - k
         tk = (k + np.arange(n_c)) * dt
-        # faults constant over the chunk's steps (the usual case): one column per run,
-        # repeated by the buffered call
-        if all(s is None or s.constant_between(tk[0], tk[m - 1])
-               for r in runs for s in (r.schedule, r.ctrl_schedule)):
-            tf = tk[:1]
-            held = [nominal_act, nominal_sen, nominal_ctrl[:, None]]
-        else:
-            tf = tk
-            held = [np.tile(nominal_act, (1, n_c)), np.tile(nominal_sen, (1, n_c)),
-                    np.tile(nominal_ctrl[:, None], (1, n_c))]
-        w3, af, sf, ck = [], [], [], []
-        for r in runs:
-            w3.append(np.vstack([r.wind(tk), r.wind(tk + dt / 2), r.wind(tk + dt)]))
+        # faults constant over the chunk's steps (the usual case): one column, held
+        held = all(s is None or s.constant_between(tk[0], tk[m - 1])
+                   for r in runs for s in (r.schedule, r.ctrl_schedule))
+        tf = tk[:1] if held else tk
+        call.put(0, z)
+        for b, r in enumerate(runs):
+            call.put(1, np.vstack([r.wind(tk), r.wind(tk + dt / 2), r.wind(tk + dt)]), b,
+                     n_runs)
             s = r.schedule
-            af.append(s.actuator(tf) if s else held[0])
-            sf.append(s.sensor(tf) if s else held[1])
-            ck.append(r.ctrl_schedule.actuator(tf)[:len(nominal_ctrl)] if r.ctrl_schedule
-                      else held[2])
-        zz_all, oo_all = call(z, np.hstack(w3), np.hstack(af), np.hstack(sf), np.hstack(ck),
-                              yd, p_turbine, pc, *extra, dt, copy=False)
+            call.put(2, s.actuator(tf) if s else nominal_act, b, n_runs)
+            call.put(3, s.sensor(tf) if s else nominal_sen, b, n_runs)
+            call.put(4, r.ctrl_schedule.actuator(tf)[:len(nominal_ctrl)] if r.ctrl_schedule
+                     else nominal_ctrl, b, n_runs)
+        zz_all, oo_all = call.evaluate()
         first = (-k) % decimate  # the first step of this chunk on the output grid
         for b in range(n_runs):
             if diverged[b]:
@@ -568,13 +588,20 @@ def _progress(k: int, n: int, dt: float, wall: float, end: bool = False) -> None
 def stability_limit(plant: str, controller: str, z0, wind0: float, yd, p_turbine, p_ctrl,
                     table: CpTable | None = None, table_key: str = "nrel5mw") -> float:
     """Largest |eigenvalue| of the closed-loop Jacobian at z0 (RK4: stable for |λ dt| < 2.78)."""
-    rhs = rhs_function(plant, controller, table_key, table, tuple(p_turbine))
-    z = ca.SX.sym("z", rhs.size1_in(0))
+    jac = _jacobian_function(plant, controller, table_key, table, tuple(p_turbine))
     args = [lay.defaults("actuator_faults"), lay.defaults("sensor_faults"),
             lay.defaults("fault_inputs"), yd, p_turbine, p_ctrl, 0.0]
-    jac = ca.Function("closed_loop_jacobian", [z], [ca.jacobian(rhs(z, wind0, *args)[0], z)])
-    eig = np.linalg.eigvals(np.array(jac(z0)))
+    eig = np.linalg.eigvals(np.array(jac(z0, wind0, *args)))
     return float(np.max(np.abs(eig)))
+
+
+@cache
+def _jacobian_function(plant: str, controller: str, table_key: str, table: CpTable | None,
+                       sched_params: tuple) -> ca.Function:
+    """∂ż/∂z of the closed loop, built once per loop."""
+    rhs = rhs_function(plant, controller, table_key, table, sched_params)
+    ins = [ca.SX.sym(rhs.name_in(i), rhs.sparsity_in(i)) for i in range(rhs.n_in())]
+    return ca.Function("closed_loop_jacobian", ins, [ca.jacobian(rhs(*ins)[0], ins[0])])
 
 
 #: beyond this step the paper controller's start-up transient is not resolved: measured

@@ -472,7 +472,34 @@ def bench_batches(name: str, quick: bool = False, n_runs: int | None = None,
                                 n_runs, threads, med, (min(walls), max(walls)), sim_s / med,
                                 rows[0].wall_s / med))
         log(f"    {threads} thread(s): {med:.2f} s ({rows[-1].speedup:.2f}× the single path)")
+    ceiling = machine_parallel_ceiling()
+    rows.append(BatchTiming("machine ceiling: 2 independent processes of a CPU-bound loop",
+                            2, 2, float("nan"), (float("nan"), float("nan")), float("nan"),
+                            ceiling))
+    log(f"    machine ceiling on 2 cores: {ceiling:.2f}×")
     return rows, diff
+
+
+_SPIN = "import time; t = time.perf_counter(); s = 0\nfor i in range(15_000_000): s += i\n" \
+        "print(time.perf_counter() - t)"
+
+
+def machine_parallel_ceiling(repeats: int = 3) -> float:
+    """Throughput of 2 concurrent processes of a CPU-bound loop over 1 alone (2.0 on two
+    free cores): what this machine gives a second thread, the bound of any batch speedup."""
+    import subprocess
+
+    def run(n):
+        procs = [subprocess.Popen([sys.executable, "-c", _SPIN], stdout=subprocess.PIPE,
+                                  text=True) for _ in range(n)]
+        t0 = time.perf_counter()
+        for pr in procs:
+            pr.wait()
+        return time.perf_counter() - t0
+
+    one = min(run(1) for _ in range(repeats))
+    two = min(run(2) for _ in range(repeats))
+    return 2 * one / two
 
 
 # --- report ---
@@ -522,7 +549,9 @@ def markdown(reports: list[LoopReport], extra: dict) -> str:
                       "|---|---|---|---|---|---|---|"]
             lines += [f"| {b.method} | {b.runs} | {b.threads} | {b.wall_s:.2f} | "
                       f"{b.spread_s[0]:.2f}-{b.spread_s[1]:.2f} | {b.realtime:,.0f} | "
-                      f"{b.speedup:.2f} |" for b in r.batches]
+                      f"{b.speedup:.2f} |" if np.isfinite(b.wall_s) else
+                      f"| {b.method} | — | 2 processes | — | — | — | {b.speedup:.2f} |"
+                      for b in r.batches]
             lines.append("")
     for k, v in extra.items():
         if k not in ("date", "machine"):
