@@ -558,11 +558,11 @@ def run_loops(plant: str, controller: str, runs: list[Run], p_turbine: np.ndarra
         k = stop
         now = time.perf_counter()
         if progress and now - last_print > 0.5:
-            _progress(k, n_steps, dt, (now - t0) / n_runs)
+            _progress(k, n_steps, dt, now - t0, runs=n_runs)
             last_print = now
     wall = time.perf_counter() - t0
     if progress:
-        _progress(k, n_steps, dt, wall / n_runs, end=True)
+        _progress(k, n_steps, dt, wall, end=True, runs=n_runs)
     out_names = [n for n, _ in output_spec(controller, fdi)]
     return [Result(t=np.concatenate(ts[b]), outputs=np.vstack(outs[b]), z_final=z[:, b].copy(),
                    diverged=diverged[b], wall_s=wall, steps=steps[b],
@@ -570,17 +570,20 @@ def run_loops(plant: str, controller: str, runs: list[Run], p_turbine: np.ndarra
             for b in range(n_runs)]
 
 
-def _progress(k: int, n: int, dt: float, wall: float, end: bool = False) -> None:
-    """A progress bar on a terminal; one summary line when stderr is a file or a pipe."""
-    rate = k * dt / max(wall, 1e-9)
+def _progress(k: int, n: int, dt: float, wall: float, end: bool = False, runs: int = 1,
+              ) -> None:
+    """A progress bar on a terminal; one summary line when stderr is a file or a pipe.
+    ``runs``: a batch advancing that many runs together (the rate counts all of them)."""
+    rate = runs * k * dt / max(wall, 1e-9)
+    what = f"{runs} runs × " if runs > 1 else ""
     if not sys.stderr.isatty():
         if end:
-            print(f"    {k * dt:.1f} s simulated in {wall:.1f} s ({rate:.0f}× real time)",
+            print(f"    {what}{k * dt:.1f} s simulated in {wall:.1f} s ({rate:.0f}× real time)",
                   file=sys.stderr, flush=True)
         return
     width = 30
     done = int(width * k / max(n, 1))
-    print(f"\r    [{'#' * done}{'.' * (width - done)}] {k * dt:7.1f}/{n * dt:.1f} s "
+    print(f"\r    [{'#' * done}{'.' * (width - done)}] {what}{k * dt:7.1f}/{n * dt:.1f} s "
           f"simulated, {rate:6.0f}× real time", end="\n" if end else "", file=sys.stderr,
           flush=True)
 
