@@ -148,6 +148,23 @@ TURBINE_PARAMS = [
     Entry("pitch_max", 1.5707963267948966, "rad", "blade pitch upper limit, 90°"),
     Entry("pitch_rate_max", 0.13962634015954636, "rad/s",
           "blade pitch rate limit, 8°/s (Jonkman 2009; ROSCO's default is 10°/s)"),
+    # the NREL 5-MW baseline variable-speed torque law (Jonkman et al. 2009, section 7.1 and
+    # its DISCON source), HSS values referred to the LSS with the gearbox ratio 97
+    Entry("gen_torque_law", 0.0, "-",
+          "generator torque: 0 rated torque (or constant power, gen_constant_power); 1 the "
+          "NREL 5-MW baseline variable-speed law, regions 1½, 2, 2½, 3 (Jonkman 2009, 7.1)"),
+    Entry("vs_cut_in_speed", 70.16224 / 97.0, "rad/s",
+          "VS_CtInSp: generator cut-in speed 70.16224 rad/s (670 rpm, HSS) / 97"),
+    Entry("vs_region2_speed", 91.21091 / 97.0, "rad/s",
+          "VS_Rgn2Sp: start of region 2, 91.21091 rad/s (871 rpm, HSS) / 97"),
+    Entry("vs_region2_k", 2.332287 * 97.0**3, "N m s^2/rad^2",
+          "VS_Rgn2K: optimal-mode gain 2.332287 N m/(rad/s)^2 (HSS) × 97^3"),
+    Entry("vs_rated_speed", 121.6805 / 97.0, "rad/s",
+          "VS_RtGnSp: rated generator speed of the torque law, 121.6805 rad/s (HSS) / 97"),
+    Entry("vs_slip", 0.10, "-", "VS_SlPc: region 2½ generator slip, 10 %"),
+    Entry("vs_rated_power", 5296610.0, "W", "VS_RtPwr: rated mechanical power, 5,296,610 W"),
+    Entry("vs_max_torque", 47402.91 * 97.0, "N m",
+          "VS_MaxTq: maximum generator torque 47,402.91 N m (HSS) × 97"),
 ]
 ACTUATOR_FAULTS = [
     *FAULT_INPUTS,

@@ -51,6 +51,14 @@ pitch_min = sp.Symbol("pitch_min", real=True)  # [rad]
 pitch_max = sp.Symbol("pitch_max", real=True)  # [rad]
 pitch_rate_max = sp.Symbol("pitch_rate_max", positive=True)  # [rad/s]
 omega_g_rated = sp.Symbol("omega_g_rated", positive=True)  # LSS-referred [rad/s]
+# the baseline variable-speed torque law (layout.py: values and sources)
+gen_torque_law = sp.Symbol("gen_torque_law", real=True)  # 0 fixed, 1 baseline law
+vs_cut_in_speed, vs_region2_speed, vs_rated_speed = sp.symbols(
+    "vs_cut_in_speed vs_region2_speed vs_rated_speed", positive=True)  # LSS [rad/s]
+vs_region2_k = sp.Symbol("vs_region2_k", positive=True)  # LSS [N m s^2/rad^2]
+vs_slip = sp.Symbol("vs_slip", positive=True)  # [-]
+vs_rated_power = sp.Symbol("vs_rated_power", positive=True)  # [W]
+vs_max_torque = sp.Symbol("vs_max_torque", positive=True)  # LSS [N m]
 
 # --- states ---
 beta = plant.beta
@@ -76,10 +84,31 @@ def aero_torque() -> sp.Expr:
     return air_density * sp.pi * rotor_radius**2 * wind**3 * cp / (2 * omega_r)
 
 
+def baseline_torque_law() -> sp.Expr:
+    """The NREL 5-MW baseline variable-speed torque law on the LSS (Jonkman et al. 2009,
+    section 7.1): 0 below cut-in; region 1½ the line from cut-in to k ω² at the start of
+    region 2; region 2 k ω² (optimal tip-speed ratio); region 2½ the line through the
+    synchronous speed ω_rated/(1 + slip) that reaches P_rated/ω_rated at ω_rated; region 3
+    constant power P_rated/ω; capped at the maximum torque. Written as one continuous
+    min/max expression of ω_g: regions by speed only (the original also enters region 3
+    when the pitch exceeds 1°), and without its torque-rate limit of 15 kN m/s (HSS)."""
+    w = omega_g
+    k, w_ci, w_r2 = vs_region2_k, vs_cut_in_speed, vs_region2_speed
+    w_sync = vs_rated_speed / (1 + vs_slip)
+    region15 = k * w_r2**2 / (w_r2 - w_ci) * (w - w_ci)
+    region2 = k * w**2
+    region25 = vs_rated_power / vs_rated_speed / (vs_rated_speed - w_sync) * (w - w_sync)
+    region3 = vs_rated_power / w
+    law = sp.Max(sp.Min(region15, region2), region25)
+    return sp.Min(vs_max_torque, sp.Max(0, sp.Min(region3, law)))
+
+
 def generator_torque() -> sp.Expr:
-    """T_g above rated on the LSS: constant torque, or constant power P = T_rated ω_rated."""
+    """T_g on the LSS: rated torque, or constant power P = T_rated ω_rated
+    (gen_torque_law = 0), or the baseline variable-speed law (gen_torque_law = 1)."""
     const_power = gen_torque_rated * omega_g_rated / omega_g
-    return (1 - gen_constant_power) * gen_torque_rated + gen_constant_power * const_power
+    fixed = (1 - gen_constant_power) * gen_torque_rated + gen_constant_power * const_power
+    return (1 - gen_torque_law) * fixed + gen_torque_law * baseline_torque_law()
 
 
 def commanded_input(j: int) -> sp.Expr:

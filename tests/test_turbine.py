@@ -40,3 +40,46 @@ def test_interpolant_does_not_extrapolate(table):
     cp = sim.cp_interpolant(table)
     edge = float(cp(table.tsr[-1], table.pitch_rad[-1]))
     assert float(cp(table.tsr[-1] + 5, table.pitch_rad[-1] + 0.5)) == pytest.approx(edge)
+
+
+def _jonkman_torque_hss(w):
+    """The NREL 5-MW baseline torque law on the HSS as its DISCON source writes it (Jonkman
+    et al. 2009, section 7.1), regions by speed: the reference for the generated plant."""
+    ct_in, rgn2, k, rated, slip, power, tmax = (70.16224, 91.21091, 2.332287, 121.6805,
+                                                10.0, 5296610.0, 47402.91)
+    sync = rated / (1 + 0.01 * slip)
+    slope15 = k * rgn2**2 / (rgn2 - ct_in)
+    slope25 = power / rated / (rated - sync)
+    # region 2½ begins where the 2½ line meets k ω² (VS_TrGnSp)
+    trans = (slope25 - np.sqrt(slope25 * (slope25 - 4 * k * sync))) / (2 * k)
+    if w >= rated:
+        t = power / w
+    elif w <= ct_in:
+        t = 0.0
+    elif w < rgn2:
+        t = slope15 * (w - ct_in)
+    elif w < trans:
+        t = k * w**2
+    else:
+        t = slope25 * (w - sync)
+    return min(t, tmax)
+
+
+@pytest.mark.parametrize("w_hss", [50.0, 70.16224, 80.0, 91.21091, 100.0, 110.0, 115.0,
+                                   119.0, 121.0, 121.6805, 122.90967, 130.0, 140.0])
+def test_baseline_torque_law_is_jonkmans(w_hss):
+    """gen_torque_law = 1 in the generated plant against the DISCON formulas, every region
+    and boundary (rounding only: 1e-9 relative); law 0 keeps the rated torque."""
+    from wtftc.generated import load
+
+    f = load("turbine_nrel5mw")
+    n = 97.0
+    x = np.array([w_hss / n, 0.0, w_hss / n, 0.1, 0.1, 0.1, 0.0, 0.0, 0.0])
+    args = dict(x_plant=x, v=np.full(3, 0.1), wind=12.0, cp=0.4,
+                actuator_faults=lay.defaults("actuator_faults"),
+                sensor_faults=lay.defaults("sensor_faults"))
+    t1 = float(f(**args, p_turbine=lay.vector("turbine_params", {"gen_torque_law": 1.0}))[
+        "T_gen"]) / n
+    assert t1 == pytest.approx(_jonkman_torque_hss(w_hss), rel=1e-9, abs=1e-6)
+    t0 = float(f(**args, p_turbine=lay.vector("turbine_params"))["T_gen"]) / n
+    assert t0 == pytest.approx(43_093.55, rel=1e-12)

@@ -149,6 +149,10 @@ def make_config(cfg: dict | None = None) -> RunConfig:
         except ValueError as exc:
             raise ConfigError(key, over, str(exc).split(": ", 1)[-1]) from None
     p_ctrl, p_turbine = vectors["controller_params"], vectors["turbine_params"]
+    for flag in ("gen_torque_law", "gen_constant_power"):
+        val = p_turbine[lay.index("turbine_params", flag)]
+        if val not in (0.0, 1.0):
+            raise ConfigError(f"turbine_params.{flag}", float(val), "0 or 1 (docs/running.md)")
     if not isinstance(raw["wind"], dict):
         raise ConfigError("wind", raw["wind"], "a table with kind = ...")
     wind = wind_from_config(raw["wind"], t_final=t_final, seed=seed)

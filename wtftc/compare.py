@@ -69,6 +69,11 @@ def cell_config(controller: str, fault: str, wind: str, t_final: float, dt: floa
            "seed": seed, "label": f"{wind}/{fault}/{controller}"}
     if FAULTS[fault] is not None:
         cfg["fault"] = copy.deepcopy(FAULTS[fault])
+    if name != "rosco":
+        # ROSCO commands the generator torque itself; every other pitch controller runs with
+        # the NREL 5-MW baseline variable-speed torque law (Jonkman 2009, 7.1), so that all
+        # compete on the same plant with a standard torque controller (docs/compare.md)
+        cfg["turbine_params"] = {"gen_torque_law": 1.0}
     return cfg
 
 

@@ -377,6 +377,9 @@ def bench_loop(name: str, quick: bool = False, cache: Path | None = None) -> Loo
 
     # what a user would write: lambdify, in a Python RK4 loop and under solve_ivp
     report.timings.extend(_lambdify(p, dt_star, rtol_star, quick, base, ref, rhs_ops))
+
+    # ROSCO's own simple simulator on the same wind, as the point of reference users know
+    report.timings.extend(_rosco_sim(p, reps))
     for t in report.timings:
         t.ratio_to_default = (t.ns_per_step * t.steps_per_s) / (
             report.timings[0].ns_per_step * report.timings[0].steps_per_s)
@@ -400,6 +403,21 @@ def _numba(p: Problem, name: str, dt: float, reps: int, base, ref) -> list[Timin
     return [_timing("numba: hand-written RK4 loop (@njit)", f"dt = {dt:g}", p.t_final, n, walls,
                     None, pm.mb, warm + prep, rel_error(om, ref), rel_error(om, base),
                     "warm-up includes the JIT compilation")]
+
+
+def _rosco_sim(p: Problem, reps: int) -> list[Timing]:
+    from wtftc.bench import rosco_sim
+
+    reason = rosco_sim.available()
+    if reason:
+        log(f"  ROSCO's rosco.toolbox.sim left out: {reason}")
+        return []
+    r = rosco_sim.time_rosco_sim(p.config.wind, p.t_final, repeats=reps)
+    ns = r["ns_per_step"]
+    spread = (r["wall_s_min"] / r["steps"] * 1e9, r["wall_s_max"] / r["steps"] * 1e9)
+    return [Timing("ROSCO rosco.toolbox.sim (reference, another model)", f"dt = {r['dt']:g}",
+                   p.t_final, ns, spread, r["steps"] / p.t_final, r["realtime"], None, 0.0,
+                   r["setup_s_median"], None, None, r["note"])]
 
 
 def _lambdify(p: Problem, dt: float, rtol: dict, quick: bool, base, ref,
@@ -595,6 +613,8 @@ def markdown(reports: list[LoopReport], extra: dict) -> str:
                    if r.reference_t_s < T_FINAL_S - 1e-9 else "."),
                   "", "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
         lines += ["| " + " | ".join(_row(t)) + " |" for t in r.timings]
+        notes = [f"- {t.method}: {t.note}" for t in r.timings if t.note]
+        lines += ["", *notes] if notes else []
         lines += ["", "RK4 error against the reference by dt: " + ", ".join(
             f"{k} s: {v:.1e}" for k, v in r.rk4_errors.items()), ""]
         if r.batches:
