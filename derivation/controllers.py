@@ -27,7 +27,7 @@ import sympy as sp
 
 from derivation import drivetrain, physical, pi_baseline
 from derivation import layout as lay
-from derivation.casadi_build import FuzzyEvaluator, Translator
+from derivation.casadi_build import FuzzyEvaluator, Translator, joint_cse
 
 MEAS = ["omega_r", "omega_g_hss", *[f"beta_meas_{j}" for j in range(1, lay.N_BLADES + 1)]]
 MEAS_UNITS = ["rad/s", "rad/s", *["rad"] * lay.N_BLADES]
@@ -209,7 +209,7 @@ def build(controller_fn: ca.Function) -> list[ca.Function]:
         outs = {"v": res["v"], "x_ctrl_dot": res["x_ctrl_dot"], "u0": res["u0"],
                 "diag": res["diag"]}
         out.append(ca.Function(f"ctrl_{c.name}", [sym[k] for k in ins],
-                               [ca.cse(ca.densify(o)) for o in outs.values()], ins, list(outs)))
+                               joint_cse(list(outs.values())), ins, list(outs)))
         out.append(ca.Function(f"init_{c.name}", [sym["meas"], sym["sched"], sym["p_ctrl"]],
                                [ca.densify(ca.SX(res["x0"]))], ["meas", "sched", "p_ctrl"],
                                ["x_ctrl0"]))

@@ -31,7 +31,7 @@ import sympy as sp
 from derivation import backstepping as bs
 from derivation import controllers, fdi, lyapunov, observer, plant, turbine
 from derivation import layout as lay
-from derivation.casadi_build import FuzzyEvaluator, Translator
+from derivation.casadi_build import FuzzyEvaluator, Translator, joint_cse
 
 ROOT = Path(__file__).resolve().parent.parent
 DERIVATION_DIR = Path(__file__).resolve().parent
@@ -97,7 +97,7 @@ class Symbols:
 
 
 def _function(name, inputs: dict, outputs: dict, doc: str = "") -> ca.Function:
-    outs = [ca.cse(ca.densify(o)) if isinstance(o, ca.SX) else o for o in outputs.values()]
+    outs = joint_cse(list(outputs.values()))
     return ca.Function(name, list(inputs.values()), outs, list(inputs), list(outputs))
 
 

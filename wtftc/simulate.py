@@ -258,6 +258,9 @@ def _closed_loop_rhs(plant: str, table: CpTable, controller: str,
         ins = [z, wind, af, sf, ck, yd, pt, pc]
     out = ca.vertcat(*out, c["diag"])
     assert out.numel() == len(output_spec(controller, with_fdi))
+    # one pass of common-subexpression elimination over the assembled loop: the plant, the
+    # controller and the FDI share the measured quantities and the aerodynamics
+    zdot, out = ca.cse([zdot, out])
     return ca.Function("rhs", ins, [zdot, out], names, ["z_dot", "out"])
 
 
