@@ -132,10 +132,12 @@ def build_parser() -> argparse.ArgumentParser:
                     "a Python loop, CasADi's virtual machine, a hand-written numba RK4, SymPy "
                     "lambdify in a Python RK4 loop and SciPy's solve_ivp, each at the step or "
                     "tolerance that matches a DOP853 reference at rtol 1e-12 (equal accuracy, "
-                    "not equal dt), then batches of runs on 1 and 2 threads. Writes bench.md "
-                    "and bench.json into --out. Needs the source tree (derivation/) for the "
-                    "lambdify baseline and the 'bench' extra (numba, scipy): "
-                    "pip install -e '.[bench]'. Takes about 5-8 minutes.")
+                    "not equal dt), ROSCO's own rosco.toolbox.sim as a reference when rosco is "
+                    "installed, then batches of runs on 1 and 2 threads and the build times. "
+                    "Writes bench.md and bench.json into --out (docs/performance.md). Needs "
+                    "the source tree (derivation/) for the lambdify baseline and the 'bench' "
+                    "extra (numba, scipy): pip install -e '.[bench]'. Takes about 3-5 "
+                    "minutes.")
     b.add_argument("--out", type=Path, default=Path("out/bench"),
                    help="output folder (default: out/bench)")
     b.add_argument("--loops", nargs="+", metavar="LOOP",
