@@ -20,6 +20,10 @@ def test_run_end_to_end(tmp_path):
     assert p.returncode == 0, p.stderr
     names = {f.name for f in out.iterdir()}
     assert {"traces.csv", "traces.parquet", "metrics.json", "config.toml", "metrics.md"} <= names
+    # figures of the run, PNG and PDF; no FDI figure in case 3 (the fault is told)
+    figs = {f.name for f in (out / "figures").iterdir()}
+    assert figs == {f"{n}.{ext}" for n in ("rotor_speed", "control", "fault")
+                    for ext in ("png", "pdf")}
     m = json.loads((out / "metrics.json").read_text())
     assert m["case"] == 3 and m["diverged"] is None and m["seed"] == 0
     assert m["config"]["wind"] == {"kind": "constant", "speed_mps": 15.0}

@@ -61,3 +61,16 @@ def test_own_detection_keeps_the_aftc_within_20_percent_of_fault_free():
     assert m4["rms_speed_error_rad_s"] <= 1.2 * m1["rms_speed_error_rad_s"]
     assert m4["rms_speed_error_after_fault_rad_s"] < m2["rms_speed_error_after_fault_rad_s"]
     assert np.isclose(m4["fdi"]["blades"]["2"]["rho_hat"], 0.5, atol=0.02)
+
+
+def test_case4_run_figures_show_the_detection(tmp_path):
+    """`wtftc run --case 4` writes the FDI figure beside the others, and the latch it
+    plots rises on the faulty blade only."""
+    f = {"blade": 3, "onset_s": 4.0, "type": "lock", "angle_deg": "current"}
+    rc, res, m = _run(case=4, fault=[f], t_final_s=8.0, wind={**NTM, "mean_mps": 16.0})
+    paths = cases.write_run_figures(tmp_path, rc, res, m)
+    names = {p.name for p in paths}
+    assert {"fdi.png", "fdi.pdf", "rotor_speed.png", "control.png", "fault.png"} <= names
+    assert all(p.stat().st_size > 10_000 for p in paths)
+    assert res.column("fdi_latch_3")[-1] > 0.5
+    assert max(res.column(f"fdi_latch_{j}").max() for j in (1, 2)) < 0.5

@@ -461,6 +461,36 @@ def lyapunov_trace(rc: RunConfig, res: sim.Result):
     return V[-1], bound, obs
 
 
+def run_record(rc: RunConfig, res: sim.Result, m: dict) -> dict:
+    """What the figures of one run need, in one dict (wtftc.figures)."""
+    return {"result": res, "metrics": m, "case": rc.case, "plant": rc.plant,
+            "case_doc": CASES[rc.case], "schedule": res.schedule, "rc": rc,
+            "onset": min((f.onset_s for f in rc.faults), default=None),
+            "gearbox_ratio": rc.p_turbine[lay.index("turbine_params", "gearbox_ratio")],
+            "pitch_limits_deg": tuple(np.degrees([
+                rc.p_turbine[lay.index("turbine_params", "pitch_min")],
+                rc.p_turbine[lay.index("turbine_params", "pitch_max")]]))}
+
+
+def write_run_figures(out_dir: Path, rc: RunConfig, res: sim.Result, m: dict) -> list[Path]:
+    """The figures of one run (``wtftc run``) under out_dir/figures/, PNG and PDF: rotor
+    speed, control and pitch, the fault shape when there is a fault, and wtftc's fault
+    detection when the run uses it (case 4)."""
+    from wtftc import figures
+
+    rec = run_record(rc, res, m)
+    fdir = Path(out_dir) / "figures"
+    paths = figures.rotor_speed(rec, fdir, "rotor_speed", rc.label)
+    if not rc.uses_rosco:
+        paths += figures.control(rec, fdir, "control", rc.label)
+    if res.schedule is not None:
+        paths += figures.fault_shape(rec, fdir, "fault")
+    if rc.case == 4:
+        thr = float(lay.defaults("fdi_params")[lay.index("fdi_params", "fdi_r_thr")])
+        paths += figures.fdi(rec, fdir, "fdi", threshold_rad=thr)
+    return paths
+
+
 def run_cases(out_dir: Path, plants=("nrel5mw", "paper"), overrides: dict | None = None,
               progress: bool = True, sign_as_written: bool = True) -> list[dict]:
     """The paper's three cases on each plant, figures and a metrics table under out_dir."""
@@ -478,14 +508,7 @@ def run_cases(out_dir: Path, plants=("nrel5mw", "paper"), overrides: dict | None
             m = metrics(rc, res)
             d = out_dir / plant / f"case{case}"
             write_outputs(d, rc, res, m)
-            runs.append({"result": res, "metrics": m, "case": case, "plant": plant,
-                         "case_doc": CASES[case], "schedule": res.schedule, "rc": rc,
-                         "onset": min((f.onset_s for f in rc.faults), default=None),
-                         "gearbox_ratio": rc.p_turbine[lay.index("turbine_params",
-                                                                 "gearbox_ratio")],
-                         "pitch_limits_deg": tuple(np.degrees([
-                             rc.p_turbine[lay.index("turbine_params", "pitch_min")],
-                             rc.p_turbine[lay.index("turbine_params", "pitch_max")]]))})
+            runs.append(run_record(rc, res, m))
             rows.append(m)
         fdir = out_dir / plant / "figures"
         r1, r2, r3 = runs

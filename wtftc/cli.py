@@ -72,12 +72,13 @@ def build_parser() -> argparse.ArgumentParser:
     sub.add_parser("functions", help="list the generated functions with inputs, outputs, size")
 
     r = sub.add_parser(
-        "run", help="simulate one case: traces, metrics and a config you can re-run",
+        "run", help="simulate one case: traces, metrics, figures and a config you can re-run",
         description="Simulate one closed-loop run with fixed-step RK4. Options override the "
                     "TOML --config file, which overrides the defaults (case 1, nrel5mw, the "
                     "paper's controller with the corrected sign, the paper's random wind "
                     "around 12 m/s, 60 s at dt = 1 ms). Writes traces.csv (units in the "
-                    "header), traces.parquet, metrics.json and config.toml into --out.",
+                    "header), traces.parquet, metrics.json, config.toml and figures/ (PNG, PDF; "
+                    "the FDI's in case 4) into --out.",
         epilog="Example: wtftc run --case 3 --plant nrel5mw --wind ntm --wind-mean 16 "
                "--t-final 60 --out out/ntm16. Config file keys: case, plant, controller, "
                "t_final_s, dt_s, seed, output_rate_hz, control_sign, reference_rad_s, "
@@ -226,6 +227,7 @@ def main(argv: list[str] | None = None) -> int:
             res = cases.run(rc, progress=not args.quiet)
             m = cases.metrics(rc, res)
             paths = cases.write_outputs(args.out, rc, res, m)
+            paths += cases.write_run_figures(args.out, rc, res, m)
             print(cases.write_table(args.out, [m]))
             paths += [args.out / "metrics.md", args.out / "metrics.csv"]
             if res.diverged:

@@ -16,7 +16,7 @@ import numpy as np  # noqa: E402
 
 from wtftc.io import atomic_savefig  # noqa: E402
 
-CASE_COLORS = {1: "tab:blue", 2: "tab:red", 3: "tab:green"}
+CASE_COLORS = {1: "tab:blue", 2: "tab:red", 3: "tab:green", 4: "tab:purple"}
 
 
 def _save(fig, out: Path, name: str) -> list[Path]:
@@ -166,6 +166,37 @@ def comparison(runs: list[dict], out: Path, name: str = "cases_comparison") -> l
         ax.grid(alpha=0.3)
         _onset_line(ax, runs[-1]["onset"])
     axes[0].set_title(f"The paper's three cases on {runs[0]['plant']}", fontsize=9)
+    return _save(fig, out, name)
+
+
+def fdi(run, out: Path, name: str = "fdi", threshold_rad: float | None = None) -> list[Path]:
+    """wtftc's fault detection in the loop (case 4): per blade, the residual RMS against
+    its threshold, the latch, the effectiveness estimate ρ̂ and the stuck-angle estimate."""
+    res = run["result"]
+    fig, axes = plt.subplots(4, 1, figsize=(7.5, 7.5), sharex=True)
+    for j, ls in zip((1, 2, 3), ("-", "--", ":"), strict=True):  # equal blades overlap
+        kw = {"label": f"blade {j}", "ls": ls}
+        axes[0].semilogy(res.t, np.maximum(np.degrees(res.column(f"fdi_residual_rms_{j}")),
+                                           1e-12), **kw)
+        axes[1].plot(res.t, res.column(f"fdi_latch_{j}"), **kw)
+        axes[2].plot(res.t, res.column(f"fdi_rho_hat_{j}"), **kw)
+        axes[3].plot(res.t, np.degrees(res.column(f"fdi_c_hat_{j}")), **kw)
+    if threshold_rad is not None:
+        axes[0].axhline(np.degrees(threshold_rad), color="k", ls=":", lw=1,
+                        label=f"threshold {np.degrees(threshold_rad):.3g}°")
+    axes[1].axhline(0.5, color="k", ls=":", lw=1, label="isolation at 0.5")
+    axes[0].set_ylim(bottom=1e-10)
+    axes[0].set_ylabel("residual RMS [deg]")
+    axes[1].set_ylabel("latch [-]")
+    axes[2].set_ylabel("ρ̂ effectiveness [-]")
+    axes[3].set_ylabel("stuck-angle estimate ĉ [deg]")
+    axes[3].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, ncol=4, loc="best")
+        _onset_line(ax, run["onset"])
+    axes[0].set_title(_title(run, "wtftc's fault detection, isolation and estimation"),
+                      fontsize=9)
     return _save(fig, out, name)
 
 
