@@ -5,11 +5,13 @@
     wtftc verify [--out DIR]     check, compile and verify the generated controller code
     wtftc functions              list the generated functions, their inputs and sizes
     wtftc bench [--out DIR]      the same closed loop through every method, at equal accuracy
+    wtftc sweep SWEEP.toml       a grid or Monte Carlo campaign on Dask, resumable (--summary)
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -146,6 +148,41 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--quick", action="store_true",
                    help="fewer repeats and shorter horizons for the slow methods (a smoke run)")
 
+    w = sub.add_parser(
+        "sweep", help="a grid or Monte Carlo campaign on Dask, resumable; its summary",
+        description="Runs every run of SWEEP.toml (controllers, plants, mean wind, "
+                    "turbulence class, seeds, fault type, blade, magnitude and onset, as a "
+                    "grid or N random draws; docs/sweep.md) on Dask: a local cluster of "
+                    "--workers processes, or the cluster of --scheduler. Each finished batch "
+                    "is saved at once as a Parquet file of <out>/runs/; interrupted (Ctrl-C, "
+                    "SIGTERM, a worker lost), the same command resumes with what is missing. "
+                    "A changed sweep file is refused for an existing results folder. "
+                    "--summary DIR prints the summary table and writes summary.md, "
+                    "summary.csv and figures/ (distributions per controller and fault, "
+                    "detection delays, every failed or diverged run).",
+        epilog="Examples: wtftc sweep examples/sweep_small.toml --out out/sweep_small; "
+               "wtftc sweep --summary out/sweep_small; wtftc sweep examples/robustness.toml "
+               "--scheduler tcp://10.0.0.5:8786. Needs Dask: pip install 'wtftc[sweep]'.")
+    w.add_argument("sweep_file", nargs="?", type=Path, metavar="SWEEP.toml",
+                   help="the sweep file (see examples/)")
+    w.add_argument("--out", type=Path,
+                   help="results folder (default: out/sweep/<sweep file name>)")
+    w.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1,
+                   help="processes of the local cluster (default: the number of cores, "
+                        f"{os.cpu_count()})")
+    w.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="run on an existing Dask cluster instead of a local one")
+    w.add_argument("--traces", action="store_true",
+                   help="also save each run's traces, <out>/traces/<run id>.parquet")
+    w.add_argument("--overwrite", action="store_true",
+                   help="discard what --out holds (another sweep's results) and start anew")
+    w.add_argument("--summary", type=Path, metavar="DIR",
+                   help="summarize a results folder instead of running")
+    w.add_argument("--show", metavar="RUN_ID",
+                   help="print one saved run's configuration (TOML for wtftc run --config) "
+                        "from --out")
+    w.add_argument("--quiet", action="store_true", help="no progress lines")
+
     c = sub.add_parser(
         "cases", help="the paper's three cases on both plants, figures and a metrics table",
         description="Runs cases 1-3 on nrel5mw and on the paper's plant (plus case 1 with the "
@@ -196,6 +233,45 @@ def _controllers() -> dict:
     from wtftc.simulate import controllers
 
     return {k: v for k, v in controllers().items() if k != "external"}
+
+
+def _sweep(args) -> int:
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise ConfigError("sweep", "Dask distributed", "installed: pip install "
+                          "'wtftc[sweep]' (dask and distributed)") from None
+    from wtftc import sweep
+
+    if args.summary is not None:
+        print(sweep.summarize(args.summary))
+        print(f"written: {args.summary}/summary.md, summary.csv, figures/")
+        return 0
+    if args.show is not None:
+        if args.out is None:
+            raise ConfigError("--out", None, "the results folder that holds run " + args.show)
+        print(sweep.show_run(args.out, args.show), end="")
+        return 0
+    if args.sweep_file is None:
+        raise ConfigError("SWEEP.toml", None, "a sweep file to run (or --summary DIR)")
+    out = args.out or Path("out/sweep") / args.sweep_file.stem
+    from wtftc.io import ensure_writable_dir
+
+    ensure_writable_dir(out, "--out", create=False)
+    try:
+        done = sweep.run_sweep(args.sweep_file, out, workers=args.workers,
+                               scheduler=args.scheduler, traces=args.traces,
+                               overwrite=args.overwrite, quiet=args.quiet)
+    except sweep.Interrupted as exc:
+        n = sweep.read_results(out).num_rows
+        print(f"\nwtftc sweep: interrupted ({exc}); {n} finished runs are saved in {out}; "
+              "run the same command to resume", file=sys.stderr)
+        return 130
+    n = sweep.read_results(out).num_rows
+    print(f"{done['ran']} runs done now, {n} of {done['runs']} saved in {out}"
+          + (f"; {done['lost']} batches lost to workers, run again to retry them"
+             if done["lost"] else "") + f". Summary: wtftc sweep --summary {out}")
+    return 0 if n == done["runs"] else 1
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -260,6 +336,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"written under {args.out}/: compare.md, compare.csv, compare.png, "
                   "<wind>/<fault>/<controller>/{config.toml,metrics.json}")
             return 0
+        if args.command == "sweep":
+            return _sweep(args)
         if args.command == "bench":
             from wtftc.bench import runner
 

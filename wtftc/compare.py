@@ -63,12 +63,21 @@ def _check(kind: str, names, allowed: dict) -> list[str]:
 
 def cell_config(controller: str, fault: str, wind: str, t_final: float, dt: float,
                 seed: int) -> dict:
+    return variant_config(controller, FAULTS[fault], WINDS[wind], t_final, dt, seed,
+                          label=f"{wind}/{fault}/{controller}")
+
+
+def variant_config(controller: str, faults: list | None, wind: dict, t_final: float,
+                   dt: float, seed: int, label: str) -> dict:
+    """The run configuration of one controller variant (CONTROLLERS) under ``faults`` (a
+    list of fault tables, or None) and ``wind`` (a wind table): `wtftc compare`'s cells and
+    `wtftc sweep`'s runs."""
     name, case, _ = CONTROLLERS[controller]
-    cfg = {"controller": name, "case": 1 if FAULTS[fault] is None else case,
-           "wind": copy.deepcopy(WINDS[wind]), "t_final_s": t_final, "dt_s": dt,
-           "seed": seed, "label": f"{wind}/{fault}/{controller}"}
-    if FAULTS[fault] is not None:
-        cfg["fault"] = copy.deepcopy(FAULTS[fault])
+    cfg = {"controller": name, "case": 1 if not faults else case,
+           "wind": copy.deepcopy(wind), "t_final_s": t_final, "dt_s": dt,
+           "seed": seed, "label": label}
+    if faults:
+        cfg["fault"] = copy.deepcopy(faults)
     if name != "rosco":
         # ROSCO commands the generator torque itself; every other pitch controller runs with
         # the NREL 5-MW baseline variable-speed torque law (Jonkman 2009, 7.1), so that all

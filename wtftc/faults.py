@@ -8,11 +8,14 @@ A fault configuration is a list of tables, each:
     end_s = 1e9          # optional: the fault disappears at end_s
     ramp_s = 0.0         # 0: abrupt; > 0: linear transition over ramp_s at onset and end
     # type-specific: rho (loss_of_effectiveness), angle_deg or "current" (lock),
-    #                value_deg (sensor_fixed), gain (sensor_gain)
+    #                severity (pressure_drop, air_in_oil), value_deg (sensor_fixed),
+    #                gain (sensor_gain)
 
 Types: eq (19) ``lock`` (lock-in-place at a given angle, or ``angle_deg = "current"``:
 wherever the blade is at onset) and ``loss_of_effectiveness`` (ρ); the benchmark's
-``pressure_drop`` (ω_n 5.73 rad/s, ζ 0.45) and ``air_in_oil`` (ω_n 3.42 rad/s, ζ 0.9);
+``pressure_drop`` (ω_n 5.73 rad/s, ζ 0.45) and ``air_in_oil`` (ω_n 3.42 rad/s, ζ 0.9), at
+full severity (1, the default) or part of the way from the nominal actuator (severity s in
+(0, 1]: ω_n = ω_n0 + s (ω_n,fault − ω_n0), the same for ζ);
 pitch sensor ``sensor_fixed`` and ``sensor_gain`` faults.
 """
 
@@ -29,9 +32,9 @@ from wtftc.errors import ConfigError
 HYDRAULIC = {"pressure_drop": (5.73, 0.45), "air_in_oil": (3.42, 0.9)}
 FAULT_TYPES = ("lock", "loss_of_effectiveness", "pressure_drop", "air_in_oil",
                "sensor_fixed", "sensor_gain")
-_KEYS = {"blade", "type", "onset_s", "end_s", "ramp_s", "rho", "angle_deg", "value_deg", "gain"}
-_TYPE_KEYS = {"lock": {"angle_deg"}, "loss_of_effectiveness": {"rho"}, "pressure_drop": set(),
-              "air_in_oil": set(), "sensor_fixed": {"value_deg"}, "sensor_gain": {"gain"}}
+_TYPE_KEYS = {"lock": {"angle_deg"}, "loss_of_effectiveness": {"rho"},
+              "pressure_drop": {"severity"}, "air_in_oil": {"severity"},
+              "sensor_fixed": {"value_deg"}, "sensor_gain": {"gain"}}
 
 
 @dataclass
@@ -45,6 +48,7 @@ class Fault:
     angle: float | None = None  # rad; None = wherever the blade is at onset
     value: float = 0.0  # rad, sensor_fixed
     gain: float = 1.0  # sensor_gain
+    severity: float = 1.0  # pressure_drop, air_in_oil: fraction of the way to the fault's (ω_n, ζ)
 
     def weight(self, t: np.ndarray) -> np.ndarray:
         """0 before onset, 1 while active, linear over ramp_s at both ends."""
@@ -68,6 +72,8 @@ class Fault:
             d["value_deg"] = float(np.degrees(self.value))
         if self.type == "sensor_gain":
             d["gain"] = self.gain
+        if self.type in HYDRAULIC:
+            d["severity"] = self.severity
         return d
 
 
@@ -124,6 +130,8 @@ def parse_faults(tables, where: str = "fault") -> list[Fault]:
             f.value = np.radians(_num(tab, "value_deg", w, 0.0, lo=-90.0, hi=90.0))
         elif typ == "sensor_gain":
             f.gain = _num(tab, "gain", w, 1.2, lo=0.0, lo_open=True)
+        elif typ in HYDRAULIC:
+            f.severity = _num(tab, "severity", w, 1.0, lo=0.0, hi=1.0, lo_open=True)
         out.append(f)
     return out
 
@@ -179,6 +187,7 @@ class Schedule:
                 ubar[j] = np.where(w > 0, f.angle if f.angle is not None else np.nan, ubar[j])
             elif f.type in HYDRAULIC:
                 wf, zf = HYDRAULIC[f.type]
+                wf, zf = wn0 + f.severity * (wf - wn0), z0 + f.severity * (zf - z0)
                 wn[j] = wn[j] * (1 - w) + wf * w
                 zt[j] = zt[j] * (1 - w) + zf * w
         return np.vstack([rho, lock, ubar, wn, zt])

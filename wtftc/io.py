@@ -86,6 +86,14 @@ def write_parquet(path: Path, columns: dict, units: dict) -> None:
     fields = [pa.field(n, pa.float64(), metadata={"unit": units[n]}) for n in columns]
     schema = pa.schema(fields, metadata={"units": json.dumps(units)})
     table = pa.table({n: pa.array(v, pa.float64()) for n, v in columns.items()}, schema=schema)
+    atomic_write_table(path, table)
+
+
+def atomic_write_table(path: Path, table) -> None:
+    """A pyarrow Table as one Parquet file, atomically (the name appears only when the file
+    is complete; readers of a Parquet dataset skip the hidden temporary)."""
+    import pyarrow.parquet as pq
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
