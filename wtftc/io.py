@@ -81,7 +81,6 @@ def ensure_writable_dir(path: Path, option: str = "--out", create: bool = True) 
 def write_parquet(path: Path, columns: dict, units: dict) -> None:
     """A Parquet table (pyarrow), units in each field's metadata and in the schema's."""
     import pyarrow as pa
-    import pyarrow.parquet as pq
 
     fields = [pa.field(n, pa.float64(), metadata={"unit": units[n]}) for n in columns]
     schema = pa.schema(fields, metadata={"units": json.dumps(units)})

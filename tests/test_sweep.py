@@ -1,0 +1,241 @@
+"""`wtftc sweep`: sweep files, deterministic runs, Dask execution, kill and resume, summary."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from wtftc import cases, sweep
+from wtftc.errors import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
+BASE = {"t_final_s": 20.0, "controllers": ["paper"], "wind": {"mean_mps": 16.0},
+        "fault": {"type": ["none", "lock"], "onset_s": 5.0}}
+
+
+def wtftc(*args, **kw):
+    return subprocess.run([sys.executable, "-m", "wtftc.cli", *map(str, args)],
+                          capture_output=True, text=True, **kw)
+
+
+def write_sweep(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("change, key", [
+    ({"colour": 1}, "colour"),
+    ({"wind": {"gust": 3}}, "wind.gust"),
+    ({"fault": {"type": "lock", "magnitude": 1}}, "fault.magnitude"),
+    ({"controllers": []}, "controllers"),
+    ({"controllers": ["lqr"]}, "controllers"),
+    ({"wind": {"mean_mps": {"min": 18.0, "max": 12.0, "n": 3}}}, "wind.mean_mps.max"),
+    ({"wind": {"mean_mps": {"min": 12.0, "max": 18.0}}}, "wind.mean_mps.n"),
+    ({"wind": {"mean_mps": "fast"}}, "wind.mean_mps"),
+    ({"wind": {"seed": 1.5}}, "wind.seed"),
+    ({"wind": {"turbulence_class": "D"}}, "wind.turbulence_class"),
+    ({"fault": {"type": "loss_of_effectiveness", "rho": -0.5}}, "fault.rho"),
+    ({"fault": {"type": "loss_of_effectiveness", "rho": [0.5, 1.2]}}, "fault.rho"),
+    ({"fault": {"type": "loss_of_effectiveness", "rho": 0.0}}, "fault.rho"),
+    ({"fault": {"type": "air_in_oil", "severity": -1.0}}, "fault.severity"),
+    ({"fault": {"type": "lock", "angle_deg": -5.0}}, "fault.angle_deg"),
+    ({"fault": {"type": "lock", "blade": 4}}, "fault.blade"),
+    ({"fault": {"type": "lock", "onset_s": 25.0}}, "fault.onset_s"),
+    ({"mode": "latin"}, "mode"),
+    ({"mode": "random"}, "samples"),
+    ({"samples": 10}, "samples"),
+    ({"batch_size": 0}, "batch_size"),
+    ({"t_final_s": "1 min"}, "t_final_s"),
+])
+def test_malformed_sweep_files_are_rejected_naming_the_key(change, key):
+    with pytest.raises(ConfigError) as exc:
+        sweep.parse_sweep({**BASE, **change})
+    assert exc.value.field == key, str(exc.value)
+
+
+def test_bad_sweep_file_on_the_command_line_exits_2_and_writes_nothing(tmp_path):
+    f = write_sweep(tmp_path / "bad.toml", 'controllers = ["paper"]\n[fault]\n'
+                    'type = "loss_of_effectiveness"\nrho = 1.5\n')
+    p = wtftc("sweep", f, "--out", tmp_path / "res")
+    assert p.returncode == 2
+    assert "fault.rho = 1.5 is not allowed" in p.stderr and "Traceback" not in p.stderr
+    assert not (tmp_path / "res").exists()
+
+
+def test_runs_follow_from_the_sweep_file_deterministically():
+    grid = sweep.parse_sweep({**BASE, "controllers": ["paper", "physical_fdi"],
+                              "fault": {"type": ["none", "lock"], "blade": [1, 2, 3],
+                                        "onset_s": 5.0}})
+    runs, dup = sweep.expand(grid)
+    # the fault-free run does not depend on the blade: 2 controllers × (1 + 3 blades)
+    assert len(runs) == 8 and dup == 4
+    assert [r["run_id"] for r in runs] == [r["run_id"] for r in sweep.expand(grid)[0]]
+    assert len({r["run_id"] for r in runs}) == 8
+    rnd = {**BASE, "mode": "random", "samples": 6, "sampling_seed": 3,
+           "wind": {"mean_mps": {"min": 12.0, "max": 20.0}, "seed": {"min": 0, "max": 999}},
+           "fault": {"type": ["none", "lock", "air_in_oil"], "blade": {"min": 1, "max": 3},
+                     "onset_s": {"min": 2.0, "max": 15.0}, "severity": {"min": 0.3, "max": 1}}}
+    one = sweep.expand(sweep.parse_sweep(rnd))[0]
+    two = sweep.expand(sweep.parse_sweep({**rnd, "controllers": ["paper", "pi"]}))[0]
+    assert len(one) == 6 and len(two) == 12
+    # scenarios do not depend on the controllers swept: each is run by every controller
+    scen = [{k: r[k] for k in ("mean_wind_mps", "seed", "fault_type", "blade", "onset_s")}
+            for r in two if r["controller"] == "paper"]
+    assert scen == [{k: r[k] for k in scen[0]} for r in one]
+    assert all(12 <= r["mean_wind_mps"] <= 20 for r in one)
+    # every run's configuration is a valid run configuration, with its id as label
+    rc = cases.make_config(one[0]["config"])
+    assert rc.label == f"sweep-{one[0]['run_id']}"
+
+
+def test_a_diverging_run_is_recorded_with_time_state_and_cause_and_a_bad_one_as_failed():
+    sw = sweep.parse_sweep({**BASE, "fault": {"type": "none"}})
+    ok = sweep.expand(sw)[0][0]
+    diverging = json.loads(json.dumps(ok))
+    diverging["config"]["control_sign"] = 1  # the paper's sign as written diverges
+    diverging["run_id"] = "diverging"
+    broken = json.loads(json.dumps(ok))
+    broken["config"]["dt_s"] = 0.5  # beyond the loop's stability limit
+    broken["run_id"] = "broken"
+    out = sweep.run_task([ok, diverging, broken])
+    rows = {r["run_id"]: r for r, _ in out}
+    assert rows[ok["run_id"]]["status"] == "ok"
+    assert 0 < rows[ok["run_id"]]["rms_speed_error_rad_s"] < 0.05
+    d = rows["diverging"]
+    assert d["status"] == "diverged" and 0 < d["diverged_at_s"] < 20
+    assert d["cause"] and json.loads(d["diverged_state"])
+    assert rows["broken"]["status"] == "failed" and "dt_s" in rows["broken"]["cause"]
+    # the run that ran beside them is the run alone, bit for bit
+    rc = cases.make_config(ok["config"])
+    alone = cases.metrics(rc, cases.run(rc, progress=False))
+    assert rows[ok["run_id"]]["rms_speed_error_rad_s"] == alone["rms_speed_error_rad_s"]
+
+
+KILL_SWEEP = """
+t_final_s = 20.0
+batch_size = 1
+controllers = ["paper"]
+[wind]
+mean_mps = [13.0, 15.0, 17.0, 19.0]
+seed = [0, 1, 2, 3]
+[fault]
+type = ["none", "loss_of_effectiveness"]
+blade = 2
+onset_s = 5.0
+rho = 0.6
+"""
+
+
+def _parts(out: Path) -> list[Path]:
+    return list((out / "runs").glob("part-*.parquet")) if (out / "runs").exists() else []
+
+
+def test_kill_and_resume_on_a_local_two_worker_cluster(tmp_path):
+    """SIGTERM in the middle of a sweep on 2 local workers: every finished run is saved;
+    the same command resumes, runs only what is missing, and no run is saved twice."""
+    f = write_sweep(tmp_path / "kill.toml", KILL_SWEEP)
+    out = tmp_path / "res"
+    total = len(sweep.expand(sweep.load_sweep(f))[0])
+    assert total == 32
+    cmd = [sys.executable, "-m", "wtftc.cli", "sweep", str(f), "--out", str(out),
+           "--workers", "2"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while len(_parts(out)) < 3 and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "interrupted (SIGTERM)" in err
+    saved = sweep.read_results(out).column("run_id").to_pylist()
+    assert 3 <= len(saved) < total, "the sweep must be killed in the middle"
+    assert len(set(saved)) == len(saved)
+    assert not [p for p in (out / "runs").iterdir() if not p.name.startswith("part-")]
+
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert f"{len(saved)} already in" in again.stdout
+    assert f"{total - len(saved)} runs done now, {total} of {total} saved" in again.stdout
+    ids = sweep.read_results(out).column("run_id").to_pylist()
+    assert sorted(ids) == sorted(r["run_id"] for r in sweep.expand(sweep.load_sweep(f))[0])
+    # a third call finds nothing to do
+    third = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert third.returncode == 0 and "0 to run" in third.stdout
+
+    # a changed sweep file is refused for that folder, unless told to start anew
+    write_sweep(f, KILL_SWEEP.replace("rho = 0.6", "rho = 0.7"))
+    p = wtftc("sweep", f, "--out", out)
+    assert p.returncode == 2 and "changed" in p.stderr and "--overwrite" in p.stderr
+    assert sweep.read_results(out).num_rows == total
+
+
+def test_example_sweep_on_an_existing_scheduler_and_its_summary(tmp_path):
+    """examples/sweep_small.toml through --scheduler (a cluster started here, as a user's
+    would be), the saved runs equal to runs alone, then --summary and --show."""
+    from dask.distributed import LocalCluster
+
+    out = tmp_path / "small"
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster:
+        p = wtftc("sweep", ROOT / "examples" / "sweep_small.toml", "--out", out,
+                  "--scheduler", cluster.scheduler_address, "--traces", timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert "32 of 32 saved" in p.stdout
+    table = sweep.read_results(out)
+    assert table.num_rows == 32 and set(table.column("status").to_pylist()) == {"ok"}
+    assert table.schema.field("rms_speed_error_rad_s").metadata[b"unit"] == b"rad/s"
+    rows = table.to_pylist()
+    fdi = [r for r in rows if r["controller"] == "physical_fdi" and r["fault_type"] != "none"]
+    assert all(0 <= r["detection_delay_s"] < 2.0 and r["isolation_correct"] for r in fdi)
+    assert all(r["false_alarms"] == 0 for r in rows)
+    # any saved run re-runs alone to the same numbers, from its saved configuration
+    r = rows[5]
+    shown = wtftc("sweep", "--show", r["run_id"], "--out", out)
+    assert shown.returncode == 0, shown.stderr
+    (tmp_path / "one.toml").write_text(shown.stdout)
+    rc = cases.make_config(cases.load_toml(tmp_path / "one.toml"))
+    res = cases.run(rc, progress=False)
+    assert cases.metrics(rc, res)["rms_speed_error_rad_s"] == r["rms_speed_error_rad_s"]
+    import pyarrow.parquet as pq
+
+    tr = pq.read_table(out / "traces" / f"{r['run_id']}.parquet")
+    np.testing.assert_array_equal(tr.column("omega_r").to_numpy(), res.column("omega_r"))
+
+    s = wtftc("sweep", "--summary", out)
+    assert s.returncode == 0, s.stderr
+    assert "32 of 32 runs saved" in s.stdout
+    assert "| physical_fdi | lock | 4 | 0 | 0 |" in s.stdout
+    assert {"rms_speed_error.png", "overspeed.png", "detection_delay.png"} <= {
+        q.name for q in (out / "figures").iterdir()}
+    assert (out / "summary.csv").read_text().count("\n") == 1 + 8
+
+
+def test_unreachable_scheduler_is_a_clear_error(tmp_path):
+    p = wtftc("sweep", ROOT / "examples" / "sweep_small.toml", "--out", tmp_path / "x",
+              "--scheduler", "tcp://127.0.0.1:9", timeout=120)
+    assert p.returncode == 2, p.stderr
+    assert "--scheduler = 'tcp://127.0.0.1:9' is not allowed" in p.stderr
+    assert "Traceback" not in p.stderr
+
+
+def test_summary_of_a_folder_that_is_not_a_sweep(tmp_path):
+    p = wtftc("sweep", "--summary", tmp_path)
+    assert p.returncode == 2 and "sweep's results folder" in p.stderr
+
+
+def test_robustness_campaign_file_is_valid_and_large_enough():
+    sw = sweep.load_sweep(ROOT / "examples" / "robustness.toml")
+    runs, _ = sweep.expand(sw)
+    generated = [r for r in runs if r["controller"] != "rosco"]
+    assert len(generated) >= 1000
+    assert {r["fault_type"] for r in runs} == set(sweep.FAULT_TYPES)
+    assert {(r["fault_type"], r["blade"]) for r in runs if r["fault_type"] != "none"} == {
+        (f, b) for f in sweep.FAULT_TYPES[1:] for b in (1, 2, 3)}
+    assert {r["turbulence_class"] for r in runs} == {"A", "B", "C"}
+    assert os.path.getsize(ROOT / "examples" / "robustness.toml") < 4000
