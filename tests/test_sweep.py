@@ -239,3 +239,20 @@ def test_robustness_campaign_file_is_valid_and_large_enough():
         (f, b) for f in sweep.FAULT_TYPES[1:] for b in (1, 2, 3)}
     assert {r["turbulence_class"] for r in runs} == {"A", "B", "C"}
     assert os.path.getsize(ROOT / "examples" / "robustness.toml") < 4000
+
+
+def test_hydraulic_fault_severity_moves_the_actuator_part_of_the_way():
+    """severity s: ω_n = ω_n0 + s (ω_n,fault − ω_n0), the same for ζ (docs/running.md)."""
+    from wtftc.faults import HYDRAULIC, Schedule, parse_faults
+
+    full = Schedule(parse_faults([{"blade": 3, "type": "air_in_oil", "onset_s": 1.0}]))
+    half = Schedule(parse_faults([{"blade": 3, "type": "air_in_oil", "onset_s": 1.0,
+                                   "severity": 0.5}]))
+    a_full, a_half = full.actuator([0.0, 2.0]), half.actuator([0.0, 2.0])
+    wn0, z0 = a_full[11, 0], a_full[14, 0]  # ω_n,3 and ζ_3 before the onset: nominal
+    assert (wn0, z0) == pytest.approx((11.11, 0.6))
+    assert (a_full[11, 1], a_full[14, 1]) == pytest.approx(HYDRAULIC["air_in_oil"])
+    assert a_half[11, 1] == pytest.approx(0.5 * (wn0 + HYDRAULIC["air_in_oil"][0]))
+    assert a_half[14, 1] == pytest.approx(0.5 * (z0 + HYDRAULIC["air_in_oil"][1]))
+    with pytest.raises(ConfigError, match="severity"):
+        parse_faults([{"blade": 1, "type": "pressure_drop", "severity": 0.0}])
