@@ -352,9 +352,14 @@ def run_task(points: list[dict], traces: bool = False) -> list[tuple[dict, dict 
     """
     import warnings
 
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # accuracy warnings would flood the workers' logs
+        return _run_points(points, traces)
+
+
+def _run_points(points: list[dict], traces: bool) -> list[tuple[dict, dict | None]]:
     from wtftc import simulate as sim
 
-    warnings.filterwarnings("ignore")  # accuracy warnings would flood the workers' logs
     rcs, out = [], []
     for pt in points:
         try:
