@@ -559,7 +559,8 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
     sw = load_sweep(sweep_path)
     runs, dup = expand(sw)
     for pt in runs:  # every run's configuration is valid before any runs
-        cases.make_config(pt["config"]) if pt["controller"] != "rosco" else None
+        if pt["controller"] != "rosco":  # ROSCO's availability is checked below
+            cases.make_config(pt["config"])
     if any(pt["controller"] == "rosco" for pt in runs):
         from wtftc import rosco
 
