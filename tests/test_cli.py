@@ -115,3 +115,17 @@ def test_help_explains_the_commands():
         assert cmd in p.stdout
     r = wtftc("run", "--help")
     assert "--case" in r.stdout and "known to eq (49)" in r.stdout
+
+
+def test_an_internal_error_shows_its_traceback_not_a_user_error(tmp_path, monkeypatch):
+    """A bug in wtftc (here a KeyError inside the run) must not print as "wtftc: error: X"
+    as if the user had erred: it propagates with its traceback."""
+    from wtftc import cases, cli
+
+    def broken(*a, **k):
+        raise KeyError("an internal key")
+
+    monkeypatch.setattr(cases, "run", broken)
+    with pytest.raises(KeyError, match="an internal key"):
+        cli.main(["run", "--t-final", "1", "--out", str(tmp_path / "o"), "--quiet"])
+    assert not (tmp_path / "o" / "metrics.json").exists()

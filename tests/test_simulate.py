@@ -118,6 +118,40 @@ def test_default_fault_locks_blade_1_where_it_is():
     assert locked and locked[0]["angle_deg"] == pytest.approx(np.degrees(at_onset), abs=0.05)
 
 
+@pytest.mark.parametrize("onset_s", [20.0, 20.00037, 19.99962])
+def test_lock_where_it_is_binds_at_an_onset_off_the_step_grid(onset_s):
+    """A sweep draws onsets at random: a lock "wherever the blade is" must read the angle on
+    the step nearest its onset. Unbound, it commanded NaN: the plant's position clip turned
+    that into 0° and the paper's controller, told the fault (case 3), returned NaN."""
+    fault = [{"blade": 1, "type": "lock", "angle_deg": "current", "onset_s": onset_s}]
+    rc, res, m = _run(case=3, fault=fault, t_final_s=26.0)
+    assert m["diverged"] is None
+    b1 = res.column("beta_1")
+    at_onset = b1[np.searchsorted(res.t, 20.0)]
+    assert np.degrees(at_onset) > 3.0  # far from the 0° an unbound lock would drive it to
+    np.testing.assert_allclose(b1[res.t > 22], at_onset, atol=np.radians(0.05))
+    locked = [f for f in m["config"]["fault_resolved"] if f["type"] == "lock"]
+    assert locked[0]["angle_deg"] == pytest.approx(np.degrees(at_onset), abs=0.05)
+
+
+def test_a_divergence_names_the_states_or_outputs_that_failed():
+    """The control law can return NaN while every state is still finite: the record then
+    names the outputs (it once read "non-finite ... in " with nothing after it)."""
+    names, out_names = ["omega_r", "beta_1"], ["u0", "v_1", "wind"]
+    z_prev = np.array([1.0, 0.1])
+    zz = np.array([[1.0, 1.0, 1.0, np.nan], [0.1, 0.1, 2e8, np.nan]])
+    oo = np.array([[0.0, 0.0, np.nan, np.nan], [0.0, 0.0, np.nan, np.nan],
+                   [14.0, 14.0, 14.0, 14.0]])
+    i, rec = sim.divergence(zz, oo, z_prev, names, out_names, k=100, dt=0.01)
+    assert i == 2 and rec["t_s"] == pytest.approx(1.03)
+    assert rec["reason"] == "non-finite or |state| > 1e8 in beta_1; non-finite outputs u0, v_1"
+    assert rec["last_finite_state"] == {"omega_r": 1.0, "beta_1": 0.1}
+    oo[:, 2] = 0.0
+    oo[:2, 1] = np.nan  # outputs fail first, at a finite state
+    i, rec = sim.divergence(zz, oo, z_prev, names, out_names, k=100, dt=0.01)
+    assert i == 1 and rec["reason"] == "non-finite outputs u0, v_1"
+
+
 def test_too_large_dt_is_refused_with_the_reason():
     rc = cases.make_config({"dt_s": 0.09, "t_final_s": 1.0, "wind": WIND_14,
                             "controller_params": {"c": [60, 60, 60, 60]}})

@@ -359,7 +359,7 @@ def main(argv: list[str] | None = None) -> int:
     except GeneratedArtefactError as exc:
         print(f"wtftc: error: {exc}", file=sys.stderr)
         return 1
-    except (ValueError, KeyError, OSError) as exc:
+    except OSError as exc:  # a file that cannot be read or written
         print(f"wtftc: error: {exc}", file=sys.stderr)
         return 2
     return 2

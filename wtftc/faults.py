@@ -164,9 +164,16 @@ class Schedule:
                 return False
         return True
 
-    def bind_current_angles(self, t: float, beta: np.ndarray) -> None:
+    def bind_current_angles(self, t: float, beta: np.ndarray, dt: float) -> None:
+        """Lock "wherever the blade is": each such lock whose onset falls on the step at t
+        (the step nearest its onset, on a grid of dt) takes the angle beta of its blade.
+
+        An onset need not lie on the grid (a sweep draws it at random); an unbound lock
+        would command NaN, which the actuator's position clip turns into 0° in the plant.
+        """
+        step = int(round(t / dt))
         for f in self.faults:
-            if f.type == "lock" and f.angle is None and f.onset_s == t:
+            if f.type == "lock" and f.angle is None and int(round(f.onset_s / dt)) == step:
                 f.angle = float(beta[f.blade - 1])
 
     def actuator(self, t: np.ndarray) -> np.ndarray:

@@ -134,8 +134,10 @@ def fault_shape(run, out: Path, name: str = "fig06_fault") -> list[Path]:
     for ax in axes:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, ncol=3)
-    locks = [f"blade {f['blade']} at {f.get('angle_deg', 0):.2f}°" for f in sched.describe()
-             if f["type"] == "lock"]
+    locks = [f"blade {f['blade']} at " + (f"{a:.2f}°" if isinstance(a, float) else
+                                           f"its {a} angle")
+             for f in sched.describe() if f["type"] == "lock"
+             for a in [f.get("angle_deg", "current")]]
     axes[0].set_title("Fig. 6: fault shape" + (f" (locked: {', '.join(locks)})" if locks
                                                else ""), fontsize=9)
     return _save(fig, out, name)

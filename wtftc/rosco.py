@@ -160,7 +160,7 @@ def run(rc, progress: bool = True) -> sim.Result:
             while k < n_steps:
                 for e in events:
                     if k <= e < k + n_sub:
-                        schedule.bind_current_angles(e * rc.dt, z[3:6])
+                        schedule.bind_current_angles(e * rc.dt, z[3:6], rc.dt)
                 tk = (k + np.arange(n_sub)) * rc.dt
                 w3 = np.vstack([rc.wind(tk), rc.wind(tk + rc.dt / 2), rc.wind(tk + rc.dt)])
                 af = schedule.actuator(tk) if schedule else np.tile(

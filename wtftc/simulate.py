@@ -496,6 +496,7 @@ def run_loops(plant: str, controller: str, runs: list[Run], p_turbine: np.ndarra
         if fdi:
             call.put(8, [float(r.use_fdi)], b, n_runs)
         call.put(9 if fdi else 8, [dt], b, n_runs)
+    out_names = [n for n, _ in output_spec(controller, fdi)]
     k = 0
     t0 = time.perf_counter()
     last_print = t0
@@ -503,9 +504,9 @@ def run_loops(plant: str, controller: str, runs: list[Run], p_turbine: np.ndarra
         # bind "lock wherever the blade is" at its onset step, from the current state
         for b, r in enumerate(runs):
             if r.schedule and k in {int(round(e / dt)) for e in r.schedule.events()}:
-                r.schedule.bind_current_angles(k * dt, z[3:6, b])
+                r.schedule.bind_current_angles(k * dt, z[3:6, b], dt)
                 if r.ctrl_schedule is not None:
-                    r.ctrl_schedule.bind_current_angles(k * dt, z[3:6, b])
+                    r.ctrl_schedule.bind_current_angles(k * dt, z[3:6, b], dt)
         stop = min([n_steps, k + n_c] + [e for e in events if e > k])
         m = stop - k
         tk = (k + np.arange(n_c)) * dt
@@ -532,19 +533,8 @@ def run_loops(plant: str, controller: str, runs: list[Run], p_turbine: np.ndarra
             mb = m
             z_prev = z[:, b].copy()
             if not (np.abs(zz).max() <= 1e8 and np.isfinite(oo).all()):
-                bad = ~np.all(np.isfinite(oo), axis=0) | ~np.all(np.isfinite(zz), axis=0)
-                bad |= np.any(np.abs(zz) > 1e8, axis=0)
-                i = int(np.argmax(bad))
+                i, diverged[b] = divergence(zz, oo, z_prev, names, out_names, k, dt)
                 mb = i + 1
-                blew = [n for n, a in zip(names, zz[:, i], strict=True)
-                        if not np.isfinite(a) or abs(a) > 1e8]
-                before = zz[:, i - 1] if i > 0 else z_prev
-                diverged[b] = {"t_s": float((k + i + 1) * dt),
-                               "reason": "non-finite or |state| > 1e8 in "
-                                         + ", ".join(blew[:8])
-                                         + (" ..." if len(blew) > 8 else ""),
-                               "last_finite_state": {n: float(a) for n, a in
-                                                     zip(names, before, strict=True)}}
             outs[b].append(oo[:, first:mb:decimate].T.copy())
             ts[b].append(np.arange(k + first, k + mb, decimate) * dt)
             if keep_states:
@@ -566,11 +556,39 @@ def run_loops(plant: str, controller: str, runs: list[Run], p_turbine: np.ndarra
     wall = time.perf_counter() - t0
     if progress:
         _progress(k, n_steps, dt, wall, end=True, runs=n_runs)
-    out_names = [n for n, _ in output_spec(controller, fdi)]
     return [Result(t=np.concatenate(ts[b]), outputs=np.vstack(outs[b]), z_final=z[:, b].copy(),
                    diverged=diverged[b], wall_s=wall, steps=steps[b],
                    z=np.vstack(zs[b]) if keep_states else None, names=out_names)
             for b in range(n_runs)]
+
+
+def divergence(zz: np.ndarray, oo: np.ndarray, z_prev: np.ndarray, names: list[str],
+               out_names: list[str], k: int, dt: float) -> tuple[int, dict]:
+    """The first step of a chunk that blew up, and its record.
+
+    Column i of zz is the state after step k + i, column i of oo the outputs at the state
+    before it (z_prev for i = 0). Step i is bad when that state is non-finite or beyond
+    1e8, or when the outputs at its start are non-finite (the control law can fail before
+    any state does: a state that is still finite then carries the NaN into the next step).
+    The record names every quantity that failed, the time at the end of the step, and the
+    last finite state.
+    """
+    bad = ~np.all(np.isfinite(oo), axis=0) | ~np.all(np.isfinite(zz), axis=0)
+    bad |= np.any(np.abs(zz) > 1e8, axis=0)
+    i = int(np.argmax(bad))
+    blew = [n for n, a in zip(names, zz[:, i], strict=True)
+            if not np.isfinite(a) or abs(a) > 1e8]
+    nan_out = [n for n, a in zip(out_names, oo[:, i], strict=True) if not np.isfinite(a)]
+    parts = []
+    if blew:
+        parts.append("non-finite or |state| > 1e8 in " + ", ".join(blew[:8])
+                     + (" ..." if len(blew) > 8 else ""))
+    if nan_out:
+        parts.append("non-finite outputs " + ", ".join(nan_out[:8])
+                     + (" ..." if len(nan_out) > 8 else ""))
+    before = zz[:, i - 1] if i > 0 else z_prev
+    return i, {"t_s": float((k + i + 1) * dt), "reason": "; ".join(parts),
+               "last_finite_state": {n: float(a) for n, a in zip(names, before, strict=True)}}
 
 
 def _progress(k: int, n: int, dt: float, wall: float, end: bool = False, runs: int = 1,
