@@ -125,20 +125,22 @@ class FuzzyEvaluator:
     def __init__(self, xhat: ca.SX, params: dict[str, ca.SX], thetas: list[ca.SX]):
         self.thetas = thetas
         n_in = xhat.numel()
-        base = {"mf_width": params["mf_width"]}
-        base.update({f"mf_centre_{m}": params[f"mf_centre_{m}"] for m in range(1, N_MF + 1)})
         self.scales = [params[f"x_scale_{k}"] for k in range(1, n_in + 1)]
         self._tr = []
+        centres = [params[f"mf_centre_{m}"] for m in range(1, N_MF + 1)]
         for k in range(n_in):
             zk = (xhat[k] - params[f"x_offset_{k + 1}"]) / self.scales[k]
-            self._tr.append(Translator({**base, "z": zk}))
+            vals = fuzzy.membership_values(zk, centres, params["mf_width"], ca.exp, ca.fmax)
+            self._tr.append(Translator(vals))
         self._nu: dict[tuple[int, int], ca.SX] = {}
 
     def nu(self, k: int, order: int) -> ca.SX:
-        """∂^order/∂x̂_k^order of [ν_1..ν_N] at input k (0-based), scale included."""
+        """∂^order/∂x̂_k^order of [ν_1..ν_N] at input k (0-based), scale included: the
+        polynomials of :func:`fuzzy.membership_derivatives` (N_MF exponentials per input,
+        shared by every order)."""
         key = (k, order)
         if key not in self._nu:
-            exprs = fuzzy.normalized_membership_derivatives(order)
+            exprs = fuzzy.membership_derivatives(order)
             vec = ca.vertcat(*[self._tr[k](e) for e in exprs])
             self._nu[key] = vec / self.scales[k] ** order if order else vec
         return self._nu[key]

@@ -50,7 +50,9 @@ def membership(j: int, zz=z) -> sp.Expr:
 
 
 def normalized_membership(j: int) -> sp.Expr:
-    """ν_j = μ_j / Σ_l μ_l written as 1 / Σ_l exp(log μ_l - log μ_j).
+    """ν_j = μ_j / Σ_l μ_l written as 1 / Σ_l exp(log μ_l - log μ_j): the reference the
+    generator's form (:func:`membership_values`, :func:`membership_derivatives`) is tested
+    against.
 
     log μ_l - log μ_j = (c_l - c_j)(2z - c_j - c_l) / (2w²) is linear in z, so ν_j is a
     softmax of linear functions: identical to μ_j/Σμ_l (tests compare the two), but it
@@ -63,9 +65,92 @@ def normalized_membership(j: int) -> sp.Expr:
         for l, cl in enumerate(mf_centre)])
 
 
+#: symbols of the evaluated form (see :func:`membership_derivatives`): ν_j, the centred
+#: slopes ã_j and the moments M_r = Σ_l ν_l ã_l^r (M_0 = 1, M_1 = 0)
+nu = sp.symbols(f"nu_1:{N_MF + 1}", real=True)
+slope = sp.symbols(f"slope_1:{N_MF + 1}", real=True)
+
+
+def moment(r: int) -> sp.Expr:
+    """M_r = Σ_l ν_l ã_l^r: M_0 = Σ ν = 1 and M_1 = Σ ν ã = 0 exactly; a symbol above."""
+    if r < 2:
+        return (sp.S.One, sp.S.Zero)[r]
+    return sp.Symbol(f"moment_{r}", real=True)
+
+
+def _d_dz(e: sp.Expr, max_moment: int) -> sp.Expr:
+    """d/dz of a polynomial in ν, ã, M_r by the rules of :func:`membership_derivatives`."""
+    out = sp.S.Zero
+    for j in range(N_MF):
+        out += sp.diff(e, nu[j]) * nu[j] * slope[j] - sp.diff(e, slope[j]) * moment(2)
+    for r in range(2, max_moment + 1):
+        out += sp.diff(e, moment(r)) * (moment(r + 1) - r * moment(r - 1) * moment(2))
+    return sp.expand(out)
+
+
+@cache
+def membership_derivatives(order: int) -> tuple[sp.Expr, ...]:
+    """d^order ν_j / dz^order (j = 0..N_MF-1) as polynomials in ν, ã and M_2..M_order.
+
+    With a_l = c_l / w² (log μ_l = a_l z + terms the normalization cancels), ā = Σ ν_l a_l
+    and the centred slopes ã_j = a_j - ā, differentiating ν_j Σ_l μ_l = μ_j gives
+
+        dν_j/dz = ν_j ã_j,
+        dã_j/dz = -dā/dz = -Σ_l ν_l ã_l a_l = -M_2 - ā M_1 = -M_2,
+        dM_r/dz = Σ_l (ν_l ã_l^{r+1} - r ν_l ã_l^{r-1} M_2) = M_{r+1} - r M_{r-1} M_2,
+
+    so every derivative is a short polynomial of values computed once per input: no
+    exponential beyond the N_MF of ν itself (the softmax form costs N_MF(N_MF-1), and its
+    derivatives more). tests/test_precision.py checks these against
+    ``sp.diff(normalized_membership(j), z, order)``.
+    """
+    if order == 0:
+        return tuple(nu)
+    return tuple(_d_dz(e, order) for e in membership_derivatives(order - 1))
+
+
+def membership_values(zz, centres, width, exp, fmax) -> dict[str, object]:
+    """Values of the symbols of :func:`membership_derivatives` at z = zz, for any
+    arithmetic (``exp``/``fmax``: CasADi's, or mpmath's and ``max`` for tests):
+
+        s_l = a_l (z - c_l/2)          (log μ_l up to a term common to all l)
+        ν_l = e^{s_l - s_max} / Σ_m e^{s_m - s_max}     (no overflow, no 0/0 at any z)
+        ã_l = Σ_{m≠l} ν_m (c_l - c_m) / w²             (= a_l - ā without its cancellation)
+        M_r = Σ_l ν_l ã_l^r
+    """
+    inv_w2 = 1 / (width * width)
+    s = [c * inv_w2 * (zz - c / 2) for c in centres]
+    s_max = s[0]
+    for v in s[1:]:
+        s_max = fmax(s_max, v)
+    e = [exp(v - s_max) for v in s]
+    total = e[0]
+    for v in e[1:]:
+        total = total + v
+    inv_total = 1 / total
+    nus = [v * inv_total for v in e]
+    out = {f"nu_{j + 1}": v for j, v in enumerate(nus)}
+    slopes = []
+    for j, cj in enumerate(centres):
+        terms = [nus[m] * (cj - cm) for m, cm in enumerate(centres) if m != j]
+        acc = terms[0]
+        for t in terms[1:]:
+            acc = acc + t
+        slopes.append(acc * inv_w2)
+    out.update({f"slope_{j + 1}": v for j, v in enumerate(slopes)})
+    powers = list(slopes)
+    for r in range(2, 6):
+        powers = [p * a for p, a in zip(powers, slopes, strict=True)]
+        acc = nus[0] * powers[0]
+        for n_, p in zip(nus[1:], powers[1:], strict=True):
+            acc = acc + n_ * p
+        out[f"moment_{r}"] = acc
+    return out
+
+
 @cache
 def normalized_membership_derivatives(order: int) -> tuple[sp.Expr, ...]:
-    """d^order ν_j / dz^order for j = 0..N_MF-1."""
+    """d^order ν_j / dz^order of the softmax form (j = 0..N_MF-1): the reference for tests."""
     return tuple(sp.diff(normalized_membership(j), z, order) for j in range(N_MF))
 
 
