@@ -288,8 +288,9 @@ def rk4_step(rhs: ca.Function) -> ca.Function:
 #: functions (inline sqrtsd, no errno bookkeeping): 1.4-1.9× on the paper's loop. Both are
 #: bit-identical to plain -O2 (docs/performance.md, tests/test_bench.py)
 LOOP_CFLAGS = ("-O2", "-fno-semantic-interposition", "-fno-math-errno", "-fPIC", "-shared")
-#: opt-in: -ffast-math also reassociates and assumes no NaN/inf: about 1.5× more on the
-#: paper's loop, results differ at 1e-12..1e-9 relative (not bit-identical to the default)
+#: opt-in: -ffast-math also reassociates and assumes no NaN/inf: 1.05-1.2× more on the
+#: loops (docs/performance.md); results differ at 1e-12..1e-9 relative (not bit-identical
+#: to the default)
 FAST_MATH_CFLAGS = ("-O2", "-fno-semantic-interposition", "-ffast-math", "-fPIC", "-shared")
 
 
