@@ -46,8 +46,15 @@ def test_run_end_to_end(tmp_path):
 
 
 def test_diverging_run_exits_3_with_time_and_state(tmp_path):
-    p = wtftc("run", "--sign", 1, "--t-final", 20, "--wind", "constant", "--wind-mean", 14,
-              "--out", tmp_path / "d", "--quiet")
+    from conftest import DIVERGING_RUN
+
+    cfg = tmp_path / "diverging.toml"
+    w = DIVERGING_RUN["wind"]
+    cfg.write_text(f'controller = "paper"\ncase = 1\nseed = {DIVERGING_RUN["seed"]}\n'
+                   f'[wind]\nkind = "ntm"\nmean_mps = {w["mean_mps"]}\n'
+                   f'turbulence_class = "{w["turbulence_class"]}"\n'
+                   '[turbine_params]\ngen_torque_law = 1.0\n')
+    p = wtftc("run", "--config", cfg, "--t-final", 40, "--out", tmp_path / "d", "--quiet")
     assert p.returncode == 3
     assert "DIVERGED at t =" in p.stdout
     m = json.loads((tmp_path / "d" / "metrics.json").read_text())

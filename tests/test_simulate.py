@@ -92,12 +92,35 @@ def test_case3_is_not_worse_than_case2():
     assert m3["max_abs_speed_error_rad_s"] <= 1.05 * m2["max_abs_speed_error_rad_s"]
 
 
-def test_sign_as_written_is_reported_as_divergence():
+def test_sign_as_written_feathers_the_blades_and_loses_the_rotor():
+    """Paper-notes defect 2: with the control direction as written the law pitches the wrong
+    way; the blades run to the 90° stop and the rotor slows to a fraction of rated within
+    seconds, where it stays (the controller's states wind up to about 6e4 and hold). Before
+    the membership form of derivation/fuzzy.py, the saturated memberships' derivatives
+    overflowed to NaN and this was reported as a divergence at 5.5 s."""
     rc, res, m = _run(control_sign=1, t_final_s=30.0)
-    assert m["diverged"] is not None, m["max_abs_speed_error_rad_s"]
-    assert 0 < m["diverged"]["t_s"] < 30.0
-    assert "last_finite_state" in m["diverged"] and m["diverged"]["reason"]
+    assert m["diverged"] is None and np.all(np.isfinite(res.outputs))
+    late = res.t > 15.0  # at the 8°/s rate limit the blades need about 11 s to feather
+    for j in (1, 2, 3):
+        assert np.degrees(res.column(f"beta_{j}")[late]).min() > 85.0
+    assert res.column("omega_r")[late].max() < 0.5 * rc.reference
+    corrected = _run(t_final_s=30.0)[2]
+    assert corrected["max_abs_speed_error_rad_s"] < 0.1 * m["max_abs_speed_error_rad_s"]
+
+
+def test_a_real_divergence_stops_with_its_time_cause_and_last_finite_state():
+    from conftest import DIVERGING_RUN
+
+    rc = cases.make_config(DIVERGING_RUN)
+    res = cases.run(rc, progress=False)
+    m = cases.metrics(rc, res)
+    assert m["diverged"] is not None
+    assert 20.0 < m["diverged"]["t_s"] < 40.0
+    assert "xhat_4" in m["diverged"]["reason"]
+    last = m["diverged"]["last_finite_state"]
+    assert all(np.isfinite(v) and abs(v) <= 1e8 for v in last.values())
     assert np.all(np.isfinite(res.outputs))  # nothing after the blow-up is reported
+    assert res.t[-1] <= m["diverged"]["t_s"]
 
 
 def test_wind_step_up_raises_the_pitch():

@@ -98,7 +98,9 @@ def test_a_diverging_run_is_recorded_with_time_state_and_cause_and_a_bad_one_as_
     sw = sweep.parse_sweep({**BASE, "fault": {"type": "none"}})
     ok = sweep.expand(sw)[0][0]
     diverging = json.loads(json.dumps(ok))
-    diverging["config"]["control_sign"] = 1  # the paper's sign as written diverges
+    from conftest import DIVERGING_RUN
+
+    diverging["config"].update(DIVERGING_RUN)  # a gusty wind the paper's design diverges in
     diverging["run_id"] = "diverging"
     broken = json.loads(json.dumps(ok))
     broken["config"]["dt_s"] = 0.5  # beyond the loop's stability limit
@@ -108,7 +110,8 @@ def test_a_diverging_run_is_recorded_with_time_state_and_cause_and_a_bad_one_as_
     assert rows[ok["run_id"]]["status"] == "ok"
     assert 0 < rows[ok["run_id"]]["rms_speed_error_rad_s"] < 0.05
     d = rows["diverging"]
-    assert d["status"] == "diverged" and 0 < d["diverged_at_s"] < 20
+    assert d["status"] == "diverged" and 20 < d["diverged_at_s"] < 40
+    assert "xhat_4" in d["cause"]
     assert d["cause"] and json.loads(d["diverged_state"])
     assert rows["broken"]["status"] == "failed" and "dt_s" in rows["broken"]["cause"]
     # the run that ran beside them is the run alone, bit for bit
