@@ -43,7 +43,7 @@ def _alpha_dot_exact(vals):
     return np.array([float(x) for x in f(*[exact[s.name] for s in syms])])
 
 
-@pytest.mark.parametrize("z_span", [6.0, 40.0])
+@pytest.mark.parametrize("z_span", [6.0, 40.0, 1000.0])
 def test_alpha_dot_far_from_centres_matches_40_digits(z_span):
     rng = np.random.default_rng(7)
     with mpmath.workdps(40):
