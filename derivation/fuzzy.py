@@ -124,27 +124,18 @@ def membership_values(zz, centres, width, exp, fmax) -> dict[str, object]:
     for v in s[1:]:
         s_max = fmax(s_max, v)
     e = [exp(v - s_max) for v in s]
-    total = e[0]
-    for v in e[1:]:
-        total = total + v
-    inv_total = 1 / total
+    inv_total = 1 / sum(e[1:], e[0])
     nus = [v * inv_total for v in e]
+    slopes = [sum(terms[1:], terms[0]) * inv_w2 for terms in
+              ([nus[m] * (cj - cm) for m, cm in enumerate(centres) if m != j]
+               for j, cj in enumerate(centres))]
     out = {f"nu_{j + 1}": v for j, v in enumerate(nus)}
-    slopes = []
-    for j, cj in enumerate(centres):
-        terms = [nus[m] * (cj - cm) for m, cm in enumerate(centres) if m != j]
-        acc = terms[0]
-        for t in terms[1:]:
-            acc = acc + t
-        slopes.append(acc * inv_w2)
     out.update({f"slope_{j + 1}": v for j, v in enumerate(slopes)})
     powers = list(slopes)
-    for r in range(2, 6):
+    for r in range(2, 6):  # M_2..M_5: membership_derivatives(n) needs M_2..M_n, n <= 5
         powers = [p * a for p, a in zip(powers, slopes, strict=True)]
-        acc = nus[0] * powers[0]
-        for n_, p in zip(nus[1:], powers[1:], strict=True):
-            acc = acc + n_ * p
-        out[f"moment_{r}"] = acc
+        terms = [n_ * p for n_, p in zip(nus, powers, strict=True)]
+        out[f"moment_{r}"] = sum(terms[1:], terms[0])
     return out
 
 
