@@ -40,7 +40,7 @@ run: setup
 	$(VENV)/bin/wtftc cases --out results
 
 bench: setup
-	$(VENV)/bin/wtftc bench --out out/bench
+	$(PY) -m bench --out out/bench
 
 verify: setup check-generated
 	$(VENV)/bin/wtftc verify --out out/verify

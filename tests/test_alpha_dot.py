@@ -9,7 +9,7 @@ full one by exactly ∂α_i/∂y (ẏ̂ - ẏ).
 import numpy as np
 import pytest
 
-from wtftc import verify
+from wtftc.verify import checks as verify
 
 
 @pytest.fixture(scope="module", params=[0.5, 1.7], ids=["t=0.5s", "t=1.7s"])

@@ -1,21 +1,23 @@
 """`make bench` compares like with like: every method it times computes the same
 trajectory of the same closed loop (tests/test_bench_numba.py checks the numba loop in
-depth), batches give each run the numbers it gets alone, and bad input to `wtftc bench` is
-one clear line. No timing is asserted anywhere."""
+depth), batches give each run the numbers it gets alone, and bad input to `python -m bench`
+is one clear line. No timing is asserted anywhere."""
 
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from wtftc import cases
-from wtftc import simulate as sim
-from wtftc.bench import lambdify_loop as ll
-from wtftc.bench import numba_loop as nl
-from wtftc.bench import runner
-from wtftc.bench.problem import LOOPS, Problem
+from bench import lambdify_loop as ll
+from bench import numba_loop as nl
+from bench import runner
+from bench.problem import LOOPS, Problem
+from wtftc import config
+from wtftc.campaign import cases
 from wtftc.errors import ConfigError
+from wtftc.sim import integrate
 
 DT = 1e-3
 T = 0.5  # [s]: 500 RK4 steps from the trimmed state
@@ -30,6 +32,9 @@ def problem(request):
     return p, res.column("omega_r")
 
 
+ROOT = Path(__file__).resolve().parent.parent
+
+
 def rel(a, b):
     """max |a - b| / max |b| over a's horizon (a may be the shorter)."""
     n = len(a)
@@ -41,8 +46,8 @@ def test_compiled_step_and_virtual_machine_are_the_default_path(problem):
     """The one-step function (compiled, and in CasADi's VM) from a Python loop against the
     compiled chunks: the same arithmetic (measured: 0 and below 1e-15)."""
     p, omega = problem
-    step = sim.rk4_step(p.rhs)
-    f = sim.compiled(step, f"bench_step_{p.name}", quiet=True)
+    step = integrate.rk4_step(p.rhs)
+    f = integrate.compiled(step, f"bench_step_{p.name}", quiet=True)
     assert rel(runner.rk4_python_loop(p, f, DT, T), omega) < 1e-14
     assert rel(runner.rk4_python_loop(p, step.expand(), DT, 0.1), omega) < 1e-13
 
@@ -106,8 +111,8 @@ def test_batch_runs_are_the_single_runs_bit_for_bit():
     """Three wind seeds and two fault sets in one batch, on 2 threads, against each run alone."""
     base = {"case": 3, "controller": "physical", "t_final_s": 21.0, "dt_s": 1e-3,
             "wind": {"kind": "ntm", "mean_mps": 16.0, "turbulence_class": "B"}}
-    rcs = [cases.make_config({**base, "seed": s}) for s in range(3)]
-    rcs.append(cases.make_config({**base, "seed": 0, "case": 1, "fault": []}))
+    rcs = [config.make_config({**base, "seed": s}) for s in range(3)]
+    rcs.append(config.make_config({**base, "seed": 0, "case": 1, "fault": []}))
     single = [cases.run(rc, progress=False) for rc in rcs]
     batch = cases.run_batch(rcs, threads=2, progress=False)
     for a, b in zip(single, batch, strict=True):
@@ -119,8 +124,8 @@ def test_batch_runs_are_the_single_runs_bit_for_bit():
 
 
 def test_batch_refuses_runs_that_cannot_share_a_loop():
-    rcs = [cases.make_config({"controller": "physical", "t_final_s": 30.0}),
-           cases.make_config({"controller": "pi", "t_final_s": 30.0})]
+    rcs = [config.make_config({"controller": "physical", "t_final_s": 30.0}),
+           config.make_config({"controller": "pi", "t_final_s": 30.0})]
     with pytest.raises(ConfigError, match=r"runs\[1\]\.controller"):
         cases.run_batch(rcs)
     with pytest.raises(ConfigError, match="threads"):
@@ -128,8 +133,8 @@ def test_batch_refuses_runs_that_cannot_share_a_loop():
 
 
 def test_bench_bad_input_is_one_clear_line(tmp_path):
-    p = subprocess.run([sys.executable, "-m", "wtftc.cli", "bench", "--loops", "nope",
-                        "--out", tmp_path / "b"], capture_output=True, text=True)
+    p = subprocess.run([sys.executable, "-m", "bench", "--loops", "nope",
+                        "--out", tmp_path / "b"], capture_output=True, text=True, cwd=ROOT)
     assert p.returncode == 2
     assert "--loops = 'nope' is not allowed" in p.stderr and "paper_case3" in p.stderr
     assert "Traceback" not in p.stderr and not (tmp_path / "b").exists()
@@ -141,13 +146,13 @@ def test_loop_flags_are_bit_identical_and_fast_math_is_close(problem):
     1.8e-12 (physical) and 4.7e-10 (paper) relative over a chunk."""
     p, omega = problem
     rc = p.config
-    step = sim.rk4_step(p.rhs)
+    step = integrate.rk4_step(p.rhs)
     chunk = step.mapaccum(f"flags_{p.name}", 1000)
     w3, af, sf, ck = runner.step_inputs(p, DT, 1000)
     args = (p.z0, w3, af, sf, ck, p.yd, rc.p_turbine, rc.p_ctrl, DT)
-    plain = sim.compiled(chunk, f"plain_{p.name}", ("-O2", "-fPIC", "-shared"), quiet=True)
-    default = sim.compiled(chunk, f"default_{p.name}", quiet=True)
-    fast = sim.compiled(chunk, f"fast_{p.name}", sim.FAST_MATH_CFLAGS, quiet=True)
+    plain = integrate.compiled(chunk, f"plain_{p.name}", ("-O2", "-fPIC", "-shared"), quiet=True)
+    default = integrate.compiled(chunk, f"default_{p.name}", quiet=True)
+    fast = integrate.compiled(chunk, f"fast_{p.name}", integrate.FAST_MATH_CFLAGS, quiet=True)
     z_plain = np.array(plain(*args)[0])
     np.testing.assert_array_equal(np.array(default(*args)[0]), z_plain)
     z_fast = np.array(fast(*args)[0])

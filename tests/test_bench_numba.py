@@ -2,7 +2,7 @@
 the same closed loop as wtftc: Cp and the schedule, the right-hand side of each controller
 against the generated one, and a short RK4 run against ``cases.run``.
 
-The case: the paper's case 3 on nrel5mw (fault known to eq 49) with the default fault
+The case: the paper's case 3 on nrel5mw (fault known to eq (49)) with the default fault
 moved to t = 1 s, so that 3 s of simulation cover the lock "wherever the blade is", the
 loss of effectiveness and the accommodation.
 """
@@ -10,12 +10,14 @@ loss of effectiveness and the accommodation.
 import numpy as np
 import pytest
 
-from wtftc import cases
-from wtftc import layout as lay
-from wtftc import simulate as sim
-from wtftc.bench import numba_loop as nl
-from wtftc.cp_table import nrel5mw_cp_table
-from wtftc.faults import DEFAULT_FAULT
+from bench import numba_loop as nl
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.campaign import cases
+from wtftc.model import aero
+from wtftc.model.cp_table import nrel5mw_cp_table
+from wtftc.model.faults import DEFAULT_FAULT
+from wtftc.sim import rhs
 
 T_FINAL = 3.0
 FAULT_AT_1S = [dict(f, onset_s=1.0) for f in DEFAULT_FAULT]
@@ -35,7 +37,7 @@ RTOL_RUN = 1e-9
 @pytest.fixture(scope="module", params=["physical", "paper"])
 def loop(request):
     ctrl = request.param
-    rc = cases.make_config({"case": 3, "controller": ctrl, "t_final_s": T_FINAL,
+    rc = config.make_config({"case": 3, "controller": ctrl, "t_final_s": T_FINAL,
                             "fault": FAULT_AT_1S})
     prep = nl.prepare(ctrl, rc)
     res = cases.run(rc, progress=False, keep_states=True)
@@ -54,13 +56,13 @@ def test_cp_spline_and_schedule_are_casadis():
     beta = np.concatenate([rng.uniform(-0.2, 0.7, 1000),
                            np.tile(table.pitch_rad, table.tsr.size)])
     got = np.array([nl.cp_spline(a, b, kx, ky, coef) for a, b in zip(lam, beta, strict=True)])
-    ref = np.array(sim.cp_interpolant(table)(lam, beta)).ravel()
+    ref = np.array(aero.cp_interpolant(table)(lam, beta)).ravel()
     np.testing.assert_allclose(got, ref, rtol=1e-13, atol=1e-15)
     pt = lay.vector("turbine_params")
     sb, sg = nl.sched_data(table, pt)
     b = np.concatenate([rng.uniform(-0.1, 0.7, 500), sb])
     got = np.array([nl.sched_linear(x, sb, sg) for x in b])
-    ref = np.array(sim.pitch_sensitivity_schedule(table, pt)(b)).ravel()
+    ref = np.array(aero.pitch_sensitivity_schedule(table, pt)(b)).ravel()
     np.testing.assert_allclose(got, ref, rtol=1e-13)
 
 
@@ -81,11 +83,11 @@ def test_rhs_matches_generated(loop):
     its own terms, where a relative error means nothing.
     """
     ctrl, rc, prep, res = loop
-    rhs = sim.rhs_function("nrel5mw", ctrl, "nrel5mw", None, tuple(rc.p_turbine))
+    f = rhs.rhs_function(rc.loop)
     n = prep.z0.size
     # the FDI's states, if this rhs has them, do not act on the rest with use_fdi = 0
-    z_in = cases.trim(rc)[:rhs.size1_in(0)]
-    use_fdi = [0.0] if "use_fdi" in rhs.name_in() else []
+    z_in = rc.initial_state()[:f.size1_in(0)]
+    use_fdi = [0.0] if "use_fdi" in f.name_in() else []
     rng = np.random.default_rng(1)
     worst = 0.0
     for trial in range(100):
@@ -101,7 +103,7 @@ def test_rhs_matches_generated(loop):
             sf[lay.index("sensor_faults", "sensor_gain_2")] = 1.1
         ck = af[:len(lay.names("fault_inputs"))].copy()
         z_in[:n] = z[:n]
-        ref = np.array(rhs(z_in, wind, af, sf, ck, prep.yd, rc.p_turbine, rc.p_ctrl,
+        ref = np.array(f(z_in, wind, af, sf, ck, prep.yd, rc.p_turbine, rc.p_ctrl,
                            *use_fdi)[0]).ravel()[:n]
         got = prep.closed_loop_rhs(z[:n], wind, af, sf, ck)
         assert np.all(np.isfinite(got))

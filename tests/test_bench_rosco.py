@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from wtftc import layout as lay
-from wtftc.bench import rosco_sim
+from bench import rosco_sim
+from wtftc.artefacts import layout as lay
 
 REASON = rosco_sim.available()
 needs_rosco = pytest.mark.skipif(REASON is not None, reason=REASON or "")
@@ -78,7 +78,7 @@ def test_timing_dict_is_finite_and_consistent():
 
 
 def test_missing_rosco_gives_a_reason(monkeypatch):
-    from wtftc import rosco
+    from wtftc.sim import rosco
 
     monkeypatch.setattr(rosco, "available", lambda: "ROSCO is not available (test); install "
                         "it with " + rosco.INSTALL)

@@ -68,7 +68,7 @@ def _bad_wind_file(tmp_path):
 
 
 def _bad_cp_table(tmp_path):
-    from wtftc.cp_table import nrel5mw_cp_table
+    from wtftc.model.cp_table import nrel5mw_cp_table
 
     src = nrel5mw_cp_table().source
     text = open(src).read() if not src.startswith("NREL") else None
@@ -127,10 +127,12 @@ def test_help_explains_the_commands():
 def test_an_internal_error_shows_its_traceback_not_a_user_error(tmp_path, monkeypatch):
     """A bug in wtftc (here a KeyError inside the run) must not print as "wtftc: error: X"
     as if the user had erred: it propagates with its traceback."""
-    from wtftc import cases, cli
+    from wtftc import cli
 
     def broken(*a, **k):
         raise KeyError("an internal key")
+
+    from wtftc.campaign import cases
 
     monkeypatch.setattr(cases, "run", broken)
     with pytest.raises(KeyError, match="an internal key"):

@@ -50,7 +50,7 @@ def test_too_short_a_run_for_the_faults_is_refused(tmp_path):
 def test_pitch_controllers_run_with_the_baseline_torque_law_and_rosco_with_its_own():
     """Every pitch controller competes with the NREL 5-MW baseline torque law; ROSCO
     commands its own torque (its adapter holds it in gen_torque_rated, law 0)."""
-    from wtftc import compare
+    from wtftc.campaign import compare
 
     for name in compare.CONTROLLERS:
         cfg = compare.cell_config(name, "lock", "ntm_B_16", 30.0, 1e-3, 0)

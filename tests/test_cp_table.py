@@ -9,7 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from wtftc.cp_table import (
+from wtftc.errors import ConfigError
+from wtftc.model.cp_table import (
     NREL5MW_SOURCE,
     CpTable,
     aero_torque_raw,
@@ -18,7 +19,6 @@ from wtftc.cp_table import (
     steady_pitch_raw,
     write_cp_table,
 )
-from wtftc.errors import ConfigError
 
 NREL_SHA256 = "a8d9c2d88bd1d9073287256b042d7752d2202a01e611c08e283b9109504caf5b"
 OMEGA_RATED = 1.26711  # Rated rotor speed (rad/s), NREL 5-MW (DESIGN.md)

@@ -4,9 +4,11 @@ differences on its design model, and the measurement behind choosing the other c
 import numpy as np
 import pytest
 
-from wtftc import cases
-from wtftc import layout as lay
-from wtftc.generated import load
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import load
+from wtftc.campaign import cases
+from wtftc.results.metrics import metrics
 
 SCHED = np.array([-9.0e6])  # ∂T/∂β [N m/rad], NREL 5-MW near 12 m/s
 PC = lay.defaults("drivetrain_params")
@@ -95,11 +97,11 @@ def test_computable_alpha_dot_is_full_one_at_the_estimates(state):
 
 
 def _ntm16(controller, **over):
-    rc = cases.make_config({"controller": controller, "t_final_s": 40.0, "output_rate_hz": 100,
+    rc = config.make_config({"controller": controller, "t_final_s": 40.0, "output_rate_hz": 100,
                             "wind": {"kind": "ntm", "mean_mps": 16.0, "turbulence_class": "B"},
                             **over})
     res = cases.run(rc, progress=False)
-    return res, cases.metrics(rc, res)
+    return res, metrics(rc, res)
 
 
 def _band_power(res, lo, hi):

@@ -3,15 +3,17 @@
 import numpy as np
 import pytest
 
-from wtftc import cases
+from wtftc import config
+from wtftc.campaign import cases
+from wtftc.results.metrics import metrics
 
 NTM = {"kind": "ntm", "turbulence_class": "B"}
 
 
 def _run(**over):
-    rc = cases.make_config({"controller": "physical", **over})
+    rc = config.make_config({"controller": "physical", **over})
     res = cases.run(rc, progress=False)
-    return rc, res, cases.metrics(rc, res)
+    return rc, res, metrics(rc, res)
 
 
 @pytest.mark.parametrize("fault", [

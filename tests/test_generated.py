@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from derivation import check_generated, plant
-from wtftc import generated as gen
-from wtftc import verify
+from wtftc.artefacts import loader as gen
+from wtftc.verify import checks as verify
 
 ROOT = Path(__file__).resolve().parent.parent
 

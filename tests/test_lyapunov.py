@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 from scipy.linalg import solve_continuous_lyapunov
 
-from wtftc import layout as lay
-from wtftc import lyapunov, verify
-from wtftc.generated import load
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import load
+from wtftc.verify import checks as verify
+from wtftc.verify import lyapunov
 
 
 @pytest.mark.parametrize("control_sign", [-1.0, 1.0])

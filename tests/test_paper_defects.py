@@ -6,8 +6,8 @@ import sympy as sp
 
 from derivation import backstepping as bs
 from derivation import plant
-from wtftc import layout as lay
-from wtftc.generated import load
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import load
 
 
 def test_pitch_reaches_rotor_speed_only_through_d1():

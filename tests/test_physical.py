@@ -3,9 +3,11 @@
 import numpy as np
 import pytest
 
-from wtftc import cases
-from wtftc import layout as lay
-from wtftc.generated import load
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import load
+from wtftc.campaign import cases
+from wtftc.results.metrics import metrics
 
 SCHED = np.array([-9.0e6])  # ∂T/∂β [N m/rad], NREL 5-MW near 12 m/s
 
@@ -71,11 +73,11 @@ def test_alpha1_dot_against_central_differences():
 
 
 def _run(**over):
-    rc = cases.make_config({"controller": "physical", "t_final_s": 60.0,
+    rc = config.make_config({"controller": "physical", "t_final_s": 60.0,
                             "wind": {"kind": "ntm", "mean_mps": 16.0, "turbulence_class": "B"},
                             **over})
     res = cases.run(rc, progress=False)
-    return rc, res, cases.metrics(rc, res)
+    return rc, res, metrics(rc, res)
 
 
 def test_regulates_and_accommodates_a_known_fault():

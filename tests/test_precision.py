@@ -16,8 +16,8 @@ import reference as R
 import sympy as sp
 
 from derivation import backstepping as bs
-from wtftc.generated import load
-from wtftc.verify import random_inputs, relative_error
+from wtftc.artefacts.loader import load
+from wtftc.verify.checks import random_inputs, relative_error
 
 
 def _alpha_dot_exact(vals):

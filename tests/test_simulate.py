@@ -4,17 +4,19 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from wtftc import cases
-from wtftc import layout as lay
-from wtftc import simulate as sim
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.campaign import cases
+from wtftc.results.metrics import metrics
+from wtftc.sim import integrate
 
 WIND_14 = {"kind": "constant", "speed_mps": 14.0}
 
 
 def _run(**over):
-    rc = cases.make_config({"t_final_s": 30.0, "wind": WIND_14, **over})
+    rc = config.make_config({"t_final_s": 30.0, "wind": WIND_14, **over})
     res = cases.run(rc, progress=False)
-    return rc, res, cases.metrics(rc, res)
+    return rc, res, metrics(rc, res)
 
 
 def test_rk4_converges_with_order_4_against_dop853():
@@ -25,8 +27,8 @@ def test_rk4_converges_with_order_4_against_dop853():
     relay-like limit cycle, docs/cases.md): that vector field is not smooth and no
     fixed-step method shows order 4 there, so the order is measured where it exists.
     """
-    from wtftc.generated import load
-    from wtftc.verify import Signals, initial_state
+    from wtftc.artefacts.loader import load
+    from wtftc.verify.checks import Signals, initial_state
 
     f = load("closed_loop_paper")
     sig = Signals()
@@ -45,7 +47,7 @@ def test_rk4_converges_with_order_4_against_dop853():
     errors = []
     for dt in dts:
         n = int(round(t_end / dt))
-        chunk = sim.rk4_step(f).mapaccum("chunk", n)
+        chunk = integrate.rk4_step(f).mapaccum("chunk", n)
         tk = np.arange(n) * dt
         d3 = np.vstack([sig.d1(tk), sig.d1(tk + dt / 2), sig.d1(tk + dt)])
         z_end = np.array(chunk(z0, d3, *args, dt)[0])[:, -1]
@@ -111,9 +113,9 @@ def test_sign_as_written_feathers_the_blades_and_loses_the_rotor():
 def test_a_real_divergence_stops_with_its_time_cause_and_last_finite_state():
     from conftest import DIVERGING_RUN
 
-    rc = cases.make_config(DIVERGING_RUN)
+    rc = config.make_config(DIVERGING_RUN)
     res = cases.run(rc, progress=False)
-    m = cases.metrics(rc, res)
+    m = metrics(rc, res)
     assert m["diverged"] is not None
     assert 20.0 < m["diverged"]["t_s"] < 40.0
     assert "xhat_4" in m["diverged"]["reason"]
@@ -165,18 +167,18 @@ def test_a_divergence_names_the_states_or_outputs_that_failed():
     zz = np.array([[1.0, 1.0, 1.0, np.nan], [0.1, 0.1, 2e8, np.nan]])
     oo = np.array([[0.0, 0.0, np.nan, np.nan], [0.0, 0.0, np.nan, np.nan],
                    [14.0, 14.0, 14.0, 14.0]])
-    i, rec = sim.divergence(zz, oo, z_prev, names, out_names, k=100, dt=0.01)
+    i, rec = integrate.divergence(zz, oo, z_prev, names, out_names, k=100, dt=0.01)
     assert i == 2 and rec["t_s"] == pytest.approx(1.03)
     assert rec["reason"] == "non-finite or |state| > 1e8 in beta_1; non-finite outputs u0, v_1"
     assert rec["last_finite_state"] == {"omega_r": 1.0, "beta_1": 0.1}
     oo[:, 2] = 0.0
     oo[:2, 1] = np.nan  # outputs fail first, at a finite state
-    i, rec = sim.divergence(zz, oo, z_prev, names, out_names, k=100, dt=0.01)
+    i, rec = integrate.divergence(zz, oo, z_prev, names, out_names, k=100, dt=0.01)
     assert i == 1 and rec["reason"] == "non-finite outputs u0, v_1"
 
 
 def test_too_large_dt_is_refused_with_the_reason():
-    rc = cases.make_config({"dt_s": 0.09, "t_final_s": 1.0, "wind": WIND_14,
+    rc = config.make_config({"dt_s": 0.09, "t_final_s": 1.0, "wind": WIND_14,
                             "controller_params": {"c": [60, 60, 60, 60]}})
     from wtftc.errors import ConfigError
 
@@ -207,7 +209,7 @@ def test_sensor_and_hydraulic_faults_act_from_their_onset():
 def test_another_turbines_cp_table_is_used(tmp_path):
     from dataclasses import replace
 
-    from wtftc.cp_table import nrel5mw_cp_table, write_cp_table
+    from wtftc.model.cp_table import nrel5mw_cp_table, write_cp_table
 
     t = nrel5mw_cp_table()
     path = tmp_path / "Cp_Ct_Cq.scaled.txt"

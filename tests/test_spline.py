@@ -5,16 +5,16 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from wtftc import simulate as sim
-from wtftc import spline
-from wtftc.cp_table import nrel5mw_cp_table
+from wtftc.model import aero, spline
+from wtftc.model.cp_table import nrel5mw_cp_table
+from wtftc.sim import integrate
 
 
 @pytest.fixture(scope="module")
 def cps():
     table = nrel5mw_cp_table()
-    ref = sim.cp_interpolant(table)
-    return table, ref, sim.cp_loop_function(table)
+    ref = aero.cp_interpolant(table)
+    return table, ref, aero.cp_loop_function(table)
 
 
 def test_the_nrel_grid_is_uniform_and_takes_the_fast_path(cps):
@@ -55,7 +55,7 @@ def test_derivatives_and_compiled_code_agree(cps):
     for pt in ([7.3, 0.1], [4.1, 0.02], [11.9, 0.4]):
         np.testing.assert_allclose(np.array(jf(pt)), np.array(jr(pt)), rtol=1e-10, atol=1e-12)
     n = 500
-    comp = sim.compiled(fast.map(n), "test_fast_cp", quiet=True)
+    comp = integrate.compiled(fast.map(n), "test_fast_cp", quiet=True)
     rng = np.random.default_rng(2)
     lam, beta = rng.uniform(2, 14, n), rng.uniform(0, 0.5, n)
     np.testing.assert_array_equal(np.array(comp(lam, beta)), np.array(fast.map(n)(lam, beta)))
@@ -65,12 +65,12 @@ def test_schedule_lookup_is_casadis_linear_interpolant():
     """The loop's pitch-sensitivity schedule (uniform-grid lookup) against CasADi's 'linear'
     interpolant on the same breakpoints, inside, on them and beyond (held): bit-identical
     (the same arithmetic, measured 0)."""
-    from wtftc import layout as lay
+    from wtftc.artefacts import layout as lay
 
     table, pt = nrel5mw_cp_table(), lay.vector("turbine_params")
-    betas, _ = sim.schedule_points(table, pt)
-    fast = sim.sched_loop_function(table, pt)
+    betas, _ = aero.schedule_points(table, pt)
+    fast = aero.sched_loop_function(table, pt)
     assert fast.is_a("MXFunction")
     x = np.concatenate([np.random.default_rng(3).uniform(-0.3, 1.0, 3000), betas])
     np.testing.assert_array_equal(np.array(fast(x)),
-                                  np.array(sim.pitch_sensitivity_schedule(table, pt)(x)))
+                                  np.array(aero.pitch_sensitivity_schedule(table, pt)(x)))

@@ -11,8 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from wtftc import cases, sweep
+from wtftc import config
+from wtftc.campaign import cases, sweep
 from wtftc.errors import ConfigError
+from wtftc.results.metrics import metrics
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE = {"t_final_s": 20.0, "controllers": ["paper"], "wind": {"mean_mps": 16.0},
@@ -90,7 +92,7 @@ def test_runs_follow_from_the_sweep_file_deterministically():
     assert scen == [{k: r[k] for k in scen[0]} for r in one]
     assert all(12 <= r["mean_wind_mps"] <= 20 for r in one)
     # every run's configuration is a valid run configuration, with its id as label
-    rc = cases.make_config(one[0]["config"])
+    rc = config.make_config(one[0]["config"])
     assert rc.label == f"sweep-{one[0]['run_id']}"
 
 
@@ -115,8 +117,8 @@ def test_a_diverging_run_is_recorded_with_time_state_and_cause_and_a_bad_one_as_
     assert d["cause"] and json.loads(d["diverged_state"])
     assert rows["broken"]["status"] == "failed" and "dt_s" in rows["broken"]["cause"]
     # the run that ran beside them is the run alone, bit for bit
-    rc = cases.make_config(ok["config"])
-    alone = cases.metrics(rc, cases.run(rc, progress=False))
+    rc = config.make_config(ok["config"])
+    alone = metrics(rc, cases.run(rc, progress=False))
     assert rows[ok["run_id"]]["rms_speed_error_rad_s"] == alone["rms_speed_error_rad_s"]
 
 
@@ -202,9 +204,9 @@ def test_example_sweep_on_an_existing_scheduler_and_its_summary(tmp_path):
     shown = wtftc("sweep", "--show", r["run_id"], "--out", out)
     assert shown.returncode == 0, shown.stderr
     (tmp_path / "one.toml").write_text(shown.stdout)
-    rc = cases.make_config(cases.load_toml(tmp_path / "one.toml"))
+    rc = config.make_config(config.load_toml(tmp_path / "one.toml"))
     res = cases.run(rc, progress=False)
-    assert cases.metrics(rc, res)["rms_speed_error_rad_s"] == r["rms_speed_error_rad_s"]
+    assert metrics(rc, res)["rms_speed_error_rad_s"] == r["rms_speed_error_rad_s"]
     import pyarrow.parquet as pq
 
     tr = pq.read_table(out / "traces" / f"{r['run_id']}.parquet")
@@ -246,7 +248,7 @@ def test_robustness_campaign_file_is_valid_and_large_enough():
 
 def test_hydraulic_fault_severity_moves_the_actuator_part_of_the_way():
     """severity s: ω_n = ω_n0 + s (ω_n,fault − ω_n0), the same for ζ (docs/running.md)."""
-    from wtftc.faults import HYDRAULIC, Schedule, parse_faults
+    from wtftc.model.faults import HYDRAULIC, Schedule, parse_faults
 
     full = Schedule(parse_faults([{"blade": 3, "type": "air_in_oil", "onset_s": 1.0}]))
     half = Schedule(parse_faults([{"blade": 3, "type": "air_in_oil", "onset_s": 1.0,

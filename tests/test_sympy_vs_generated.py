@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 import reference
 
-from wtftc.generated import layout_json, load
-from wtftc.verify import random_inputs
+from wtftc.artefacts.loader import layout_json, load
+from wtftc.verify.checks import random_inputs
 
 N_POINTS = 200
 FUNCTIONS = sorted(layout_json()["functions"])

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from wtftc import layout as lay
-from wtftc import simulate as sim
-from wtftc.cp_table import nrel5mw_cp_table, steady_pitch_raw
+from wtftc.artefacts import layout as lay
+from wtftc.model import aero
+from wtftc.model.cp_table import nrel5mw_cp_table, steady_pitch_raw
 
 
 @pytest.fixture(scope="module")
@@ -14,7 +14,7 @@ def table():
 
 
 def test_interpolant_passes_through_the_table(table):
-    cp = sim.cp_interpolant(table)
+    cp = aero.cp_interpolant(table)
     rng = np.random.default_rng(0)
     for _ in range(50):
         i, j = rng.integers(len(table.tsr)), rng.integers(len(table.pitch_rad))
@@ -29,7 +29,7 @@ def test_rated_steady_state_matches_the_raw_table(table, wind):
     1e-3 in Cp between 1° grid lines, which moves the root by about 0.1° at 24 m/s)."""
     tp = dict(zip(lay.names("turbine_params"), lay.vector("turbine_params"), strict=True))
     omega, torque = tp["omega_g_rated"], tp["gen_torque_rated"]
-    smooth = sim.steady_pitch(sim.cp_interpolant(table), omega, torque, wind,
+    smooth = aero.steady_pitch(aero.cp_interpolant(table), omega, torque, wind,
                               tp["air_density"], tp["rotor_radius"])
     raw = steady_pitch_raw(table, omega, torque, wind, tp["air_density"], tp["rotor_radius"])
     assert np.degrees(abs(smooth - raw)) < 0.15
@@ -37,7 +37,7 @@ def test_rated_steady_state_matches_the_raw_table(table, wind):
 
 
 def test_interpolant_does_not_extrapolate(table):
-    cp = sim.cp_interpolant(table)
+    cp = aero.cp_interpolant(table)
     edge = float(cp(table.tsr[-1], table.pitch_rad[-1]))
     assert float(cp(table.tsr[-1] + 5, table.pitch_rad[-1] + 0.5)) == pytest.approx(edge)
 
@@ -70,7 +70,7 @@ def _jonkman_torque_hss(w):
 def test_baseline_torque_law_is_jonkmans(w_hss):
     """gen_torque_law = 1 in the generated plant against the DISCON formulas, every region
     and boundary (rounding only: 1e-9 relative); law 0 keeps the rated torque."""
-    from wtftc.generated import load
+    from wtftc.artefacts.loader import load
 
     f = load("turbine_nrel5mw")
     n = 97.0

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from wtftc.errors import ConfigError
-from wtftc.wind import KINDS, Wind, wind_from_config
+from wtftc.model.wind import KINDS, Wind, wind_from_config
 
 IREF = {"A+": 0.18, "A": 0.16, "B": 0.14, "C": 0.12}
 LU = 8.1 * 42.0  # Kaimal length scale L_u [m] for hub height >= 60 m

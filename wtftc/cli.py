@@ -4,7 +4,6 @@
     wtftc run [options]          one run: traces (CSV, Parquet), metrics.json, config.toml
     wtftc verify [--out DIR]     check, compile and verify the generated controller code
     wtftc functions              list the generated functions, their inputs and sizes
-    wtftc bench [--out DIR]      the same closed loop through every method, at equal accuracy
     wtftc sweep SWEEP.toml       a grid or Monte Carlo campaign on Dask, resumable (--summary)
 """
 
@@ -15,8 +14,9 @@ import os
 import sys
 from pathlib import Path
 
+from wtftc import __version__
+from wtftc.artefacts.loader import GeneratedArtefactError
 from wtftc.errors import ConfigError
-from wtftc.generated import GeneratedArtefactError
 
 
 def _nonnegative_int(text: str) -> int:
@@ -39,15 +39,6 @@ def _positive_int(text: str) -> int:
     return val
 
 
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("wtftc")
-    except PackageNotFoundError:
-        return "unknown (not installed)"
-
-
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="wtftc",
@@ -56,8 +47,17 @@ def build_parser() -> argparse.ArgumentParser:
                     "generated with CasADi, verified.",
         epilog="Start with `wtftc cases` (the paper's three cases) or `wtftc run --help`. "
                "Docs: docs/running.md, docs/cases.md, docs/paper-notes.md.")
-    p.add_argument("--version", action="version", version=f"wtftc {_version()}")
+    p.add_argument("--version", action="version", version=f"wtftc {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    _add_verify(sub)
+    _add_run(sub)
+    _add_compare(sub)
+    _add_sweep(sub)
+    _add_cases(sub)
+    return p
+
+
+def _add_verify(sub) -> None:
     v = sub.add_parser(
         "verify", help="check, compile and verify the generated functions; write a summary",
         description="Checks generated/ against its manifest, compiles the C code, compares "
@@ -73,6 +73,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="random seed, an integer >= 0 (default: 0)")
     sub.add_parser("functions", help="list the generated functions with inputs, outputs, size")
 
+
+def _add_run(sub) -> None:
     r = sub.add_parser(
         "run", help="simulate one case: traces, metrics, figures and a config you can re-run",
         description="Simulate one closed-loop run with fixed-step RK4. Options override the "
@@ -91,7 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--case", type=int, choices=(1, 2, 3, 4),
                    help="1 no fault, 2 fault with the controller unaware, 3 fault known to "
                         "eq (49), 4 fault detected by wtftc's FDI")
-    r.add_argument("--plant", help="nrel5mw (default) or paper (eqs 1-4, unloaded)")
+    r.add_argument("--plant", help="nrel5mw (default) or paper (eqs (1)-(4), unloaded)")
     r.add_argument("--controller",
                    help="; ".join(f"{k}: {v['doc']}" for k, v in _controllers().items())
                    + "; rosco: NREL's ROSCO (pip install 'wtftc[rosco]'). Default: paper")
@@ -109,6 +111,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output folder (default: out/run under the current folder)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
 
+
+def _add_compare(sub) -> None:
     k = sub.add_parser(
         "compare", help="controllers × faults × winds on the NREL 5-MW: one table, figures",
         description="Runs every combination of controller (rosco when installed, paper, "
@@ -128,26 +132,8 @@ def build_parser() -> argparse.ArgumentParser:
     k.add_argument("--seed", type=_nonnegative_int, default=0, help="random seed")
     k.add_argument("--quiet", action="store_true", help="no progress lines")
 
-    b = sub.add_parser(
-        "bench", help="time the closed loop through wtftc's paths and the alternatives",
-        description="Runs the paper's case 3 and the physical AFTC's on nrel5mw (NTM class B, "
-                    "16 m/s, 60 s) through wtftc's compiled trajectory, its compiled step from "
-                    "a Python loop, CasADi's virtual machine, a hand-written numba RK4, SymPy "
-                    "lambdify in a Python RK4 loop and SciPy's solve_ivp, each at the step or "
-                    "tolerance that matches a DOP853 reference at rtol 1e-12 (equal accuracy, "
-                    "not equal dt), ROSCO's own rosco.toolbox.sim as a reference when rosco is "
-                    "installed, then batches of runs on 1 and 2 threads and the build times. "
-                    "Writes bench.md and bench.json into --out (docs/performance.md). Needs "
-                    "the source tree (derivation/) for the lambdify baseline and the 'bench' "
-                    "extra (numba, scipy): pip install -e '.[bench]'. Takes about 3-5 "
-                    "minutes.")
-    b.add_argument("--out", type=Path, default=Path("out/bench"),
-                   help="output folder (default: out/bench)")
-    b.add_argument("--loops", nargs="+", metavar="LOOP",
-                   help="subset of loops: paper_case3, physical_case3 (default: both)")
-    b.add_argument("--quick", action="store_true",
-                   help="fewer repeats and shorter horizons for the slow methods (a smoke run)")
 
+def _add_sweep(sub) -> None:
     w = sub.add_parser(
         "sweep", help="a grid or Monte Carlo campaign on Dask, resumable; its summary",
         description="Runs every run of SWEEP.toml (controllers, plants, mean wind, "
@@ -183,6 +169,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "from --out")
     w.add_argument("--quiet", action="store_true", help="no progress lines")
 
+
+def _add_cases(sub) -> None:
     c = sub.add_parser(
         "cases", help="the paper's three cases on both plants, figures and a metrics table",
         description="Runs cases 1-3 on nrel5mw and on the paper's plant (plus case 1 with the "
@@ -193,14 +181,13 @@ def build_parser() -> argparse.ArgumentParser:
     c.add_argument("--t-final", type=float, help="simulated time per run [s] (default 60)")
     c.add_argument("--dt", type=float, help="RK4 step [s] (default 0.001)")
     c.add_argument("--seed", type=_nonnegative_int, help="random seed (default 0)")
-    c.add_argument("--plant", action="append", choices=("nrel5mw", "paper"),
+    c.add_argument("--plant", action="append", choices=tuple(_plants()),
                    help="restrict to one plant (repeatable)")
     c.add_argument("--quiet", action="store_true", help="no progress bar")
-    return p
 
 
 def _run_overrides(args) -> dict:
-    from wtftc.cases import load_toml
+    from wtftc.config import load_toml
 
     cfg = load_toml(args.config) if getattr(args, "config", None) else {}
     simple = {"case": "case", "plant": "plant", "controller": "controller",
@@ -230,18 +217,24 @@ def _run_overrides(args) -> dict:
 
 def _controllers() -> dict:
     """The registered controllers for the help text (external is internal plumbing)."""
-    from wtftc.simulate import controllers
+    from wtftc.sim.rhs import controllers
 
     return {k: v for k, v in controllers().items() if k != "external"}
 
 
-def _sweep(args) -> int:
+def _plants() -> dict:
+    from wtftc.sim.rhs import PLANTS
+
+    return PLANTS
+
+
+def _cmd_sweep(args) -> int:
     try:
         import distributed  # noqa: F401
     except ImportError:
         raise ConfigError("sweep", "Dask distributed", "installed: pip install "
                           "'wtftc[sweep]' (dask and distributed)") from None
-    from wtftc import sweep
+    from wtftc.campaign import sweep
 
     if args.summary is not None:
         print(sweep.summarize(args.summary))
@@ -255,7 +248,7 @@ def _sweep(args) -> int:
     if args.sweep_file is None:
         raise ConfigError("SWEEP.toml", None, "a sweep file to run (or --summary DIR)")
     out = args.out or Path("out/sweep") / args.sweep_file.stem
-    from wtftc.io import ensure_writable_dir
+    from wtftc.results.io import ensure_writable_dir
 
     ensure_writable_dir(out, "--out", create=False)
     try:
@@ -274,6 +267,81 @@ def _sweep(args) -> int:
     return 0 if n == done["runs"] else 1
 
 
+def _cmd_verify(args) -> int:
+    from wtftc.results.io import ensure_writable_dir
+    from wtftc.verify.report import run_verification, to_markdown
+
+    ensure_writable_dir(args.out, "--out")
+    print(f"wtftc verify → {args.out}/")
+    summary = run_verification(args.out, n_points=args.points, seed=args.seed)
+    print()
+    print(to_markdown(summary))
+    print(f"written: {args.out}/summary.json, summary.md, alpha_dot_fd.png")
+    return 0
+
+
+def _cmd_run(args) -> int:
+    from wtftc import config
+    from wtftc.campaign import cases
+    from wtftc.results.io import ensure_writable_dir
+
+    rc = config.make_config(_run_overrides(args))
+    ensure_writable_dir(args.out, "--out", create=False)
+    print(f"{rc.label}: case {rc.case} ({config.CASES[rc.case]}) on {rc.plant}, "
+          f"{rc.t_final:g} s at dt = {rc.dt:g} s")
+    res, table, paths = cases.run_and_write(rc, args.out, progress=not args.quiet)
+    print(table)
+    if res.diverged:
+        print(f"DIVERGED at t = {res.diverged['t_s']:.4f} s: {res.diverged['reason']}")
+    print("written: " + ", ".join(str(p) for p in paths))
+    return 3 if res.diverged else 0
+
+
+def _cmd_cases(args) -> int:
+    from wtftc import config
+    from wtftc.campaign import cases
+    from wtftc.results.io import ensure_writable_dir
+    from wtftc.results.tables import write_table
+
+    over = _run_overrides(args)
+    plants = tuple(args.plant) if args.plant else ("nrel5mw", "paper")
+    config.make_config({**over, "plant": plants[0]})  # validate before any work
+    ensure_writable_dir(args.out, "--out", create=False)
+    rows = cases.run_cases(args.out, plants, over, progress=not args.quiet)
+    print()
+    print(write_table(args.out, rows))
+    print(f"written under {args.out}/: metrics.md, metrics.csv, <plant>/case<N>/, "
+          "<plant>/figures/")
+    return 0
+
+
+def _cmd_compare(args) -> int:
+    from wtftc.campaign import compare
+    from wtftc.results.io import ensure_writable_dir
+
+    ensure_writable_dir(args.out, "--out", create=False)
+    rows = compare.run_compare(args.out, args.controllers, args.faults, args.winds,
+                               t_final=args.t_final, seed=args.seed, progress=not args.quiet)
+    print(compare.write_compare_table(args.out, rows))
+    print(f"written under {args.out}/: compare.md, compare.csv, compare.png, "
+          "<wind>/<fault>/<controller>/{config.toml,metrics.json}")
+    return 0
+
+
+def _cmd_functions(args) -> int:
+    from wtftc.artefacts.loader import layout_json
+
+    for name, f in sorted(layout_json()["functions"].items()):
+        ins = ", ".join(f"{i['name']}[{i['shape'][0]}x{i['shape'][1]}]" for i in f["inputs"])
+        outs = ", ".join(o["name"] for o in f["outputs"])
+        print(f"{name}({ins}) -> ({outs})  {f['operations']} ops")
+    return 0
+
+
+COMMANDS = {"verify": _cmd_verify, "run": _cmd_run, "cases": _cmd_cases,
+            "compare": _cmd_compare, "sweep": _cmd_sweep, "functions": _cmd_functions}
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -281,78 +349,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
-        if args.command == "verify":
-            from wtftc.io import ensure_writable_dir
-            from wtftc.report import run_verification, to_markdown
-
-            ensure_writable_dir(args.out, "--out")
-            print(f"wtftc verify → {args.out}/")
-            summary = run_verification(args.out, n_points=args.points, seed=args.seed)
-            print()
-            print(to_markdown(summary))
-            print(f"written: {args.out}/summary.json, summary.md, alpha_dot_fd.png")
-            return 0
-        if args.command == "run":
-            from wtftc import cases
-            from wtftc.io import ensure_writable_dir
-
-            rc = cases.make_config(_run_overrides(args))
-            ensure_writable_dir(args.out, "--out", create=False)
-            print(f"{rc.label}: case {rc.case} ({cases.CASES[rc.case]}) on {rc.plant}, "
-                  f"{rc.t_final:g} s at dt = {rc.dt:g} s")
-            res = cases.run(rc, progress=not args.quiet)
-            m = cases.metrics(rc, res)
-            paths = cases.write_outputs(args.out, rc, res, m)
-            paths += cases.write_run_figures(args.out, rc, res, m)
-            print(cases.write_table(args.out, [m]))
-            paths += [args.out / "metrics.md", args.out / "metrics.csv"]
-            if res.diverged:
-                print(f"DIVERGED at t = {res.diverged['t_s']:.4f} s: {res.diverged['reason']}")
-            print("written: " + ", ".join(str(p) for p in paths))
-            return 3 if res.diverged else 0
-        if args.command == "cases":
-            from wtftc import cases
-            from wtftc.io import ensure_writable_dir
-
-            over = _run_overrides(args)
-            plants = tuple(args.plant) if args.plant else ("nrel5mw", "paper")
-            cases.make_config({**over, "plant": plants[0]})  # validate before any work
-            ensure_writable_dir(args.out, "--out", create=False)
-            rows = cases.run_cases(args.out, plants, over, progress=not args.quiet)
-            print()
-            print(cases.write_table(args.out, rows))
-            print(f"written under {args.out}/: metrics.md, metrics.csv, <plant>/case<N>/, "
-                  "<plant>/figures/")
-            return 0
-        if args.command == "compare":
-            from wtftc import compare
-            from wtftc.io import ensure_writable_dir
-
-            ensure_writable_dir(args.out, "--out", create=False)
-            rows = compare.run_compare(args.out, args.controllers, args.faults, args.winds,
-                                       t_final=args.t_final, seed=args.seed,
-                                       progress=not args.quiet)
-            print(compare.write_compare_table(args.out, rows))
-            print(f"written under {args.out}/: compare.md, compare.csv, compare.png, "
-                  "<wind>/<fault>/<controller>/{config.toml,metrics.json}")
-            return 0
-        if args.command == "sweep":
-            return _sweep(args)
-        if args.command == "bench":
-            from wtftc.bench import runner
-
-            runner.run(args.out, args.loops, quick=args.quick)
-            print(f"written: {args.out}/bench.md, {args.out}/bench.json")
-            return 0
-        if args.command == "functions":
-            from wtftc.generated import layout_json
-
-            for name, f in sorted(layout_json()["functions"].items()):
-                ins = ", ".join(f"{i['name']}[{i['shape'][0]}x{i['shape'][1]}]"
-                                for i in f["inputs"])
-                outs = ", ".join(o["name"] for o in f["outputs"])
-                print(f"{name}({ins}) -> ({outs})  {f['operations']} ops")
-            return 0
+        return COMMANDS[args.command](args)
     except ConfigError as exc:
         print(f"wtftc: error: {exc}", file=sys.stderr)
         return 2
@@ -362,7 +359,6 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:  # a file that cannot be read or written
         print(f"wtftc: error: {exc}", file=sys.stderr)
         return 2
-    return 2
 
 
 if __name__ == "__main__":

@@ -10,11 +10,7 @@ from functools import cache
 
 import numpy as np
 
-from wtftc.generated import layout_json
-
-GROUPS = ("plant_states", "controller_states", "plant_params", "fault_inputs",
-          "controller_params", "reference", "theta_star", "nrel5mw_states", "turbine_params",
-          "actuator_faults", "sensor_faults")
+from wtftc.artefacts.loader import layout_json
 
 
 @cache
@@ -43,6 +39,35 @@ def index(group: str, name: str) -> int:
         return n.index(name)
     except ValueError:
         raise KeyError(f"{name!r} is not in {group}; allowed: {', '.join(n)}") from None
+
+
+def size(group: str) -> int:
+    """The number of entries of ``group``."""
+    return len(names(group))
+
+
+def n_blades() -> int:
+    return int(layout()["n_blades"])
+
+
+def block(group: str, prefix: str) -> slice:
+    """Where the numbered entries ``<prefix>_1``, ``<prefix>_2``, ... sit in ``group``:
+    ``block("nrel5mw_states", "beta")`` is the three blade pitch angles (not their rates)."""
+    all_names = names(group)
+    at = [k for k, n in enumerate(all_names)
+          if n.rsplit("_", 1)[0] == prefix and n.rsplit("_", 1)[-1].isdigit()]
+    if not at:
+        prefixes = sorted({n.rsplit("_", 1)[0] for n in all_names if n[-1].isdigit()})
+        raise KeyError(f"no numbered entries {prefix}_<n> in {group}; prefixes: "
+                       f"{', '.join(prefixes)}")
+    if at != list(range(at[0], at[-1] + 1)):
+        raise KeyError(f"{prefix}_<n> are not contiguous in {group}")
+    return slice(at[0], at[-1] + 1)
+
+
+def values(group: str, vec) -> dict[str, float]:
+    """``vec`` (a vector of ``group``) by name."""
+    return dict(zip(names(group), (float(x) for x in vec), strict=True))
 
 
 def vector(group: str, values: Mapping[str, float] | None = None) -> np.ndarray:

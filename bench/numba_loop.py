@@ -1,9 +1,10 @@
 """The hand-written numba baseline of ``make bench``: the same RK4 closed loop as wtftc.
 
-What it reproduces: ``wtftc.simulate.rhs_function("nrel5mw", controller, "nrel5mw")`` with
-``use_fdi = 0`` (the FDI states do not act on the plant or the controller then, so they are
-left out), integrated by the fixed-step RK4 of ``wtftc.simulate.rk4_step`` with the
-exogenous inputs fed as ``simulate.run_loop`` feeds its compiled chunks: the wind at t_k,
+What it reproduces: ``wtftc.sim.rhs.rhs_function(loop)`` (nrel5mw, the paper's or the
+physical controller) with ``use_fdi = 0`` (the FDI states do not act on the plant or the
+controller then, so they are left out), integrated by the fixed-step RK4 of
+``wtftc.sim.integrate.rk4_step`` with the exogenous inputs fed as
+``wtftc.sim.integrate.run_loops`` feeds its compiled chunks: the wind at t_k,
 t_k + dt/2, t_k + dt, the faults at t_k held over the step, and a blade locked "wherever
 it is" bound to the blade angle at its onset step.
 
@@ -14,7 +15,7 @@ Written by hand for numba, never by printing SymPy: the plant of derivation/turb
 * ``physical`` (derivation/physical.py): α1, its computable α̇1 in closed form, the
   anti-windup κ and eq (49)-style accommodation;
 * ``paper`` (derivation/backstepping.py, observer.py, fuzzy.py; Bakhshi & Alfi 2020,
-  eqs 21-49): the computable α̇1..α̇3 are Lie derivatives along the controller's own
+  eqs (21)-(49)): the computable α̇1..α̇3 are Lie derivatives along the controller's own
   vector field (ẏ replaced by ẏ̂ = x̂2 + f̂1), evaluated by truncated Taylor series of
   that field's flow (Taylor-mode differentiation): if ż = f(z) then d/dt h(z(t)) = L_f h,
   so α̇1 = [α1]_1, α̇2 = [α2]_1 (which needs [α1]_2) and α̇3 = [α3]_1 (which needs [α2]_2
@@ -32,7 +33,7 @@ wtftc (parameters, the B-spline knots and coefficients as CasADi built them, the
 schedule's breakpoints, the trimmed initial state, the per-step wind and faults) and
 ``run`` integrates in one numba call::
 
-    prep = prepare("paper", cases.make_config({"case": 3, "controller": "paper"}))
+    prep = prepare("paper", config.make_config({"case": 3, "controller": "paper"}))
     t, z = run(prep)          # z[:, 0] is ω_r at the output times t
 """
 
@@ -45,8 +46,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
-from wtftc import layout as lay
-from wtftc import spline
+from wtftc.artefacts import layout as lay
+from wtftc.model import spline
 
 #: numba options: IEEE arithmetic (no fastmath: same rounding rules as the C of CasADi),
 #: and C semantics for a division by zero (no Python exception checks in the hot loop)
@@ -115,7 +116,7 @@ Q_CEN = _family("physical_params", "mf_centre", N_MF)
 N_C_PHYSICAL = len(lay.names("physical_states"))
 assert N_C_PHYSICAL == N_MF
 
-# paper controller parameters (eq 49's ρ̂, σ̂, ū are replaced by the known_fault input)
+# paper controller parameters (eq (49)'s ρ̂, σ̂, ū are replaced by the known_fault input)
 P_K = _family("controller_params", "K_obs", 4)
 P_C = _family("controller_params", "c", 4)
 P_GAM = _family("controller_params", "gamma", 4)
@@ -476,31 +477,20 @@ def _adapt_series(ws, oth, ophi, size, n, chi0, chi1, chi2, gamma, r):
         ws[oth + (n + 1) * size + m] = (gamma * s - r * ws[oth + n * size + m]) * inv
 
 
-@njit(**JIT)
-def _ctrl_paper(z, y, yd, pc, kf, zdot, o, ws):
-    """u0 of eq (49) and ẋ_ctrl = [x̂̇ (21), θ̂̇_1..4] (into zdot[o + N_P:]); returns u0.
-
-    Taylor coefficients [q]_n of every quantity along the flow of the controller's own
-    vector field (y with rate ẏ̂ = x̂2 + f̂1, y_d with its derivatives), built order by order
-    in the order the backstepping needs them.
-    """
-    K1, K2, K3, K4 = pc[P_K], pc[P_K + 1], pc[P_K + 2], pc[P_K + 3]
-    c1, c2, c3, c4 = pc[P_C], pc[P_C + 1], pc[P_C + 2], pc[P_C + 3]
-    g1, g2, g3, g4 = pc[P_GAM], pc[P_GAM + 1], pc[P_GAM + 2], pc[P_GAM + 3]
-    r1, r2, r3, r4 = pc[P_R], pc[P_R + 1], pc[P_R + 2], pc[P_R + 3]
-    tau = pc[P_TAU]
-    width = pc[P_W]
+@njit(**INLINE)
+def _series_order0(z, pc, ws):
+    """Order 0: θ̂_1..3 into the workspace, the memberships of x̂1..x̂4 (with their
+    z-derivatives as far as each input needs) and φ_1..4; returns f̂_1..4 = θ̂ᵀφ (eq (21))."""
     for m in range(N):
         ws[W_TH1 + m] = z[Z_TH1 + m]
     for m in range(N2):
         ws[W_TH2 + m] = z[Z_TH2 + m]
     for m in range(N3):
         ws[W_TH3 + m] = z[Z_TH3 + m]
-    # --- order 0: memberships (and their z-derivatives, as far as each input needs)
     for k in range(4):
         ws[W_X + 4 * k] = z[Z_XHAT + k]
         zk = (z[Z_XHAT + k] - pc[P_OFF + k]) / pc[P_SC + k]
-        _nu_derivatives(zk, pc, P_CEN, width, 3 - k, ws, W_NUD + 4 * N * k)
+        _nu_derivatives(zk, pc, P_CEN, pc[P_W], 3 - k, ws, W_NUD + 4 * N * k)
         for j in range(N):
             ws[W_G + 4 * N * k + j] = ws[W_NUD + 4 * N * k + j]
     G0, G1, G2, G3 = W_G, W_G + 4 * N, W_G + 8 * N, W_G + 12 * N  # input k, order 0
@@ -512,12 +502,108 @@ def _ctrl_paper(z, y, yd, pc, kf, zdot, o, ws):
         p3 = ws[W_PHI3 + a]
         for b in range(N):
             ws[W_PHI4 + a * N + b] = p3 * ws[G3 + b]
-    F1_0 = _series_dot(ws, W_TH1, W_PHI1, N, 0)
-    F2_0 = _series_dot(ws, W_TH2, W_PHI2, N2, 0)
-    F3_0 = _series_dot(ws, W_TH3, W_PHI3, N3, 0)
     F4_0 = 0.0
     for m in range(N4):
         F4_0 += z[Z_TH4 + m] * ws[W_PHI4 + m]
+    return (_series_dot(ws, W_TH1, W_PHI1, N, 0), _series_dot(ws, W_TH2, W_PHI2, N2, 0),
+            _series_dot(ws, W_TH3, W_PHI3, N3, 0), F4_0)
+
+
+@njit(**INLINE)
+def _series_order1(ws, pc, X01, X11, X21):
+    """Order 1 of the memberships of x̂1..x̂3 (rates X_k1) and of φ_1..3."""
+    for k, xk1 in ((0, X01), (1, X11), (2, X21)):
+        zk1 = xk1 / pc[P_SC + k]
+        ko = 4 * N * k
+        for j in range(N):
+            ws[W_G + ko + N + j] = ws[W_NUD + ko + N + j] * zk1
+    G0, G1, G2 = W_G, W_G + 4 * N, W_G + 8 * N      # input k, order 0
+    H0, H1, H2 = W_G + N, W_G + 5 * N, W_G + 9 * N  # input k, order 1
+    for j in range(N):
+        ws[W_PHI1 + N + j] = ws[H0 + j]
+    _kron2(ws, H0, G1, W_PHI2 + N2, False)
+    _kron2(ws, G0, H1, W_PHI2 + N2, True)
+    _kron3(ws, H0, G1, G2, W_PHI3 + N3, False)
+    _kron3(ws, G0, H1, G2, W_PHI3 + N3, True)
+    _kron3(ws, G0, G1, H2, W_PHI3 + N3, True)
+
+
+@njit(**INLINE)
+def _series_order2(ws, pc, X01, X02, X11, X12):
+    """Order 2 of the memberships of x̂1, x̂2 and of φ_1, φ_2."""
+    for k, xk1, xk2 in ((0, X01, X02), (1, X11, X12)):
+        zk1 = xk1 / pc[P_SC + k]
+        zk2 = xk2 / pc[P_SC + k]
+        ko = 4 * N * k
+        for j in range(N):
+            ws[W_G + ko + 2 * N + j] = (ws[W_NUD + ko + N + j] * zk2
+                                        + 0.5 * ws[W_NUD + ko + 2 * N + j] * zk1 * zk1)
+    G0, G1 = W_G, W_G + 4 * N                       # input k, order 0
+    H0, H1 = W_G + N, W_G + 5 * N                   # input k, order 1
+    I0, I1 = W_G + 2 * N, W_G + 6 * N               # input k, order 2
+    for j in range(N):
+        ws[W_PHI1 + 2 * N + j] = ws[I0 + j]
+    _kron2(ws, I0, G1, W_PHI2 + 2 * N2, False)
+    _kron2(ws, H0, H1, W_PHI2 + 2 * N2, True)
+    _kron2(ws, G0, I1, W_PHI2 + 2 * N2, True)
+
+
+@njit(**INLINE)
+def _series_order3(ws, pc, X01, X02, X03):
+    """Order 3 of φ_1 (only what α1 needs)."""
+    s0 = pc[P_SC]
+    z1, z2, z3 = X01 / s0, X02 / s0, X03 / s0
+    for j in range(N):
+        ws[W_PHI1 + 3 * N + j] = (ws[W_NUD + N + j] * z3 + ws[W_NUD + 2 * N + j] * z1 * z2
+                                  + ws[W_NUD + 3 * N + j] * z1 * z1 * z1 / 6.0)
+
+
+@njit(**INLINE)
+def _eq49_terms(pc, kf):
+    """Σ σ_j θ_j ū_j and Σ (1 - σ_j) ρ_j θ_j b_j of eq (49) with the fault it is told;
+    θ_j = 1/(3 τ_b) of θᵀu (eq (14))."""
+    theta_act = 1.0 / (3.0 * pc[P_TAUB])
+    lock_sum = 0.0
+    gain = 0.0
+    for j in range(3):
+        lock_sum += kf[K_LOCK + j] * theta_act * kf[K_UBAR + j]
+        gain += (1.0 - kf[K_LOCK + j]) * kf[K_RHO + j] * theta_act * pc[P_B + j]
+    return lock_sum, gain
+
+
+@njit(**INLINE)
+def _write_ctrl_rates(z, zdot, o, ws, pc, X01, X11, X21, x4_dot, chi4_0):
+    """ẋ_ctrl = [x̂̇ (21), θ̂̇_1..4] into zdot[o + N_P:]."""
+    g4, r4 = pc[P_GAM + 3], pc[P_R + 3]
+    zdot[o + Z_XHAT] = X01
+    zdot[o + Z_XHAT + 1] = X11
+    zdot[o + Z_XHAT + 2] = X21
+    zdot[o + Z_XHAT + 3] = x4_dot
+    for m in range(N):
+        zdot[o + Z_TH1 + m] = ws[W_TH1 + N + m]
+    for m in range(N2):
+        zdot[o + Z_TH2 + m] = ws[W_TH2 + N2 + m]
+    for m in range(N3):
+        zdot[o + Z_TH3 + m] = ws[W_TH3 + N3 + m]
+    for m in range(N4):
+        zdot[o + Z_TH4 + m] = g4 * chi4_0 * ws[W_PHI4 + m] - r4 * z[Z_TH4 + m]
+
+
+@njit(**JIT)
+def _ctrl_paper(z, y, yd, pc, kf, zdot, o, ws):
+    """u0 of eq (49) and ẋ_ctrl = [x̂̇ (21), θ̂̇_1..4] (into zdot[o + N_P:]); returns u0.
+
+    Taylor coefficients [q]_n of every quantity along the flow of the controller's own
+    vector field (y with rate ẏ̂ = x̂2 + f̂1, y_d with its derivatives), built order by order
+    in the order the backstepping needs them.
+    """
+    K1, K2, K3 = pc[P_K], pc[P_K + 1], pc[P_K + 2]
+    c1, c2 = pc[P_C], pc[P_C + 1]
+    g1, g2, g3 = pc[P_GAM], pc[P_GAM + 1], pc[P_GAM + 2]
+    r1, r2, r3 = pc[P_R], pc[P_R + 1], pc[P_R + 2]
+    tau = pc[P_TAU]
+    # --- order 0: memberships (and their z-derivatives, as far as each input needs)
+    F1_0, F2_0, F3_0, F4_0 = _series_order0(z, pc, ws)
     x1, x2, x3, x4 = z[Z_XHAT], z[Z_XHAT + 1], z[Z_XHAT + 2], z[Z_XHAT + 3]
     e1_0 = y - x1                                   # e1 = y - x̂1
     chi1_0 = y - yd[0]                              # (26)
@@ -530,48 +616,40 @@ def _ctrl_paper(z, y, yd, pc, kf, zdot, o, ws):
     X21 = -K3 * x1 + x4 + K3 * y + F3_0
     _adapt_series(ws, W_TH1, W_PHI1, N, 0, chi1_0, 0.0, 0.0, g1, r1)
     _adapt_series(ws, W_TH2, W_PHI2, N2, 0, chi2_0, 0.0, 0.0, g2, r2)
-    for k, xk1 in ((0, X01), (1, X11), (2, X21)):
-        zk1 = xk1 / pc[P_SC + k]
-        ko = 4 * N * k
-        for j in range(N):
-            ws[W_G + ko + N + j] = ws[W_NUD + ko + N + j] * zk1
-    H0, H1, H2 = W_G + N, W_G + 5 * N, W_G + 9 * N  # input k, order 1
-    for j in range(N):
-        ws[W_PHI1 + N + j] = ws[H0 + j]
-    _kron2(ws, H0, G1, W_PHI2 + N2, False)
-    _kron2(ws, G0, H1, W_PHI2 + N2, True)
-    _kron3(ws, H0, G1, G2, W_PHI3 + N3, False)
-    _kron3(ws, G0, H1, G2, W_PHI3 + N3, True)
-    _kron3(ws, G0, G1, H2, W_PHI3 + N3, True)
+    _series_order1(ws, pc, X01, X11, X21)
     F1_1 = _series_dot(ws, W_TH1, W_PHI1, N, 1)
     F2_1 = _series_dot(ws, W_TH2, W_PHI2, N2, 1)
     chi1_1 = Y1 - yd[1]
     a1_1 = -c1 * chi1_1 - 2.0 * chi1_1 - F1_1       # α̇1 (computable) = [α1]_1
     e1_1 = Y1 - X01
     a2_0 = -c2 * chi2_0 - chi1_0 + a1_1 - F2_0 - K2 * e1_0 - tau * chi2_0  # (37)
-    chi3_0 = x3 - a2_0 - yd[2]
+    chi3_0 = x3 - a2_0 - yd[2]                      # (36)
     _adapt_series(ws, W_TH3, W_PHI3, N3, 0, chi3_0, 0.0, 0.0, g3, r3)
     F3_1 = _series_dot(ws, W_TH3, W_PHI3, N3, 1)
     chi2_1 = X11 - a1_1 - yd[2]
+    first = (X01, X11, X21, Y1, F1_1, F2_1, F3_0, F3_1, F4_0, chi1_0, chi1_1, chi2_0,
+             chi2_1, chi3_0, e1_0, e1_1)
+    return _ctrl_paper_orders23(z, y, yd, pc, kf, zdot, o, ws, first)
+
+
+@njit(**INLINE)
+def _ctrl_paper_orders23(z, y, yd, pc, kf, zdot, o, ws, first):
+    """Orders 2 and 3 of the series, α̇2 and α̇3 (computable), u0 of eq (49) and the
+    controller's rates, from the order-0/1 quantities ``first`` of :func:`_ctrl_paper`."""
+    (X01, X11, X21, Y1, F1_1, F2_1, F3_0, F3_1, F4_0, chi1_0, chi1_1, chi2_0, chi2_1, chi3_0,
+     e1_0, e1_1) = first
+    K1, K2, K3, K4 = pc[P_K], pc[P_K + 1], pc[P_K + 2], pc[P_K + 3]
+    c1, c2, c3, c4 = pc[P_C], pc[P_C + 1], pc[P_C + 2], pc[P_C + 3]
+    g1, g2, r1, r2 = pc[P_GAM], pc[P_GAM + 1], pc[P_R], pc[P_R + 1]
+    tau = pc[P_TAU]
+    x1, x4 = z[Z_XHAT], z[Z_XHAT + 3]
     # --- order 2
     Y2 = (X11 + F1_1) / 2.0
     X02 = (-K1 * X01 + X11 + K1 * Y1 + F1_1) / 2.0
     X12 = (-K2 * X01 + X21 + K2 * Y1 + F2_1) / 2.0
     _adapt_series(ws, W_TH1, W_PHI1, N, 1, chi1_0, chi1_1, 0.0, g1, r1)
     _adapt_series(ws, W_TH2, W_PHI2, N2, 1, chi2_0, chi2_1, 0.0, g2, r2)
-    for k, xk1, xk2 in ((0, X01, X02), (1, X11, X12)):
-        zk1 = xk1 / pc[P_SC + k]
-        zk2 = xk2 / pc[P_SC + k]
-        ko = 4 * N * k
-        for j in range(N):
-            ws[W_G + ko + 2 * N + j] = (ws[W_NUD + ko + N + j] * zk2
-                                        + 0.5 * ws[W_NUD + ko + 2 * N + j] * zk1 * zk1)
-    I0, I1 = W_G + 2 * N, W_G + 6 * N               # input k, order 2
-    for j in range(N):
-        ws[W_PHI1 + 2 * N + j] = ws[I0 + j]
-    _kron2(ws, I0, G1, W_PHI2 + 2 * N2, False)
-    _kron2(ws, H0, H1, W_PHI2 + 2 * N2, True)
-    _kron2(ws, G0, I1, W_PHI2 + 2 * N2, True)
+    _series_order2(ws, pc, X01, X02, X11, X12)
     F1_2 = _series_dot(ws, W_TH1, W_PHI1, N, 2)
     F2_2 = _series_dot(ws, W_TH2, W_PHI2, N2, 2)
     chi1_2 = Y2 - yd[2] / 2.0
@@ -587,38 +665,19 @@ def _ctrl_paper(z, y, yd, pc, kf, zdot, o, ws):
     Y3 = (X12 + F1_2) / 3.0
     X03 = (-K1 * X02 + X12 + K1 * Y2 + F1_2) / 3.0
     _adapt_series(ws, W_TH1, W_PHI1, N, 2, chi1_0, chi1_1, chi1_2, g1, r1)
-    s0 = pc[P_SC]
-    z1, z2, z3 = X01 / s0, X02 / s0, X03 / s0
-    for j in range(N):
-        ws[W_PHI1 + 3 * N + j] = (ws[W_NUD + N + j] * z3 + ws[W_NUD + 2 * N + j] * z1 * z2
-                                  + ws[W_NUD + 3 * N + j] * z1 * z1 * z1 / 6.0)
+    _series_order3(ws, pc, X01, X02, X03)
     F1_3 = _series_dot(ws, W_TH1, W_PHI1, N, 3)
     chi1_3 = Y3 - yd[3] / 6.0
     a1_3 = -c1 * chi1_3 - 2.0 * chi1_3 - F1_3
     a2_2 = -c2 * chi2_2 - chi1_2 + 3.0 * a1_3 - F2_2 - K2 * e1_2 - tau * chi2_2
     a3_1 = (-c3 * chi3_1 - chi2_1 + 2.0 * a2_2 - K3 * e1_1 - F3_1
             - tau * chi3_1)                         # α̇3 (computable) = [α3]_1
-    # --- eq (49): u0 with the fault eq (49) is told; θ_j = 1/(3 τ_b) of θᵀu (eq 14)
-    theta_act = 1.0 / (3.0 * pc[P_TAUB])
-    lock_sum = 0.0
-    gain = 0.0
-    for j in range(3):
-        lock_sum += kf[K_LOCK + j] * theta_act * kf[K_UBAR + j]
-        gain += (1.0 - kf[K_LOCK + j]) * kf[K_RHO + j] * theta_act * pc[P_B + j]
+    # --- eq (49): u0 with the fault eq (49) is told
+    lock_sum, gain = _eq49_terms(pc, kf)
     u0 = (-chi3_0 - c4 * chi4_0 - K4 * e1_0 - F4_0 + a3_1 + yd[4] - tau * chi4_0
           - lock_sum) / gain
-    zdot[o + Z_XHAT] = X01
-    zdot[o + Z_XHAT + 1] = X11
-    zdot[o + Z_XHAT + 2] = X21
-    zdot[o + Z_XHAT + 3] = -K4 * x1 + K4 * y + F4_0 + (lock_sum + gain * u0)
-    for m in range(N):
-        zdot[o + Z_TH1 + m] = ws[W_TH1 + N + m]
-    for m in range(N2):
-        zdot[o + Z_TH2 + m] = ws[W_TH2 + N2 + m]
-    for m in range(N3):
-        zdot[o + Z_TH3 + m] = ws[W_TH3 + N3 + m]
-    for m in range(N4):
-        zdot[o + Z_TH4 + m] = g4 * chi4_0 * ws[W_PHI4 + m] - r4 * z[Z_TH4 + m]
+    _write_ctrl_rates(z, zdot, o, ws, pc, X01, X11, X21,
+                      -K4 * x1 + K4 * y + F4_0 + (lock_sum + gain * u0), chi4_0)
     return u0
 
 
@@ -741,7 +800,7 @@ class Prepared:
     """Everything ``simulate_<controller>`` needs, extracted from wtftc (float64 arrays)."""
 
     controller: str
-    config: object          # the cases.RunConfig it came from
+    config: object          # the config.RunConfig it came from
     z0: np.ndarray          # plant + controller states (the FDI's left out)
     yd: np.ndarray
     p_turbine: np.ndarray
@@ -800,7 +859,7 @@ class Prepared:
 def cp_spline_data(table) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(knots λ, knots β, coefficients) of wtftc.simulate.cp_interpolant(table): the
     coefficients CasADi solved for when it built the interpolant, to the last bit."""
-    from wtftc.simulate import cp_interpolant
+    from wtftc.model.aero import cp_interpolant
 
     return spline.spline_data(cp_interpolant(table), table.tsr, table.pitch_rad)
 
@@ -808,7 +867,7 @@ def cp_spline_data(table) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def sched_data(table, p_turbine: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Breakpoints (pitch [rad], ∂T/∂β [N m/rad]) of wtftc's pitch-sensitivity schedule,
     read from CasADi's code for it (computed once by wtftc)."""
-    from wtftc.simulate import pitch_sensitivity_schedule
+    from wtftc.model.aero import pitch_sensitivity_schedule
 
     code, arr = spline.c_constants(pitch_sensitivity_schedule(table, p_turbine))
     m = re.search(r"casadi_interpn\(\s*[^,]+,\s*1\s*,\s*(casadi_c\d+)\s*,\s*casadi_s\d+\s*,"
@@ -825,7 +884,7 @@ def step_inputs(rc, dt: float, n_steps: int) -> StepInputs:
     """The wind at t_k, t_k + dt/2, t_k + dt and the fault rows at t_k of
     wtftc.simulate.run_loop (the plant's schedule; eq (49)'s in case 3, nominal otherwise),
     with a lock "wherever the blade is" left NaN for the loop to bind at its onset step."""
-    from wtftc.faults import Schedule
+    from wtftc.model.faults import Schedule
 
     tk = np.arange(n_steps) * dt
     wind3 = np.column_stack([rc.wind(tk), rc.wind(tk + dt / 2), rc.wind(tk + dt)])
@@ -851,11 +910,10 @@ def step_inputs(rc, dt: float, n_steps: int) -> StepInputs:
 
 def prepare(controller: str, config) -> Prepared:
     """Everything ``simulate_<controller>`` needs for runs of a wtftc configuration (a
-    ``cases.RunConfig`` or a dict for ``cases.make_config``), computed by wtftc itself."""
-    from wtftc import cases
-    from wtftc.cp_table import nrel5mw_cp_table
+    ``config.RunConfig`` or a dict for ``config.make_config``), computed by wtftc itself."""
+    from wtftc.config import RunConfig, make_config
 
-    rc = config if isinstance(config, cases.RunConfig) else cases.make_config(
+    rc = config if isinstance(config, RunConfig) else make_config(
         {**config, "controller": controller})
     if rc.controller != controller:
         raise ValueError(f"config is for controller {rc.controller!r}, not {controller!r}")
@@ -865,9 +923,9 @@ def prepare(controller: str, config) -> Prepared:
         raise ValueError(f"plant {rc.plant!r}: written for nrel5mw")
     if rc.case == 4:
         raise ValueError("case 4 needs the FDI, which this baseline leaves out")
-    table = rc.table or nrel5mw_cp_table()
+    table = rc.table
     n_c = N_C_PHYSICAL if controller == "physical" else N_C_PAPER
-    z0 = cases.trim(rc)[:N_P + n_c]
+    z0 = rc.initial_state()[:N_P + n_c]
     yd = np.zeros(len(lay.names("reference")))
     yd[0] = rc.reference
     kx, ky, coef = cp_spline_data(table)

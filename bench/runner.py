@@ -1,4 +1,4 @@
-"""`wtftc bench`: one closed loop through every method, at equal accuracy, in one process.
+"""`make bench`: one closed loop through every method, at equal accuracy, in one process.
 
 Protocol (docs/performance.md):
 
@@ -32,18 +32,20 @@ import os
 import platform
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-from wtftc import simulate as sim
-from wtftc.bench import require_source_tree
-from wtftc.bench.problem import LOOPS, T_FINAL_S, Problem
+from bench import require_source_tree
+from bench.problem import LOOPS, T_FINAL_S, Problem
+from wtftc import config
+from wtftc.artefacts.loader import layout_json, manifest
+from wtftc.campaign import cases
 from wtftc.errors import ConfigError
-from wtftc.faults import Schedule
-from wtftc.generated import layout_json, manifest
+from wtftc.model.faults import Schedule
+from wtftc.sim import integrate
 
 TARGET = 1e-6
 DT_LADDER = (1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1e-4)
@@ -221,13 +223,14 @@ def solve(p: Problem, method: str, rtol: float, t_final: float,
 
 
 def rk4_default(p: Problem, dt: float, t_final: float, fast_math: bool = False,
-                ) -> sim.Result:
-    """wtftc's default path: the compiled whole-trajectory chunks (simulate.run_loop)."""
+                ) -> integrate.Result:
+    """wtftc's default path: the compiled whole-trajectory chunks (sim.integrate.run_loops)."""
     rc = p.config
-    return sim.run_loop(rc.plant, rc.controller, p.z0, rc.wind, Schedule(list(rc.faults)),
-                        Schedule(list(rc.faults)), p.yd, rc.p_turbine, rc.p_ctrl, t_final, dt,
-                        rc.table, rc.table_key, decimate=int(round(OUT_DT / dt)),
-                        progress=False, fdi=False, fast_math=fast_math)
+    run = integrate.Run(p.z0, rc.wind, Schedule(list(rc.faults)), Schedule(list(rc.faults)),
+                        p.yd, rc.p_ctrl)
+    return integrate.run_loops(replace(rc.loop, fdi=False), [run], t_final, dt,
+                               decimate=int(round(OUT_DT / dt)), progress=False,
+                               fast_math=fast_math)[0]
 
 
 def step_inputs(p: Problem, dt: float, n: int):
@@ -245,7 +248,7 @@ def rk4_python_loop(p: Problem, f, dt: float, t_final: float) -> np.ndarray:
     every = int(round(OUT_DT / dt))
     w3, af, sf, ck = step_inputs(p, dt, n)
     rc = p.config
-    call = sim.Buffered(f)
+    call = integrate.Buffered(f)
     z = p.z0.copy()
     out = []
     for k in range(n):
@@ -278,13 +281,35 @@ def _timing(method, step, horizon, steps, walls, ops, peak, warm, err, diff, not
 
 
 def bench_loop(name: str, quick: bool = False, cache: Path | None = None) -> LoopReport:
+    """One loop through every method, each at the step or tolerance of equal accuracy."""
     controller, plant = LOOPS[name]
     p = Problem(name, controller, plant)
     log(f"{name}: {controller} controller on {plant}, case 3, NTM B 16 m/s, 60 s")
     ref, ref_info = reference(p, cache)
     t_acc = ref_info["t_reached_s"]
+    target, reached, dt_star, rk4_err = _equal_accuracy_step(p, ref)
+    adaptive_err, rtol_star = _equal_accuracy_rtol(p, ref, target, t_acc)
+    report = LoopReport(name, controller, plant, target, reached, dt_star, rtol_star, rk4_err,
+                        adaptive_err, ref_info["wall_s"], int(ref_info["nfev"]), t_acc)
+    reps = 2 if quick else 5
+    timings, base = _wtftc_timings(p, name, dt_star, reps, ref, quick)
+    report.timings.extend(timings)
+    # numba: the hand-written loop
+    report.timings.extend(_numba(p, name, dt_star, reps, base, ref))
+    # what a user would write: lambdify, in a Python RK4 loop and under solve_ivp
+    report.timings.extend(_lambdify(p, dt_star, rtol_star, quick, base, ref, count_ops(p.rhs)))
+    # ROSCO's own simple simulator on the same wind, as the point of reference users know
+    report.timings.extend(_rosco_sim(p, reps))
+    for t in report.timings:
+        t.ratio_to_default = (t.ns_per_step * t.steps_per_s) / (
+            report.timings[0].ns_per_step * report.timings[0].steps_per_s)
+    report.batches, report.batch_max_diff = bench_batches(name, quick)
+    return report
 
-    # 1. the step at equal accuracy (RK4), on wtftc's default path
+
+def _equal_accuracy_step(p: Problem, ref: np.ndarray) -> tuple[float, bool, float, dict]:
+    """The largest RK4 step on the ladder that meets the target error on wtftc's default
+    path: (target, whether the target was reached, the step, the error at each step)."""
     rk4_err = {}
     dt_star = None
     for dt in DT_LADDER:
@@ -301,8 +326,12 @@ def bench_loop(name: str, quick: bool = False, cache: Path | None = None) -> Loo
         # amplifies rounding): the target becomes the error at the default dt, and the step
         # the largest one on the ladder that meets it
         dt_star = max(float(k) for k, e in rk4_err.items() if e <= target)
+    return target, reached, dt_star, rk4_err
 
-    # 2. the adaptive solvers' rtol at that accuracy (on the compiled rhs)
+
+def _equal_accuracy_rtol(p: Problem, ref: np.ndarray, target: float,
+                         t_acc: float) -> tuple[dict, dict]:
+    """The adaptive solvers' rtol at the target accuracy (on the compiled rhs)."""
     adaptive_err: dict[str, dict[str, float]] = {}
     rtol_star: dict[str, float] = {}
     for method in ("RK45", "DOP853"):
@@ -323,73 +352,46 @@ def bench_loop(name: str, quick: bool = False, cache: Path | None = None) -> Loo
                 break
         else:
             rtol_star[method] = RTOL_LADDER[-1]
+    return adaptive_err, rtol_star
 
-    report = LoopReport(name, controller, plant, target, reached, dt_star, rtol_star, rk4_err,
-                        adaptive_err, ref_info["wall_s"], int(ref_info["nfev"]), t_acc)
-    reps = 2 if quick else 5
-    step_fn = sim.rk4_step(p.rhs)
+
+def _wtftc_timings(p: Problem, name: str, dt_star: float, reps: int, ref: np.ndarray,
+                   quick: bool) -> tuple[list[Timing], np.ndarray]:
+    """wtftc's own paths: the compiled trajectory (default and -ffast-math), the compiled
+    step from a Python loop, CasADi's virtual machine; and the default's ω_r."""
+    step_fn = integrate.rk4_step(p.rhs)
     ops = count_ops(step_fn.expand())
-    rhs_ops = count_ops(p.rhs)
-
-    # wtftc default: compiled chunks over the whole trajectory
+    out = []
     with PeakMemory() as pm:
         walls, res, warm = _timed(lambda: rk4_default(p, dt_star, p.t_final), reps)
     base = res.column("omega_r")
     n = int(round(p.t_final / dt_star))
-    report.timings.append(_timing("wtftc: compiled trajectory (default)", f"dt = {dt_star:g}",
-                                  p.t_final, n, walls, ops, pm.mb, warm,
-                                  rel_error(base, ref), 0.0))
-
+    out.append(_timing("wtftc: compiled trajectory (default)", f"dt = {dt_star:g}",
+                       p.t_final, n, walls, ops, pm.mb, warm, rel_error(base, ref), 0.0))
     # the same, compiled with -ffast-math (opt-in: not bit-identical)
     with PeakMemory() as pm:
         walls, res_fm, warm = _timed(lambda: rk4_default(p, dt_star, p.t_final, True), reps)
     om = res_fm.column("omega_r")
-    report.timings.append(_timing("wtftc: compiled trajectory, -ffast-math (opt-in)",
-                                  f"dt = {dt_star:g}", p.t_final, n, walls, ops, pm.mb, warm,
-                                  rel_error(om, ref), rel_error(om, base)))
-
-    def vs_default(om):
-        return rel_error(om, base[:len(om)])
-
-    def vs_ref(om):
-        return rel_error(om, ref[:len(om)])
-
-    # wtftc's compiled step from a Python loop
-    h = 2.0 if quick else 5.0
-    f_step = sim.compiled(step_fn, f"bench_step_{name}", quiet=True)
-    with PeakMemory() as pm:
-        walls, om, warm = _timed(lambda: rk4_python_loop(p, f_step, dt_star, h), reps)
-    report.timings.append(_timing("wtftc: compiled step, Python loop", f"dt = {dt_star:g}", h,
-                                  int(round(h / dt_star)), walls, ops, pm.mb, warm, vs_ref(om),
-                                  vs_default(om)))
-
-    # CasADi's SX virtual machine: the same step, not compiled
-    h = 0.2 if quick else 1.0
-    vm = step_fn.expand()
-    with PeakMemory() as pm:
-        walls, om, warm = _timed(lambda: rk4_python_loop(p, vm, dt_star, h), max(2, reps // 2))
-    report.timings.append(_timing("CasADi SX virtual machine (no compiler)",
-                                  f"dt = {dt_star:g}", h, int(round(h / dt_star)), walls, ops,
-                                  pm.mb, warm, vs_ref(om), vs_default(om)))
-
-    # numba: the hand-written loop
-    report.timings.extend(_numba(p, name, dt_star, reps, base, ref))
-
-    # what a user would write: lambdify, in a Python RK4 loop and under solve_ivp
-    report.timings.extend(_lambdify(p, dt_star, rtol_star, quick, base, ref, rhs_ops))
-
-    # ROSCO's own simple simulator on the same wind, as the point of reference users know
-    report.timings.extend(_rosco_sim(p, reps))
-    for t in report.timings:
-        t.ratio_to_default = (t.ns_per_step * t.steps_per_s) / (
-            report.timings[0].ns_per_step * report.timings[0].steps_per_s)
-    report.batches, report.batch_max_diff = bench_batches(name, quick)
-    return report
+    out.append(_timing("wtftc: compiled trajectory, -ffast-math (opt-in)",
+                       f"dt = {dt_star:g}", p.t_final, n, walls, ops, pm.mb, warm,
+                       rel_error(om, ref), rel_error(om, base)))
+    # the compiled step from a Python loop, and CasADi's SX virtual machine (not compiled)
+    paths = [("wtftc: compiled step, Python loop", 2.0 if quick else 5.0, reps,
+              integrate.compiled(step_fn, f"bench_step_{name}", quiet=True)),
+             ("CasADi SX virtual machine (no compiler)", 0.2 if quick else 1.0,
+              max(2, reps // 2), step_fn.expand())]
+    for label, h, k, fn in paths:
+        with PeakMemory() as pm:
+            walls, om, warm = _timed(lambda fn=fn, h=h: rk4_python_loop(p, fn, dt_star, h), k)
+        out.append(_timing(label, f"dt = {dt_star:g}", h, int(round(h / dt_star)), walls, ops,
+                           pm.mb, warm, rel_error(om, ref[:len(om)]),
+                           rel_error(om, base[:len(om)])))
+    return out, base
 
 
 def _numba(p: Problem, name: str, dt: float, reps: int, base, ref) -> list[Timing]:
     try:
-        from wtftc.bench import numba_loop
+        from bench import numba_loop
     except ImportError as exc:
         log(f"  numba baseline skipped: {exc} (pip install 'wtftc[bench]')")
         return []
@@ -406,7 +408,7 @@ def _numba(p: Problem, name: str, dt: float, reps: int, base, ref) -> list[Timin
 
 
 def _rosco_sim(p: Problem, reps: int) -> list[Timing]:
-    from wtftc.bench import rosco_sim
+    from bench import rosco_sim
 
     reason = rosco_sim.available()
     if reason:
@@ -422,7 +424,7 @@ def _rosco_sim(p: Problem, reps: int) -> list[Timing]:
 
 def _lambdify(p: Problem, dt: float, rtol: dict, quick: bool, base, ref,
               rhs_ops: int) -> list[Timing]:
-    from wtftc.bench import lambdify_loop as ll
+    from bench import lambdify_loop as ll
 
     out = []
     t0 = time.perf_counter()
@@ -476,12 +478,11 @@ def bench_batches(name: str, quick: bool = False, n_runs: int | None = None,
     2 threads, against the single-run path (``cases.run`` one after the other); the default
     dt, the FDI monitor on (the loop `wtftc run` integrates). Returns the timings and the
     largest difference between a batched run and the same run alone (0: bit-identical)."""
-    from wtftc import cases
 
     controller, plant = LOOPS[name]
     p = Problem(name, controller, plant, t_final=30.0 if quick else T_FINAL_S)
     n_runs = n_runs or (4 if quick else 8)
-    rcs = [cases.make_config({**p.config.raw, "seed": s}) for s in range(n_runs)]
+    rcs = [config.make_config({**p.config.raw, "seed": s}) for s in range(n_runs)]
     reps = 2 if quick else 3
     log(f"  batches: {n_runs} runs of {p.t_final:g} s (seeds 0-{n_runs - 1})")
     walls, single, _ = _timed(lambda: [cases.run(rc, progress=False) for rc in rcs], reps)
@@ -537,7 +538,7 @@ def build_times(loops: list[str]) -> dict[str, str]:
     import subprocess
     import tempfile
 
-    from wtftc.bench import ROOT
+    from bench import ROOT
 
     out: dict[str, str] = {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -551,7 +552,12 @@ def build_times(loops: list[str]) -> dict[str, str]:
         old = os.environ.get("WTFTC_CACHE")
         os.environ["WTFTC_CACHE"] = tmp  # an empty compile cache
         try:
-            from wtftc.generated import compile_cached, compiler, generated_dir, verified_path
+            from wtftc.artefacts.loader import (
+                compile_cached,
+                compiler,
+                generated_dir,
+                verified_path,
+            )
 
             cc = compiler()
             functions = layout_json()["functions"]
@@ -563,10 +569,11 @@ def build_times(loops: list[str]) -> dict[str, str]:
             for name in loops:
                 controller, plant = LOOPS[name]
                 p = Problem(name, controller, plant)
-                chunk = sim.rk4_step(p.rhs).mapaccum(f"loop_{name}", sim.CHUNK)
+                chunk = integrate.rk4_step(p.rhs).mapaccum(f"loop_{name}", integrate.CHUNK)
                 t0 = time.perf_counter()
-                sim.compiled(chunk, f"build_{name}", quiet=True)
-                out[f"C compile of the {name} loop ({' '.join(sim.LOOP_CFLAGS[:-2])}) [s]"] = \
+                integrate.compiled(chunk, f"build_{name}", quiet=True)
+                flags = " ".join(integrate.LOOP_CFLAGS[:-2])
+                out[f"C compile of the {name} loop ({flags}) [s]"] = \
                     f"{time.perf_counter() - t0:.1f}"
         finally:
             if old is None:
@@ -651,7 +658,7 @@ def machine() -> str:
 
 
 def run(out: Path, loops: list[str] | None = None, quick: bool = False) -> list[LoopReport]:
-    from wtftc.io import atomic_write_json, atomic_write_text, ensure_writable_dir
+    from wtftc.results.io import atomic_write_json, atomic_write_text, ensure_writable_dir
 
     loops = loops or list(LOOPS)
     for name in loops:

@@ -1,4 +1,4 @@
-"""A point of reference for `wtftc bench`: ROSCO's own simple simulator, timed.
+"""A point of reference for `make bench`: ROSCO's own simple simulator, timed.
 
 What is measured: ``rosco.toolbox.sim.Sim.sim_ws_series`` (ROSCO 2.10.6) driving ROSCO's
 compiled controller (``libdiscon.so`` with the packaged NREL 5-MW ``DISCON.IN``, through
@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from wtftc import rosco as _rosco
+from wtftc.sim import rosco as _rosco
 
 SIM_DT = 0.025  # ROSCO's example 04 step [s]
 NOTE = ("ROSCO 2.10.6 rosco.toolbox.sim.Sim: 1-DOF rigid rotor, explicit Euler at fixed dt, "

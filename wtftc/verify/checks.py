@@ -17,8 +17,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from wtftc import layout as lay
-from wtftc.generated import layout_json, load
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import layout_json, load
 
 #: input name → layout group whose defaults centre the random values
 _GROUP_OF_INPUT = {
@@ -306,7 +306,7 @@ def alpha_dot_fd(t_point: float = 0.5, h_values=(1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3
 def grad_V_dot_f() -> ca.Function:
     """∇V·f: CasADi AD of the generated V along the generated closed loop (and ẏ_d).
 
-    Independent of the structured V̇ that the derivation writes out (eqs 22-48).
+    Independent of the structured V̇ that the derivation writes out (eqs (22)-(48)).
     """
     lyap = load("lyapunov", "interpreted")
     cl = load("closed_loop_paper", "interpreted")

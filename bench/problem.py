@@ -1,6 +1,6 @@
 """The benchmark's closed loops, and their inputs as functions of time.
 
-Every method of `wtftc bench` integrates the same problem: the right-hand side of
+Every method of `make bench` integrates the same problem: the right-hand side of
 :func:`wtftc.simulate.rhs_function` (plant, Cp interpolant, pitch-sensitivity schedule,
 controller; without the FDI monitor, which the benchmarked case does not use), from the
 trimmed initial state of :func:`wtftc.cases.trim`, with the wind and the faults of the
@@ -10,16 +10,16 @@ blade is"), so that the inputs depend on time only.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import casadi as ca
 import numpy as np
 
-from wtftc import cases
-from wtftc import layout as lay
-from wtftc import simulate as sim
-from wtftc.faults import Schedule
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.model.faults import Schedule
+from wtftc.sim import integrate, rhs
 
 T_FINAL_S = 60.0
 ONSET_S = 20.0
@@ -48,8 +48,8 @@ class Problem:
     t_final: float = T_FINAL_S
 
     @cached_property
-    def config(self) -> cases.RunConfig:
-        return cases.make_config({"controller": self.controller, "plant": self.plant,
+    def config(self) -> config.RunConfig:
+        return config.make_config({"controller": self.controller, "plant": self.plant,
                                   "case": 3, "t_final_s": self.t_final, "fault": FAULTS,
                                   "wind": WIND, "seed": 0})
 
@@ -62,12 +62,11 @@ class Problem:
         """ż = f(z, wind, actuator_faults, sensor_faults, ctrl_fault, yd, p_turbine,
         p_ctrl), the FDI left out."""
         rc = self.config
-        return sim.rhs_function(rc.plant, rc.controller, rc.table_key, rc.table,
-                                tuple(rc.p_turbine), fdi=False)
+        return rhs.rhs_function(replace(rc.loop, fdi=False))
 
     @cached_property
     def z0(self) -> np.ndarray:
-        z = cases.trim(self.config)
+        z = self.config.initial_state()
         return z[:self.n_states]
 
     @property
@@ -81,7 +80,7 @@ class Problem:
         return yd
 
     def inputs(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(wind, actuator faults, sensor faults, faults told to eq 49) at times t; the
+        """(wind, actuator faults, sensor faults, faults told to eq (49)) at times t; the
         plant's faults and eq (49)'s are the same in case 3."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         af = self.schedule.actuator(t)
@@ -103,7 +102,7 @@ class Problem:
         """f(t, z) -> ż for SciPy, on the compiled right-hand side (buffer calls, the
         piecewise-constant faults of segment k, or looked up by t when None: then t at an
         event takes the inputs after it)."""
-        f = sim.Buffered(sim.compiled(self.rhs, f"bench_rhs_{self.name}", quiet=True))
+        f = integrate.Buffered(integrate.compiled(self.rhs, f"bench_rhs_{self.name}", quiet=True))
         rc = self.config
         bounds = np.array(self.events)
         mids = np.concatenate([[0.0], bounds]) + 1e-9

@@ -12,9 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from wtftc import cases
+from wtftc import config
+from wtftc.campaign import cases
 from wtftc.errors import ConfigError
-from wtftc.io import atomic_savefig, atomic_write_json, atomic_write_text
+from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text
+from wtftc.results.metrics import metrics
 
 ONSET_S = 20.0
 #: controller variants: (registered controller, case when a fault is present)
@@ -101,7 +103,7 @@ def _row(controller, fault, wind, m) -> dict:
 
 def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_final=60.0,
                 dt=1e-3, seed=0, progress=True) -> list[dict]:
-    from wtftc import rosco
+    from wtftc.sim import rosco
 
     ctrl_names = _check("controllers", controllers, CONTROLLERS)
     reason = rosco.available()
@@ -116,7 +118,7 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
         raise ConfigError("t-final", t_final, f"more than {ONSET_S:g} s, the faults' onset "
                           "(or --faults none)")
     # validate every cell before running any
-    configs = {(w, f, c): cases.make_config(cell_config(c, f, w, t_final, dt, seed))
+    configs = {(w, f, c): config.make_config(cell_config(c, f, w, t_final, dt, seed))
                for w in wind_names for f in fault_names for c in ctrl_names}
     rows = []
     n = len(configs)
@@ -124,10 +126,10 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
         if progress:
             print(f"[{k}/{n}] {w} / {f} / {c}", flush=True)
         res = cases.run(rc, progress=False)
-        m = cases.metrics(rc, res)
+        m = metrics(rc, res)
         d = Path(out_dir) / w / f / c
         atomic_write_json(d / "metrics.json", m)
-        atomic_write_text(d / "config.toml", cases.to_toml(rc.raw))
+        atomic_write_text(d / "config.toml", config.to_toml(rc.raw))
         rows.append(_row(c, f, w, m))
     write_compare_table(out_dir, rows)
     figure(out_dir, rows, ctrl_names, fault_names, wind_names)

@@ -1,4 +1,4 @@
-"""Pitch faults per blade, scheduled in time (Odgaard, Stoustrup & Kinnaert 2013; eq 19).
+"""Pitch faults per blade, scheduled in time (Odgaard, Stoustrup & Kinnaert 2013; eq (19)).
 
 A fault configuration is a list of tables, each:
 
@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from wtftc import layout as lay
+from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError
 
 #: actuator dynamics of the hydraulic faults (Odgaard et al. 2013): (ω_n rad/s, ζ)

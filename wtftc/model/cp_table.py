@@ -315,6 +315,23 @@ def _check_positive(name: str, val: float) -> float:
     return val
 
 
+def aero_torque(cp, omega_r, v_wind, rho=RHO_AIR, radius=R_TIP):
+    """Aerodynamic rotor torque [N m, LSS] T = ½ ρ π R² v³ Cp / ω_r (Jonkman 2009; the
+    derivation's aero_operating_point computes the same in the loop)."""
+    return 0.5 * rho * math.pi * radius**2 * v_wind**3 * cp / omega_r
+
+
+def bisect(on_lo_side, lo: float, hi: float, n: int = 60) -> float:
+    """The midpoint of [lo, hi] after halving it n times (or down to adjacent floats),
+    keeping in it the point where ``on_lo_side(x)`` turns from true (at lo) to false."""
+    for _ in range(n):
+        mid = 0.5 * (lo + hi)
+        if mid in (lo, hi):
+            break
+        lo, hi = (mid, hi) if on_lo_side(mid) else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
 def aero_torque_raw(table: CpTable, omega_r, v_wind, pitch_rad, rho=RHO_AIR,
                     radius=R_TIP) -> float:
     """Aerodynamic rotor torque (N m, LSS) from the raw table, bilinear in (TSR, pitch).
@@ -327,8 +344,7 @@ def aero_torque_raw(table: CpTable, omega_r, v_wind, pitch_rad, rho=RHO_AIR,
     rho = _check_positive("rho", rho)
     radius = _check_positive("radius", radius)
     tsr = omega_r * radius / v_wind
-    cp = _cp_bilinear(table, tsr, float(pitch_rad))
-    return 0.5 * rho * math.pi * radius**2 * v_wind**3 * cp / omega_r
+    return aero_torque(_cp_bilinear(table, tsr, float(pitch_rad)), omega_r, v_wind, rho, radius)
 
 
 def steady_pitch_raw(table: CpTable, omega_r, torque, v_wind, rho=RHO_AIR,
@@ -370,15 +386,7 @@ def steady_pitch_raw(table: CpTable, omega_r, torque, v_wind, rho=RHO_AIR,
             f"{torque:.6g} N m at omega_r {float(omega_r):g} rad/s, wind {float(v_wind):g} m/s "
             f"(TSR {tsr:.4g}); the root lies beyond the table's pitch range")
     hi_k = k_opt + 1 + int(below[0])
-    lo, hi = float(grid[hi_k - 1]), float(grid[hi_k])
     if r_grid[hi_k] == 0:
-        return hi
-    for _ in range(200):  # the interval halves each time: ~60 steps reach adjacent floats
-        mid = 0.5 * (lo + hi)
-        if mid in (lo, hi):
-            break
-        if resid(mid) > 0:
-            lo = mid
-        else:
-            hi = mid
-    return 0.5 * (lo + hi)
+        return float(grid[hi_k])
+    # the interval halves each time: ~60 steps reach adjacent floats
+    return bisect(lambda b: resid(b) > 0, float(grid[hi_k - 1]), float(grid[hi_k]), n=200)

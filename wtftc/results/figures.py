@@ -14,7 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from wtftc.io import atomic_savefig  # noqa: E402
+from wtftc.results.io import atomic_savefig  # noqa: E402
 
 CASE_COLORS = {1: "tab:blue", 2: "tab:red", 3: "tab:green", 4: "tab:purple"}
 

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from wtftc import layout as lay
-from wtftc.generated import load
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import load
 
 
 @dataclass
@@ -65,7 +65,7 @@ def fit_theta_star(x_plant, x_ctrl, d1, p_plant=None, p_ctrl=None, ridge: float 
     x_plant (N, n_plant), x_ctrl (N, n_ctrl), d1 (N,) are samples along a trajectory. The
     targets f_i(X) + d_i come from eqs (11)-(18); φ_i from the generated regressors.
     Returns the stacked θ* in the layout's ``theta_star`` order and the RMS fit residual
-    of each f_i (the ε_i of eq 29, measured).
+    of each f_i (the ε_i of eq (29), measured).
     """
     x_plant = np.atleast_2d(np.asarray(x_plant, dtype=float))
     x_ctrl = np.atleast_2d(np.asarray(x_ctrl, dtype=float))
@@ -79,7 +79,7 @@ def fit_theta_star(x_plant, x_ctrl, d1, p_plant=None, p_ctrl=None, ridge: float 
     targets_fn = load("strict_feedback_targets").map(n)
     phi_fn = load("fuzzy_regressors").map(n)
     targets = np.array(targets_fn(x_plant.T, d1[None, :], pp)[0])  # (4, N)
-    phis = [np.array(p) for p in phi_fn(x_ctrl[:, :4].T, pc)]  # each (M_i, N)
+    phis = [np.array(p) for p in phi_fn(x_ctrl[:, :lay.layout()['n_chain']].T, pc)]  # each (M_i, N)
     thetas, residuals = [], []
     for i, phi in enumerate(phis):
         Phi = phi.T
@@ -105,7 +105,7 @@ class DecayBound:
                if v <= 0]
         if not bad:
             return (f"eq (51) holds with κ ≤ {self.kappa_terms.min():.4g} (before the observer "
-                    f"term 2q/λmax(P)); ζ (θ* part of eq 52) = {self.zeta_theta:.4g}")
+                    f"term 2q/λmax(P)); ζ (θ* part of eq (52)) = {self.zeta_theta:.4g}")
         return ("eq (51) does NOT follow from eq (50): the θ̃ᵀθ̃ coefficients need "
                 "r_i/(2γ_i) > 2/τ (1/τ for i = 1), but " + "; ".join(bad))
 
@@ -117,3 +117,26 @@ def decay_bound(p_ctrl=None, theta_star=None) -> DecayBound:
     labels = lay.layout()["kappa_labels"]
     return DecayBound(np.array(out["kappa_terms"]).reshape(-1), labels,
                       float(out["zeta_theta"]))
+
+
+def along_run(rc, res):
+    """V_4(t) of eq (47) along a run of the paper's design (``res`` kept its states), with
+    θ* fitted on the run itself, and eq (51)'s check: (V, bound, observer analysis)."""
+    n_p, n_c, _ = rc.loop.n_states
+    x_plant = res.z[:, :lay.size("plant_states")]
+    x_ctrl = res.z[:, n_p:n_p + n_c]
+    d1 = res.column("T_aero") / rc.param("J_r")
+    p_plant = rc.p_turbine[:lay.size("plant_params")]
+    theta_star, _ = fit_theta_star(x_plant, x_ctrl, d1, lay.values("plant_params", p_plant),
+                                   lay.values("controller_params", rc.p_ctrl))
+    obs = observer_lyapunov(rc.p_ctrl[lay.block("controller_params", "K_obs")])
+    n_chain = lay.layout()["n_chain"]
+    P = obs.P if obs.hurwitz else np.eye(n_chain)
+    n = len(res.t)
+    fault = (res.schedule.actuator(res.t)[:lay.size("fault_inputs")] if res.schedule
+             else np.tile(lay.defaults("fault_inputs")[:, None], (1, n)))
+    yd = np.tile(rc.yd[:, None], (1, n))
+    V = np.array(load("lyapunov").map(n)(x_plant.T, x_ctrl.T, d1[None, :], yd, fault,
+                                         theta_star, P, p_plant, rc.p_ctrl)[0])
+    bound = decay_bound(lay.values("controller_params", rc.p_ctrl), theta_star)
+    return V[-1], bound, obs

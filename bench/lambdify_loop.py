@@ -17,8 +17,8 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from wtftc import simulate as sim
-from wtftc.bench import require_source_tree
+from bench import require_source_tree
+from wtftc.model import aero
 
 require_source_tree()
 from derivation import backstepping as bs  # noqa: E402
@@ -56,8 +56,8 @@ class LambdifiedLoop:
         rc = problem.config
         self.controller = rc.controller
         self.pt, self.pc, self.yd = rc.p_turbine, rc.p_ctrl, problem.yd
-        self.cp = sim.cp_interpolant(rc.table or sim.nrel5mw_cp_table())
-        self.sched = sim.pitch_sensitivity_schedule(rc.table or sim.nrel5mw_cp_table(),
+        self.cp = aero.cp_interpolant(rc.table)
+        self.sched = aero.pitch_sensitivity_schedule(rc.table,
                                                     rc.p_turbine)
         tp = [sp.Symbol(e.name, real=True) for e in dlay.TURBINE_PARAMS]
         af = list(turbine.ACTUATOR_FAULTS)
@@ -88,7 +88,7 @@ class LambdifiedLoop:
                                    if s.name in by_name}))
         return out
 
-    # --- the paper's controller (eqs 21-49), eq (49) told the fault ---
+    # --- the paper's controller (eqs (21)-(49)), eq (49) told the fault ---
     def _setup_paper(self):
         d = bs.derive()
         self.design = d

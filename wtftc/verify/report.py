@@ -7,9 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from wtftc import layout as lay
-from wtftc import lyapunov, verify
-from wtftc.generated import (
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import (
     CFLAGS,
     compile_cached,
     compiler,
@@ -19,7 +18,9 @@ from wtftc.generated import (
     manifest,
     verified_path,
 )
-from wtftc.io import atomic_savefig, atomic_write_json, atomic_write_text
+from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text
+from wtftc.verify import checks as verify
+from wtftc.verify import lyapunov
 
 
 def _step(msg: str) -> None:
@@ -56,7 +57,7 @@ def run_verification(out_dir: Path, n_points: int = 50, seed: int = 0) -> dict:
     summary["compiled_vs_interpreted_max_rel"] = (
         verify.compiled_vs_interpreted(n_points, seed) if cc else None)
 
-    _step("observer gain K: Hurwitz check and Lyapunov P (eqs 20-25)")
+    _step("observer gain K: Hurwitz check and Lyapunov P (eqs (20)-(25))")
     obs = {"table1": lyapunov.observer_lyapunov(lay.paper_table1("K_obs")),
            "default": lyapunov.observer_lyapunov(
                lay.vector("controller_params")[:4])}
@@ -83,7 +84,7 @@ def run_verification(out_dir: Path, n_points: int = 50, seed: int = 0) -> dict:
         for label, r in fd.items()}
     summary["alpha_dot_fd_seconds"] = time.perf_counter() - t0
 
-    _step("structured V̇ (eqs 22-48) against ∇V·f at random states")
+    _step("structured V̇ (eqs (22)-(48)) against ∇V·f at random states")
     summary["vdot_identity_max_rel"] = verify.vdot_identity_error(n_points, seed)
 
     summary["functions"] = {
@@ -145,7 +146,7 @@ def to_markdown(s: dict) -> str:
     for name, f in s["functions"].items():
         e = "n/a (no compiler)" if cvi is None else f"{cvi[name]:.1e}"
         lines.append(f"| `{name}` | {f['operations']} | {e} |")
-    lines += ["", "## Observer gain (eqs 20-25)", ""]
+    lines += ["", "## Observer gain (eqs (20)-(25))", ""]
     for k, v in s["observer"].items():
         lines.append(f"- {k}: {v['report']}")
     lines += ["", "## Eq (51)", "", f"- {s['eq51_bound']['report']}", "",

@@ -34,9 +34,16 @@ class GeneratedArtefactError(RuntimeError):
 
 
 def generated_dir() -> Path:
-    """``$WTFTC_GENERATED`` or the ``generated/`` folder beside the package."""
+    """Where the artefacts are read from: ``$WTFTC_GENERATED``; else the copy an installed
+    package carries (``wtftc/_generated/``, put there by the build from ``generated/``);
+    else, in a source checkout, ``generated/`` at the repository root, the one source that
+    ``make regenerate`` writes."""
     env = os.environ.get("WTFTC_GENERATED")
-    return Path(env) if env else Path(__file__).resolve().parent.parent / "generated"
+    if env:
+        return Path(env)
+    package = Path(__file__).resolve().parent.parent
+    installed = package / "_generated"
+    return installed if (installed / "manifest.json").exists() else package.parent / "generated"
 
 
 def cache_dir() -> Path:
@@ -54,8 +61,8 @@ def manifest(folder: Path | None = None) -> dict:
     path = folder / "manifest.json"
     if not path.exists():
         raise GeneratedArtefactError(
-            f"{path} is missing: the generated functions have not been built; "
-            "run `make regenerate`")
+            f"{path} is missing: the generated functions have not been built; in a source "
+            "checkout run `make regenerate`; an installed wtftc carries them (reinstall it)")
     return json.loads(path.read_text())
 
 

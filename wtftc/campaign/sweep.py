@@ -26,9 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
-from wtftc import cases
-from wtftc.compare import CONTROLLERS
+from wtftc import config
+from wtftc.campaign import cases
+from wtftc.campaign.compare import CONTROLLERS
 from wtftc.errors import ConfigError
+from wtftc.results.metrics import metrics
+from wtftc.sim import rhs
 
 TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "output_rate_hz",
             "batch_size", "controllers", "optional_controllers", "plants", "wind", "fault"}
@@ -40,7 +43,7 @@ PLANTS = ("nrel5mw", "paper")
 #: the fault table key each fault type reads its magnitude from
 MAGNITUDE = {"lock": "angle_deg", "loss_of_effectiveness": "rho", "pressure_drop": "severity",
              "air_in_oil": "severity"}
-#: the metrics kept per run: (key in cases.metrics, unit)
+#: the metrics kept per run: (key in metrics.metrics, unit)
 METRICS = [("rms_speed_error_rad_s", "rad/s"), ("max_abs_speed_error_rad_s", "rad/s"),
            ("rms_speed_error_after_fault_rad_s", "rad/s"), ("overspeed_peak_rad_s", "rad/s"),
            ("overspeed_peak_over_rated", "-"), ("pitch_rate_rms_deg_s", "deg/s"),
@@ -204,7 +207,7 @@ def parse_sweep(raw: dict) -> Sweep:
     if "optional_controllers" in raw:  # run where installed (ROSCO), skipped elsewhere
         optional = _axis("optional_controllers", raw["optional_controllers"], "str", mode,
                          choices=("rosco",))
-        from wtftc import rosco
+        from wtftc.sim import rosco
 
         extra = tuple(c for c in optional.values if c not in ctrl.values)
         if extra and rosco.available() is None:
@@ -246,7 +249,7 @@ def parse_sweep(raw: dict) -> Sweep:
 
 
 def load_sweep(path: Path) -> Sweep:
-    return parse_sweep(cases.load_toml(Path(path)))
+    return parse_sweep(config.load_toml(Path(path)))
 
 
 # ---------------------------------------------------------------------------- the runs
@@ -268,7 +271,7 @@ def _point(sw: Sweep, values: dict) -> dict:
         p[{"angle_deg": "stuck_angle_deg", "rho": "rho", "severity": "severity"}[mag]] = (
             str(tab[mag]) if mag == "angle_deg" else float(tab[mag]))
         faults = [tab]
-    from wtftc.compare import variant_config
+    from wtftc.campaign.compare import variant_config
 
     wind = {"kind": "ntm", "mean_mps": p["mean_wind_mps"],
             "turbulence_class": p["turbulence_class"]}
@@ -358,12 +361,11 @@ def run_task(points: list[dict], traces: bool = False) -> list[tuple[dict, dict 
 
 
 def _run_points(points: list[dict], traces: bool) -> list[tuple[dict, dict | None]]:
-    from wtftc import simulate as sim
 
     rcs, out = [], []
     for pt in points:
         try:
-            rcs.append(cases.make_config(pt["config"]))
+            rcs.append(config.make_config(pt["config"]))
         except Exception as exc:  # noqa: BLE001 - recorded as the run's failure
             rcs.append(f"{type(exc).__name__}: {exc}")
     ok = [rc for rc in rcs if not isinstance(rc, str)]
@@ -380,14 +382,14 @@ def _run_points(points: list[dict], traces: bool) -> list[tuple[dict, dict | Non
             continue
         try:
             res = results.get(id(rc)) or cases.run(rc, progress=False)
-            m = cases.metrics(rc, res)
+            m = metrics(rc, res)
         except Exception as exc:  # noqa: BLE001
             out.append((_row(pt, "failed", cause=f"{type(exc).__name__}: {exc}"), None))
             continue
         status = "diverged" if res.diverged else "ok"
         tr = None
         if traces:
-            spec = sim.output_spec(rc.controller)
+            spec = rhs.output_spec(rc.controller)
             tr = {"time_s": (res.t, "s"), **{n: (res.column(n), u) for n, u in spec}}
         out.append((_row(pt, status, m, diverged=res.diverged), tr))
     return out
@@ -401,11 +403,11 @@ def _versions() -> dict:
     import distributed
     import pyarrow
 
-    from wtftc.cli import _version
-    from wtftc.generated import manifest
+    from wtftc.artefacts.loader import manifest
+    from wtftc import __version__
 
     gen = hashlib.sha256(json.dumps(manifest(), sort_keys=True).encode()).hexdigest()[:16]
-    return {"wtftc": _version(), "python": platform.python_version(),
+    return {"wtftc": __version__, "python": platform.python_version(),
             "numpy": np.__version__, "casadi": casadi.__version__, "dask": dask.__version__,
             "distributed": distributed.__version__, "pyarrow": pyarrow.__version__,
             "generated_manifest_sha256": gen}
@@ -445,7 +447,7 @@ def read_results(out_dir: Path):
 
 def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> set[str]:
     """Create or reopen a results folder; return the run ids already saved in it."""
-    from wtftc.io import atomic_write_json, atomic_write_text
+    from wtftc.results.io import atomic_write_json, atomic_write_text
 
     out_dir = Path(out_dir)
     meta = out_dir / "sweep.json"
@@ -484,7 +486,7 @@ def _save_batch(out_dir: Path, done: set[str], results: list) -> list[dict]:
     dropped. Returns the rows written."""
     import pyarrow as pa
 
-    from wtftc.io import atomic_write_table, write_parquet
+    from wtftc.results.io import atomic_write_table, write_parquet
 
     rows = []
     for row, tr in results:
@@ -560,16 +562,16 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
     runs, dup = expand(sw)
     for pt in runs:  # every run's configuration is valid before any runs
         if pt["controller"] != "rosco":  # ROSCO's availability is checked below
-            cases.make_config(pt["config"])
+            config.make_config(pt["config"])
     if any(pt["controller"] == "rosco" for pt in runs):
-        from wtftc import rosco
+        from wtftc.sim import rosco
 
         reason = rosco.available()
         if reason:
             raise ConfigError("controllers", "rosco", reason)
     skipped = [c for c in sw.raw.get("optional_controllers", []) if c not in sw.axes[0].values]
     if skipped and not quiet:
-        from wtftc import rosco
+        from wtftc.sim import rosco
 
         print(f"note: optional controllers {', '.join(skipped)} skipped: {rosco.available()}",
               flush=True)
@@ -629,7 +631,7 @@ def summarize(out_dir: Path) -> str:
     """The summary table (Markdown, printed) and figures of a results folder:
     summary.md, summary.csv, and under figures/ the distributions of RMS speed error,
     overspeed and detection delay, per controller and fault type."""
-    from wtftc.io import atomic_write_text
+    from wtftc.results.io import atomic_write_text
 
     out_dir = Path(out_dir)
     if not (out_dir / "sweep.json").exists():
@@ -700,7 +702,7 @@ def _figures(out_dir: Path, rows: list[dict]) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from wtftc.io import atomic_savefig
+    from wtftc.results.io import atomic_savefig
 
     ctrls = [c for c in CONTROLLERS if any(r["controller"] == c for r in rows)]
     faults = [f for f in FAULT_TYPES if any(r["fault_type"] == f for r in rows)]
@@ -762,7 +764,7 @@ def show_run(out_dir: Path, run_id: str) -> str:
     table = read_results(out_dir)
     for r in table.to_pylist():
         if r["run_id"] == run_id:
-            return cases.to_toml(json.loads(r["config_json"]))
+            return config.to_toml(json.loads(r["config_json"]))
     raise ConfigError("--show", run_id, f"the run id of a run saved in {out_dir}")
 
 

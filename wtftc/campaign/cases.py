@@ -1,0 +1,198 @@
+"""The paper's three cases (and case 4, wtftc's FDI): single runs, batches, and `wtftc cases`.
+
+Case 1: no fault. Case 2: a pitch actuator fault, the controller unaware. Case 3: the same
+fault with eq (49) given the fault parameters (an oracle). Case 4: the fault detected and
+estimated by wtftc's FDI (docs/fdi.md). Default fault (the paper's Fig. 6 gives no
+numbers): blade 1 locked where it is, blades 2-3 at ρ = 0.5, all from t = 20 s.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+
+from wtftc.artefacts import layout as lay
+from wtftc.config import CASES, RunConfig, make_config
+from wtftc.errors import ConfigError
+from wtftc.model.faults import Schedule
+from wtftc.results.metrics import metrics
+from wtftc.results.tables import write_table
+from wtftc.results.traces import write_outputs
+from wtftc.sim import integrate, rhs, stability
+from wtftc.sim.integrate import Result
+
+
+def run(rc: RunConfig, progress: bool = True, keep_states: bool = False) -> Result:
+    """One run of ``rc``: the compiled loop, or ROSCO driving it."""
+    if not rc.uses_rosco:
+        return run_batch([rc], progress=progress, keep_states=keep_states)[0]
+    from wtftc.sim import rosco
+
+    if rc.case in (3, 4):
+        raise ConfigError("case", rc.case, "1 or 2 with controller = rosco (ROSCO has no "
+                          "fault accommodation)")
+    inputs, _ = _prepare(rc, check=False)
+    res = rosco.run(rc.loop, inputs, rc.t_final, rc.dt, rc.decimate, progress=progress)
+    res.config = {**rc.raw, "wind_resolved": rc.wind.describe(),
+                  "fault_resolved": res.schedule.describe() if res.schedule else [],
+                  "rosco": {"version": rosco.ROSCO_VERSION, "control_dt_s": rosco.CONTROL_DT}}
+    return res
+
+
+def run_batch(rcs: list[RunConfig], threads: int = 1, progress: bool = True,
+              keep_states: bool = False) -> list[Result]:
+    """Many independent runs of one loop in one compiled call per chunk (the Python API for
+    seeds and fault cases): the same results as :func:`run` on each, bit for bit.
+
+    The runs must share what the compiled loop is built for (:class:`wtftc.sim.rhs.Loop`:
+    plant, controller, Cp table, turbine parameters) and dt, t_final and output decimation;
+    wind, faults, seed, case and controller gains may differ. ``threads``: CasADi threads
+    over the runs (use the cores).
+    """
+    _check_batch(rcs, threads)
+    first = rcs[0]
+    prepared = [_prepare(rc) for rc in rcs]
+    results = integrate.run_loops(first.loop, [r for r, _ in prepared], first.t_final,
+                                  first.dt, decimate=first.decimate, progress=progress,
+                                  keep_states=keep_states, threads=threads)
+    for rc, res, (inputs, lam) in zip(rcs, results, prepared, strict=True):
+        res.schedule = inputs.schedule
+        res.config = {**rc.raw, "wind_resolved": rc.wind.describe(),
+                      "fault_resolved": res.schedule.describe() if res.schedule else [],
+                      "stability": {"max_abs_eigenvalue_1_s": lam, "dt_limit_s": 2.78 / lam}}
+    return results
+
+
+def _check_batch(rcs: list[RunConfig], threads: int) -> None:
+    if not rcs:
+        raise ConfigError("runs", "[]", "at least one run configuration")
+    if threads < 1:
+        raise ConfigError("threads", threads, "a positive integer")
+    first = rcs[0]
+    for i, rc in enumerate(rcs):
+        if rc.uses_rosco:
+            raise ConfigError(f"runs[{i}].controller", rc.controller,
+                              "a generated controller (ROSCO runs one at a time)")
+        for key in ("plant", "controller", "table_key", "dt", "t_final", "decimate"):
+            if getattr(rc, key) != getattr(first, key):
+                raise ConfigError(f"runs[{i}].{key}", getattr(rc, key),
+                                  f"{getattr(first, key)!r}, as in runs[0]: a batch shares "
+                                  "one compiled loop")
+        if rc.loop != first.loop:
+            raise ConfigError(f"runs[{i}].turbine", "different parameters",
+                              "the turbine parameters of runs[0]")
+
+
+def _prepare(rc: RunConfig, check: bool = True) -> tuple[integrate.Run, float | None]:
+    """The loop's inputs for ``rc``: the trimmed initial state, the fault schedules of the
+    plant and of eq (49) (case 3), whether the FDI feeds the accommodation (case 4); and,
+    with ``check``, the largest |eigenvalue| at the start, dt refused beyond RK4's limit."""
+    z0 = rc.initial_state()
+    lam = None
+    if check:
+        lam = stability.stability_limit(rc.loop, z0, float(rc.wind(0.0)), rc.yd, rc.p_ctrl)
+        stability.check_dt(rc.dt, lam)
+    schedule = Schedule(copy.deepcopy(rc.faults)) if rc.faults else None
+    ctrl_schedule = Schedule(copy.deepcopy(rc.faults)) if rc.case == 3 else None
+    return integrate.Run(z0, rc.wind, schedule, ctrl_schedule, rc.yd, rc.p_ctrl,
+                         use_fdi=rc.case == 4), lam
+
+
+def run_and_write(rc: RunConfig, out_dir: Path, progress: bool = True):
+    """``wtftc run``: one run, its files and figures; (result, metrics table, paths)."""
+    res = run(rc, progress=progress)
+    m = metrics(rc, res)
+    paths = write_outputs(out_dir, rc, res, m)
+    paths += write_run_figures(out_dir, rc, res, m)
+    table = write_table(out_dir, [m])
+    return res, table, paths + [Path(out_dir) / "metrics.md", Path(out_dir) / "metrics.csv"]
+
+
+def run_record(rc: RunConfig, res: Result, m: dict) -> dict:
+    """What the figures of one run need, in one dict (wtftc.results.figures)."""
+    return {"result": res, "metrics": m, "case": rc.case, "plant": rc.plant,
+            "case_doc": CASES[rc.case], "schedule": res.schedule, "rc": rc,
+            "onset": rc.onset, "gearbox_ratio": rc.param("gearbox_ratio"),
+            "pitch_limits_deg": tuple(np.degrees([rc.param("pitch_min"),
+                                                  rc.param("pitch_max")]))}
+
+
+def write_run_figures(out_dir: Path, rc: RunConfig, res: Result, m: dict) -> list[Path]:
+    """The figures of one run (``wtftc run``) under out_dir/figures/, PNG and PDF: rotor
+    speed, control and pitch, the fault shape when there is a fault, and wtftc's fault
+    detection when the run uses it (case 4)."""
+    from wtftc.results import figures
+
+    rec = run_record(rc, res, m)
+    fdir = Path(out_dir) / "figures"
+    paths = figures.rotor_speed(rec, fdir, "rotor_speed", rc.label)
+    if not rc.uses_rosco:
+        paths += figures.control(rec, fdir, "control", rc.label)
+    if res.schedule is not None:
+        paths += figures.fault_shape(rec, fdir, "fault")
+    if rc.case == 4:
+        thr = float(lay.defaults("fdi_params")[lay.index("fdi_params", "fdi_r_thr")])
+        paths += figures.fdi(rec, fdir, "fdi", threshold_rad=thr)
+    return paths
+
+
+def run_cases(out_dir: Path, plants=("nrel5mw", "paper"), overrides: dict | None = None,
+              progress: bool = True, sign_as_written: bool = True) -> list[dict]:
+    """The paper's three cases on each plant, figures and a metrics table under out_dir;
+    then case 1 with the control sign as written (paper-notes defect 2)."""
+    out_dir = Path(out_dir)
+    rows = []
+    for plant in plants:
+        runs = []
+        for case in (1, 2, 3):
+            rc = make_config({**(overrides or {}), "plant": plant, "case": case})
+            print(f"{plant}, case {case} ({CASES[case]}): {rc.t_final:g} s at dt = {rc.dt:g} s",
+                  flush=True)
+            res = run(rc, progress=progress, keep_states=True)
+            m = metrics(rc, res)
+            write_outputs(out_dir / plant / f"case{case}", rc, res, m)
+            runs.append(run_record(rc, res, m))
+            rows.append(m)
+        _case_figures(runs, out_dir / plant)
+    if sign_as_written:
+        rc = make_config({**(overrides or {}), "plant": plants[0], "case": 1,
+                          "control_sign": 1, "label": f"{plants[0]}_case1_sign_as_written"})
+        print(f"{plants[0]}, case 1 with the control sign as written (s = +1)", flush=True)
+        res = run(rc, progress=progress)
+        m = metrics(rc, res)
+        write_outputs(out_dir / plants[0] / "case1_sign_as_written", rc, res, m)
+        rows.append(m)
+    write_table(out_dir, rows)
+    return rows
+
+
+def _case_figures(runs: list[dict], plant_dir: Path) -> None:
+    """The counterparts of the paper's Figs. 2-10 for cases 1-3 of one plant, the cases
+    side by side, and (the paper's design) V(t) of eq (47) with eq (51)'s check."""
+    from wtftc.results import figures
+    from wtftc.results.io import atomic_write_json
+    from wtftc.verify import lyapunov
+
+    fdir = plant_dir / "figures"
+    r1, r2, r3 = runs
+    # the observer's estimates x̂: a design that reports them among its diagnostics
+    observer = rhs.controllers()[r1["rc"].controller]["diag"][0] == "xhat_1"
+    figures.wind(r1, fdir)
+    figures.rotor_speed(r1, fdir, "fig03_rotor_speed_case1", "Fig. 3")
+    figures.control(r1, fdir, "fig04_control_case1", "Fig. 4")
+    if observer:
+        figures.estimates(r1, fdir, "fig05_estimates_case1", "Fig. 5")
+    figures.fault_shape(r2, fdir)
+    figures.rotor_speed(r2, fdir, "fig07_rotor_speed_case2", "Fig. 7")
+    figures.rotor_speed(r3, fdir, "fig08_rotor_speed_case3", "Fig. 8")
+    figures.control(r3, fdir, "fig09_control_case3", "Fig. 9")
+    if observer:
+        figures.estimates(r3, fdir, "fig10_estimates_case3", "Fig. 10")
+    figures.comparison(runs, fdir)
+    if len(r1["result"].t) > 10 and r1["rc"].controller == "paper":  # V_4 is eq (47)'s
+        V, bound, _ = lyapunov.along_run(r1["rc"], r1["result"])
+        figures.lyapunov_figure(r1, V, r1["result"].t, bound, fdir)
+        r1["metrics"]["eq51"] = {"holds": bound.holds, "report": bound.report()}
+        atomic_write_json(plant_dir / "case1" / "metrics.json", r1["metrics"])

@@ -1,0 +1,100 @@
+"""What a run scores: regulation, actuation, power, and the FDI's detection and isolation."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wtftc.artefacts import layout as lay
+from wtftc.config import CASES, RunConfig
+from wtftc.model.faults import HYDRAULIC
+from wtftc.sim import integrate
+
+
+def metrics(rc: RunConfig, res: integrate.Result) -> dict:
+    """Regulation and actuation figures of one run (units in every key)."""
+    t = res.t
+    w = res.column("omega_r")
+    e = w - rc.reference
+    beta = np.column_stack([res.column(f"beta_{j}") for j in (1, 2, 3)])
+    dt_out = rc.dt * rc.decimate
+    rate = np.gradient(beta, dt_out, axis=0) if len(t) > 2 else np.zeros_like(beta)
+    # settled: inside ±1 % from this time to the end, and for at least the last 20 % of
+    # the run (a run that merely ends inside the band has not settled)
+    band = 0.01 * rc.reference
+    outside = np.nonzero(np.abs(e) > band)[0]
+    t_in = float(t[outside[-1] + 1]) if len(outside) and outside[-1] + 1 < len(t) else (
+        0.0 if not len(outside) else None)
+    settled = t_in if t_in is not None and t_in <= t[-1] - 0.2 * (t[-1] - t[0]) else None
+    onset = min((f.onset_s for f in rc.faults), default=None)
+    post = t >= onset if onset is not None else np.zeros_like(t, dtype=bool)
+    eta = rc.p_turbine[lay.index("turbine_params", "gen_efficiency")]
+    rated = rc.p_turbine[lay.index("turbine_params", "omega_g_rated")]
+    m = {
+        "label": rc.label, "case": rc.case, "case_doc": CASES[rc.case], "plant": rc.plant,
+        "fdi": fdi_report(rc, res),
+        "controller": rc.raw["controller"], "control_sign": rc.raw["control_sign"],
+        "reference_rad_s": rc.reference,
+        "rms_speed_error_rad_s": float(np.sqrt(np.mean(e**2))),
+        "max_abs_speed_error_rad_s": float(np.max(np.abs(e))),
+        "rms_speed_error_after_fault_rad_s": (float(np.sqrt(np.mean(e[post] ** 2)))
+                                              if post.any() else None),
+        "settling_time_s": settled,
+        "settling_band_rad_s": band,
+        "overspeed_peak_rad_s": float(np.max(w)),
+        "overspeed_peak_over_rated": float(np.max(w) / rated),
+        "pitch_min_deg": float(np.degrees(beta.min())),
+        "pitch_max_deg": float(np.degrees(beta.max())),
+        "pitch_rate_rms_deg_s": float(np.degrees(np.sqrt(np.mean(rate**2)))),
+        "actuator_travel_deg": float(np.degrees(np.sum(np.abs(np.diff(beta, axis=0))))),
+        "mean_electrical_power_W": float(np.mean(res.column("P_gen")) * eta),
+        "output_interval_s": rc.dt * rc.decimate,
+        "diverged": res.diverged,
+        "simulated_s": float(res.steps * rc.dt),
+        "wall_s": res.wall_s,
+        "realtime_factor": float(res.steps * rc.dt / max(res.wall_s, 1e-9)),
+        "seed": rc.seed,
+        "config": res.config,
+    }
+    return m
+
+def fdi_report(rc: RunConfig, res: integrate.Result) -> dict:
+    """Detection delay, isolation, estimation error and false alarms of wtftc's FDI.
+
+    An actuator fault (lock, loss of effectiveness, pressure drop, air in oil) on blade j
+    should raise blade j's latch after its onset and no other; the estimates are read at
+    the end of the run. Sensor faults are not isolated from actuator faults by this FDI.
+    """
+    t = res.t
+    faults = res.schedule.faults if res.schedule is not None else rc.faults  # angles bound
+    actuator = [f for f in faults if f.type not in ("sensor_fixed", "sensor_gain")]
+    faulty = {f.blade: f for f in actuator}
+    out = {"blades": {}, "false_alarms": [], "isolation_correct": True}
+    for j in (1, 2, 3):
+        latch = res.column(f"fdi_latch_{j}")
+        hit = np.nonzero(latch >= 0.5)[0]
+        t_det = float(t[hit[0]]) if len(hit) else None
+        rho_hat = float(res.column(f"fdi_rho_hat_{j}")[-1])
+        c_hat = float(res.column(f"fdi_c_hat_{j}")[-1])
+        b = {"detected_at_s": t_det, "rho_hat": rho_hat, "c_hat_deg": float(np.degrees(c_hat))}
+        f = faulty.get(j)
+        if f is not None:
+            b["fault"] = f.type
+            b["detection_delay_s"] = None if t_det is None else t_det - f.onset_s
+            if t_det is None:
+                out["isolation_correct"] = False
+            elif t_det < f.onset_s:
+                out["false_alarms"].append(f"blade {j} at {t_det:.2f} s, before the onset")
+            if f.type == "loss_of_effectiveness":
+                b["rho_error"] = rho_hat - f.rho
+            if f.type == "lock" and f.angle is not None:
+                b["stuck_angle_error_deg"] = float(np.degrees(c_hat - f.angle))
+            if f.type in HYDRAULIC:
+                w_hat = float(res.column(f"fdi_omega_n_hat_{j}")[-1])
+                b["omega_n_hat_rad_s"] = w_hat
+                b["zeta_hat"] = float(res.column(f"fdi_zeta_hat_{j}")[-1])
+                b["dynamics_identified"] = bool(np.isclose(w_hat, HYDRAULIC[f.type][0]))
+        elif t_det is not None:
+            out["false_alarms"].append(f"blade {j} at {t_det:.2f} s (no actuator fault)")
+            out["isolation_correct"] = False
+        out["blades"][str(j)] = b
+    return out

@@ -1,0 +1,397 @@
+"""The closed loop: generated plant + Cp interpolant + generated controller, fixed-step RK4.
+
+One CasADi function advances the whole loop by one RK4 step; ``mapaccum`` chains
+``CHUNK`` steps into one compiled call (C, cached by hash like the generated code), and
+the Python loop calls it chunk by chunk so that a progress bar moves and a divergence is
+caught within one chunk. The controller sees only measured signals (rotor speed); the
+plant state never enters it.
+
+Per step k (from t_k to t_k + dt) the exogenous inputs are the wind at t_k, t_k + dt/2,
+t_k + dt, and the fault inputs at t_k (held over the step). Outputs are reported at t_k
+from the state z_k.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from functools import cache
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import cache_dir, compile_cached, compiler, is_cached
+from wtftc.sim.rhs import PLANTS, Loop, output_spec, rhs_function, state_names
+
+CHUNK = 1000  # RK4 steps per compiled call
+
+
+def rk4_step(rhs: ca.Function) -> ca.Function:
+    """Classical RK4 over one step dt (Kutta 1901), the exogenous input (input 1 of rhs, the
+    wind) at t, t + dt/2, t + dt; the other inputs held over the step."""
+    z = ca.MX.sym("z", rhs.size1_in(0))
+    w3 = ca.MX.sym("wind3", 3)
+    others = [ca.MX.sym(rhs.name_in(k), rhs.sparsity_in(k)) for k in range(2, rhs.n_in())]
+    dt = ca.MX.sym("dt")
+    first = rhs(z, w3[0], *others)
+    k1, out = first[0], first[1]  # ż and the reported outputs at the start of the step
+    k2 = rhs(z + dt / 2 * k1, w3[1], *others)[0]
+    k3 = rhs(z + dt / 2 * k2, w3[1], *others)[0]
+    k4 = rhs(z + dt * k3, w3[2], *others)[0]
+    z_next = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return ca.Function("rk4_step", [z, w3, *others, dt], [z_next, out],
+                       ["z", "wind3", *[rhs.name_in(k) for k in range(2, rhs.n_in())], "dt"],
+                       ["z_next", "out"])
+
+#: flags of the closed-loop chunks (the verified generated functions keep CFLAGS):
+#: -fno-semantic-interposition lets gcc inline CasADi's helpers (fmin, fmax, sq) instead of
+#: calling them through the PLT; -fno-math-errno lets it treat sqrt, exp, ... as pure
+#: functions (inline sqrtsd, no errno bookkeeping): 1.4-1.9× on the paper's loop. Both are
+#: bit-identical to plain -O2 (docs/performance.md, tests/test_bench.py)
+LOOP_CFLAGS = ("-O2", "-fno-semantic-interposition", "-fno-math-errno", "-fPIC", "-shared")
+
+#: opt-in: -ffast-math also reassociates and assumes no NaN/inf: 1.05-1.2× more on the
+#: loops (docs/performance.md); results differ at 1e-12..1e-9 relative (not bit-identical
+#: to the default)
+FAST_MATH_CFLAGS = ("-O2", "-fno-semantic-interposition", "-ffast-math", "-fPIC", "-shared")
+
+def compiled(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
+             quiet: bool = False) -> ca.Function:
+    """f as generated C, compiled once and cached (or f itself with no compiler)."""
+    return _compile_function(f, label, flags, quiet)
+
+def _compile_function(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
+                      quiet: bool = False) -> ca.Function:
+    """Generate C for f and load it through the loader's hash-keyed compile cache."""
+    cc = compiler()
+    if cc is None:
+        return f
+    with tempfile.TemporaryDirectory() as tmp:
+        cname = f"{label}.c"
+        cg = ca.CodeGenerator(cname, {"with_header": False})
+        cg.add(f)
+        cg.generate(tmp + os.sep)
+        c_path = Path(tmp, cname)
+        if not quiet and not is_cached(c_path, cc, flags):
+            print(f"  compiling the {label} loop (once; cached in {cache_dir()}) ...",
+                  file=sys.stderr, flush=True)
+        so = compile_cached(c_path, cc, flags)
+    return ca.external(f.name(), str(so))
+
+@cache
+def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False) -> ca.Function:
+    """``n`` RK4 steps of ``loop`` in one compiled call (mapaccum over the step);
+    ``fast_math``: compiled with FAST_MATH_CFLAGS instead of LOOP_CFLAGS."""
+    step = rk4_step(rhs_function(loop))
+    tag = "" if loop.fdi else "_nofdi"
+    chunk = step.mapaccum(f"loop_{loop.plant}_{loop.controller}{tag}", n)
+    return _compile_function(chunk, f"loop_{loop.plant}_{loop.controller}{tag}_"
+                             f"{loop.table_key}_{n}",
+                             FAST_MATH_CFLAGS if fast_math else LOOP_CFLAGS)
+
+
+class Buffered:
+    """A CasADi function called through ``Function.buffer()`` on NumPy arrays it owns.
+
+    Skips the DM conversion at the Python boundary (measured at about 65 ns an element:
+    2 µs a step for the loop's outputs). Every array bound to the buffer stays referenced
+    by this object for its whole life (a dropped one would corrupt the heap); calls copy
+    the inputs in and return copies of the results, shaped as CasADi's (rows, columns).
+    """
+
+    def __init__(self, f: ca.Function):
+        self.f = f
+        self._buf, self._trigger = f.buffer()
+        self._in = [np.zeros((f.size2_in(i), f.size1_in(i))) for i in range(f.n_in())]
+        self._out = [np.zeros((f.size2_out(i), f.size1_out(i))) for i in range(f.n_out())]
+        for i, a in enumerate(self._in):
+            self._buf.set_arg(i, memoryview(a))
+        for i, r in enumerate(self._out):
+            self._buf.set_res(i, memoryview(r))
+
+    def put(self, name: str, value, run: int = 0, n_runs: int = 1) -> None:
+        """Write input ``name`` of run ``run`` (of n_runs side by side) in place: ``value``
+        is (rows, columns) of that run, or one column (rows,) held over its columns."""
+        a = self._in[self.f.index_in(name)]
+        w = a.shape[0] // n_runs
+        seg = a[run * w:(run + 1) * w]
+        v = np.asarray(value, dtype=float)
+        if v.ndim == 2 and v.shape[1] > 1:
+            seg[...] = v.T
+        else:
+            seg[...] = v.reshape(1, -1)
+
+    def evaluate(self) -> list[np.ndarray]:
+        """Evaluate on the inputs in place; results as (rows, columns) views of the
+        buffers, valid until the next evaluation."""
+        self._trigger()
+        return [r.T for r in self._out]
+
+    def __call__(self, *args, copy: bool = True) -> list[np.ndarray]:
+        """Results as (rows, columns) arrays; ``copy=False``: views of the buffers, valid
+        until the next call (no copy of what the caller does not keep)."""
+        for a, x in zip(self._in, args, strict=True):
+            x = np.asarray(x, dtype=float)
+            cols, rows = a.shape
+            k = x.size // rows if rows else 0
+            if 0 < k < cols and x.size == rows * k and cols % k == 0:
+                # k columns each repeated cols/k times, as a call of a mapped function
+                # broadcasts an input given once per run (k = 1: once for all)
+                a[...] = np.repeat(x.reshape((rows, k), order="F"), cols // k, axis=1).T
+            else:
+                a[...] = x.reshape((rows, cols), order="F").T
+        self._trigger()
+        return [r.T.copy() for r in self._out] if copy else [r.T for r in self._out]
+
+@dataclass
+class Result:
+    t: np.ndarray
+    outputs: np.ndarray  # (N, len(OUTPUTS))
+    z_final: np.ndarray
+    diverged: dict | None
+    wall_s: float
+    steps: int
+    config: dict = field(default_factory=dict)
+    z: np.ndarray | None = None  # full state trajectory at the output times (N, n_z)
+    schedule: object = None  # the plant's fault schedule (wtftc.model.faults.Schedule)
+    names: list = field(default_factory=list)  # output names, in column order
+
+    def column(self, name: str) -> np.ndarray:
+        return self.outputs[:, self.names.index(name)]
+
+
+@dataclass
+class Run:
+    """The per-run inputs of one closed loop in a batch (see :func:`run_loops`)."""
+
+    z0: np.ndarray
+    wind: object  # wind(t) -> m/s
+    schedule: object = None  # the plant's faults (wtftc.model.faults.Schedule) or None
+    ctrl_schedule: object = None  # the faults eq (49) is told, or None (nominal)
+    yd: np.ndarray | None = None  # reference and its derivatives
+    p_ctrl: np.ndarray | None = None
+    use_fdi: bool = False
+
+
+class ChunkHook:
+    """Something outside the compiled loop that acts every ``steps`` steps of a single run
+    (ROSCO's DISCON, wtftc.sim.rosco): :meth:`before` writes the inputs it holds over the
+    next chunk, :meth:`after` reads the last step of the chunk just computed."""
+
+    steps: int = CHUNK
+
+    def before(self, call: Buffered) -> None:
+        """Write held inputs (by name) before the chunk is evaluated."""
+
+    def after(self, k: int, z: np.ndarray, out: dict[str, float]) -> None:
+        """k: the step reached; z: the state there; out: the outputs of the last step."""
+
+
+@cache
+def _mapped(f: ca.Function, n_runs: int, threads: int) -> ca.Function:
+    """f evaluated for n_runs independent runs, side by side, on ``threads`` threads."""
+    if n_runs == 1:
+        return f
+    return f.map(n_runs, "thread", threads) if threads > 1 else f.map(n_runs, "serial")
+
+
+@dataclass
+class _Batch:
+    """Runs advancing together: their states (n_z, n_runs) and what has been recorded."""
+
+    runs: list[Run]
+    names: list[str]
+    out_names: list[str]
+    z: np.ndarray
+    keep_states: bool
+    decimate: int
+    outs: list = field(default_factory=list)
+    ts: list = field(default_factory=list)
+    zs: list = field(default_factory=list)
+    diverged: list = field(default_factory=list)
+    steps: list = field(default_factory=list)
+
+    def __post_init__(self):
+        n = len(self.runs)
+        self.outs, self.ts, self.zs = [[] for _ in range(n)], [[] for _ in range(n)], \
+            [[] for _ in range(n)]
+        self.diverged, self.steps = [None] * n, [0] * n
+
+    def record(self, b: int, zz: np.ndarray, oo: np.ndarray, k: int, m: int, dt: float) -> None:
+        """Keep run b's chunk (steps k .. k + m - 1): outputs on the decimated grid, the
+        divergence if one happened (the run then stops at its last finite state)."""
+        first = (-k) % self.decimate  # the first step of this chunk on the output grid
+        z_prev = self.z[:, b].copy()
+        if not (np.abs(zz).max() <= 1e8 and np.isfinite(oo).all()):
+            i, self.diverged[b] = divergence(zz, oo, z_prev, self.names, self.out_names, k, dt)
+            m = i + 1
+        self.outs[b].append(oo[:, first:m:self.decimate].T.copy())
+        self.ts[b].append(np.arange(k + first, k + m, self.decimate) * dt)
+        if self.keep_states:
+            # the state before step i is z (i = 0) or zz[:, i-1]
+            z_before = np.hstack([z_prev[:, None], zz[:, :m - 1]])
+            self.zs[b].append(z_before[:, first::self.decimate].T.copy())
+        self.steps[b] = k + m
+        # a diverged run is frozen at its last finite state (its column computes on,
+        # unread, so that the batch keeps its shape)
+        if self.diverged[b]:
+            self.z[:, b] = zz[:, m - 2] if m > 1 else z_prev
+        else:
+            self.z[:, b] = zz[:, m - 1]
+
+    def results(self, wall: float) -> list[Result]:
+        n_out = len(self.out_names)
+        return [Result(t=np.concatenate(self.ts[b]) if self.ts[b] else np.zeros(0),
+                       outputs=np.vstack(self.outs[b]) if self.outs[b] else np.zeros((0, n_out)),
+                       z_final=self.z[:, b].copy(), diverged=self.diverged[b], wall_s=wall,
+                       steps=self.steps[b], names=self.out_names,
+                       z=np.vstack(self.zs[b]) if self.keep_states else None)
+                for b in range(len(self.runs))]
+
+
+def _put_static(call: Buffered, loop: Loop, runs: list[Run], dt: float) -> None:
+    """The run-independent inputs, written once."""
+    n_runs = len(runs)
+    for b, r in enumerate(runs):
+        call.put("yd", r.yd, b, n_runs)
+        call.put("p_turbine", loop.p_turbine, b, n_runs)
+        call.put("p_ctrl", r.p_ctrl, b, n_runs)
+        if loop.fdi:
+            call.put("use_fdi", [float(r.use_fdi)], b, n_runs)
+        call.put("dt", [dt], b, n_runs)
+
+
+def _put_chunk(call: Buffered, runs: list[Run], k: int, m: int, n_c: int, dt: float) -> None:
+    """Wind at t, t + dt/2, t + dt of every step of the chunk; fault inputs per step, or one
+    column held when they are constant over the chunk (the usual case)."""
+    tk = (k + np.arange(n_c)) * dt
+    held = all(s is None or s.constant_between(tk[0], tk[m - 1])
+               for r in runs for s in (r.schedule, r.ctrl_schedule))
+    tf = tk[:1] if held else tk
+    nominal = {g: lay.defaults(g)[:, None] for g in ("actuator_faults", "sensor_faults",
+                                                      "fault_inputs")}
+    n_ctrl = lay.size("fault_inputs")
+    n_runs = len(runs)
+    for b, r in enumerate(runs):
+        call.put("wind3", np.vstack([r.wind(tk), r.wind(tk + dt / 2), r.wind(tk + dt)]), b,
+                 n_runs)
+        s, c = r.schedule, r.ctrl_schedule
+        call.put("actuator_faults", s.actuator(tf) if s else nominal["actuator_faults"], b,
+                 n_runs)
+        call.put("sensor_faults", s.sensor(tf) if s else nominal["sensor_faults"], b, n_runs)
+        call.put("ctrl_fault", c.actuator(tf)[:n_ctrl] if c else nominal["fault_inputs"], b,
+                 n_runs)
+
+
+def _bind_locks(runs: list[Run], k: int, dt: float, z: np.ndarray, pitch: slice) -> None:
+    """Bind "lock wherever the blade is" at its onset step, from the current state."""
+    for b, r in enumerate(runs):
+        if r.schedule and k in {int(round(e / dt)) for e in r.schedule.events()}:
+            r.schedule.bind_current_angles(k * dt, z[pitch, b], dt)
+            if r.ctrl_schedule is not None:
+                r.ctrl_schedule.bind_current_angles(k * dt, z[pitch, b], dt)
+
+
+def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: int = 1,
+              progress: bool = True, keep_states: bool = False, threads: int = 1,
+              fast_math: bool = False, hook: ChunkHook | None = None) -> list[Result]:
+    """Integrate independent runs of one loop (same plant, controller, turbine, dt) together:
+    each compiled chunk call advances all of them (``Function.map``, on ``threads`` threads).
+
+    Every run gets the numbers it gets alone (the same compiled step, bit for bit); a run
+    that diverges is recorded and frozen while the others go on. ``hook`` (a single run
+    only): acts between chunks of ``hook.steps`` steps (see :class:`ChunkHook`).
+    """
+    if hook is not None and len(runs) != 1:
+        raise ValueError("a chunk hook drives one run at a time")
+    n_steps = int(round(t_final / dt))
+    f = chunk_function(loop, n=hook.steps if hook else CHUNK, fast_math=fast_math)
+    call = Buffered(_mapped(f, len(runs), threads))
+    n_c = f.size2_out(1)
+    batch = _Batch(runs, state_names(loop.plant, loop.controller)[:f.size1_in(0)],
+                   [n for n, _ in output_spec(loop.controller, loop.fdi)],
+                   np.column_stack([np.asarray(r.z0, dtype=float) for r in runs]),
+                   keep_states, decimate)
+    events = sorted({int(round(e / dt)) for r in runs if r.schedule
+                     for e in r.schedule.events()})
+    pitch = lay.block(PLANTS[loop.plant]["states"], "beta")
+    _put_static(call, loop, runs, dt)
+    k, t0 = 0, time.perf_counter()
+    last_print = t0
+    while k < n_steps and not all(batch.diverged):
+        _bind_locks(runs, k, dt, batch.z, pitch)
+        # a hook's chunks end on multiples of its interval, whatever events cut them
+        end = (k // n_c + 1) * n_c if hook is not None else k + n_c
+        stop = min([n_steps, end] + [e for e in events if e > k])
+        _put_chunk(call, runs, k, stop - k, n_c, dt)
+        call.put("z", batch.z)
+        if hook is not None:
+            hook.before(call)
+        zz_all, oo_all = call.evaluate()
+        for b in range(len(runs)):
+            if not batch.diverged[b]:  # views, valid until the next call
+                batch.record(b, zz_all[:, b * n_c:b * n_c + stop - k],
+                             oo_all[:, b * n_c:b * n_c + stop - k], k, stop - k, dt)
+        if hook is not None and not batch.diverged[0] and stop % hook.steps == 0:
+            hook.after(stop, batch.z[:, 0], dict(zip(batch.out_names, oo_all[:, stop - k - 1],
+                                                     strict=True)))
+        k = stop
+        now = time.perf_counter()
+        if progress and now - last_print > 0.5:
+            _progress(k, n_steps, dt, now - t0, runs=len(runs))
+            last_print = now
+    wall = time.perf_counter() - t0
+    if progress:
+        _progress(k, n_steps, dt, wall, end=True, runs=len(runs))
+    return batch.results(wall)
+
+
+def divergence(zz: np.ndarray, oo: np.ndarray, z_prev: np.ndarray, names: list[str],
+               out_names: list[str], k: int, dt: float) -> tuple[int, dict]:
+    """The first step of a chunk that blew up, and its record.
+
+    Column i of zz is the state after step k + i, column i of oo the outputs at the state
+    before it (z_prev for i = 0). Step i is bad when that state is non-finite or beyond
+    1e8, or when the outputs at its start are non-finite (the control law can fail before
+    any state does: a state that is still finite then carries the NaN into the next step).
+    The record names every quantity that failed, the time at the end of the step, and the
+    last finite state.
+    """
+    bad = ~np.all(np.isfinite(oo), axis=0) | ~np.all(np.isfinite(zz), axis=0)
+    bad |= np.any(np.abs(zz) > 1e8, axis=0)
+    i = int(np.argmax(bad))
+    blew = [n for n, a in zip(names, zz[:, i], strict=True)
+            if not np.isfinite(a) or abs(a) > 1e8]
+    nan_out = [n for n, a in zip(out_names, oo[:, i], strict=True) if not np.isfinite(a)]
+    parts = []
+    if blew:
+        parts.append("non-finite or |state| > 1e8 in " + ", ".join(blew[:8])
+                     + (" ..." if len(blew) > 8 else ""))
+    if nan_out:
+        parts.append("non-finite outputs " + ", ".join(nan_out[:8])
+                     + (" ..." if len(nan_out) > 8 else ""))
+    before = zz[:, i - 1] if i > 0 else z_prev
+    return i, {"t_s": float((k + i + 1) * dt), "reason": "; ".join(parts),
+               "last_finite_state": {n: float(a) for n, a in zip(names, before, strict=True)}}
+
+def _progress(k: int, n: int, dt: float, wall: float, end: bool = False, runs: int = 1,
+              ) -> None:
+    """A progress bar on a terminal; one summary line when stderr is a file or a pipe.
+    ``runs``: a batch advancing that many runs together (the rate counts all of them)."""
+    rate = runs * k * dt / max(wall, 1e-9)
+    what = f"{runs} runs × " if runs > 1 else ""
+    if not sys.stderr.isatty():
+        if end:
+            print(f"    {what}{k * dt:.1f} s simulated in {wall:.1f} s ({rate:.0f}× real time)",
+                  file=sys.stderr, flush=True)
+        return
+    width = 30
+    done = int(width * k / max(n, 1))
+    print(f"\r    [{'#' * done}{'.' * (width - done)}] {what}{k * dt:7.1f}/{n * dt:.1f} s "
+          f"simulated, {rate:6.0f}× real time", end="\n" if end else "", file=sys.stderr,
+          flush=True)

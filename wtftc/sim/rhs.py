@@ -1,0 +1,179 @@
+"""The closed loop's right-hand side: generated plant + Cp lookup + generated controller + FDI.
+
+The controller sees only measured signals; the plant state never enters it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from functools import cache
+
+import casadi as ca
+import numpy as np
+
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import load
+from wtftc.model.aero import cp_loop_function, sched_loop_function
+from wtftc.model.cp_table import CpTable, nrel5mw_cp_table
+
+PLANTS = {
+    "nrel5mw": {"function": "turbine_nrel5mw", "states": "nrel5mw_states",
+                "doc": "NREL 5-MW: two-mass drivetrain, generator torque, 2nd-order "
+                       "limited actuators (default)"},
+    "paper": {"function": "turbine_paper", "states": "plant_states",
+              "doc": "eqs (1)-(4) as printed: UNLOADED, no generator torque "
+                     "(paper-notes defect 3)"},
+}
+
+#: per-step outputs common to every controller, with units; then y_d and the controller's
+#: four diagnostics (named in generated/layout.json, e.g. x̂1..x̂4 for the paper's design)
+OUTPUTS = [
+    ("omega_r", "rad/s"), ("theta_s", "rad"), ("omega_g_hss", "rad/s"),
+    ("beta_1", "rad"), ("beta_2", "rad"), ("beta_3", "rad"),
+    ("beta_meas_1", "rad"), ("beta_meas_2", "rad"), ("beta_meas_3", "rad"),
+    ("u0", "rad"), ("v_1", "rad"), ("v_2", "rad"), ("v_3", "rad"),
+    ("wind", "m/s"), ("tsr", "-"), ("cp", "-"), ("T_aero", "N m"), ("T_gen", "N m"),
+    ("P_gen", "W"), ("dT_dbeta", "N m/rad"), ("y_d", "rad/s"),
+    *[(f"fdi_latch_{j}", "-") for j in (1, 2, 3)],
+    *[(f"fdi_rho_hat_{j}", "-") for j in (1, 2, 3)],
+    *[(f"fdi_c_hat_{j}", "rad") for j in (1, 2, 3)],
+    *[(f"fdi_residual_rms_{j}", "rad") for j in (1, 2, 3)],
+    *[(f"fdi_omega_n_hat_{j}", "rad/s") for j in (1, 2, 3)],
+    *[(f"fdi_zeta_hat_{j}", "-") for j in (1, 2, 3)],
+]
+
+def controllers() -> dict:
+    """The registered controllers (derivation/controllers.py, via generated/layout.json)."""
+    return lay.layout()["controllers"]
+
+
+def output_spec(controller: str, fdi: bool = True) -> list[tuple[str, str]]:
+    diag = controllers()[controller]["diag"]
+    base = OUTPUTS if fdi else [o for o in OUTPUTS if not o[0].startswith("fdi_")]
+    return base + [(n, "rad/s" if n == "xhat_1" else "-") for n in diag]
+
+
+def state_names(plant: str, controller: str = "paper") -> list[str]:
+    return (lay.names(PLANTS[plant]["states"]) + lay.names(controllers()[controller]["states"])
+            + lay.names("fdi_states"))
+
+
+@dataclass(frozen=True)
+class Loop:
+    """What one compiled closed loop is built for, resolved once (wtftc.config) and handed
+    down: every run of a batch shares it. Hashable: the compiled functions are cached by it
+    (the Cp table by its key, the turbine parameters by value)."""
+
+    plant: str
+    controller: str
+    table: CpTable = field(compare=False, repr=False)
+    table_key: str = "nrel5mw"
+    p_turbine: tuple = ()
+    fdi: bool = True
+
+    @classmethod
+    def default(cls, plant: str = "nrel5mw", controller: str = "paper", fdi: bool = True,
+                p_turbine=None) -> Loop:
+        """The loop on the packaged NREL 5-MW Cp table and the layout's turbine."""
+        pt = lay.vector("turbine_params") if p_turbine is None else p_turbine
+        return cls(plant, controller, nrel5mw_cp_table(), "nrel5mw",
+                   tuple(float(x) for x in pt), fdi)
+
+    def with_controller(self, controller: str, fdi: bool | None = None) -> Loop:
+        return replace(self, controller=controller, fdi=self.fdi if fdi is None else fdi)
+
+    @property
+    def label(self) -> str:
+        return f"{self.plant}_{self.controller}{'' if self.fdi else '_nofdi'}_{self.table_key}"
+
+    @property
+    def n_states(self) -> tuple[int, int, int]:
+        """(plant, controller, FDI) state counts."""
+        return (lay.size(PLANTS[self.plant]["states"]),
+                lay.size(controllers()[self.controller]["states"]),
+                lay.size("fdi_states") if self.fdi else 0)
+
+
+def _closed_loop_rhs(loop: Loop) -> ca.Function:
+    """ż = f(z, wind, faults, reference, parameters): z = [plant states, controller states,
+    FDI states].
+
+    The controller sees only the measurements [ω_r, ω_g, β_meas,j] and the pitch-scheduled
+    sensitivity; the plant state never enters it. ``loop.fdi = False`` leaves the FDI out
+    (no FDI states, no ``use_fdi`` input, no fdi_* outputs): the loop of cases 1-3 without
+    the monitor, as the benchmark runs it.
+    """
+    reg = controllers()[loop.controller]
+    n_p, n_c, n_f = loop.n_states
+    sym = {"z": ca.SX.sym("z", n_p + n_c + n_f), "wind": ca.SX.sym("wind"),
+           **{n: ca.SX.sym(n, lay.size(g)) for n, g in _INPUT_GROUPS.items()},
+           "p_ctrl": ca.SX.sym("p_ctrl", lay.size(reg["params"])),
+           # 1: the accommodation is fed by the FDI, 0: by ctrl_fault
+           "use_fdi": ca.SX.sym("use_fdi")}
+    z = sym["z"]
+    xp, xc, xf = z[:n_p], z[n_p:n_p + n_c], z[n_p + n_c:]
+    pf = load(PLANTS[loop.plant]["function"], "interpreted")
+    m = _measure(loop, pf, xp, sym)
+    if loop.fdi:
+        # the FDI's outputs depend on its states and the measurements only (no algebraic
+        # loop)
+        p_fdi = ca.DM(lay.defaults("fdi_params"))
+        fdi = load("fdi", "interpreted")
+        fd0 = fdi(x_fdi=xf, v=ca.DM.zeros(lay.n_blades()), beta_meas=m["sensors"], p_fdi=p_fdi)
+        known = (1 - sym["use_fdi"]) * sym["ctrl_fault"] + sym["use_fdi"] * fd0["known_fault"]
+    else:
+        known = sym["ctrl_fault"]
+    c = load(reg["function"], "interpreted")(
+        x_ctrl=xc, meas=m["meas"], yd=sym["yd"], sched=m["sched"], p_ctrl=sym["p_ctrl"],
+        known_fault=known)
+    p = pf(x_plant=xp, v=c["v"], wind=sym["wind"], cp=m["cp"],
+           actuator_faults=sym["actuator_faults"], sensor_faults=sym["sensor_faults"],
+           p_turbine=sym["p_turbine"])
+    out = [xp[0], xp[1], m["meas"][1], xp[lay.block("nrel5mw_states", "beta")], m["sensors"],
+           c["u0"], c["v"], sym["wind"], m["tsr"], m["cp"], p["T_aero"], p["T_gen"], p["P_gen"],
+           m["sched"], sym["yd"][0]]
+    names = ["z", "wind", *_INPUT_GROUPS, "p_ctrl"]
+    if loop.fdi:
+        fd = fdi(x_fdi=xf, v=c["v"], beta_meas=m["sensors"], p_fdi=p_fdi)
+        zdot = ca.vertcat(p["x_plant_dot"], c["x_ctrl_dot"], fd["x_fdi_dot"])
+        out += [fd0[k] for k in ("latch", "rho_hat", "c_hat", "residual_rms", "omega_n_hat",
+                                 "zeta_hat")]
+        names.append("use_fdi")
+    else:
+        zdot = ca.vertcat(p["x_plant_dot"], c["x_ctrl_dot"])
+    out = ca.vertcat(*out, c["diag"])
+    assert out.numel() == len(output_spec(loop.controller, loop.fdi))
+    # one pass of common-subexpression elimination over the assembled loop: the plant, the
+    # controller and the FDI share the measured quantities and the aerodynamics
+    zdot, out = ca.cse([zdot, out])
+    return ca.Function("rhs", [sym[n] for n in names], [zdot, out], names, ["z_dot", "out"])
+
+
+#: the loop's inputs that are layout groups, in input order after z and wind
+_INPUT_GROUPS = {"actuator_faults": "actuator_faults", "sensor_faults": "sensor_faults",
+                 "ctrl_fault": "fault_inputs", "yd": "reference",
+                 "p_turbine": "turbine_params"}
+
+
+def _measure(loop: Loop, pf: ca.Function, xp: ca.SX, sym: dict) -> dict:
+    """What the controller sees: [ω_r, ω_g (HSS), β_meas,j], the Cp at the operating point,
+    and the ∂T_aero/∂β schedule at the measured mean pitch."""
+    pt, wind = sym["p_turbine"], sym["wind"]
+    n_b = lay.n_blades()
+    op = load("aero_operating_point", "interpreted")(
+        x_plant=xp[:lay.size("plant_states")], wind=wind, p_turbine=pt)
+    cp = cp_loop_function(loop.table)(op["tsr"], op["beta_mean"])
+    sensors = pf(x_plant=xp, v=ca.DM.zeros(n_b), wind=wind, cp=cp,
+                 actuator_faults=sym["actuator_faults"], sensor_faults=sym["sensor_faults"],
+                 p_turbine=pt)["beta_meas"]  # independent of v
+    omega_g = xp[lay.index("plant_states", "omega_g")]
+    meas = ca.vertcat(xp[0], omega_g * pt[lay.index("turbine_params", "gearbox_ratio")], sensors)
+    sched_fn = sched_loop_function(loop.table, np.array(loop.p_turbine))
+    return {"meas": meas, "sensors": sensors, "cp": cp, "tsr": op["tsr"],
+            "sched": sched_fn(ca.sum1(sensors) / n_b)}
+
+
+@cache
+def rhs_function(loop: Loop) -> ca.Function:
+    """The closed-loop right-hand side of ``loop`` (built once per loop)."""
+    return _closed_loop_rhs(loop)

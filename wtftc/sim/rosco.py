@@ -1,0 +1,206 @@
+"""ROSCO in the loop: NREL's reference controller on the same plant, wind and faults.
+
+Optional extra: ``pip install 'wtftc[rosco]'`` (the ``rosco`` 2.10.6 wheel, which ships
+``libdiscon.so``, ``ControllerInterface`` and the NREL 5-MW ``DISCON.IN``). ROSCO is called
+through ``rosco.toolbox.control_interface.ControllerInterface`` every ``CONTROL_DT``; in
+between, the compiled loop advances the plant (and wtftc's FDI, as a monitor) with the
+``external`` controller holding ROSCO's blade pitch commands, and the generator torque
+held at ROSCO's command. ROSCO sees what a turbine measures: rotor and generator speed,
+blade pitch, generator torque; its wind input is used only at start-up (its own wind
+estimator runs on the Cp table).
+
+Gotchas handled here (see the research notes in docs/controllers.md): the avrSWAP array
+is sized 2000 (DISCON.IN has Ext_Interface = 1, ROSCO reads indices up to 1018); the
+initialization call is given the real initial state (the stock one assumes 1 rad/s and
+10 m/s); a private copy of DISCON.IN turns logging off and points at the Cp file by
+absolute path; one instance per process at a time.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import tempfile
+import time
+import types
+from pathlib import Path
+
+import numpy as np
+
+from wtftc.artefacts import layout as lay
+from wtftc.errors import ConfigError
+from wtftc.sim import integrate
+from wtftc.sim.rhs import PLANTS, Loop
+
+ROSCO_VERSION = "2.10.6"
+CONTROL_DT = 0.005  # ROSCO's call interval [s] (OpenFAST's NREL 5-MW case uses 0.00625)
+INSTALL = "pip install 'wtftc[rosco]'  (the rosco 2.10.6 wheel)"
+
+
+def available() -> str | None:
+    """None if ROSCO can be used here, else the reason (with what to install)."""
+    try:
+        _import()
+    except Exception as exc:  # noqa: BLE001 - any import failure means "not available"
+        return f"ROSCO is not available ({type(exc).__name__}: {exc}); install it with {INSTALL}"
+    return None
+
+
+def _import():
+    # unbuffered Fortran output, so that ROSCO's prints land while stdout is silenced
+    # (gfortran reads this when the library loads)
+    os.environ.setdefault("GFORTRAN_UNBUFFERED_PRECONNECTED", "y")
+    try:
+        import wisdem  # noqa: F401
+    except ImportError:
+        # ControllerInterface's module imports a wisdem type table it does not use for
+        # control; without the (large) wisdem install, a stand-in module suffices
+        for name in ("wisdem", "wisdem.inputs", "wisdem.inputs.validation"):
+            sys.modules.setdefault(name, types.ModuleType(name))
+        sys.modules["wisdem.inputs.validation"].simple_types = None
+    import rosco
+    from rosco.toolbox.control_interface import ControllerInterface
+
+    return rosco, ControllerInterface
+
+
+def _discon_copy(tmp: Path) -> Path:
+    """The packaged NREL 5-MW DISCON.IN with logging off and the Cp file by absolute path."""
+    rosco, _ = _import()
+    case = Path(rosco.__file__).resolve().parent.parent / "Examples" / "Test_Cases" / "NREL-5MW"
+    src = case / "DISCON.IN"
+    if not src.exists():
+        raise ConfigError("controller", "rosco", f"a rosco install with {src}")
+    out = []
+    for line in src.read_text().splitlines():
+        key = line.split("!")[-1].strip().split(" ")[0] if "!" in line else ""
+        if key == "LoggingLevel":
+            line = "0" + line[line.index(" ") if " " in line.strip() else len(line):]
+        elif key == "PerfFileName":
+            line = f'"{case / "Cp_Ct_Cq.NREL5MW.txt"}"    ! PerfFileName'
+        out.append(line)
+    path = tmp / "DISCON.IN"
+    path.write_text("\n".join(out) + "\n")
+    return path
+
+
+@contextlib.contextmanager
+def _quiet_stdout():
+    """ROSCO's Fortran prints a banner and a status line every 10 s to file descriptor 1."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    with open(os.devnull, "w") as null:
+        os.dup2(null.fileno(), 1)
+        try:
+            yield
+        finally:
+            sys.stdout.flush()
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
+def run(loop: Loop, inputs: integrate.Run, t_final: float, dt: float, decimate: int = 1,
+        progress: bool = True) -> integrate.Result:
+    """Simulate one run (its plant, wind, faults) with ROSCO in the loop: ``loop`` is the
+    ``external`` controller's, whose parameters are the held blade pitch commands."""
+    reason = available()
+    if reason:
+        raise ConfigError("controller", "rosco", reason)
+    if loop.plant != "nrel5mw":
+        raise ConfigError("plant", loop.plant, "nrel5mw with controller = rosco (ROSCO "
+                          "commands the generator torque the paper's plant does not have)")
+    n_sub = int(round(CONTROL_DT / dt))
+    if n_sub < 1 or abs(n_sub * dt - CONTROL_DT) > 1e-12:
+        raise ConfigError("dt_s", dt, f"a divisor of ROSCO's call interval {CONTROL_DT} s")
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp, _quiet_stdout():
+        cwd = os.getcwd()
+        os.chdir(tmp)  # ROSCO writes next to sim_name; keep the user's folder clean
+        try:
+            hook = _Discon(Path(tmp), loop, inputs, n_sub)
+            res = integrate.run_loops(loop, [inputs], t_final, dt, decimate, progress=False,
+                                      hook=hook)[0]
+            hook.close()
+        finally:
+            os.chdir(cwd)
+    res.schedule = inputs.schedule
+    res.wall_s = time.perf_counter() - t0
+    if progress:
+        print(f"    {res.steps * dt:.1f} s simulated with ROSCO in {res.wall_s:.1f} s "
+              f"({res.steps * dt / max(res.wall_s, 1e-9):.0f}× real time)", file=sys.stderr)
+    return res
+
+
+class _Discon(integrate.ChunkHook):
+    """ROSCO's DISCON, called every CONTROL_DT: between calls the compiled loop holds its
+    blade pitch commands (the ``external`` controller's parameters) and its generator
+    torque (the turbine's rated torque, constant-torque law)."""
+
+    def __init__(self, tmp: Path, loop: Loop, inputs: integrate.Run, n_sub: int):
+        self.steps = n_sub
+        self.dt = CONTROL_DT / n_sub
+        self.wind = inputs.wind
+        self.tp = lay.values("turbine_params", loop.p_turbine)
+        self.p_turbine = np.array(loop.p_turbine)
+        z0 = inputs.z0
+        n_g = self.tp["gearbox_ratio"]
+        pitch = z0[lay.block(PLANTS[loop.plant]["states"], "beta")]
+        self.pitch = np.array(pitch, dtype=float)
+        self.tq_hss = self.tp["gen_torque_rated"] / n_g
+        self.state = None
+        self.i_omega_g = lay.index(PLANTS[loop.plant]["states"], "omega_g")
+        omega_g = z0[self.i_omega_g]
+        self.ci = _interface(tmp, float(np.degrees(self.pitch.mean())),
+                             {"gen_speed": omega_g * n_g, "rot_speed": z0[0],
+                              "ws": float(self.wind(0.0)), "gen_torque": self.tq_hss})
+
+    def before(self, call: integrate.Buffered) -> None:
+        pt = self.p_turbine.copy()
+        pt[lay.index("turbine_params", "gen_torque_rated")] = \
+            self.tq_hss * self.tp["gearbox_ratio"]  # ROSCO's torque, held
+        pt[lay.index("turbine_params", "gen_constant_power")] = 0.0
+        call.put("p_turbine", pt)
+        call.put("p_ctrl", self.pitch)
+
+    def after(self, k: int, z: np.ndarray, out: dict[str, float]) -> None:
+        n_b = lay.n_blades()
+        beta_meas = [out[f"beta_meas_{j}"] for j in range(1, n_b + 1)]
+        self.state = {"iStatus": 1, "t": k * self.dt, "dt": CONTROL_DT,
+                      "bld_pitch": float(np.mean(beta_meas)), "gen_torque": self.tq_hss,
+                      "gen_speed": z[self.i_omega_g] * self.tp["gearbox_ratio"],
+                      "gen_eff": self.tp["gen_efficiency"], "rot_speed": z[0],
+                      "ws": float(self.wind(k * self.dt)), "Y_MeasErr": 0.0,
+                      "Yaw_fromNorth": 0.0}
+        tq, _, _ = self.ci.call_controller(self.state)
+        self.tq_hss = float(tq)
+        # avrSWAP records 42-44: the blade pitch demands (C index n - 1)
+        self.pitch = np.array([self.ci.avrSWAP[41 + j] for j in range(n_b)], float)
+
+    def close(self) -> None:
+        """The final call (iStatus = -1), then the library is released."""
+        if self.state is not None:
+            self.ci.call_controller({**self.state, "iStatus": -1})
+        self.ci.kill_discon()
+
+
+def _interface(tmp: Path, pitch_deg: float, init_state: dict):
+    """ROSCO's ControllerInterface on a private DISCON.IN, its first call given the real
+    initial state (the stock one assumes 1 rad/s and 10 m/s)."""
+    rosco, ControllerInterface = _import()
+
+    class _InitState(ControllerInterface):
+        def call_discon(self):
+            if self.avrSWAP[0] == 0:
+                s = init_state
+                self.avrSWAP[19], self.avrSWAP[20] = s["gen_speed"], s["rot_speed"]
+                self.avrSWAP[26], self.avrSWAP[22] = s["ws"], s["gen_torque"]
+            super().call_discon()
+
+    ci = _InitState(rosco.discon_lib_path, param_filename=str(_discon_copy(tmp)),
+                    DT=CONTROL_DT, pitch=pitch_deg, sim_name=str(tmp / "wtftc"),
+                    avr_size=2000)
+    if ci.aviFAIL.value < 0:
+        raise ConfigError("controller", "rosco",
+                          "a working ROSCO: " + ci.avcMSG.value.decode(errors="replace"))
+    return ci

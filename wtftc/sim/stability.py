@@ -1,0 +1,51 @@
+"""RK4's stability limit at the initial state, and the step refused beyond it."""
+
+from __future__ import annotations
+
+import sys
+from functools import cache
+
+import casadi as ca
+import numpy as np
+
+from wtftc.artefacts import layout as lay
+from wtftc.errors import ConfigError
+from wtftc.sim.rhs import Loop, rhs_function
+
+
+def stability_limit(loop: Loop, z0, wind0: float, yd, p_ctrl) -> float:
+    """Largest |eigenvalue| of the closed-loop Jacobian at z0 (RK4: stable for |λ dt| < 2.78)."""
+    args = [lay.defaults("actuator_faults"), lay.defaults("sensor_faults"),
+            lay.defaults("fault_inputs"), yd, loop.p_turbine, p_ctrl]
+    if loop.fdi:
+        args.append(0.0)
+    eig = np.linalg.eigvals(np.array(_jacobian_function(loop)(z0, wind0, *args)))
+    return float(np.max(np.abs(eig)))
+
+
+@cache
+def _jacobian_function(loop: Loop) -> ca.Function:
+    """∂ż/∂z of the closed loop, built once per loop."""
+    rhs = rhs_function(loop)
+    ins = [ca.SX.sym(rhs.name_in(i), rhs.sparsity_in(i)) for i in range(rhs.n_in())]
+    return ca.Function("closed_loop_jacobian", ins, [ca.jacobian(rhs(*ins)[0], ins[0])])
+
+
+#: beyond this step the paper controller's start-up transient is not resolved: measured
+#: errors of order 1 at dt = 4e-3 s against DOP853 (docs/verification.md, section 6)
+DT_ACCURATE_S = 1e-3
+
+def check_dt(dt: float, lam_max: float) -> None:
+    """Refuse a dt beyond RK4's stability limit at the initial state, with the reason;
+    warn (stderr) beyond the step at which the integration was verified accurate."""
+    if not (np.isfinite(dt) and dt > 0):
+        raise ConfigError("dt_s", dt, "a positive number of seconds")
+    if dt > DT_ACCURATE_S * (1 + 1e-9):
+        print(f"  warning: dt_s = {dt:g} s is larger than {DT_ACCURATE_S:g} s, the step at "
+              "which the closed loop's RK4 integration is verified accurate "
+              "(docs/verification.md); results may be inaccurate", file=sys.stderr)
+    limit = 2.78 / lam_max
+    if dt > limit:
+        raise ConfigError("dt_s", dt, f"at most {limit:.3g} s: the fastest mode of the "
+                          f"closed loop at the initial state has |λ| = {lam_max:.4g} 1/s and "
+                          "RK4 is stable only for |λ·dt| < 2.78")

@@ -1,0 +1,36 @@
+"""The initial state of a run: the plant in balance, the controller and the FDI at rest."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import load
+from wtftc.model import aero
+from wtftc.sim.rhs import PLANTS, Loop, controllers
+
+
+def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0) -> np.ndarray:
+    """Initial state: rated speed (plus offset), drivetrain at rest under rated torque,
+    blades at the pitch that balances it at the initial wind ``wind0`` [m/s]; the
+    controller and the FDI at rest on what they measure there.
+
+    The paper plant has no generator torque: its balance is T_aero = 0 (paper-notes defect 3).
+    """
+    tp = lay.values("turbine_params", loop.p_turbine)
+    omega = tp["omega_g_rated"] + omega_offset
+    loaded = loop.plant == "nrel5mw"
+    torque = tp["gen_torque_rated"] if loaded else 0.0
+    beta0 = aero.steady_pitch(aero.cp_interpolant(loop.table), omega, torque, wind0,
+                              tp["air_density"], tp["rotor_radius"])
+    n_b = lay.n_blades()
+    plant = dict.fromkeys(lay.names(PLANTS[loop.plant]["states"]), 0.0)
+    plant.update(omega_r=omega, theta_s=torque / tp["k_s"], omega_g=omega,
+                 **{f"beta_{j}": beta0 for j in range(1, n_b + 1)})
+    # the controller starts from what it measures (init_<controller>, generated)
+    meas0 = np.array([omega, omega * tp["gearbox_ratio"], *[beta0] * n_b])
+    sched0 = float(aero.pitch_sensitivity_schedule(loop.table, loop.p_turbine)(beta0))
+    init = load(controllers()[loop.controller]["init"])
+    xc = np.array(init(meas=meas0, sched=sched0, p_ctrl=p_ctrl)["x_ctrl0"]).ravel()
+    xf = np.array(load("init_fdi")(beta_meas=meas0[2:])["x_fdi0"]).ravel()
+    return np.concatenate([list(plant.values()), xc, xf])
