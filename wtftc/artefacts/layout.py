@@ -50,6 +50,11 @@ def n_blades() -> int:
     return int(layout()["n_blades"])
 
 
+def blades() -> range:
+    """The blade numbers 1..n_blades, as in the layout's names (``beta_1``, ...)."""
+    return range(1, n_blades() + 1)
+
+
 def block(group: str, prefix: str) -> slice:
     """Where the numbered entries ``<prefix>_1``, ``<prefix>_2``, ... sit in ``group``:
     ``block("nrel5mw_states", "beta")`` is the three blade pitch angles (not their rates)."""

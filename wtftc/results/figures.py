@@ -14,6 +14,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from wtftc.artefacts import layout as lay  # noqa: E402
 from wtftc.results.io import atomic_savefig  # noqa: E402
 
 CASE_COLORS = {1: "tab:blue", 2: "tab:red", 3: "tab:green", 4: "tab:purple"}
@@ -64,9 +65,9 @@ def control(run, out: Path, name: str, paper_fig: str) -> list[Path]:
     lo, hi = run["pitch_limits_deg"]
     cmd = np.clip(np.degrees(res.column("v_1")), lo, hi)
     axes[1].plot(res.t, cmd, color="0.6", lw=0.6, label=f"command v_1, clipped to {lo:g}-{hi:g}°")
-    for j in (1, 2, 3):
+    for j in lay.blades():
         axes[1].plot(res.t, np.degrees(res.column(f"beta_{j}")), label=f"β_{j} blade {j}")
-    betas = np.degrees([res.column(f"beta_{j}") for j in (1, 2, 3)])
+    betas = np.degrees([res.column(f"beta_{j}") for j in lay.blades()])
     margin = max(2.0, 0.1 * (betas.max() - betas.min()))
     axes[1].set_ylim(betas.min() - margin, betas.max() + margin)
     axes[1].set_ylabel("pitch [deg]")
@@ -82,7 +83,7 @@ def control(run, out: Path, name: str, paper_fig: str) -> list[Path]:
 def estimates(run, out: Path, name: str, paper_fig: str) -> list[Path]:
     res = run["result"]
     n_g = run["gearbox_ratio"]
-    beta_mean = np.mean([res.column(f"beta_{j}") for j in (1, 2, 3)], axis=0)
+    beta_mean = np.mean([res.column(f"beta_{j}") for j in lay.blades()], axis=0)
     pairs = [("(a) rotor speed [rad/s]", res.column("omega_r"), res.column("xhat_1")),
              ("(b) torsion angle [rad]", res.column("theta_s"), res.column("xhat_2")),
              ("(c) generator speed, LSS [rad/s]", res.column("omega_g_hss") / n_g,
@@ -121,16 +122,18 @@ def fault_shape(run, out: Path, name: str = "fig06_fault") -> list[Path]:
     a = sched.actuator(t)
     s = sched.sensor(t)
     fig, axes = plt.subplots(3, 1, figsize=(7, 6), sharex=True)
-    for j in range(3):
-        axes[0].plot(t, a[j], label=f"ρ_{j + 1}")
-        axes[1].plot(t, a[3 + j], label=f"σ_{j + 1} (lock)")
-        axes[2].plot(t, a[9 + j], label=f"ω_n,{j + 1}")
+    rows = {n: a[lay.block("actuator_faults", n)] for n in ("rho", "lock", "omega_n")}
+    for j in lay.blades():
+        axes[0].plot(t, rows["rho"][j - 1], label=f"ρ_{j}")
+        axes[1].plot(t, rows["lock"][j - 1], label=f"σ_{j} (lock)")
+        axes[2].plot(t, rows["omega_n"][j - 1], label=f"ω_n,{j}")
     axes[0].set_ylabel("effectiveness ρ [-]")
     axes[1].set_ylabel("lock indicator σ [-]")
     axes[2].set_ylabel("actuator ω_n [rad/s]")
     axes[2].set_xlabel("time [s]")
-    if np.any(s[3:6] > 0) or np.any(s[:3] != 1):
-        axes[1].plot(t, s[3], "k:", label="sensor stuck")
+    stuck = s[lay.block("sensor_faults", "sensor_fixed")]
+    if np.any(stuck > 0) or np.any(s[lay.block("sensor_faults", "sensor_gain")] != 1):
+        axes[1].plot(t, stuck[0], "k:", label="sensor stuck")
     for ax in axes:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, ncol=3)
@@ -151,7 +154,7 @@ def comparison(runs: list[dict], out: Path, name: str = "cases_comparison") -> l
         if run["metrics"]["diverged"]:
             lab += f" (diverged at {run['metrics']['diverged']['t_s']:.1f} s)"
         axes[0].plot(res.t, res.column("omega_r"), color=CASE_COLORS[c], label=lab, lw=1)
-        beta_mean = np.mean([res.column(f"beta_{j}") for j in (1, 2, 3)], axis=0)
+        beta_mean = np.mean([res.column(f"beta_{j}") for j in lay.blades()], axis=0)
         axes[1].plot(res.t, np.degrees(beta_mean), color=CASE_COLORS[c], lw=1)
         axes[2].plot(res.t, res.column("P_gen") / 1e6, color=CASE_COLORS[c], lw=1)
     axes[0].plot(runs[0]["result"].t, runs[0]["result"].column("y_d"), "k--", lw=0.8,
@@ -176,7 +179,7 @@ def fdi(run, out: Path, name: str = "fdi", threshold_rad: float | None = None) -
     its threshold, the latch, the effectiveness estimate ρ̂ and the stuck-angle estimate."""
     res = run["result"]
     fig, axes = plt.subplots(4, 1, figsize=(7.5, 7.5), sharex=True)
-    for j, ls in zip((1, 2, 3), ("-", "--", ":"), strict=True):  # equal blades overlap
+    for j, ls in zip(lay.blades(), ("-", "--", ":"), strict=True):  # equal blades overlap
         kw = {"label": f"blade {j}", "ls": ls}
         axes[0].semilogy(res.t, np.maximum(np.degrees(res.column(f"fdi_residual_rms_{j}")),
                                            1e-12), **kw)

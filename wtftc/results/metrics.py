@@ -15,7 +15,7 @@ def metrics(rc: RunConfig, res: integrate.Result) -> dict:
     t = res.t
     w = res.column("omega_r")
     e = w - rc.reference
-    beta = np.column_stack([res.column(f"beta_{j}") for j in (1, 2, 3)])
+    beta = np.column_stack([res.column(f"beta_{j}") for j in lay.blades()])
     dt_out = rc.dt * rc.decimate
     rate = np.gradient(beta, dt_out, axis=0) if len(t) > 2 else np.zeros_like(beta)
     # settled: inside ±1 % from this time to the end, and for at least the last 20 % of
@@ -69,7 +69,7 @@ def fdi_report(rc: RunConfig, res: integrate.Result) -> dict:
     actuator = [f for f in faults if f.type not in ("sensor_fixed", "sensor_gain")]
     faulty = {f.blade: f for f in actuator}
     out = {"blades": {}, "false_alarms": [], "isolation_correct": True}
-    for j in (1, 2, 3):
+    for j in lay.blades():
         latch = res.column(f"fdi_latch_{j}")
         hit = np.nonzero(latch >= 0.5)[0]
         t_det = float(t[hit[0]]) if len(hit) else None

@@ -151,7 +151,7 @@ class Buffered:
 @dataclass
 class Result:
     t: np.ndarray
-    outputs: np.ndarray  # (N, len(OUTPUTS))
+    outputs: np.ndarray  # (N, outputs): rhs.output_spec's columns
     z_final: np.ndarray
     diverged: dict | None
     wall_s: float

@@ -25,22 +25,30 @@ PLANTS = {
                      "(paper-notes defect 3)"},
 }
 
-#: per-step outputs common to every controller, with units; then y_d and the controller's
-#: four diagnostics (named in generated/layout.json, e.g. x̂1..x̂4 for the paper's design)
-OUTPUTS = [
-    ("omega_r", "rad/s"), ("theta_s", "rad"), ("omega_g_hss", "rad/s"),
-    ("beta_1", "rad"), ("beta_2", "rad"), ("beta_3", "rad"),
-    ("beta_meas_1", "rad"), ("beta_meas_2", "rad"), ("beta_meas_3", "rad"),
-    ("u0", "rad"), ("v_1", "rad"), ("v_2", "rad"), ("v_3", "rad"),
-    ("wind", "m/s"), ("tsr", "-"), ("cp", "-"), ("T_aero", "N m"), ("T_gen", "N m"),
-    ("P_gen", "W"), ("dT_dbeta", "N m/rad"), ("y_d", "rad/s"),
-    *[(f"fdi_latch_{j}", "-") for j in (1, 2, 3)],
-    *[(f"fdi_rho_hat_{j}", "-") for j in (1, 2, 3)],
-    *[(f"fdi_c_hat_{j}", "rad") for j in (1, 2, 3)],
-    *[(f"fdi_residual_rms_{j}", "rad") for j in (1, 2, 3)],
-    *[(f"fdi_omega_n_hat_{j}", "rad/s") for j in (1, 2, 3)],
-    *[(f"fdi_zeta_hat_{j}", "-") for j in (1, 2, 3)],
-]
+#: per-step outputs common to every controller, with units; per blade j; then y_d and the
+#: controller's four diagnostics (named in generated/layout.json, e.g. x̂1..x̂4 for the
+#: paper's design)
+_PLANT_OUTPUTS = [("omega_r", "rad/s"), ("theta_s", "rad"), ("omega_g_hss", "rad/s")]
+_BLADE_OUTPUTS = [("beta", "rad"), ("beta_meas", "rad")]
+_LOOP_OUTPUTS = [("u0", "rad")]
+_COMMAND_OUTPUTS = [("v", "rad")]
+_AERO_OUTPUTS = [("wind", "m/s"), ("tsr", "-"), ("cp", "-"), ("T_aero", "N m"),
+                 ("T_gen", "N m"), ("P_gen", "W"), ("dT_dbeta", "N m/rad"), ("y_d", "rad/s")]
+_FDI_OUTPUTS = [("fdi_latch", "-"), ("fdi_rho_hat", "-"), ("fdi_c_hat", "rad"),
+                ("fdi_residual_rms", "rad"), ("fdi_omega_n_hat", "rad/s"),
+                ("fdi_zeta_hat", "-")]
+
+
+def _per_blade(spec: list[tuple[str, str]]) -> list[tuple[str, str]]:
+    return [(f"{n}_{j}", u) for n, u in spec for j in lay.blades()]
+
+
+def common_outputs(fdi: bool = True) -> list[tuple[str, str]]:
+    """The per-step outputs every loop reports, in column order, with units."""
+    out = (_PLANT_OUTPUTS + _per_blade(_BLADE_OUTPUTS) + _LOOP_OUTPUTS
+           + _per_blade(_COMMAND_OUTPUTS) + _AERO_OUTPUTS)
+    return out + _per_blade(_FDI_OUTPUTS) if fdi else out
+
 
 def controllers() -> dict:
     """The registered controllers (derivation/controllers.py, via generated/layout.json)."""
@@ -49,8 +57,7 @@ def controllers() -> dict:
 
 def output_spec(controller: str, fdi: bool = True) -> list[tuple[str, str]]:
     diag = controllers()[controller]["diag"]
-    base = OUTPUTS if fdi else [o for o in OUTPUTS if not o[0].startswith("fdi_")]
-    return base + [(n, "rad/s" if n == "xhat_1" else "-") for n in diag]
+    return common_outputs(fdi) + [(n, "rad/s" if n == "xhat_1" else "-") for n in diag]
 
 
 def state_names(plant: str, controller: str = "paper") -> list[str]:

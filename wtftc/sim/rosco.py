@@ -164,8 +164,7 @@ class _Discon(integrate.ChunkHook):
         call.put("p_ctrl", self.pitch)
 
     def after(self, k: int, z: np.ndarray, out: dict[str, float]) -> None:
-        n_b = lay.n_blades()
-        beta_meas = [out[f"beta_meas_{j}"] for j in range(1, n_b + 1)]
+        beta_meas = [out[f"beta_meas_{j}"] for j in lay.blades()]
         self.state = {"iStatus": 1, "t": k * self.dt, "dt": CONTROL_DT,
                       "bld_pitch": float(np.mean(beta_meas)), "gen_torque": self.tq_hss,
                       "gen_speed": z[self.i_omega_g] * self.tp["gearbox_ratio"],
@@ -175,7 +174,7 @@ class _Discon(integrate.ChunkHook):
         tq, _, _ = self.ci.call_controller(self.state)
         self.tq_hss = float(tq)
         # avrSWAP records 42-44: the blade pitch demands (C index n - 1)
-        self.pitch = np.array([self.ci.avrSWAP[41 + j] for j in range(n_b)], float)
+        self.pitch = np.array([self.ci.avrSWAP[40 + j] for j in lay.blades()], float)
 
     def close(self) -> None:
         """The final call (iStatus = -1), then the library is released."""

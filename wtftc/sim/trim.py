@@ -23,14 +23,16 @@ def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0
     torque = tp["gen_torque_rated"] if loaded else 0.0
     beta0 = aero.steady_pitch(aero.cp_interpolant(loop.table), omega, torque, wind0,
                               tp["air_density"], tp["rotor_radius"])
-    n_b = lay.n_blades()
     plant = dict.fromkeys(lay.names(PLANTS[loop.plant]["states"]), 0.0)
     plant.update(omega_r=omega, theta_s=torque / tp["k_s"], omega_g=omega,
-                 **{f"beta_{j}": beta0 for j in range(1, n_b + 1)})
-    # the controller starts from what it measures (init_<controller>, generated)
-    meas0 = np.array([omega, omega * tp["gearbox_ratio"], *[beta0] * n_b])
+                 **{f"beta_{j}": beta0 for j in lay.blades()})
+    # the controller and the FDI start from what they measure (init_<name>, generated)
+    meas = {"omega_r": omega, "omega_g_hss": omega * tp["gearbox_ratio"],
+            **{f"beta_meas_{j}": beta0 for j in lay.blades()}}
+    meas0 = np.array([meas[m["name"]] for m in lay.layout()["measurements"]])
     sched0 = float(aero.pitch_sensitivity_schedule(loop.table, loop.p_turbine)(beta0))
     init = load(controllers()[loop.controller]["init"])
     xc = np.array(init(meas=meas0, sched=sched0, p_ctrl=p_ctrl)["x_ctrl0"]).ravel()
-    xf = np.array(load("init_fdi")(beta_meas=meas0[2:])["x_fdi0"]).ravel()
+    beta_meas = [meas[f"beta_meas_{j}"] for j in lay.blades()]
+    xf = np.array(load("init_fdi")(beta_meas=beta_meas)["x_fdi0"]).ravel()
     return np.concatenate([list(plant.values()), xc, xf])
