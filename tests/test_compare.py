@@ -56,3 +56,20 @@ def test_pitch_controllers_run_with_the_baseline_torque_law_and_rosco_with_its_o
         cfg = compare.cell_config(name, "lock", "ntm_B_16", 30.0, 1e-3, 0)
         law = cfg.get("turbine_params", {}).get("gen_torque_law", 0.0)
         assert law == (0.0 if name == "rosco" else 1.0), name
+
+
+def test_the_matrix_has_every_actuator_fault_type_and_names_the_fdi_variants():
+    """compare.FAULTS holds one scenario of each pitch actuator fault type of the one list
+    (model/faults.py); the variants that use wtftc's FDI are those that run in its case."""
+    from wtftc import config
+    from wtftc.campaign import compare
+    from wtftc.model.faults import ACTUATOR_FAULT_TYPES
+
+    assert set(compare.FAULTS) == {"none", *ACTUATOR_FAULT_TYPES}
+    assert all(tabs[0]["type"] == f for f, tabs in compare.FAULTS.items() if tabs)
+    assert [c for c, v in compare.CONTROLLERS.items() if v.uses_fdi] == [
+        "physical_fdi", "drivetrain_fdi"]
+    assert "FDI" in config.CASES[compare.FDI_CASE]
+    cfg = compare.cell_config("physical_fdi", "lock", "ntm_B_16", 30.0, 1e-3, 0)
+    assert (cfg["controller"], cfg["case"]) == ("physical", compare.FDI_CASE)
+    assert compare.cell_config("physical_fdi", "none", "ntm_B_16", 30.0, 1e-3, 0)["case"] == 1

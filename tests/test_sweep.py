@@ -12,8 +12,10 @@ import numpy as np
 import pytest
 
 from wtftc import config
+from wtftc.artefacts import layout as lay
 from wtftc.campaign import cases, sweep
 from wtftc.errors import ConfigError
+from wtftc.model.faults import ACTUATOR_FAULT_TYPES
 from wtftc.results.metrics import metrics
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -94,6 +96,19 @@ def test_runs_follow_from_the_sweep_file_deterministically():
     # every run's configuration is a valid run configuration, with its id as label
     rc = config.make_config(one[0]["config"])
     assert rc.label == f"sweep-{one[0]['run_id']}"
+
+
+def test_the_sweeps_lists_are_the_one_lists():
+    """Fault types, plants and turbulence classes come from where they are defined (one
+    list each): a sweep offers each pitch actuator fault type, each plant of the loop."""
+    from wtftc.model import wind
+    from wtftc.sim import rhs
+
+    assert sweep.FAULT_TYPES == ("none", *ACTUATOR_FAULT_TYPES)
+    assert sweep.PLANTS == tuple(rhs.PLANTS)
+    assert sweep.TURBULENCE_CLASSES == tuple(wind.I_REF)
+    with pytest.raises(ConfigError, match="one of none, lock, loss_of_effectiveness"):
+        sweep.parse_sweep({**BASE, "fault": {"type": "sensor_gain"}})
 
 
 def test_a_diverging_run_is_recorded_with_time_state_and_cause_and_a_bad_one_as_failed():
@@ -241,7 +256,7 @@ def test_robustness_campaign_file_is_valid_and_large_enough():
     assert len(generated) >= 1000
     assert {r["fault_type"] for r in runs} == set(sweep.FAULT_TYPES)
     assert {(r["fault_type"], r["blade"]) for r in runs if r["fault_type"] != "none"} == {
-        (f, b) for f in sweep.FAULT_TYPES[1:] for b in (1, 2, 3)}
+        (f, b) for f in ACTUATOR_FAULT_TYPES for b in (1, 2, 3)}
     assert {r["turbulence_class"] for r in runs} == {"A", "B", "C"}
     assert os.path.getsize(ROOT / "examples" / "robustness.toml") < 4000
 
@@ -254,10 +269,11 @@ def test_hydraulic_fault_severity_moves_the_actuator_part_of_the_way():
     half = Schedule(parse_faults([{"blade": 3, "type": "air_in_oil", "onset_s": 1.0,
                                    "severity": 0.5}]))
     a_full, a_half = full.actuator([0.0, 2.0]), half.actuator([0.0, 2.0])
-    wn0, z0 = a_full[11, 0], a_full[14, 0]  # ω_n,3 and ζ_3 before the onset: nominal
+    wn, zeta = lay.index("actuator_faults", "omega_n_3"), lay.index("actuator_faults", "zeta_3")
+    wn0, z0 = a_full[wn, 0], a_full[zeta, 0]  # before the onset: nominal
     assert (wn0, z0) == pytest.approx((11.11, 0.6))
-    assert (a_full[11, 1], a_full[14, 1]) == pytest.approx(HYDRAULIC["air_in_oil"])
-    assert a_half[11, 1] == pytest.approx(0.5 * (wn0 + HYDRAULIC["air_in_oil"][0]))
-    assert a_half[14, 1] == pytest.approx(0.5 * (z0 + HYDRAULIC["air_in_oil"][1]))
+    assert (a_full[wn, 1], a_full[zeta, 1]) == pytest.approx(HYDRAULIC["air_in_oil"])
+    assert a_half[wn, 1] == pytest.approx(0.5 * (wn0 + HYDRAULIC["air_in_oil"][0]))
+    assert a_half[zeta, 1] == pytest.approx(0.5 * (z0 + HYDRAULIC["air_in_oil"][1]))
     with pytest.raises(ConfigError, match="severity"):
         parse_faults([{"blade": 1, "type": "pressure_drop", "severity": 0.0}])

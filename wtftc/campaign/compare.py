@@ -1,13 +1,15 @@
 """`wtftc compare`: controllers × faults × winds on the NREL 5-MW plant, one table.
 
-Every cell is one run of :mod:`wtftc.cases`; its exact configuration (`config.toml`) and
-metrics (`metrics.json`) are written to ``<out>/<wind>/<fault>/<controller>/`` so that any
-cell re-runs alone with ``wtftc run --config <that config.toml>``.
+Every cell is one run of :mod:`wtftc.campaign.cases`; its exact configuration
+(`config.toml`) and metrics (`metrics.json`) are written to
+``<out>/<wind>/<fault>/<controller>/`` so that any cell re-runs alone with
+``wtftc run --config <that config.toml>``.
 """
 
 from __future__ import annotations
 
 import copy
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -19,25 +21,46 @@ from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_tex
 from wtftc.results.metrics import metrics
 
 ONSET_S = 20.0
-#: controller variants: (registered controller, case when a fault is present)
+#: the case in which a controller runs on the estimates of wtftc's FDI (config.CASES)
+FDI_CASE = 4
+
+
+@dataclass(frozen=True)
+class Variant:
+    """A controller variant of the matrix: a registered controller and the case it runs in
+    (config.CASES) when a fault is present; without a fault, every variant runs in case 1."""
+
+    controller: str  # registered controller (generated/layout.json)
+    fault_case: int
+    doc: str
+
+    @property
+    def uses_fdi(self) -> bool:
+        """Whether the variant detects faults itself, with wtftc's FDI (no oracle)."""
+        return self.fault_case == FDI_CASE
+
+
 CONTROLLERS = {
-    "rosco": ("rosco", 2, "NREL ROSCO 2.10.6 through its ControllerInterface (optional extra)"),
-    "paper": ("paper", 3, "Bakhshi & Alfi, corrected sign, eq (49) told the fault"),
-    "physical_fdi": ("physical", 4, "physical AFTC with wtftc's own FDI (no oracle)"),
-    "physical_known": ("physical", 3, "physical AFTC told the fault (oracle)"),
-    "physical_unaccommodated": ("physical", 2, "physical backstepping, no accommodation"),
-    "drivetrain_fdi": ("drivetrain", 4, "drivetrain-chain AFTC (θ_s ← ω_r ← β ← u) with "
-                                        "wtftc's own FDI: the measured alternative"),
-    "pi": ("pi", 2, "gain-scheduled PI baseline"),
+    "rosco": Variant(
+        "rosco", 2, "NREL ROSCO 2.10.6 through its ControllerInterface (optional extra)"),
+    "paper": Variant("paper", 3, "Bakhshi & Alfi, corrected sign, eq (49) told the fault"),
+    "physical_fdi": Variant(
+        "physical", FDI_CASE, "physical AFTC with wtftc's own FDI (no oracle)"),
+    "physical_known": Variant("physical", 3, "physical AFTC told the fault (oracle)"),
+    "physical_unaccommodated": Variant(
+        "physical", 2, "physical backstepping, no accommodation"),
+    "drivetrain_fdi": Variant(
+        "drivetrain", FDI_CASE, "drivetrain-chain AFTC (θ_s ← ω_r ← β ← u) with wtftc's own "
+                                "FDI: the measured alternative"),
+    "pi": Variant("pi", 2, "gain-scheduled PI baseline"),
 }
-FAULTS = {
-    "none": None,
-    "loss_of_effectiveness": [{"blade": 2, "type": "loss_of_effectiveness", "rho": 0.5,
-                               "onset_s": ONSET_S}],
-    "lock": [{"blade": 1, "type": "lock", "angle_deg": "current", "onset_s": ONSET_S}],
-    "pressure_drop": [{"blade": 2, "type": "pressure_drop", "onset_s": ONSET_S}],
-    "air_in_oil": [{"blade": 2, "type": "air_in_oil", "onset_s": ONSET_S}],
-}
+#: the matrix's faults from ONSET_S: each pitch actuator fault type of model/faults.py (the
+#: one list; tests/test_compare.py checks that none is missing), in the table's order, with
+#: its blade and magnitude (the hydraulic faults at full severity, their default)
+_FAULT_ON = {"loss_of_effectiveness": (2, {"rho": 0.5}), "lock": (1, {"angle_deg": "current"}),
+             "pressure_drop": (2, {}), "air_in_oil": (2, {})}
+FAULTS = {"none": None} | {typ: [{"blade": blade, "type": typ, **magnitude, "onset_s": ONSET_S}]
+                           for typ, (blade, magnitude) in _FAULT_ON.items()}
 WINDS = {
     "paper_random_12": {"kind": "paper_random"},
     "ntm_B_16": {"kind": "ntm", "mean_mps": 16.0, "turbulence_class": "B"},
@@ -74,8 +97,9 @@ def variant_config(controller: str, faults: list | None, wind: dict, t_final: fl
     """The run configuration of one controller variant (CONTROLLERS) under ``faults`` (a
     list of fault tables, or None) and ``wind`` (a wind table): `wtftc compare`'s cells and
     `wtftc sweep`'s runs."""
-    name, case, _ = CONTROLLERS[controller]
-    cfg = {"controller": name, "case": 1 if not faults else case,
+    variant = CONTROLLERS[controller]
+    name = variant.controller
+    cfg = {"controller": name, "case": 1 if not faults else variant.fault_case,
            "wind": copy.deepcopy(wind), "t_final_s": t_final, "dt_s": dt,
            "seed": seed, "label": label}
     if faults:
@@ -93,7 +117,7 @@ def _row(controller, fault, wind, m) -> dict:
               if b.get("detection_delay_s") is not None]
     row = {"controller": controller, "fault": fault, "wind": wind,
            **{k: m.get(k) for k, _, _ in COLUMNS[:6]},
-           "detection_delay_s": min(delays) if delays and CONTROLLERS[controller][1] == 4
+           "detection_delay_s": min(delays) if delays and CONTROLLERS[controller].uses_fdi
            else None,
            "diverged_at_s": m["diverged"]["t_s"] if m["diverged"] else None,
            "false_alarms": len(m["fdi"]["false_alarms"])}

@@ -166,17 +166,42 @@ def nrel5mw_cp_table() -> CpTable:
     return _parse(res.read_bytes(), source=NREL5MW_SOURCE, where=f"wtftc/data/{NREL5MW_FILE}")
 
 
-def _parse(raw: bytes, source: str, where: str) -> CpTable:
-    def bad(value, allowed):
-        return ConfigError(_FIELD, value, allowed, where=where)
+#: section key -> (header line number, declared entry count or None, [(line no, values)])
+_Sections = dict[str, tuple[int, int | None, list[tuple[int, list[float]]]]]
 
+
+def _parse(raw: bytes, source: str, where: str) -> CpTable:
+    """The table in a file's bytes ``raw``; :class:`ConfigError` naming ``where`` on any
+    defect (the first one found, top to bottom)."""
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise bad(f"undecodable byte at offset {exc.start}", f"a text file in {_FORMAT}") from None
+        raise _bad(where, f"undecodable byte at offset {exc.start}",
+                   f"a text file in {_FORMAT}") from None
+    sections = _sections(text, where)
+    for key in ("pitch", "tsr", "cp"):
+        if key not in sections:
+            raise _bad(where, f"no '{_SECTIONS[key][1]}' section", f"a file in {_FORMAT} with "
+                       "'# Pitch angle vector', '# TSR vector' and '# Power coefficient'")
+    pitch_deg = _vector(sections, "pitch", "deg", where)
+    tsr = _vector(sections, "tsr", "", where)
+    wind = _vector(sections, "wind", "m/s", where) if "wind" in sections else None
+    shape = (tsr.size, pitch_deg.size)
+    cp = _matrix(sections, "cp", shape, where)
+    ct = _matrix(sections, "ct", shape, where)
+    cq = _matrix(sections, "cq", shape, where)
+    return CpTable(pitch_rad=np.deg2rad(pitch_deg), tsr=tsr, cp=cp, ct=ct, cq=cq,
+                   source=source, sha256=hashlib.sha256(raw).hexdigest(), wind_speed=wind)
 
-    # section key -> (header line number, declared entry count or None, [(line no, values)])
-    sections: dict[str, tuple[int, int | None, list[tuple[int, list[float]]]]] = {}
+
+def _bad(where: str, found: str, allowed: str) -> ConfigError:
+    return ConfigError(_FIELD, found, allowed, where=where)
+
+
+def _sections(text: str, where: str) -> _Sections:
+    """The sections of the file's text, by key: a '#' line naming a section opens it, and
+    the numbers below it are its rows; any other '#' line (a title, a date) closes it."""
+    sections: _Sections = {}
     current: str | None = None
     comment: tuple[int, str] | None = None  # the last '#' line that names no section
     for lineno, line in enumerate(text.splitlines(), start=1):
@@ -189,8 +214,8 @@ def _parse(raw: bytes, source: str, where: str) -> CpTable:
                 current, comment = None, (lineno, s)
                 continue
             if key in sections:
-                raise bad(f"a second '{_SECTIONS[key][1]}' section at line {lineno}",
-                          "each section once")
+                raise _bad(where, f"a second '{_SECTIONS[key][1]}' section at line {lineno}",
+                           "each section once")
             m = _ENTRIES.search(s)
             sections[key] = (lineno, int(m.group(1)) if m else None, [])
             current = key
@@ -199,64 +224,64 @@ def _parse(raw: bytes, source: str, where: str) -> CpTable:
             found = (f"numbers at line {lineno} under the header {comment[1]!r} (line "
                      f"{comment[0]}), which names no known section" if comment else
                      f"numbers before any section header at line {lineno}")
-            raise bad(found, "'#' header lines naming each section ("
-                      + ", ".join(repr(n) for _, n in _SECTIONS.values()) + "), then its numbers")
-        values = []
-        for tok in s.split():
-            try:
-                v = float(tok)
-            except ValueError:
-                raise bad(f"non-numeric entry {tok!r} at line {lineno}",
-                          "numbers only below a section header") from None
-            if not math.isfinite(v):
-                raise bad(f"non-finite entry {tok!r} at line {lineno}", "finite numbers")
-            values.append(v)
-        sections[current][2].append((lineno, values))
+            raise _bad(where, found, "'#' header lines naming each section ("
+                       + ", ".join(repr(n) for _, n in _SECTIONS.values())
+                       + "), then its numbers")
+        sections[current][2].append((lineno, _numbers(s, lineno, where)))
+    return sections
 
-    for key in ("pitch", "tsr", "cp"):
-        if key not in sections:
-            raise bad(f"no '{_SECTIONS[key][1]}' section", f"a file in {_FORMAT} with "
-                      "'# Pitch angle vector', '# TSR vector' and '# Power coefficient'")
 
-    def vector(key: str, unit: str) -> np.ndarray:
-        name = _SECTIONS[key][1]
-        header, declared, rows = sections[key]
-        vals = np.array([v for _, row in rows for v in row], dtype=float)
-        if vals.size == 0:
-            raise bad(f"'{name}' (line {header}) is empty", "at least one number")
-        if declared is not None and declared != vals.size:
-            raise bad(f"'{name}' has {vals.size} entries but its header says {declared}",
-                      "as many entries as the header declares")
-        if key != "wind" and (vals.size < 2 or not np.all(np.diff(vals) > 0)):
-            k = int(np.argmax(np.diff(vals) <= 0)) if vals.size >= 2 else 0
-            found = (f"'{name}' with {vals.size} entry" if vals.size < 2 else
-                     f"'{name}' not strictly increasing: {vals[k]:g} then {vals[k + 1]:g} {unit}")
-            raise bad(found, "a strictly increasing grid of at least 2 values")
-        return vals
+def _numbers(s: str, lineno: int, where: str) -> list[float]:
+    """The finite numbers of a line below a section header."""
+    values = []
+    for tok in s.split():
+        try:
+            v = float(tok)
+        except ValueError:
+            raise _bad(where, f"non-numeric entry {tok!r} at line {lineno}",
+                       "numbers only below a section header") from None
+        if not math.isfinite(v):
+            raise _bad(where, f"non-finite entry {tok!r} at line {lineno}", "finite numbers")
+        values.append(v)
+    return values
 
-    pitch_deg = vector("pitch", "deg")
-    tsr = vector("tsr", "")
-    wind = vector("wind", "m/s") if "wind" in sections else None
 
-    def matrix(key: str) -> np.ndarray | None:
-        if key not in sections:
-            return None
-        name = _SECTIONS[key][1]
-        header, _, rows = sections[key]
-        expected = f"{tsr.size} rows (one per TSR) x {pitch_deg.size} columns (one per pitch)"
-        for lineno, row in rows:
-            if len(row) != pitch_deg.size:
-                raise bad(f"'{name}' row at line {lineno} has {len(row)} values",
-                          f"{pitch_deg.size} values per row (one per pitch); expected {expected}")
-        if len(rows) != tsr.size:
-            raise bad(f"'{name}' matrix (line {header}) has {len(rows)} rows", f"{expected}")
-        return np.array([row for _, row in rows], dtype=float)
+def _vector(sections: _Sections, key: str, unit: str, where: str) -> np.ndarray:
+    """A vector section, its entries as many as its header declares; the pitch and TSR
+    grids strictly increasing."""
+    name = _SECTIONS[key][1]
+    header, declared, rows = sections[key]
+    vals = np.array([v for _, row in rows for v in row], dtype=float)
+    if vals.size == 0:
+        raise _bad(where, f"'{name}' (line {header}) is empty", "at least one number")
+    if declared is not None and declared != vals.size:
+        raise _bad(where, f"'{name}' has {vals.size} entries but its header says {declared}",
+                   "as many entries as the header declares")
+    if key != "wind" and (vals.size < 2 or not np.all(np.diff(vals) > 0)):
+        k = int(np.argmax(np.diff(vals) <= 0)) if vals.size >= 2 else 0
+        found = (f"'{name}' with {vals.size} entry" if vals.size < 2 else
+                 f"'{name}' not strictly increasing: {vals[k]:g} then {vals[k + 1]:g} {unit}")
+        raise _bad(where, found, "a strictly increasing grid of at least 2 values")
+    return vals
 
-    cp = matrix("cp")
-    ct = matrix("ct")
-    cq = matrix("cq")
-    return CpTable(pitch_rad=np.deg2rad(pitch_deg), tsr=tsr, cp=cp, ct=ct, cq=cq,
-                   source=source, sha256=hashlib.sha256(raw).hexdigest(), wind_speed=wind)
+
+def _matrix(sections: _Sections, key: str, shape: tuple[int, int],
+            where: str) -> np.ndarray | None:
+    """A matrix section of ``shape`` (one row per TSR, one column per pitch), or None if
+    the file has none."""
+    if key not in sections:
+        return None
+    name = _SECTIONS[key][1]
+    header, _, rows = sections[key]
+    n_tsr, n_pitch = shape
+    expected = f"{n_tsr} rows (one per TSR) x {n_pitch} columns (one per pitch)"
+    for lineno, row in rows:
+        if len(row) != n_pitch:
+            raise _bad(where, f"'{name}' row at line {lineno} has {len(row)} values",
+                       f"{n_pitch} values per row (one per pitch); expected {expected}")
+    if len(rows) != n_tsr:
+        raise _bad(where, f"'{name}' matrix (line {header}) has {len(rows)} rows", f"{expected}")
+    return np.array([row for _, row in rows], dtype=float)
 
 
 # --------------------------------------------------------------------------- writing

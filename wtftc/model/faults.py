@@ -22,6 +22,7 @@ pitch sensor ``sensor_fixed`` and ``sensor_gain`` faults.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cache
 
 import numpy as np
 
@@ -30,11 +31,27 @@ from wtftc.errors import ConfigError
 
 #: actuator dynamics of the hydraulic faults (Odgaard et al. 2013): (ω_n rad/s, ζ)
 HYDRAULIC = {"pressure_drop": (5.73, 0.45), "air_in_oil": (3.42, 0.9)}
-FAULT_TYPES = ("lock", "loss_of_effectiveness", "pressure_drop", "air_in_oil",
-               "sensor_fixed", "sensor_gain")
-_TYPE_KEYS = {"lock": {"angle_deg"}, "loss_of_effectiveness": {"rho"},
-              "pressure_drop": {"severity"}, "air_in_oil": {"severity"},
-              "sensor_fixed": {"value_deg"}, "sensor_gain": {"gain"}}
+
+
+@dataclass(frozen=True)
+class FaultType:
+    """What a fault type acts on, and the key of its fault table that sets how large it is."""
+
+    acts_on: str  # "actuator" (the pitch actuator) or "sensor" (the pitch sensor)
+    magnitude: str  # the type-specific key of a fault table
+
+
+#: every fault type, the one list: `wtftc sweep` and `wtftc compare` derive theirs from it
+TYPES = {
+    "lock": FaultType("actuator", "angle_deg"),  # eq (19)
+    "loss_of_effectiveness": FaultType("actuator", "rho"),  # eq (19)
+    "pressure_drop": FaultType("actuator", "severity"),  # Odgaard et al. 2013
+    "air_in_oil": FaultType("actuator", "severity"),  # Odgaard et al. 2013
+    "sensor_fixed": FaultType("sensor", "value_deg"),
+    "sensor_gain": FaultType("sensor", "gain"),
+}
+FAULT_TYPES = tuple(TYPES)
+ACTUATOR_FAULT_TYPES = tuple(t for t, k in TYPES.items() if k.acts_on == "actuator")
 
 
 @dataclass
@@ -99,7 +116,7 @@ def parse_faults(tables, where: str = "fault") -> list[Fault]:
         tables = [tables]
     if not isinstance(tables, list):
         raise ConfigError(where, tables, "a list of fault tables")
-    n_blades = lay.layout()["n_blades"]
+    n_blades = lay.n_blades()
     out = []
     for k, tab in enumerate(tables):
         w = f"{where}[{k}]"
@@ -108,7 +125,7 @@ def parse_faults(tables, where: str = "fault") -> list[Fault]:
         typ = tab.get("type")
         if typ not in FAULT_TYPES:
             raise ConfigError(f"{w}.type", typ, "one of " + ", ".join(FAULT_TYPES))
-        allowed = {"blade", "type", "onset_s", "end_s", "ramp_s"} | _TYPE_KEYS[typ]
+        allowed = {"blade", "type", "onset_s", "end_s", "ramp_s", TYPES[typ].magnitude}
         for key in tab:
             if key not in allowed:
                 raise ConfigError(f"{w}.{key}", tab[key],
@@ -179,7 +196,7 @@ class Schedule:
     def actuator(self, t: np.ndarray) -> np.ndarray:
         """(n_actuator_faults, len(t)): ρ_j, σ_j, ū_j, ω_n,j, ζ_j (layout actuator_faults)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        n = lay.layout()["n_blades"]
+        n = lay.n_blades()
         rho, lock, ubar = np.ones((n, t.size)), np.zeros((n, t.size)), np.zeros((n, t.size))
         tp = lay.vector("turbine_params")
         wn0 = tp[lay.index("turbine_params", "omega_n_nominal")]
@@ -197,12 +214,13 @@ class Schedule:
                 wf, zf = wn0 + f.severity * (wf - wn0), z0 + f.severity * (zf - z0)
                 wn[j] = wn[j] * (1 - w) + wf * w
                 zt[j] = zt[j] * (1 - w) + zf * w
-        return np.vstack([rho, lock, ubar, wn, zt])
+        return _stacked("actuator_faults", t.size, rho=rho, lock=lock, ubar=ubar, omega_n=wn,
+                        zeta=zt)
 
     def sensor(self, t: np.ndarray) -> np.ndarray:
         """(n_sensor_faults, len(t)): gain_j, fixed_j, value_j (layout sensor_faults)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        n = lay.layout()["n_blades"]
+        n = lay.n_blades()
         gain, fixed, value = np.ones((n, t.size)), np.zeros((n, t.size)), np.zeros((n, t.size))
         for f in self.faults:
             j, w = f.blade - 1, f.weight(t)
@@ -211,7 +229,31 @@ class Schedule:
             elif f.type == "sensor_fixed":
                 fixed[j] = np.maximum(fixed[j], w)
                 value[j] = np.where(w > 0, f.value, value[j])
-        return np.vstack([gain, fixed, value])
+        return _stacked("sensor_faults", t.size, sensor_gain=gain, sensor_fixed=fixed,
+                        sensor_value=value)
 
     def describe(self) -> list[dict]:
         return [f.describe() for f in self.faults]
+
+
+def _stacked(group: str, n_t: int, **blocks: np.ndarray) -> np.ndarray:
+    """(size of ``group``, n_t): each (n_blades, n_t) block at the rows of its numbered
+    entries in the layout (``rho`` at ``rho_1..rho_3``, ...)."""
+    size, rows = _rows(group, tuple(blocks))
+    out = np.empty((size, n_t))
+    for at, block in zip(rows, blocks.values(), strict=True):
+        out[at] = block
+    return out
+
+
+@cache
+def _rows(group: str, prefixes: tuple[str, ...]) -> tuple[int, list[slice]]:
+    """The size of ``group`` and where each prefix's block sits; every row must be covered."""
+    rows = [lay.block(group, prefix) for prefix in prefixes]
+    given = np.zeros(lay.size(group), dtype=bool)
+    for at in rows:
+        given[at] = True
+    if not given.all():
+        missing = [n for n, g in zip(lay.names(group), given, strict=True) if not g]
+        raise KeyError(f"{group}: no values for {', '.join(missing)}")
+    return given.size, rows

@@ -1,0 +1,190 @@
+"""`wtftc sweep`: grid and Monte Carlo campaigns on Dask distributed, resumable.
+
+A sweep file (TOML) names the controller variants of `wtftc compare`, the plants, and the
+values or ranges of mean wind speed, turbulence class, wind seed, fault type, faulty blade,
+magnitude (ρ, stuck angle, hydraulic severity) and onset time; every run's full
+configuration follows from it deterministically, with a stable run id (a hash of that
+configuration). Runs go to Dask in batches (one task each); every finished batch is
+written at once, atomically, as one Parquet file of the results folder's dataset
+``runs/``, so that an interrupted sweep loses no finished run and the same command
+resumes with what is missing. docs/sweep.md.
+
+The package, one job a module; this one drives Dask (cluster, progress, interruption):
+
+* ``spec``: the sweep file, its validation, the runs and their batches;
+* ``tasks``: one Dask task, runs to rows (what the workers import);
+* ``store``: the results folder, its Parquet dataset and resuming;
+* ``summary``: the summary table, figures and a saved run's configuration.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from pathlib import Path
+
+from wtftc import config
+from wtftc.campaign.sweep.spec import (
+    FAULT_TYPES,
+    PLANTS,
+    TURBULENCE_CLASSES,
+    Axis,
+    Sweep,
+    batches,
+    expand,
+    load_sweep,
+    parse_sweep,
+)
+from wtftc.campaign.sweep.store import (
+    METRICS,
+    STATUS,
+    _prepare,
+    _save_batch,
+    read_results,
+    schema,
+    versions,
+)
+from wtftc.campaign.sweep.summary import show_run, summarize
+from wtftc.campaign.sweep.tasks import run_task
+from wtftc.errors import ConfigError
+
+__all__ = ["FAULT_TYPES", "METRICS", "PLANTS", "STATUS", "TURBULENCE_CLASSES", "Axis",
+           "Interrupted", "Sweep", "batches", "expand", "load_sweep", "parse_sweep",
+           "read_results", "run_sweep", "run_task", "schema", "show_run", "summarize",
+           "versions"]
+
+
+class _Progress:
+    def __init__(self, total: int, already: int, quiet: bool):
+        self.total, self.already, self.quiet = total, already, quiet
+        self.counts = dict.fromkeys(STATUS, 0)
+        self.t0 = time.perf_counter()
+        self.tty = sys.stderr.isatty()
+
+    def update(self, rows: list[dict], lost: int = 0, end: bool = False) -> None:
+        for r in rows:
+            self.counts[r["status"]] += 1
+        if self.quiet:
+            return
+        n = sum(self.counts.values())
+        left = self.total - self.already - n - lost
+        wall = time.perf_counter() - self.t0
+        eta = f"{left * wall / n:.0f} s" if n else "?"
+        line = (f"[sweep] {self.already + n}/{self.total} runs: {self.counts['ok']} ok, "
+                f"{self.counts['diverged']} diverged, {self.counts['failed']} failed"
+                + (f", {lost} lost" if lost else "")
+                + f", {left} remaining, {n / max(wall, 1e-9):.2f} runs/s, ETA {eta}")
+        if self.tty and not end:
+            print("\r" + line, end="", file=sys.stderr, flush=True)
+        else:
+            print(("\r" if self.tty else "") + line, file=sys.stderr, flush=True)
+
+
+def _client(scheduler: str | None, workers: int):
+    import logging
+
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler:
+        try:
+            return Client(scheduler, timeout="10s"), None
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise ConfigError("--scheduler", scheduler, "the address of a running Dask "
+                              f"scheduler, tcp://HOST:PORT ({type(exc).__name__}: {exc})"
+                              ) from None
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                           dashboard_address=":0", silence_logs=logging.ERROR)
+    return Client(cluster), cluster
+
+
+class Interrupted(Exception):
+    """Ctrl-C or SIGTERM: the sweep stopped; what finished is saved."""
+
+
+def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
+    """Every run's configuration is valid, and ROSCO installed where it runs, before any
+    runs; the optional controllers skipped are noted."""
+    for pt in runs:
+        if pt["controller"] != "rosco":  # ROSCO's availability is checked below
+            config.make_config(pt["config"])
+    if any(pt["controller"] == "rosco" for pt in runs):
+        from wtftc.sim import rosco
+
+        reason = rosco.available()
+        if reason:
+            raise ConfigError("controllers", "rosco", reason)
+    skipped = [c for c in sw.raw.get("optional_controllers", [])
+               if c not in sw.axis("controllers").values]
+    if skipped and not quiet:
+        from wtftc.sim import rosco
+
+        print(f"note: optional controllers {', '.join(skipped)} skipped: {rosco.available()}",
+              flush=True)
+
+
+def _collect(futures: list, out_dir: Path, done: set[str], progress: _Progress,
+             quiet: bool) -> tuple[int, int]:
+    """Save each task's runs as it finishes; returns (runs saved, tasks lost)."""
+    from dask.distributed import as_completed
+
+    ran = lost = 0
+    for fut in as_completed(futures):
+        try:
+            results = fut.result()
+        except Exception as exc:  # noqa: BLE001 - a worker died: the runs stay missing
+            lost += 1
+            if not quiet:
+                print(f"\n[sweep] a task was lost ({type(exc).__name__}: {exc}); its runs "
+                      "stay missing: run the same command again to retry them",
+                      file=sys.stderr)
+            continue
+        rows = _save_batch(out_dir, done, results)
+        ran += len(rows)
+        progress.update(rows, lost)
+    if progress.tty:
+        progress.update([], lost, end=True)  # end the line the carriage returns rewrote
+    return ran, lost
+
+
+def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str | None = None,
+              traces: bool = False, overwrite: bool = False, quiet: bool = False) -> dict:
+    """Run (or resume) a sweep into out_dir; returns counts of what this call did."""
+    import distributed  # noqa: F401 - Dask is needed: fail before anything is written
+
+    sweep_path = Path(sweep_path)
+    sw = load_sweep(sweep_path)
+    runs, dup = expand(sw)
+    _check_runs(sw, runs, quiet)
+    done = _prepare(out_dir, sw, sweep_path.read_text(), overwrite)
+    todo = [pt for pt in runs if pt["run_id"] not in done]
+    if not quiet:
+        print(f"sweep {sw.sweep_id} ({sw.mode}): {len(runs)} runs"
+              + (f" ({dup} duplicate draws dropped)" if dup else "")
+              + (f", {len(runs) - len(todo)} already in {out_dir}" if len(todo) < len(runs)
+                 else "") + f", {len(todo)} to run in batches of {sw.batch_size}", flush=True)
+    summary = {"runs": len(runs), "already": len(runs) - len(todo), "ran": 0, "lost": 0}
+    if not todo:
+        return summary
+    progress = _Progress(len(runs), len(runs) - len(todo), quiet)
+
+    def _stop(signum, frame):
+        raise Interrupted(signal.Signals(signum).name)
+
+    old = signal.signal(signal.SIGTERM, _stop)
+    client, cluster = _client(scheduler, workers)
+    try:
+        if not quiet:
+            n_workers = len(client.scheduler_info()["workers"])
+            print(f"Dask: {scheduler or 'local cluster'}, {n_workers} workers", flush=True)
+        futures = [client.submit(run_task, b, traces, pure=False)
+                   for b in batches(todo, sw.batch_size)]
+        summary["ran"], summary["lost"] = _collect(futures, out_dir, done, progress, quiet)
+    except KeyboardInterrupt:
+        raise Interrupted("SIGINT") from None
+    finally:
+        signal.signal(signal.SIGTERM, old)
+        client.close()
+        if cluster is not None:
+            cluster.close()
+    return summary

@@ -1,0 +1,351 @@
+"""The sweep file: its validation (every error names its key), the runs that follow from it
+deterministically, each with a stable run id, and their grouping into Dask tasks."""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.campaign.compare import CONTROLLERS, variant_config
+from wtftc.errors import ConfigError
+from wtftc.model import faults, wind
+from wtftc.sim import rhs
+
+TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "output_rate_hz",
+            "batch_size", "controllers", "optional_controllers", "plants", "wind", "fault"}
+WIND_KEYS = {"mean_mps", "turbulence_class", "seed"}
+#: one pitch actuator fault per run (model/faults.py's list), or none
+FAULT_TYPES = ("none", *faults.ACTUATOR_FAULT_TYPES)
+#: the fault table key each fault type reads its magnitude from
+MAGNITUDE = {t: faults.TYPES[t].magnitude for t in faults.ACTUATOR_FAULT_TYPES}
+FAULT_KEYS = {"type", "blade", "onset_s", *MAGNITUDE.values()}
+#: the dataset's column of each magnitude key
+MAGNITUDE_COLUMN = {"angle_deg": "stuck_angle_deg", "rho": "rho", "severity": "severity"}
+TURBULENCE_CLASSES = tuple(wind.I_REF)
+PLANTS = tuple(rhs.PLANTS)
+#: the axes that random mode crosses with every scenario, rather than draws
+CROSSED = ("controllers", "plants")
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One swept quantity: discrete ``values``, or a ``range`` (lo, hi) with ``n`` grid
+    points (grid mode) or uniform draws (random mode)."""
+    key: str
+    values: tuple | None = None
+    range: tuple | None = None
+    n: int | None = None
+    integer: bool = False
+
+    def grid(self) -> list:
+        if self.values is not None:
+            return list(self.values)
+        lo, hi = self.range
+        if self.integer:
+            return list(range(int(lo), int(hi) + 1))
+        return [float(v) for v in np.linspace(lo, hi, self.n)]
+
+    def draw(self, rng: np.random.Generator):
+        if self.values is not None:
+            return self.values[int(rng.integers(len(self.values)))]
+        lo, hi = self.range
+        if self.integer:
+            return int(rng.integers(int(lo), int(hi) + 1))
+        return float(rng.uniform(lo, hi))
+
+
+@dataclass
+class Sweep:
+    raw: dict  # the parsed sweep file
+    text: str  # its canonical form (sorted JSON), hashed into sweep_id
+    mode: str
+    samples: int | None
+    sampling_seed: int
+    t_final: float
+    dt: float
+    output_rate_hz: float
+    batch_size: int
+    axes: list[Axis]
+
+    @property
+    def sweep_id(self) -> str:
+        return hashlib.sha256(self.text.encode()).hexdigest()[:16]
+
+    def axis(self, key: str) -> Axis:
+        return next(a for a in self.axes if a.key == key)
+
+
+# ---------------------------------------------------------------------------- validation
+
+def _is_num(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _check_value(key: str, v, kind: str, lo=None, hi=None, lo_open=False, choices=None):
+    if choices is not None:
+        if v not in choices:
+            raise ConfigError(key, v, "one of " + ", ".join(map(str, choices)))
+        return v
+    if kind == "int":
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise ConfigError(key, v, "an integer")
+    elif kind == "angle":
+        if v == "current":
+            return v
+        if not _is_num(v):
+            raise ConfigError(key, v, '"current" or an angle in [0, 90] degrees')
+    elif not _is_num(v):
+        raise ConfigError(key, v, "a finite number")
+    if (lo is not None and (v <= lo if lo_open else v < lo)) or (hi is not None and v > hi):
+        left = "(" if lo_open else "["
+        raise ConfigError(key, v, f"a value in {left}{lo}, {hi}]")
+    return float(v) if kind in ("float", "angle") else v
+
+
+def _axis(key: str, spec, kind: str, mode: str, **bounds) -> Axis:
+    """A list of values, a scalar, or a range table {min, max, n} (n: grid mode only;
+    integer ranges take every integer in [min, max])."""
+    if isinstance(spec, dict):
+        return _range_axis(key, spec, kind, mode, **bounds)
+    values = spec if isinstance(spec, list) else [spec]
+    if not values:
+        raise ConfigError(key, spec, "at least one value (an empty list sweeps nothing)")
+    checked = tuple(_check_value(key, v, kind, **bounds) for v in values)
+    if len(set(checked)) != len(checked):
+        raise ConfigError(key, spec, "distinct values")
+    return Axis(key, values=checked, integer=kind == "int")
+
+
+def _range_axis(key: str, spec: dict, kind: str, mode: str, **bounds) -> Axis:
+    if "choices" in bounds or kind == "angle":
+        raise ConfigError(key, spec, "a list of values (this key has no range form)")
+    extra = set(spec) - {"min", "max", "n"}
+    if extra:
+        raise ConfigError(f"{key}.{sorted(extra)[0]}", spec[sorted(extra)[0]],
+                          "a key of a range: min, max, n")
+    for k in ("min", "max"):
+        if k not in spec:
+            raise ConfigError(f"{key}.{k}", None, f"a {k} for the range")
+    lo = _check_value(f"{key}.min", spec["min"], kind, **bounds)
+    hi = _check_value(f"{key}.max", spec["max"], kind, **bounds)
+    if hi < lo:
+        raise ConfigError(f"{key}.max", hi, f"at least {key}.min = {lo} (an empty range)")
+    n = None
+    if kind != "int":
+        if mode == "grid":
+            n = spec.get("n")
+            if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+                raise ConfigError(f"{key}.n", n, "an integer >= 1: the number of grid "
+                                  "points (grid mode)")
+            if n == 1 and hi != lo:
+                raise ConfigError(f"{key}.n", n, "at least 2 for a range with min < max")
+        elif "n" in spec:
+            raise ConfigError(f"{key}.n", spec["n"], "no n in random mode (values are "
+                              "drawn uniformly from [min, max])")
+    elif "n" in spec:
+        raise ConfigError(f"{key}.n", spec["n"], "no n for an integer range (every "
+                          "integer in [min, max])")
+    return Axis(key, range=(lo, hi), n=n, integer=kind == "int")
+
+
+def _check_top(raw: dict) -> tuple[str, int | None]:
+    """The sweep file is a table of known keys; its mode and number of samples."""
+    if not isinstance(raw, dict):
+        raise ConfigError("sweep", raw, "a TOML table")
+    for key in raw:
+        if key not in TOP_KEYS:
+            raise ConfigError(key, raw[key], "a sweep key: " + ", ".join(sorted(TOP_KEYS)))
+    mode = raw.get("mode", "grid")
+    if mode not in ("grid", "random"):
+        raise ConfigError("mode", mode, '"grid" (every combination) or "random" (samples '
+                          "draws)")
+    samples = raw.get("samples")
+    if mode == "random":
+        if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples <= 10**6:
+            raise ConfigError("samples", samples, "an integer in [1, 1000000]: the number of "
+                              "random scenarios (random mode)")
+    elif samples is not None:
+        raise ConfigError("samples", samples, 'only with mode = "random"')
+    return mode, samples
+
+
+def _settings(raw: dict) -> dict:
+    """The settings every run shares, with their defaults: Sweep's fields by name."""
+    return {
+        "sampling_seed": _check_value("sampling_seed", raw.get("sampling_seed", 0), "int",
+                                      lo=0),
+        "t_final": _check_value("t_final_s", raw.get("t_final_s", 60.0), "float", lo=0,
+                                hi=36000, lo_open=True),
+        "dt": _check_value("dt_s", raw.get("dt_s", 1e-3), "float", lo=0, hi=0.1,
+                           lo_open=True),
+        "output_rate_hz": _check_value("output_rate_hz", raw.get("output_rate_hz", 10.0),
+                                       "float", lo=0, hi=1e6, lo_open=True),
+        "batch_size": _check_value("batch_size", raw.get("batch_size", 8), "int", lo=1,
+                                   hi=10000),
+    }
+
+
+def _tables(raw: dict) -> tuple[dict, dict]:
+    """The [wind] and [fault] tables, of known keys (with their defaults when absent)."""
+    wind_tab = raw.get("wind", {})
+    fault_tab = raw.get("fault", {"type": "none"})
+    for tab, name, keys in ((wind_tab, "wind", WIND_KEYS), (fault_tab, "fault", FAULT_KEYS)):
+        if not isinstance(tab, dict):
+            raise ConfigError(name, tab, "a table")
+        for key in tab:
+            if key not in keys:
+                raise ConfigError(f"{name}.{key}", tab[key],
+                                  f"a key of [{name}]: " + ", ".join(sorted(keys)))
+    return wind_tab, fault_tab
+
+
+def _controllers(raw: dict, mode: str) -> Axis:
+    """The controllers axis, with the optional ones (ROSCO) where they are installed."""
+    ctrl = _axis("controllers", raw["controllers"], "str", mode, choices=tuple(CONTROLLERS))
+    if "optional_controllers" in raw:  # run where installed (ROSCO), skipped elsewhere
+        optional = _axis("optional_controllers", raw["optional_controllers"], "str", mode,
+                         choices=("rosco",))
+        from wtftc.sim import rosco
+
+        extra = tuple(c for c in optional.values if c not in ctrl.values)
+        if extra and rosco.available() is None:
+            ctrl = Axis("controllers", values=ctrl.values + extra)
+    return ctrl
+
+
+def _axes(raw: dict, wind_tab: dict, fault_tab: dict, mode: str, t_final: float) -> list[Axis]:
+    """Every axis, in the order of a run's values (controllers and plants first: CROSSED)."""
+    return [
+        _controllers(raw, mode),
+        _axis("plants", raw.get("plants", "nrel5mw"), "str", mode, choices=PLANTS),
+        _axis("wind.mean_mps", wind_tab.get("mean_mps", 16.0), "float", mode, lo=3.0,
+              hi=40.0),
+        _axis("wind.turbulence_class", wind_tab.get("turbulence_class", "B"), "str", mode,
+              choices=TURBULENCE_CLASSES),
+        _axis("wind.seed", wind_tab.get("seed", 0), "int", mode, lo=0),
+        _axis("fault.type", fault_tab.get("type", "none"), "str", mode, choices=FAULT_TYPES),
+        _axis("fault.blade", fault_tab.get("blade", 1), "int", mode, lo=1, hi=lay.n_blades()),
+        _axis("fault.onset_s", fault_tab.get("onset_s", 20.0), "float", mode, lo=0.0,
+              hi=t_final, lo_open=False),
+        _axis("fault.rho", fault_tab.get("rho", 0.5), "float", mode, lo=0.0, hi=1.0,
+              lo_open=True),
+        _axis("fault.angle_deg", fault_tab.get("angle_deg", "current"), "angle", mode,
+              lo=0.0, hi=90.0),
+        _axis("fault.severity", fault_tab.get("severity", 1.0), "float", mode, lo=0.0,
+              hi=1.0, lo_open=True),
+    ]
+
+
+def _check_together(by_key: dict[str, Axis], t_final: float) -> None:
+    """What no single axis shows: onsets before the end, ROSCO on the NREL 5-MW only."""
+    onsets = by_key["fault.onset_s"]
+    faulty = set(by_key["fault.type"].values) != {"none"}
+    if faulty and max(onsets.grid() if onsets.values else [onsets.range[1]]) >= t_final:
+        raise ConfigError("fault.onset_s", list(onsets.values or onsets.range),
+                          f"onsets before t_final_s = {t_final:g} s")
+    if "rosco" in (by_key["controllers"].values or ()) and "paper" in (
+            by_key["plants"].values or ()):
+        raise ConfigError("plants", "paper", "nrel5mw only when controllers include rosco "
+                          "(ROSCO's DISCON.IN is tuned for the NREL 5-MW)")
+
+
+def parse_sweep(raw: dict) -> Sweep:
+    """Validate a sweep file's content before anything runs: each error names the key."""
+    mode, samples = _check_top(raw)
+    settings = _settings(raw)
+    if "controllers" not in raw:
+        raise ConfigError("controllers", None, "a list of controller variants: "
+                          + ", ".join(CONTROLLERS))
+    wind_tab, fault_tab = _tables(raw)
+    axes = _axes(raw, wind_tab, fault_tab, mode, settings["t_final"])
+    _check_together({a.key: a for a in axes}, settings["t_final"])
+    canonical = json.dumps({**raw, "mode": mode, "sampling_seed": settings["sampling_seed"],
+                            "t_final_s": settings["t_final"], "dt_s": settings["dt"],
+                            "output_rate_hz": settings["output_rate_hz"],
+                            "batch_size": settings["batch_size"]}, sort_keys=True)
+    return Sweep(raw=raw, text=canonical, mode=mode, samples=samples, axes=axes, **settings)
+
+
+def load_sweep(path: Path) -> Sweep:
+    return parse_sweep(config.load_toml(Path(path)))
+
+
+# ---------------------------------------------------------------------------- the runs
+
+def _point(sw: Sweep, values: dict) -> dict:
+    """One run: the axis values that matter for it (the rest None) and its configuration."""
+    ftype = values["fault.type"]
+    p = {"controller": values["controllers"], "plant": values["plants"],
+         "mean_wind_mps": float(values["wind.mean_mps"]),
+         "turbulence_class": values["wind.turbulence_class"], "seed": int(values["wind.seed"]),
+         "fault_type": ftype, "blade": None, "onset_s": None, "rho": None,
+         "stuck_angle_deg": None, "severity": None}
+    fault_tabs = None
+    if ftype != "none":
+        p["blade"], p["onset_s"] = int(values["fault.blade"]), float(values["fault.onset_s"])
+        tab = {"blade": p["blade"], "type": ftype, "onset_s": p["onset_s"]}
+        mag = MAGNITUDE[ftype]
+        tab[mag] = values[f"fault.{mag}"]
+        p[MAGNITUDE_COLUMN[mag]] = str(tab[mag]) if mag == "angle_deg" else float(tab[mag])
+        fault_tabs = [tab]
+    wind_tab = {"kind": "ntm", "mean_mps": p["mean_wind_mps"],
+                "turbulence_class": p["turbulence_class"]}
+    cfg = variant_config(p["controller"], fault_tabs, wind_tab, sw.t_final, sw.dt, p["seed"],
+                         "")
+    cfg.update(plant=p["plant"], output_rate_hz=sw.output_rate_hz)
+    run_id = hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]
+    cfg["label"] = f"sweep-{run_id}"
+    return {"run_id": run_id, **p, "config": cfg}
+
+
+def _combinations(sw: Sweep):
+    """Each run's axis values, by axis key, in a fixed order (duplicates included)."""
+    keys = [a.key for a in sw.axes]
+    if sw.mode == "grid":
+        return (dict(zip(keys, vals, strict=True))
+                for vals in itertools.product(*(a.grid() for a in sw.axes)))
+    # random scenarios (wind, seed, fault), each run by every controller on every plant:
+    # a paired comparison, and the draws do not depend on which controllers are swept
+    rng = np.random.default_rng(sw.sampling_seed)
+    crossed = [sw.axis(k) for k in CROSSED]
+    drawn = [a for a in sw.axes if a.key not in CROSSED]
+    scenarios = [{a.key: a.draw(rng) for a in drawn} for _ in range(sw.samples)]
+    return ({**sc, **dict(zip(CROSSED, cp, strict=True))} for sc in scenarios
+            for cp in itertools.product(*(a.grid() for a in crossed)))
+
+
+def expand(sw: Sweep) -> tuple[list[dict], int]:
+    """Every run of the sweep, in a fixed order, duplicates removed (a fault-free run does
+    not depend on blade, onset or magnitude); returns (runs, number of duplicates).
+
+    Grid: every combination of every axis. Random: ``samples`` scenarios (wind, seed and
+    fault drawn from their axes with ``sampling_seed``), each run with every controller
+    and plant."""
+    runs, seen, dup = [], set(), 0
+    for values in _combinations(sw):
+        pt = _point(sw, values)
+        if pt["run_id"] in seen:
+            dup += 1
+            continue
+        seen.add(pt["run_id"])
+        runs.append(pt)
+    return runs, dup
+
+
+def batches(runs: list[dict], size: int) -> list[list[dict]]:
+    """Runs grouped into tasks of at most ``size``, each of one compiled loop (controller
+    and plant), so that a task advances its runs in one call (cases.run_batch)."""
+    groups: dict[tuple, list] = {}
+    for r in runs:
+        groups.setdefault((r["controller"], r["plant"]), []).append(r)
+    per_group = [[g[i:i + size] for i in range(0, len(g), size)] for g in groups.values()]
+    # interleaved, so that the rate (and the ETA) mixes the fast loops with the slow ones
+    return [b for row in itertools.zip_longest(*per_group) for b in row if b is not None]

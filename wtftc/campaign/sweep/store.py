@@ -1,0 +1,139 @@
+"""The results folder: the Parquet dataset ``runs/`` (one file per finished batch, written
+atomically), the traces, the sweep file and its record, and reopening it to resume."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+import shutil
+import time
+from pathlib import Path
+
+import numpy as np
+
+from wtftc.campaign.sweep.spec import Sweep
+from wtftc.errors import ConfigError
+
+#: the metrics kept per run: (key of wtftc.results.metrics.metrics, unit)
+METRICS = [("rms_speed_error_rad_s", "rad/s"), ("max_abs_speed_error_rad_s", "rad/s"),
+           ("rms_speed_error_after_fault_rad_s", "rad/s"), ("overspeed_peak_rad_s", "rad/s"),
+           ("overspeed_peak_over_rated", "-"), ("pitch_rate_rms_deg_s", "deg/s"),
+           ("actuator_travel_deg", "deg"), ("mean_electrical_power_W", "W"),
+           ("wall_s", "s")]
+STATUS = ("ok", "diverged", "failed")
+
+
+def versions() -> dict:
+    """What made the results: the versions of wtftc and its dependencies, and the hash of
+    the generated code's manifest."""
+    import casadi
+    import dask
+    import distributed
+    import pyarrow
+
+    from wtftc import __version__
+    from wtftc.artefacts.loader import manifest
+
+    gen = hashlib.sha256(json.dumps(manifest(), sort_keys=True).encode()).hexdigest()[:16]
+    return {"wtftc": __version__, "python": platform.python_version(),
+            "numpy": np.__version__, "casadi": casadi.__version__, "dask": dask.__version__,
+            "distributed": distributed.__version__, "pyarrow": pyarrow.__version__,
+            "generated_manifest_sha256": gen}
+
+
+def schema():
+    """The dataset's columns, with units in the field metadata."""
+    import pyarrow as pa
+
+    def f(name, typ, unit=None):
+        return pa.field(name, typ, metadata={"unit": unit} if unit else None)
+
+    fields = [f("run_id", pa.string()), f("controller", pa.string()),
+              f("plant", pa.string()), f("mean_wind_mps", pa.float64(), "m/s"),
+              f("turbulence_class", pa.string()), f("seed", pa.int64()),
+              f("fault_type", pa.string()), f("blade", pa.int64()),
+              f("onset_s", pa.float64(), "s"), f("rho", pa.float64(), "-"),
+              f("stuck_angle_deg", pa.string(), "deg"), f("severity", pa.float64(), "-"),
+              f("status", pa.string()), f("cause", pa.string()),
+              f("diverged_at_s", pa.float64(), "s"), f("diverged_state", pa.string()),
+              f("detection_delay_s", pa.float64(), "s"), f("isolation_correct", pa.bool_()),
+              f("false_alarms", pa.int64())]
+    fields += [f(k, pa.float64(), u) for k, u in METRICS]
+    fields += [f("config_json", pa.string())]
+    return pa.schema(fields)
+
+
+def read_results(out_dir: Path):
+    """Every saved run of a results folder as one pyarrow Table (empty if none)."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    parts = sorted((Path(out_dir) / "runs").glob("part-*.parquet"))
+    if not parts:
+        return schema().empty_table()
+    return pa.concat_tables([pq.read_table(p, schema=schema()) for p in parts])
+
+
+def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> set[str]:
+    """Create or reopen a results folder; return the run ids already saved in it."""
+    from wtftc.results.io import atomic_write_json, atomic_write_text
+
+    out_dir = Path(out_dir)
+    meta = out_dir / "sweep.json"
+    if out_dir.exists() and any(out_dir.iterdir()):
+        if not meta.exists():
+            if not overwrite:
+                raise ConfigError("--out", str(out_dir), "an empty folder or a sweep's results "
+                                  "folder (it holds other files; --overwrite clears it)")
+        else:
+            _check_same_sweep(out_dir, json.loads(meta.read_text()), sw.sweep_id, overwrite)
+        if overwrite:
+            shutil.rmtree(out_dir)
+    (out_dir / "runs").mkdir(parents=True, exist_ok=True)
+    if not meta.exists():
+        atomic_write_text(out_dir / "sweep.toml", sweep_text)
+        atomic_write_json(meta, {"sweep_id": sw.sweep_id, "sweep": json.loads(sw.text),
+                                 "versions": versions(),
+                                 "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")})
+    return set(read_results(out_dir).column("run_id").to_pylist())
+
+
+def _check_same_sweep(out_dir: Path, old: dict, sweep_id: str, overwrite: bool) -> None:
+    """A results folder resumes only the same sweep file on the same generated code."""
+    now = versions()
+    if old["sweep_id"] != sweep_id and not overwrite:
+        raise ConfigError("--out", str(out_dir), "the results folder of the same sweep "
+                          "file: it holds sweep " + old["sweep_id"] + ", this file is "
+                          f"{sweep_id} (changed); pass --overwrite to discard those "
+                          "results, or --out a new folder")
+    if (old["versions"]["generated_manifest_sha256"]
+            != now["generated_manifest_sha256"] and not overwrite):
+        raise ConfigError("--out", str(out_dir), "results of the same generated code: "
+                          "generated/ changed since they were made; --overwrite or "
+                          "--out a new folder")
+
+
+def _save_batch(out_dir: Path, done: set[str], results: list) -> list[dict]:
+    """Write one finished task's runs: traces first, then the metrics file that lists
+    them, atomically; runs already saved (a task a dying worker made Dask repeat) are
+    dropped. Returns the rows written."""
+    import pyarrow as pa
+
+    from wtftc.results.io import atomic_write_table, write_parquet
+
+    rows = []
+    for row, tr in results:
+        if row["run_id"] in done:
+            continue
+        if tr is not None:
+            write_parquet(Path(out_dir) / "traces" / f"{row['run_id']}.parquet",
+                          {k: v for k, (v, _) in tr.items()}, {k: u for k, (_, u) in tr.items()})
+        rows.append(row)
+    if rows:
+        ids = "".join(sorted(r["run_id"] for r in rows))
+        name = f"part-{hashlib.sha256(ids.encode()).hexdigest()[:16]}.parquet"
+        atomic_write_table(Path(out_dir) / "runs" / name,
+                           pa.Table.from_pylist(rows, schema=schema()))
+        done.update(r["run_id"] for r in rows)
+    return rows

@@ -1,0 +1,188 @@
+"""A results folder's summary: the table per controller and fault type (summary.md,
+summary.csv), the failed or diverged runs, the figures, and one run's configuration."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from wtftc import config
+from wtftc.campaign.compare import CONTROLLERS
+from wtftc.campaign.sweep.spec import FAULT_TYPES, expand, parse_sweep
+from wtftc.campaign.sweep.store import read_results
+from wtftc.errors import ConfigError
+
+#: the summary table's columns: (header, format of a cell)
+TABLE = [("controller", "{}"), ("fault", "{}"), ("runs", "{}"), ("diverged", "{}"),
+         ("failed", "{}"), ("RMS ω error median [rad/s]", "{:.4f}"),
+         ("RMS ω error p95 [rad/s]", "{:.4f}"), ("RMS ω error max [rad/s]", "{:.4f}"),
+         ("peak ω / rated max [-]", "{:.3f}"), ("detection delay median [s]", "{:.2f}"),
+         ("detection delay max [s]", "{:.2f}"), ("undetected", "{}"), ("false alarms", "{}")]
+#: the box plots: (metric, axis label, file name)
+BOXES = [("rms_speed_error_rad_s", "RMS rotor-speed error [rad/s]", "rms_speed_error"),
+         ("overspeed_peak_over_rated", "peak rotor speed / rated [-]", "overspeed")]
+
+
+def summarize(out_dir: Path) -> str:
+    """The summary table (Markdown, printed) and figures of a results folder:
+    summary.md, summary.csv, and under figures/ the distributions of RMS speed error,
+    overspeed and detection delay, per controller and fault type."""
+    from wtftc.results.io import atomic_write_text
+
+    out_dir = Path(out_dir)
+    if not (out_dir / "sweep.json").exists():
+        raise ConfigError("--summary", str(out_dir), "a sweep's results folder (with sweep.json)")
+    meta = json.loads((out_dir / "sweep.json").read_text())
+    rows = read_results(out_dir).to_pylist()
+    n_all = len(expand(parse_sweep(meta["sweep"]))[0])
+    lines, csv = _table(rows)
+    head = [f"# Sweep {meta['sweep_id']}: {len(rows)} of {n_all} runs saved",
+            "", f"Results folder `{out_dir}`; made with "
+            + ", ".join(f"{k} {v}" for k, v in meta["versions"].items()) + ".", ""]
+    text = "\n".join(head + lines + _failures(rows)) + "\n"
+    atomic_write_text(out_dir / "summary.md", text)
+    atomic_write_text(out_dir / "summary.csv", "\n".join(csv) + "\n")
+    if rows:
+        _figures(out_dir, rows)
+    return text
+
+
+def _table(rows: list[dict]) -> tuple[list[str], list[str]]:
+    """The table's Markdown lines and CSV lines: one row per controller and fault type."""
+    groups: dict[tuple, list] = {}
+    for r in rows:
+        groups.setdefault((r["controller"], r["fault_type"]), []).append(r)
+    lines = ["| " + " | ".join(h for h, _ in TABLE) + " |", "|" + "---|" * len(TABLE)]
+    csv = [",".join(h.replace(",", ";") for h, _ in TABLE)]
+    for (c, f), rs in sorted(groups.items(), key=lambda kv: (
+            list(CONTROLLERS).index(kv[0][0]), FAULT_TYPES.index(kv[0][1]))):
+        vals = _cells(c, f, rs)
+        cells = ["—" if v is None else fmt.format(v)
+                 for v, (_, fmt) in zip(vals, TABLE, strict=True)]
+        lines.append("| " + " | ".join(cells) + " |")
+        csv.append(",".join("" if v is None else str(v) for v in vals))
+    return lines, csv
+
+
+def _quantile(vals: list, p: float) -> float | None:
+    return float(np.percentile(vals, p)) if vals else None
+
+
+def _cells(c: str, f: str, rs: list[dict]) -> list:
+    """The values of one row of the table: controller ``c`` under fault type ``f``."""
+    good = [r for r in rs if r["status"] != "failed"]
+    rms = [r["rms_speed_error_rad_s"] for r in good]
+    peak = [r["overspeed_peak_over_rated"] for r in good]
+    uses_fdi = CONTROLLERS[c].uses_fdi
+    fdi = uses_fdi and f != "none"
+    delays = [r["detection_delay_s"] for r in good if r["detection_delay_s"] is not None]
+    return [c, f, len(rs), sum(r["status"] == "diverged" for r in rs),
+            sum(r["status"] == "failed" for r in rs), _quantile(rms, 50), _quantile(rms, 95),
+            max(rms) if rms else None, max(peak) if peak else None,
+            _quantile(delays, 50) if fdi else None, max(delays) if fdi and delays else None,
+            (len(good) - len(delays)) if fdi else None,
+            sum(r["false_alarms"] or 0 for r in good if uses_fdi)]
+
+
+def _failures(rows: list[dict]) -> list[str]:
+    """The summary's last section: every failed or diverged run, and how to re-run it."""
+    bad = [r for r in rows if r["status"] != "ok"]
+    tail = ["", f"## Failed or diverged runs: {len(bad)}", ""]
+    if not bad:
+        return tail
+    tail += ["| run id | controller | fault | wind [m/s] | class | seed | status | at [s] "
+             "| cause |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in bad:
+        at = "—" if r["diverged_at_s"] is None else f"{r['diverged_at_s']:.3f}"
+        tail.append(f"| {r['run_id']} | {r['controller']} | {r['fault_type']} | "
+                    f"{r['mean_wind_mps']:.2f} | {r['turbulence_class']} | {r['seed']} | "
+                    f"{r['status']} | {at} | {(r['cause'] or '').replace('|', '/')} |")
+    return tail + ["", "Each run re-runs alone: `wtftc sweep --show RUN_ID --out DIR > "
+                   "run.toml`, then `wtftc run --config run.toml` (its configuration is also "
+                   "the dataset's `config_json`)."]
+
+
+def _figures(out_dir: Path, rows: list[dict]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ctrls = [c for c in CONTROLLERS if any(r["controller"] == c for r in rows)]
+    faults = [f for f in FAULT_TYPES if any(r["fault_type"] == f for r in rows)]
+    for key, label, name in BOXES:
+        fig, ax = plt.subplots(figsize=(max(7, 1.2 * len(faults) * len(ctrls) / 2), 4.5))
+        _boxes(ax, rows, ctrls, faults, key)
+        ax.set_ylabel(label)
+        ax.set_title(f"{label.split(' [')[0]}: distribution over the sweep's runs", fontsize=9)
+        _save(fig, out_dir, name)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    _delays(ax, rows, faults)
+    _save(fig, out_dir, "detection_delay")
+
+
+def _boxes(ax, rows: list[dict], ctrls: list[str], faults: list[str], key: str) -> None:
+    """Box plots of ``key`` over the runs: a group per fault type, a box per controller."""
+    width = 0.8 / len(ctrls)
+    for k, c in enumerate(ctrls):
+        data, pos = [], []
+        for i, f in enumerate(faults):
+            v = [r[key] for r in rows if r["controller"] == c and r["fault_type"] == f
+                 and r[key] is not None and r["status"] != "failed"]
+            if v:
+                data.append(v)
+                pos.append(i + (k - (len(ctrls) - 1) / 2) * width)
+        if data:
+            bp = ax.boxplot(data, positions=pos, widths=width * 0.9, patch_artist=True,
+                            manage_ticks=False, flierprops={"markersize": 2},
+                            medianprops={"color": "k"})
+            for b in bp["boxes"]:
+                b.set_facecolor(f"C{k}")
+            ax.plot([], [], "s", color=f"C{k}", label=c)
+    ax.set_xticks(range(len(faults)), faults, fontsize=8)
+    ax.set_xlabel("fault type")
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=8)
+
+
+def _delays(ax, rows: list[dict], faults: list[str]) -> None:
+    """Histograms of the detection delays of the variants with wtftc's FDI, per fault type."""
+    fdi_rows = [r for r in rows if CONTROLLERS[r["controller"]].uses_fdi
+                and r["fault_type"] != "none" and r["detection_delay_s"] is not None]
+    for k, f in enumerate(f for f in faults if f != "none"):
+        v = [r["detection_delay_s"] for r in fdi_rows if r["fault_type"] == f]
+        if v:
+            ax.hist(v, bins=30, alpha=0.6, color=f"C{k}", label=f"{f} ({len(v)} runs)")
+    ax.set_xlabel("detection delay [s]")
+    ax.set_ylabel("runs [-]")
+    ax.grid(alpha=0.3)
+    if fdi_rows:
+        ax.legend(fontsize=8)
+    else:
+        ax.text(0.5, 0.5, "no detected faults (no FDI controller, or no fault, in the sweep)",
+                ha="center", va="center", transform=ax.transAxes)
+    ax.set_title("Detection delay of wtftc's FDI (controllers with their own detection)",
+                 fontsize=9)
+
+
+def _save(fig, out_dir: Path, name: str) -> None:
+    """figures/<name>.png and .pdf; the figure is closed."""
+    import matplotlib.pyplot as plt
+
+    from wtftc.results.io import atomic_savefig
+
+    fig.tight_layout()
+    for ext in ("png", "pdf"):
+        atomic_savefig(fig, out_dir / "figures" / f"{name}.{ext}", dpi=120)
+    plt.close(fig)
+
+
+def show_run(out_dir: Path, run_id: str) -> str:
+    """A saved run's configuration as TOML, for `wtftc run --config`."""
+    table = read_results(out_dir)
+    for r in table.to_pylist():
+        if r["run_id"] == run_id:
+            return config.to_toml(json.loads(r["config_json"]))
+    raise ConfigError("--show", run_id, f"the run id of a run saved in {out_dir}")

@@ -1,0 +1,86 @@
+"""One Dask task: a batch of runs of one compiled loop, each to a row of the dataset (and,
+asked, its traces). Workers import :func:`run_task` by this module's path."""
+
+from __future__ import annotations
+
+import json
+
+from wtftc import config
+from wtftc.campaign import cases
+from wtftc.campaign.compare import CONTROLLERS
+from wtftc.campaign.sweep.store import METRICS
+from wtftc.results.metrics import metrics
+from wtftc.sim import rhs
+
+
+def _row(pt: dict, status: str, m: dict | None = None, cause: str | None = None,
+         diverged: dict | None = None) -> dict:
+    """The dataset's row of run ``pt`` (store.schema): its axis values, status, metrics ``m``,
+    the FDI's detection, the divergence record and its configuration."""
+    row = {k: v for k, v in pt.items() if k != "config"}
+    row.update({"status": status, "cause": cause, "diverged_at_s": None,
+                "diverged_state": None, "detection_delay_s": None,
+                "isolation_correct": None, "false_alarms": None,
+                **{k: None for k, _ in METRICS}})
+    if m is not None:
+        row.update({k: m.get(k) for k, _ in METRICS})
+        fdi = m["fdi"]
+        delays = [b["detection_delay_s"] for b in fdi["blades"].values()
+                  if b.get("detection_delay_s") is not None]
+        if CONTROLLERS[pt["controller"]].uses_fdi and pt["fault_type"] != "none":
+            row["detection_delay_s"] = min(delays) if delays else None
+        row["isolation_correct"] = bool(fdi["isolation_correct"])
+        row["false_alarms"] = len(fdi["false_alarms"])
+    if diverged:
+        row["diverged_at_s"] = float(diverged["t_s"])
+        row["cause"] = diverged.get("reason")
+        row["diverged_state"] = json.dumps(diverged.get("last_finite_state"), default=float)
+    row["config_json"] = json.dumps(pt["config"], sort_keys=True)
+    return row
+
+
+def run_task(points: list[dict], traces: bool = False) -> list[tuple[dict, dict | None]]:
+    """One Dask task: run ``points`` (one compiled loop) and return (row, traces) each.
+
+    A run that diverges is a result (status "diverged", with its time, state and cause);
+    one that raises is recorded as "failed" with the exception, and the others still run.
+    """
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # accuracy warnings would flood the workers' logs
+        return _run_points(points, traces)
+
+
+def _run_points(points: list[dict], traces: bool) -> list[tuple[dict, dict | None]]:
+    rcs, out = [], []
+    for pt in points:
+        try:
+            rcs.append(config.make_config(pt["config"]))
+        except Exception as exc:  # noqa: BLE001 - recorded as the run's failure
+            rcs.append(f"{type(exc).__name__}: {exc}")
+    ok = [rc for rc in rcs if not isinstance(rc, str)]
+    results: dict[int, object] = {}
+    if ok and not ok[0].uses_rosco and len(ok) > 1:
+        try:
+            for rc, res in zip(ok, cases.run_batch(ok, progress=False), strict=True):
+                results[id(rc)] = res
+        except Exception:  # noqa: BLE001 - fall back to one at a time, to find which failed
+            results = {}
+    for pt, rc in zip(points, rcs, strict=True):
+        if isinstance(rc, str):
+            out.append((_row(pt, "failed", cause=rc), None))
+            continue
+        try:
+            res = results.get(id(rc)) or cases.run(rc, progress=False)
+            m = metrics(rc, res)
+        except Exception as exc:  # noqa: BLE001
+            out.append((_row(pt, "failed", cause=f"{type(exc).__name__}: {exc}"), None))
+            continue
+        status = "diverged" if res.diverged else "ok"
+        tr = None
+        if traces:
+            spec = rhs.output_spec(rc.controller)
+            tr = {"time_s": (res.t, "s"), **{n: (res.column(n), u) for n, u in spec}}
+        out.append((_row(pt, status, m, diverged=res.diverged), tr))
+    return out
