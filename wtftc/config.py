@@ -21,6 +21,8 @@ from wtftc.sim.trim import trim
 
 CASES = {1: "no fault", 2: "fault, controller unaware", 3: "fault known to eq (49)",
          4: "fault detected and estimated by wtftc's FDI"}
+#: the case whose controller is told the fault (an oracle), and the one fed by the FDI
+ORACLE_CASE, FDI_CASE = 3, 4
 
 TOP_KEYS = {"case", "plant", "controller", "t_final_s", "dt_s", "seed", "output_rate_hz",
             "control_sign", "reference_rad_s", "cp_table", "wind", "fault", "controller_params",
@@ -64,6 +66,16 @@ class RunConfig:
     @property
     def uses_rosco(self) -> bool:
         return self.raw["controller"] == "rosco"
+
+    @property
+    def told_fault(self) -> bool:
+        """Eq (49) is given the fault as it happens (case 3, an oracle)."""
+        return self.case == ORACLE_CASE
+
+    @property
+    def uses_fdi(self) -> bool:
+        """The accommodation is fed by wtftc's FDI (case 4)."""
+        return self.case == FDI_CASE
 
     @property
     def label(self) -> str:

@@ -30,7 +30,7 @@ def run(rc: RunConfig, progress: bool = True, keep_states: bool = False) -> Resu
         return run_batch([rc], progress=progress, keep_states=keep_states)[0]
     from wtftc.sim import rosco
 
-    if rc.case in (3, 4):
+    if rc.told_fault or rc.uses_fdi:
         raise ConfigError("case", rc.case, "1 or 2 with controller = rosco (ROSCO has no "
                           "fault accommodation)")
     inputs, _ = _prepare(rc, check=False)
@@ -95,9 +95,9 @@ def _prepare(rc: RunConfig, check: bool = True) -> tuple[integrate.Run, float | 
         lam = stability.stability_limit(rc.loop, z0, float(rc.wind(0.0)), rc.yd, rc.p_ctrl)
         stability.check_dt(rc.dt, lam)
     schedule = Schedule(copy.deepcopy(rc.faults)) if rc.faults else None
-    ctrl_schedule = Schedule(copy.deepcopy(rc.faults)) if rc.case == 3 else None
+    ctrl_schedule = Schedule(copy.deepcopy(rc.faults)) if rc.told_fault else None
     return integrate.Run(z0, rc.wind, schedule, ctrl_schedule, rc.yd, rc.p_ctrl,
-                         use_fdi=rc.case == 4), lam
+                         use_fdi=rc.uses_fdi), lam
 
 
 def run_and_write(rc: RunConfig, out_dir: Path, progress: bool = True):
@@ -132,7 +132,7 @@ def write_run_figures(out_dir: Path, rc: RunConfig, res: Result, m: dict) -> lis
         paths += figures.control(rec, fdir, "control", rc.label)
     if res.schedule is not None:
         paths += figures.fault_shape(rec, fdir, "fault")
-    if rc.case == 4:
+    if rc.uses_fdi:
         thr = float(lay.defaults("fdi_params")[lay.index("fdi_params", "fdi_r_thr")])
         paths += figures.fdi(rec, fdir, "fdi", threshold_rad=thr)
     return paths

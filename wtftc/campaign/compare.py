@@ -22,7 +22,7 @@ from wtftc.results.metrics import metrics
 
 ONSET_S = 20.0
 #: the case in which a controller runs on the estimates of wtftc's FDI (config.CASES)
-FDI_CASE = 4
+FDI_CASE = config.FDI_CASE
 
 
 @dataclass(frozen=True)
