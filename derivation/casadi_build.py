@@ -35,6 +35,13 @@ class Translator:
         return out
 
     def _translate(self, e: sp.Basic) -> ca.SX:
+        for part in (self._atom, self._arithmetic, self._function, self._logic):
+            out = part(e)
+            if out is not None:
+                return out
+        raise NotImplementedError(f"cannot translate {type(e).__name__}: {e}")
+
+    def _atom(self, e: sp.Basic) -> ca.SX | None:
         if e.is_Symbol:
             try:
                 return self.symbols[e.name]
@@ -44,6 +51,11 @@ class Translator:
             return ca.SX(float(e))
         if e.is_Rational:
             return ca.SX(float(e.p)) / float(e.q)
+        if e is sp.pi:
+            return ca.SX(float(sp.pi))
+        return None
+
+    def _arithmetic(self, e: sp.Basic) -> ca.SX | None:
         if e.is_Add:
             terms = [self(a) for a in e.args]
             out = terms[0]
@@ -62,28 +74,31 @@ class Translator:
                 return self(coeff) * out
             return out
         if e.is_Pow:
-            base, ex = e.args
-            b = self(base)
-            if ex.is_Integer:
-                n = int(ex)
-                if n == 1:
-                    return b
-                if n == -1:
-                    return 1 / b
-                if n == 2:
-                    return b**2
-                if n == -2:
-                    return 1 / b**2
-                return b ** n
-            if ex == sp.Rational(1, 2):
-                return ca.sqrt(b)
-            return b ** self(ex)
+            return self._power(*e.args)
+        return None
+
+    def _power(self, base: sp.Basic, ex: sp.Basic) -> ca.SX:
+        b = self(base)
+        if ex.is_Integer:
+            n = int(ex)
+            if n == 1:
+                return b
+            if n == -1:
+                return 1 / b
+            if n == 2:
+                return b**2
+            if n == -2:
+                return 1 / b**2
+            return b ** n
+        if ex == sp.Rational(1, 2):
+            return ca.sqrt(b)
+        return b ** self(ex)
+
+    def _function(self, e: sp.Basic) -> ca.SX | None:
         if isinstance(e, sp.exp):
             return ca.exp(self(e.args[0]))
         if isinstance(e, sp.Abs):
             return ca.fabs(self(e.args[0]))
-        if e is sp.pi:
-            return ca.SX(float(sp.pi))
         if isinstance(e, sp.Min):
             return self._fold(ca.fmin, e.args)
         if isinstance(e, sp.Max):
@@ -98,6 +113,9 @@ class Translator:
                         raise NotImplementedError(f"Piecewise without a default: {e}")
                     out = ca.if_else(self(cond), self(val), out)
             return out
+        return None
+
+    def _logic(self, e: sp.Basic) -> ca.SX | None:
         if isinstance(e, sp.And):
             return self._fold(ca.logic_and, e.args)
         if isinstance(e, sp.Or):
@@ -109,8 +127,7 @@ class Translator:
         for cls, fn in rel.items():
             if isinstance(e, cls):
                 return fn(self(e.lhs), self(e.rhs))
-        raise NotImplementedError(f"cannot translate {type(e).__name__}: {e}")
-
+        return None
 
     def _fold(self, fn, args):
         out = self(args[0])

@@ -31,12 +31,33 @@ def run_verification(out_dir: Path, n_points: int = 50, seed: int = 0) -> dict:
     """Check, compile and verify the generated functions; write summary.{json,md} and a figure."""
     out_dir = Path(out_dir)
     summary: dict = {"versions": manifest()["versions"]}
+    _check_artefacts(summary)
+    _compile_all(summary)
+    _step(f"compiled vs interpreted at {n_points} random point(s) per function")
+    summary["compiled_vs_interpreted_max_rel"] = (
+        verify.compiled_vs_interpreted(n_points, seed) if summary["compiled"] else None)
+    _paper_lyapunov(summary)
+    fd = _alpha_dot_fd(summary)
+    _step("structured V̇ (eqs (22)-(48)) against ∇V·f at random states")
+    summary["vdot_identity_max_rel"] = verify.vdot_identity_error(n_points, seed)
+    summary["functions"] = {
+        name: {"operations": f["operations"], "instructions": f["instructions"]}
+        for name, f in sorted(layout_json()["functions"].items())}
+    _time_rhs(summary)
+    _figure(fd, out_dir / "alpha_dot_fd.png")
+    atomic_write_json(out_dir / "summary.json", summary)
+    atomic_write_text(out_dir / "summary.md", to_markdown(summary))
+    return summary
 
+
+def _check_artefacts(summary: dict) -> None:
     _step("checking generated/ against its manifest")
     for name in manifest()["artefacts"]:
         verified_path(name)
     summary["artefacts_verified"] = len(manifest()["artefacts"])
 
+
+def _compile_all(summary: dict) -> None:
     cc = compiler()
     compile_s = {}
     if cc is None:
@@ -53,10 +74,8 @@ def run_verification(out_dir: Path, n_points: int = 50, seed: int = 0) -> dict:
     summary["compile_seconds"] = compile_s
     summary["compiled"] = cc is not None
 
-    _step(f"compiled vs interpreted at {n_points} random point(s) per function")
-    summary["compiled_vs_interpreted_max_rel"] = (
-        verify.compiled_vs_interpreted(n_points, seed) if cc else None)
 
+def _paper_lyapunov(summary: dict) -> None:
     _step("observer gain K: Hurwitz check and Lyapunov P (eqs (20)-(25))")
     obs = {"table1": lyapunov.observer_lyapunov(lay.paper_table1("K_obs")),
            "default": lyapunov.observer_lyapunov(
@@ -64,13 +83,14 @@ def run_verification(out_dir: Path, n_points: int = 50, seed: int = 0) -> dict:
     summary["observer"] = {k: {"K": v.K.tolist(), "hurwitz": v.hurwitz,
                                "eigenvalues": [str(np.round(z, 4)) for z in v.eigenvalues],
                                "report": v.report()} for k, v in obs.items()}
-
     _step("decay bound of eq (51) with Table 1's γ, r, τ")
     bound = lyapunov.decay_bound()
     summary["eq51_bound"] = {"holds": bound.holds, "report": bound.report(),
                              "kappa_terms": dict(zip(bound.labels,
                                                      bound.kappa_terms.tolist(), strict=True))}
 
+
+def _alpha_dot_fd(summary: dict) -> dict:
     _step("α̇1..α̇3 against central differences along a closed-loop RK4 run")
     t0 = time.perf_counter()
     # One control sign: with d1 exogenous, the plant of eqs (1)-(4) has no path from pitch
@@ -83,13 +103,10 @@ def run_verification(out_dir: Path, n_points: int = 50, seed: int = 0) -> dict:
                     np.max(np.abs(r.comp_minus_full - r.ydot_term)))}
         for label, r in fd.items()}
     summary["alpha_dot_fd_seconds"] = time.perf_counter() - t0
+    return fd
 
-    _step("structured V̇ (eqs (22)-(48)) against ∇V·f at random states")
-    summary["vdot_identity_max_rel"] = verify.vdot_identity_error(n_points, seed)
 
-    summary["functions"] = {
-        name: {"operations": f["operations"], "instructions": f["instructions"]}
-        for name, f in sorted(layout_json()["functions"].items())}
+def _time_rhs(summary: dict) -> None:
     _step("timing one closed-loop right-hand side call")
     f = load("closed_loop_paper")
     z = verify.initial_state()
@@ -101,11 +118,6 @@ def run_verification(out_dir: Path, n_points: int = 50, seed: int = 0) -> dict:
     for _ in range(n):
         f(**args)
     summary["closed_loop_rhs_us_per_call_python"] = (time.perf_counter() - t0) / n * 1e6
-
-    _figure(fd, out_dir / "alpha_dot_fd.png")
-    atomic_write_json(out_dir / "summary.json", summary)
-    atomic_write_text(out_dir / "summary.md", to_markdown(summary))
-    return summary
 
 
 def _figure(fd: dict, path: Path) -> None:
