@@ -21,6 +21,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
 
 import casadi as ca
 import sympy as sp
@@ -46,6 +48,28 @@ class Controller:
     diag_names: list[str]
     build: Callable  # (symbols dict) -> dict of CasADi outputs v, x_ctrl_dot, u0, diag, x0
     sources: tuple[str, ...] = ()  # derivation modules it is derived in (for the manifest)
+    #: the module of a controller derived as a derivation.design.ControllerDesign (its
+    #: checks alpha_<name> and design model closed_loop_<name>_model are generated and
+    #: verified by every test that iterates over the registry)
+    design: ModuleType | None = None
+
+    @classmethod
+    def derived(cls, name: str, doc: str, module: ModuleType,
+                diag_names: list[str]) -> Controller:
+        """The registry entry of a ControllerDesign module: its STATES and PARAMS become the
+        layout groups <name>_states and <name>_params."""
+        return cls(name, doc, module.STATES, module.PARAMS, f"{name}_states",
+                   f"{name}_params", diag_names, from_design(module),
+                   (_source(module), "derivation/design.py"), module)
+
+
+def _source(module: ModuleType) -> str:
+    """The module's file relative to the repository (derivation/<name>.py)."""
+    path = Path(module.__file__).resolve()
+    try:
+        return str(path.relative_to(Path(__file__).resolve().parent.parent))
+    except ValueError:  # a module outside the repository (a test's): its file name
+        return path.name
 
 
 def _paper(sym: dict, controller_fn: ca.Function) -> dict:
@@ -180,13 +204,11 @@ REGISTRY: dict[str, Controller] = {
                     "scheduled ∂T/∂β, anti-windup, eq (49)-style accommodation (ours)",
         physical.STATES, physical.PARAMS, "physical_states", "physical_params",
         ["z1", "z2", "alpha1", "kappa"], _physical, ("derivation/physical.py",)),
-    "drivetrain": Controller(
+    "drivetrain": Controller.derived(
         "drivetrain", "adaptive fuzzy backstepping AFTC through the drivetrain, "
                       "ω_g - (d_s/J_g)θ_s ← θ_s ← ω_r ← β ← u, scheduled ∂T/∂β, anti-windup, "
                       "eq (49)-style accommodation (ours)",
-        drivetrain.STATES, drivetrain.PARAMS, "drivetrain_states", "drivetrain_params",
-        ["z1", "z3", "z4", "kappa"], from_design(drivetrain),
-        ("derivation/drivetrain.py", "derivation/design.py")),
+        drivetrain, ["z1", "z3", "z4", "kappa"]),
     "external": Controller(
         "external", "pitch commands from outside the compiled loop (ROSCO's libdiscon)",
         EXTERNAL_STATES, EXTERNAL_PARAMS, "external_states", "external_params",
@@ -229,7 +251,7 @@ def as_json() -> dict:
     return {
         "controllers": {c.name: {"function": f"ctrl_{c.name}", "init": f"init_{c.name}",
                                  "states": c.states_group, "params": c.params_group,
-                                 "diag": c.diag_names, "doc": c.doc}
+                                 "diag": c.diag_names, "doc": c.doc} | _checks_json(c)
                         for c in REGISTRY.values()},
         "measurements": [{"name": n, "unit": u} for n, u in zip(MEAS, MEAS_UNITS, strict=True)],
         "schedule": SCHED,
@@ -238,6 +260,16 @@ def as_json() -> dict:
         | {f"{c.params_group}": c.params for c in REGISTRY.values()
            if c.params_group != "controller_params"},
     }
+
+
+def _checks_json(c: Controller) -> dict:
+    """Where a derived design's verification functions are and how to drive its model."""
+    if c.design is None:
+        return {}
+    return {"checks": f"alpha_{c.name}",
+            "model": {"function": f"closed_loop_{c.name}_model",
+                      "states": [e.as_json() for e in c.design.MODEL_STATES],
+                      "residual": c.design.MODEL_RESIDUAL.as_json()}}
 
 
 def build_verification() -> list[ca.Function]:
@@ -273,7 +305,9 @@ def build_verification() -> list[ca.Function]:
     loop = ca.Function("closed_loop_physical_model", [z, dist, yd, sched, pc],
                        [ca.cse(zdot), b * z[1] + h0 + dist],
                        ["z", "d", "yd", "sched", "p_ctrl"], ["z_dot", "omega_dot"])
-    return [alpha, loop, *design_checks("drivetrain", drivetrain)]
+    derived = [f for c in REGISTRY.values() if c.design is not None
+               for f in design_checks(c.name, c.design)]
+    return [alpha, loop, *derived]
 
 
 def design_checks(name: str, module) -> list[ca.Function]:
@@ -311,6 +345,6 @@ def design_checks(name: str, module) -> list[ca.Function]:
     true = ca.vertcat(*[s2[s.name] for s in d.check_inputs])
     loop = ca.Function(f"closed_loop_{name}_model",
                        [z, dsx, sym["yd"], sym["sched"], sym["p_ctrl"]],
-                       [ca.cse(zdot), ca.cse(true)], ["z", "d", "yd", "sched", "p_ctrl"],
-                       ["z_dot", "true_rates"])
+                       [ca.cse(zdot), ca.cse(true), s2["meas"]],
+                       ["z", "d", "yd", "sched", "p_ctrl"], ["z_dot", "true_rates", "meas"])
     return [alpha, loop]

@@ -48,10 +48,23 @@ dT_dbeta = sp.Symbol("dT_dbeta", real=True)
 omega_r_dot, omega_g_dot, b_dot = sp.symbols("omega_r_dot omega_g_dot b_dot", real=True)
 
 WEIGHTS = [f"dt_theta_hat[{m}]" for m in range(N_MF)]
-STATES = [*[Entry(w, 0.0, "rad/s^2", f"fuzzy weight {m} of f̂(ω_r)")
+STATES = [*[Entry(w, 0.0, "rad/s^2", f"fuzzy weight {m} of f̂(ω_r)", sample=(-0.5, 1.0))
             for m, w in enumerate(WEIGHTS)],
           Entry("dt_twist_hat", 4.818e-3, "rad",
-                "shaft twist estimate θ̂_s, integrated from the measured speeds")]
+                "shaft twist estimate θ̂_s, integrated from the measured speeds",
+                sample=(2.4e-3, 7.2e-3))]
+#: the design model's states (design_model): the finite-difference checks start at the
+#: defaults, random inputs are drawn in the sample ranges
+MODEL_STATES = [
+    Entry("dm_omega_r", 1.28, "rad/s", "rotor speed ω_r", sample=(1.1, 1.45)),
+    Entry("dm_theta_s", 4.818e-3, "rad", "shaft twist θ_s", sample=(2.4e-3, 7.2e-3)),
+    Entry("dm_omega_g", 1.28, "rad/s", "generator speed on the LSS ω_g", sample=(1.1, 1.45)),
+    Entry("dm_beta", 0.14, "rad", "mean blade pitch β̄", sample=(0.0, 0.4)),
+]
+#: the design model's aerodynamic residual d = (T_aero - G β̄)/J_r: near the value that
+#: balances rated torque at 0.14 rad; the finite-difference run swings it over the range
+MODEL_RESIDUAL = Entry("dm_residual", 0.14, "rad/s^2", "aerodynamic residual d",
+                       sample=(0.12, 0.16))
 theta = sp.symbols(WEIGHTS, real=True)
 twist = sp.Symbol("dt_twist_hat", real=True)
 
@@ -172,7 +185,7 @@ def design_model(d_sym: sp.Symbol) -> dict:
     blades all at β̄, measured exactly, ω_g measured on the HSS. Returns the states, their
     rates, the measurements as expressions of them, and the true rates the α̇_i need.
     """
-    w, s, g, bb = sp.symbols("dm_omega_r dm_theta_s dm_omega_g dm_beta", real=True)
+    w, s, g, bb = sp.symbols([e.name for e in MODEL_STATES], real=True)
     b = -sp.Max(-dT_dbeta, gmin) / J_r
     w_dot = b * bb + d_sym - (k_s * s + d_s * (w - g)) / J_r
     g_dot = (k_s * s + d_s * (w - g) - T_g) / J_g

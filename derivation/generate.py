@@ -404,8 +404,7 @@ def write(outdir: Path) -> dict:
                                    "serialized": path.name, **_signature(f), **_count_ops(f)}
     reg = controllers.as_json()
     groups_extra = {**reg.pop("groups"), "fdi_states": FDI_STATES, "fdi_params": fdi.PARAMS}
-    extra_groups = {g: [{"name": e.name, "default": e.default, "unit": e.unit, "doc": e.doc}
-                        for e in entries] for g, entries in groups_extra.items()}
+    extra_groups = {g: [e.as_json() for e in entries] for g, entries in groups_extra.items()}
     layout = {"_header": HEADER.format(modules="derivation/layout.py"), **lay.as_json(),
               **extra_groups, **reg,
               "functions": functions, "kappa_labels": lyapunov.derive().kappa_labels}

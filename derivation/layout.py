@@ -35,6 +35,13 @@ class Entry:
     default: float
     unit: str
     doc: str
+    #: where verification draws random values of this entry, (low, high) in its unit;
+    #: None: near the default (wtftc.verify.checks.random_inputs)
+    sample: tuple[float, float] | None = None
+
+    def as_json(self) -> dict:
+        out = {"name": self.name, "default": self.default, "unit": self.unit, "doc": self.doc}
+        return out | ({"sample": list(self.sample)} if self.sample else {})
 
 
 def rule_count(i: int) -> int:
@@ -224,6 +231,5 @@ def as_json() -> dict:
         "paper_table1": {k: list(v) for k, v in PAPER_TABLE1.items()},
     }
     for key, entries in groups.items():
-        out[key] = [{"name": e.name, "default": e.default, "unit": e.unit, "doc": e.doc}
-                    for e in entries]
+        out[key] = [e.as_json() for e in entries]
     return out

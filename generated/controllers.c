@@ -7278,7 +7278,7 @@ CASADI_SYMBOL_EXPORT int alpha_drivetrain_work_bytes(casadi_int *sz_arg, casadi_
   return 0;
 }
 
-/* closed_loop_drivetrain_model:(z[8],d,yd[5],sched,p_ctrl[24])->(z_dot[8],true_rates[3]) */
+/* closed_loop_drivetrain_model:(z[8],d,yd[5],sched,p_ctrl[24])->(z_dot[8],true_rates[3],meas[5]) */
 static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a000, a001, a002, a003, a004, a005, a006, a007, a008, a009, a010, a011;
   casadi_real a012, a013, a014, a015, a016, a017, a018, a019, a020, a021, a022, a023;
@@ -7865,23 +7865,23 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   a086=(a086/a011);
   a016=(a016+a086);
   a003=(a090*a003);
-  a004=(a003*a004);
-  a004=(a004/a012);
-  a004=(a004/a011);
-  a016=(a016+a004);
+  a015=(a003*a004);
+  a015=(a015/a012);
+  a015=(a015/a011);
+  a016=(a016+a015);
   a091=(a091*a002);
   a091=(a091/a045);
   a091=(a091/a011);
   a016=(a016+a091);
-  a015=(a090*a002);
-  a041=(a015*a021);
+  a041=(a090*a002);
+  a040=(a041*a021);
+  a040=(a040/a012);
+  a040=(a040/a011);
+  a016=(a016+a040);
+  a041=(a041*a035);
   a041=(a041/a012);
   a041=(a041/a011);
   a016=(a016+a041);
-  a015=(a015*a035);
-  a015=(a015/a012);
-  a015=(a015/a011);
-  a016=(a016+a015);
   a066=(a066/a045);
   a062=(a066*a062);
   a062=(a062/a034);
@@ -7892,9 +7892,9 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   a066=(a066/a011);
   a016=(a016+a066);
   a080=(a080*a031);
-  a040=(a080*a021);
-  a040=(a040/a011);
-  a016=(a016-a040);
+  a037=(a080*a021);
+  a037=(a037/a011);
+  a016=(a016-a037);
   a090=(a090*a021);
   a090=(a090/a045);
   a090=(a090*a046);
@@ -7991,7 +7991,7 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   a024=(a024+a061);
   a094=(2.*a094);
   a024=(a024+a094);
-  a024=(a024+a040);
+  a024=(a024+a037);
   a024=(a024+a090);
   a024=(a024+a057);
   a024=(a024+a055);
@@ -8006,10 +8006,10 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   a024=(a024-a087);
   a024=(a024-a044);
   a024=(a024-a086);
-  a024=(a024-a004);
-  a024=(a024-a091);
-  a024=(a024-a041);
   a024=(a024-a015);
+  a024=(a024-a091);
+  a024=(a024-a040);
+  a024=(a024-a041);
   a024=(a024-a062);
   a024=(a024-a066);
   a024=(a024+a050);
@@ -8025,13 +8025,13 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   a097=(a097||a039);
   a039=arg[4]? arg[4][13] : 0;
   a039=(a039*a024);
-  a008=(a008+a039);
-  a039=arg[4]? arg[4][14] : 0;
-  a039=(a008<=a039);
-  a043=(a043&&a039);
+  a039=(a008+a039);
+  a024=arg[4]? arg[4][14] : 0;
+  a024=(a039<=a024);
+  a043=(a043&&a024);
   a097=(a097||a043);
   a043=arg[4]? arg[4][15] : 0;
-  a043=(a043<=a008);
+  a043=(a043<=a039);
   a005=(a005&&a043);
   a097=(a097||a005);
   a097=(!a097);
@@ -8048,7 +8048,7 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   a065=(a065+a094);
   a051=(a097?a051:0);
   a065=(a065+a051);
-  a065=(a065+a040);
+  a065=(a065+a037);
   a065=(a065+a090);
   a065=(a065+a057);
   a065=(a065+a055);
@@ -8063,10 +8063,10 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   a065=(a065-a087);
   a065=(a065-a044);
   a065=(a065-a086);
-  a065=(a065-a004);
-  a065=(a065-a091);
-  a065=(a065-a041);
   a065=(a065-a015);
+  a065=(a065-a091);
+  a065=(a065-a040);
+  a065=(a065-a041);
   a065=(a065-a062);
   a065=(a065-a066);
   a065=(a065+a050);
@@ -8100,6 +8100,11 @@ static int casadi_f13(const casadi_real** arg, casadi_real** res, casadi_int* iw
   if (res[1]!=0) res[1][0]=a000;
   if (res[1]!=0) res[1][1]=a001;
   if (res[1]!=0) res[1][2]=a099;
+  if (res[2]!=0) res[2][0]=a004;
+  if (res[2]!=0) res[2][1]=a036;
+  if (res[2]!=0) res[2][2]=a008;
+  if (res[2]!=0) res[2][3]=a008;
+  if (res[2]!=0) res[2][4]=a008;
   return 0;
 }
 
@@ -8122,7 +8127,7 @@ CASADI_SYMBOL_EXPORT void closed_loop_drivetrain_model_decref(void) {
 
 CASADI_SYMBOL_EXPORT casadi_int closed_loop_drivetrain_model_n_in(void) { return 5;}
 
-CASADI_SYMBOL_EXPORT casadi_int closed_loop_drivetrain_model_n_out(void) { return 2;}
+CASADI_SYMBOL_EXPORT casadi_int closed_loop_drivetrain_model_n_out(void) { return 3;}
 
 CASADI_SYMBOL_EXPORT casadi_real closed_loop_drivetrain_model_default_in(casadi_int i) {
   switch (i) {
@@ -8145,6 +8150,7 @@ CASADI_SYMBOL_EXPORT const char* closed_loop_drivetrain_model_name_out(casadi_in
   switch (i) {
     case 0: return "z_dot";
     case 1: return "true_rates";
+    case 2: return "meas";
     default: return 0;
   }
 }
@@ -8164,13 +8170,14 @@ CASADI_SYMBOL_EXPORT const casadi_int* closed_loop_drivetrain_model_sparsity_out
   switch (i) {
     case 0: return casadi_s10;
     case 1: return casadi_s5;
+    case 2: return casadi_s1;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT int closed_loop_drivetrain_model_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
   if (sz_arg) *sz_arg = 5;
-  if (sz_res) *sz_res = 2;
+  if (sz_res) *sz_res = 3;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
   return 0;
@@ -8178,7 +8185,7 @@ CASADI_SYMBOL_EXPORT int closed_loop_drivetrain_model_work(casadi_int *sz_arg, c
 
 CASADI_SYMBOL_EXPORT int closed_loop_drivetrain_model_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
   if (sz_arg) *sz_arg = 5*sizeof(const casadi_real*);
-  if (sz_res) *sz_res = 2*sizeof(casadi_real*);
+  if (sz_res) *sz_res = 3*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);
   return 0;

@@ -14,7 +14,7 @@ import sympy as sp
 
 from derivation import backstepping as bs
 from derivation import (
-    drivetrain,
+    controllers,
     fdi,
     fuzzy,
     lyapunov,
@@ -414,7 +414,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
 
 
 #: controllers derived as a derivation.design.ControllerDesign, by registered name
-DESIGNS = {"drivetrain": drivetrain}
+DESIGNS = {c.name: c.design for c in controllers.REGISTRY.values() if c.design is not None}
 
 
 def design_reference(cname: str, name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
@@ -475,7 +475,7 @@ def design_reference(cname: str, name: str, args: dict[str, np.ndarray]) -> dict
         true = pair(f"{cname}_dm_true", [dm["true_rates"][s.name] for s in d.check_inputs],
                     vals)
         return {"z_dot": tuple(np.concatenate([rates[k], bdot[k], x_dot[k]]) for k in (0, 1)),
-                "true_rates": true}
+                "true_rates": true, "meas": exact([vals[n] for n in MEAS])}
     v = pair(f"{cname}_v", [d.v], vals)
     return {"v": (np.repeat(v[0], 3), np.repeat(v[1], 3)), "u0": pair(f"{cname}_u0", [d.u0], vals),
             "x_ctrl_dot": x_dot, "diag": pair(f"{cname}_diag", d.diag, vals)}

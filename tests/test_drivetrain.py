@@ -1,96 +1,48 @@
-"""The drivetrain-chain AFTC (derivation/drivetrain.py): α̇1-α̇3 verified against central
-differences on its design model, and the measurement behind choosing the other chain."""
+"""The drivetrain-chain AFTC (derivation/drivetrain.py): its computable α̇_i, and the
+measurement behind choosing the other chain. Its α̇1-α̇3 against central differences on its
+design model: tests/test_designs.py, with every derived controller."""
 
 import numpy as np
 import pytest
 
 from wtftc import config
-from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import load
 from wtftc.campaign import cases
 from wtftc.results.metrics import metrics
+from wtftc.verify import designs
 
-SCHED = np.array([-9.0e6])  # ∂T/∂β [N m/rad], NREL 5-MW near 12 m/s
-PC = lay.defaults("drivetrain_params")
-TWIST = lay.defaults("drivetrain_states")[-1]  # θ_s* = T_g/k_s
-N_GEAR = PC[lay.index("drivetrain_params", "dt_gearbox_ratio")]
-
-
-def _signals(t):
-    w, a = 0.7, 0.01
-    yd = np.array([1.26711 + a * np.sin(w * t), a * w * np.cos(w * t),
-                   -a * w**2 * np.sin(w * t), -a * w**3 * np.cos(w * t), a * w**4 * np.sin(w * t)])
-    # the aerodynamic residual d: near the value that balances rated torque at 0.14 rad
-    return yd, 0.14 + 0.02 * np.sin(1.1 * t)
-
-
-def _rhs(t, z):
-    yd, d = _signals(t)
-    return np.array(load("closed_loop_drivetrain_model")(z=z, d=d, yd=yd, sched=SCHED,
-                                                          p_ctrl=PC)["z_dot"]).ravel()
-
-
-def _rk4(z, t0, t1, n):
-    h = (t1 - t0) / n
-    for k in range(n):
-        t = t0 + k * h
-        k1 = _rhs(t, z)
-        k2 = _rhs(t + h / 2, z + h / 2 * k1)
-        k3 = _rhs(t + h / 2, z + h / 2 * k2)
-        k4 = _rhs(t + h, z + h * k3)
-        z = z + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return z
+MODEL = designs.DesignModel("drivetrain")
+T0 = 1.0
 
 
 def _alpha(z, t, rates=None):
     """α_i and α̇_i at the design-model state z = [ω_r, θ_s, ω_g, β̄, θ̂, θ̂_s]; the true
-    rates (ω̇_r, ω̇_g) from the model unless given."""
-    yd, d = _signals(t)
+    rates (ω̇_r, ω̇_g, ḃ) from the model unless given."""
     if rates is None:
-        rates = np.array(load("closed_loop_drivetrain_model")(
-            z=z, d=d, yd=yd, sched=SCHED, p_ctrl=PC)["true_rates"]).ravel()
-    meas = np.array([z[0], N_GEAR * z[2], z[3], z[3], z[3]])
-    out = load("alpha_drivetrain")(x_ctrl=z[4:], meas=meas, yd=yd, sched=SCHED, p_ctrl=PC,
+        return MODEL.check_values(z, t)
+    yd, _ = MODEL.signals(t)
+    meas = MODEL.evaluate(t, z)["meas"]
+    out = load("alpha_drivetrain")(x_ctrl=z[MODEL.n_model:], meas=meas, yd=yd,
+                                   sched=designs.SCHED, p_ctrl=MODEL.p_ctrl,
                                    omega_r_dot=rates[0], omega_g_dot=rates[1], b_dot=0.0)
     return {k: float(v) for k, v in out.items()}
 
 
 @pytest.fixture(scope="module")
 def state():
-    z0 = np.array([1.28, TWIST, 1.28, 0.14, 0.11, 0.12, 0.13, TWIST])
-    return _rk4(z0, 0.0, 1.0, 2000)
-
-
-@pytest.mark.parametrize("i", [1, 2, 3])
-def test_alpha_dot_against_central_differences(state, i):
-    """d α_i/dt by central differences along the design-model closed loop converges to the
-    generated total derivative at O(h²) (slope 1.9-2.1), below 1e-6 relative at the best h."""
-    t0 = 1.0
-    a = _alpha(state, t0)
-    assert a["kappa"] == 1.0 and abs(a[f"alpha{i}_dot_full"]) > 1e-6
-    hs = np.array([1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5])
-    err = []
-    for h in hs:
-        n = max(1, int(np.ceil(h / 2e-4)))
-        ap = _alpha(_rk4(state, t0, t0 + h, n), t0 + h)[f"alpha{i}"]
-        am = _alpha(_rk4(state, t0, t0 - h, n), t0 - h)[f"alpha{i}"]
-        err.append(abs((ap - am) / (2 * h) - a[f"alpha{i}_dot_full"])
-                   / abs(a[f"alpha{i}_dot_full"]))
-    slope = np.polyfit(np.log(hs), np.log(err), 1)[0]
-    assert 1.9 < slope < 2.1, (err, slope)
-    assert min(err) < 1e-6, err
+    return MODEL.rk4(MODEL.z0, 0.0, T0, 2000)
 
 
 def test_computable_alpha_dot_is_full_one_at_the_estimates(state):
     """α̇_ic is α̇_i with ω̇_r, ω̇_g replaced by the controller's estimates; α̇1 does not
     depend on ω̇_r at all (the damping terms cancel in ẋ1), the others do."""
-    a = _alpha(state, 1.0)
-    hat = _alpha(state, 1.0, rates=[a["omega_r_dot_hat"], a["omega_g_dot_hat"]])
+    a = _alpha(state, T0)
+    hat = _alpha(state, T0, rates=[a["omega_r_dot_hat"], a["omega_g_dot_hat"]])
     # the computable α̇_i is expanded (so that ω_r cancels from α̇1 exactly) and the full one
     # is not: the same sum rounded two ways, terms ~100× the result, hence 1e-10
     for i in (1, 2, 3):
         assert hat[f"alpha{i}_dot_full"] == pytest.approx(a[f"alpha{i}_dot_comp"], rel=1e-10)
-    bumped = _alpha(state, 1.0, rates=[a["omega_r_dot_hat"] + 0.1, a["omega_g_dot_hat"]])
+    bumped = _alpha(state, T0, rates=[a["omega_r_dot_hat"] + 0.1, a["omega_g_dot_hat"]])
     assert bumped["alpha1_dot_full"] == hat["alpha1_dot_full"]
     assert bumped["alpha2_dot_full"] == hat["alpha2_dot_full"]  # α2 has no ω_r either
     assert abs(bumped["alpha3_dot_full"] - hat["alpha3_dot_full"]) > 1e-3

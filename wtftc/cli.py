@@ -115,9 +115,10 @@ def _add_run(sub) -> None:
 def _add_compare(sub) -> None:
     k = sub.add_parser(
         "compare", help="controllers × faults × winds on the NREL 5-MW: one table, figures",
-        description="Runs every combination of controller (rosco when installed, paper, "
-                    "physical_fdi, physical_known, physical_unaccommodated, drivetrain_fdi, "
-                    "pi), fault (none, "
+        description="Runs every combination of controller variant (rosco when installed, "
+                    "paper, physical_fdi, physical_known, physical_unaccommodated, "
+                    "drivetrain_fdi, pi, and any other registered ControllerDesign as "
+                    "<name>_fdi; a wrong name lists them all), fault (none, "
                     "loss_of_effectiveness, lock, pressure_drop, air_in_oil; from 20 s) and "
                     "wind (paper_random_12, ntm_B_16, eog_rated) and writes compare.md, "
                     "compare.csv, compare.png/pdf, and each cell's config.toml and "

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from wtftc import config
+from wtftc.artefacts import layout as lay
 from wtftc.campaign import cases
 from wtftc.errors import ConfigError
 from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text
@@ -54,6 +55,11 @@ CONTROLLERS = {
                                 "FDI: the measured alternative"),
     "pi": Variant("pi", 2, "gain-scheduled PI baseline"),
 }
+#: every other controller derived as a ControllerDesign (eq (49)-style accommodation by
+#: construction) joins the matrix with wtftc's own FDI, as <name>_fdi
+CONTROLLERS |= {f"{c}_fdi": Variant(c, FDI_CASE, reg["doc"] + ", with wtftc's own FDI")
+                for c, reg in lay.layout()["controllers"].items()
+                if "checks" in reg and all(v.controller != c for v in CONTROLLERS.values())}
 #: the matrix's faults from ONSET_S: each pitch actuator fault type of model/faults.py (the
 #: one list; tests/test_compare.py checks that none is missing), in the table's order, with
 #: its blade and magnitude (the hydraulic faults at full severity, their default)

@@ -50,17 +50,16 @@ def random_inputs(name: str, rng: np.random.Generator,
         size = int(np.prod(shape))
         if n in special and special[n].size == size:
             val = special[n]
-        elif n == "z" and name == "closed_loop_drivetrain_model":
-            # [ω_r, θ_s, ω_g, β̄] near rated and the steady twist, then the controller states
-            twist = lay.defaults("drivetrain_states")[-1]
-            val = np.concatenate([[rng.uniform(1.1, 1.45), twist * rng.uniform(0.5, 1.5),
-                                   rng.uniform(1.1, 1.45), rng.uniform(0.0, 0.4)],
-                                  rng.uniform(-0.5, 1.0, 3), [twist * rng.uniform(0.5, 1.5)]])
+        elif n == "z" and name in _models():
+            # a derived design's model: [model states, controller states], in their ranges
+            reg = _models()[name]
+            val = np.concatenate([_draw(reg["model"]["states"], rng),
+                                  _draw(lay.layout()[reg["states"]], rng)])
         elif n in ("x_ctrl", "p_ctrl") and size != len(lay.names(_GROUP_OF_INPUT[n])):
             group = _group_of(name, n, size)
             base = lay.defaults(group)
             val = (base * (1 + 0.1 * rng.uniform(-1, 1, base.size)) if n == "p_ctrl"
-                   else base + 0.05 * rng.standard_normal(base.size))
+                   else _draw(lay.layout()[group], rng))
         elif n in ("p_plant", "p_ctrl", "fault", "p_turbine"):
             base = lay.defaults(_GROUP_OF_INPUT[n])
             val = base * (1 + 0.1 * rng.uniform(-1, 1, base.size))
@@ -83,6 +82,22 @@ def random_inputs(name: str, rng: np.random.Generator,
             val = 0.5 * rng.standard_normal(size)
         out[n] = np.asarray(val, dtype=float).reshape(shape, order="F")
     return out
+
+
+def _models() -> dict[str, dict]:
+    """Design-model function name → its controller's registry entry (layout.json)."""
+    return {reg["model"]["function"]: reg for reg in lay.layout()["controllers"].values()
+            if "model" in reg}
+
+
+def _draw(entries: list[dict], rng: np.random.Generator) -> np.ndarray:
+    """Random values of layout entries: uniform in each entry's sample range where the
+    derivation gives one, else its default plus 0.05 N(0, 1)."""
+    base = np.array([e["default"] for e in entries], dtype=float)
+    if not any("sample" in e for e in entries):
+        return base + 0.05 * rng.standard_normal(base.size)
+    return np.array([rng.uniform(*e["sample"]) if "sample" in e
+                     else e["default"] + 0.05 * rng.standard_normal() for e in entries])
 
 
 def _group_of(name: str, kind: str, size: int) -> str:

@@ -1,4 +1,4 @@
-"""The verification summary of ``wtftc verify`` (and ``make run`` until the simulator lands)."""
+"""The verification summary of ``wtftc verify``: summary.json, summary.md and a figure."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from wtftc.artefacts.loader import (
 )
 from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text
 from wtftc.verify import checks as verify
-from wtftc.verify import lyapunov
+from wtftc.verify import designs, lyapunov
 
 
 def _step(msg: str) -> None:
@@ -38,6 +38,7 @@ def run_verification(out_dir: Path, n_points: int = 50, seed: int = 0) -> dict:
         verify.compiled_vs_interpreted(n_points, seed) if summary["compiled"] else None)
     _paper_lyapunov(summary)
     fd = _alpha_dot_fd(summary)
+    _designs_fd(summary)
     _step("structured V̇ (eqs (22)-(48)) against ∇V·f at random states")
     summary["vdot_identity_max_rel"] = verify.vdot_identity_error(n_points, seed)
     summary["functions"] = {
@@ -106,6 +107,31 @@ def _alpha_dot_fd(summary: dict) -> dict:
     return fd
 
 
+def _designs_fd(summary: dict) -> None:
+    """Every registered controller derived as a ControllerDesign, on its design model."""
+    out = {}
+    for c in designs.derived():
+        _step(f"{c}: α̇_i against central differences on its design model")
+        r = designs.alpha_dot_fd(c)
+        out[c] = {"alphas": r.alphas, "h_s": r.h.tolist(), "rel_error": r.errors.T.tolist(),
+                  "slope": r.slopes.tolist(), "best_rel_error": r.errors.min(axis=0).tolist()}
+    summary["designs_alpha_dot_fd"] = out
+
+
+def _designs_markdown(s: dict) -> list[str]:
+    lines = ["## Derived controllers: α̇_i against central differences on the design model",
+             ""]
+    for c, r in s["designs_alpha_dot_fd"].items():
+        lines += [f"**{c}**", "", "| h [s] | " + " | ".join(
+            f"{a} rel. err" for a in r["alphas"]) + " |",
+            "|---:|" + "---:|" * len(r["alphas"])]
+        for m, h in enumerate(r["h_s"]):
+            lines.append(f"| {h:.0e} | " + " | ".join(f"{e[m]:.2e}" for e in r["rel_error"])
+                         + " |")
+        lines += ["", "fitted slopes: " + ", ".join(f"{x:.3f}" for x in r["slope"]), ""]
+    return lines
+
+
 def _time_rhs(summary: dict) -> None:
     _step("timing one closed-loop right-hand side call")
     f = load("closed_loop_paper")
@@ -172,6 +198,7 @@ def to_markdown(s: dict) -> str:
         lines += ["", "fitted slopes: " + ", ".join(f"{x:.3f}" for x in r["slope"])
                   + "; |(α̇_computable − α̇_full) − ∂α/∂y·(ẏ̂ − ẏ)| = "
                   f"{r['comp_minus_full_vs_ydot_term_max_abs']:.1e}", ""]
+    lines += _designs_markdown(s)
     lines += [f"Structured V̇ vs ∇V·f, max relative difference: "
               f"{s['vdot_identity_max_rel']:.1e}", "",
               f"One closed-loop right-hand side call from Python "

@@ -1,0 +1,144 @@
+"""Finite-difference checks of every controller derived as a ControllerDesign.
+
+For each registered controller whose layout entry names ``checks`` (``alpha_<name>``: the
+α_i, their total derivatives α̇_i and the computable parts) and a ``model``
+(``closed_loop_<name>_model``: the design model closed by the controller, with the true
+rates and the measurements along it), :func:`alpha_dot_fd` integrates the model by RK4
+and compares central differences of every α_i with the generated α̇_i over a ladder of
+steps h: the error must fall as O(h²). Nothing here knows a controller by name: the
+registry (generated/layout.json) says what to check and where the model starts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import load
+
+#: the schedule input ∂T_aero/∂β during the checks [N m/rad]: the NREL 5-MW near 12 m/s
+#: (docs/paper-notes.md, defect 2); constant, so that its rate (b_dot) is zero
+SCHED = -9.0e6
+#: the reference's swing during the checks: y_d = y_d,default + A sin(W t)
+REF_AMPLITUDE, REF_FREQUENCY = 0.01, 0.7  # rad/s, rad/s
+#: the residual's swing: d = d_default + (half its sample range) sin(D t)
+RESIDUAL_FREQUENCY = 1.1  # rad/s
+H_VALUES = (1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5)
+
+
+def derived() -> list[str]:
+    """The registered controllers that carry generated checks and a design model."""
+    return [c for c, reg in lay.layout()["controllers"].items() if "checks" in reg]
+
+
+@dataclass
+class DesignModel:
+    """A derived controller's design model and checks, with the signals that drive them."""
+
+    controller: str
+
+    def __post_init__(self):
+        reg = lay.layout()["controllers"][self.controller]
+        if "checks" not in reg:
+            raise KeyError(f"{self.controller!r} is not derived as a ControllerDesign; "
+                           f"derived: {', '.join(derived())}")
+        self.model = load(reg["model"]["function"])
+        self.checks = load(reg["checks"])
+        self.n_model = len(reg["model"]["states"])
+        res = reg["model"]["residual"]
+        self.d0, self.d_amp = res["default"], (res["sample"][1] - res["sample"][0]) / 2
+        self.p_ctrl = lay.defaults(reg["params"])
+        self.y0 = lay.defaults("reference")[0]
+        # the model at its defaults; the controller as a run starts it (init_<name>)
+        x_model = np.array([e["default"] for e in reg["model"]["states"]])
+        meas = self.evaluate(0.0, np.concatenate([x_model, lay.defaults(reg["states"])]))["meas"]
+        x_ctrl = load(reg["init"])(meas=meas, sched=SCHED, p_ctrl=self.p_ctrl)["x_ctrl0"]
+        self.z0 = np.concatenate([x_model, np.array(x_ctrl).ravel()])
+        #: the α_i that have a generated total derivative α_i_dot_full
+        self.alphas = [n for n in self.checks.name_out()
+                       if f"{n}_dot_full" in self.checks.name_out()]
+        self.rate_inputs = self.checks.name_in()[5:]  # after x_ctrl, meas, yd, sched, p_ctrl
+
+    def signals(self, t: float) -> tuple[np.ndarray, float]:
+        w, a = REF_FREQUENCY, REF_AMPLITUDE
+        s, c = np.sin(w * t), np.cos(w * t)
+        yd = np.array([self.y0 + a * s, a * w * c, -a * w**2 * s, -a * w**3 * c,
+                       a * w**4 * s])
+        return yd, self.d0 + self.d_amp * np.sin(RESIDUAL_FREQUENCY * t)
+
+    def evaluate(self, t: float, z: np.ndarray) -> dict:
+        yd, d = self.signals(t)
+        return self.model(z=z, d=d, yd=yd, sched=SCHED, p_ctrl=self.p_ctrl)
+
+    def rhs(self, t: float, z: np.ndarray) -> np.ndarray:
+        return np.array(self.evaluate(t, z)["z_dot"]).ravel()
+
+    def rk4(self, z: np.ndarray, t0: float, t1: float, n: int) -> np.ndarray:
+        """n RK4 steps from t0 to t1 (t1 < t0 runs backward)."""
+        h = (t1 - t0) / n
+        for k in range(n):
+            t = t0 + k * h
+            k1 = self.rhs(t, z)
+            k2 = self.rhs(t + h / 2, z + h / 2 * k1)
+            k3 = self.rhs(t + h / 2, z + h / 2 * k2)
+            k4 = self.rhs(t + h, z + h * k3)
+            z = z + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return z
+
+    def check_values(self, z: np.ndarray, t: float) -> dict[str, float]:
+        """Every output of the checks function at model state z, with the true rates."""
+        out = self.evaluate(t, z)
+        yd, _ = self.signals(t)
+        rates = np.array(out["true_rates"]).ravel()
+        res = self.checks(x_ctrl=z[self.n_model:], meas=out["meas"], yd=yd, sched=SCHED,
+                          p_ctrl=self.p_ctrl,
+                          **dict(zip(self.rate_inputs, rates, strict=True)))
+        return {k: float(v) for k, v in res.items()}
+
+
+@dataclass
+class DesignFD:
+    controller: str
+    alphas: list[str]
+    h: np.ndarray
+    errors: np.ndarray  # (len(h), len(alphas)): |FD - α̇| / |α̇|
+    slopes: np.ndarray  # fitted log-log slope per α_i (2 for O(h²))
+    alpha_dot: np.ndarray  # the generated α̇_i at the check point
+    kappa: float  # the adaptation switch at the check point (1: integrating)
+
+
+def alpha_dot_fd(controller: str, t_point: float = 1.0, h_values=H_VALUES,
+                 substep: float = 2e-4) -> DesignFD:
+    """Central differences of every α_i along the design model against the generated α̇_i.
+
+    The model runs by RK4 from its start to ``t_point``; the states at t ± h are reached
+    with steps ≤ ``substep``, so the integration error stays far below the differencing
+    error. Slopes are fitted where truncation dominates (:func:`_truncation_slope`).
+    """
+    m = DesignModel(controller)
+    z = m.rk4(m.z0, 0.0, t_point, int(np.ceil(t_point / 5e-4)))
+    at = m.check_values(z, t_point)
+    exact = np.array([at[f"{a}_dot_full"] for a in m.alphas])
+    h_values = np.asarray(h_values, dtype=float)
+    errors = np.empty((h_values.size, len(m.alphas)))
+    for i, h in enumerate(h_values):
+        n = max(1, int(np.ceil(h / substep)))
+        plus = m.check_values(m.rk4(z, t_point, t_point + h, n), t_point + h)
+        minus = m.check_values(m.rk4(z, t_point, t_point - h, n), t_point - h)
+        fd = np.array([(plus[a] - minus[a]) / (2 * h) for a in m.alphas])
+        errors[i] = np.abs(fd - exact) / np.maximum(np.abs(exact), 1e-300)
+    slopes = np.array([_truncation_slope(h_values, errors[:, k])
+                       for k in range(len(m.alphas))])
+    return DesignFD(controller, m.alphas, h_values, errors, slopes, exact,
+                    at.get("kappa", 1.0))
+
+
+def _truncation_slope(h: np.ndarray, err: np.ndarray) -> float:
+    """The log-log slope of err(h) from the largest h down to the smallest error (at least
+    three points): below that h, rounding (≈ ε|α|/h) takes over and the error grows."""
+    order = np.argsort(h)[::-1]
+    h, err = h[order], err[order]
+    n = max(3, int(np.argmin(err)) + 1)
+    return float(np.polyfit(np.log(h[:n]), np.log(err[:n]), 1)[0])
