@@ -88,19 +88,6 @@ def _paper(sym: dict, controller_fn: ca.Function) -> dict:
             "diag": sym["x_ctrl"][:4], "x0": x0}
 
 
-def _pi(sym: dict) -> dict:
-    names = {**{n: sym["meas"][k] for k, n in enumerate(MEAS)},
-             "yd_0": sym["yd"][0], "dT_dbeta": sym["sched"][0],
-             "pi_integrator": sym["x_ctrl"][0],
-             **{e.name: sym["p_ctrl"][k] for k, e in enumerate(pi_baseline.PARAMS)}}
-    tr = Translator(names)
-    cmd, xi_dot, diag = pi_baseline.law()
-    c = tr(cmd)
-    return {"v": ca.repmat(c, lay.N_BLADES, 1), "x_ctrl_dot": tr(xi_dot), "u0": c,
-            "diag": ca.vertcat(*[tr(d) for d in diag]),
-            "x0": tr(pi_baseline.initial_integrator())}
-
-
 def physical_translator(sym: dict) -> tuple[Translator, dict]:
     """SX for every symbol of derivation/physical.py at the uniform inputs, κ included."""
     d = physical.derive()
@@ -148,12 +135,14 @@ def design_translator(module, sym: dict) -> tuple[Translator, object]:
     params = {e.name: sym["p_ctrl"][k] for k, e in enumerate(module.PARAMS)}
     states = {e.name: sym["x_ctrl"][k] for k, e in enumerate(module.STATES)}
     meas = {n: sym["meas"][k] for k, n in enumerate(MEAS)}
-    fz = FuzzyEvaluator(ca.vertcat(*[meas[n] for n in d.fuzzy_inputs]), params,
-                        [ca.vertcat(*[states[w] for w in d.weights])])
+    fuzzy_symbols = {}
+    if d.rule_base is not None:
+        fz = FuzzyEvaluator(ca.vertcat(*[meas[n] for n in d.fuzzy_inputs]), params,
+                            [ca.vertcat(*[states[w] for w in d.weights])])
+        fuzzy_symbols = fz.symbol_values([d.rule_base])
     kf = sym["known_fault"]
     names = {**meas, **{f"yd_{m}": sym["yd"][m] for m in range(len(lay.REFERENCE))},
-             "dT_dbeta": sym["sched"][0], **params, **states,
-             **fz.symbol_values([d.rule_base]),
+             "dT_dbeta": sym["sched"][0], **params, **states, **fuzzy_symbols,
              **{f"{kind}_{j + 1}": kf[k * lay.N_BLADES + j]
                 for k, kind in enumerate(("rho_hat", "lock_hat", "ubar_hat"))
                 for j in range(lay.N_BLADES)},
@@ -194,11 +183,10 @@ REGISTRY: dict[str, Controller] = {
         "paper", "Bakhshi & Alfi (2020) observer-based adaptive fuzzy backstepping, eq (49)",
         lay.CONTROLLER_STATES, lay.CONTROLLER_PARAMS, "controller_states",
         "controller_params", ["xhat_1", "xhat_2", "xhat_3", "xhat_4"], None),
-    "pi": Controller(
+    "pi": Controller.derived(
         "pi", "gain-scheduled PI on collective pitch with anti-windup (baseline, "
               "Jonkman 2009 / ROSCO)",
-        pi_baseline.STATES, pi_baseline.PARAMS, "pi_states", "pi_params",
-        ["speed_error", "integrator", "Kp", "Ki"], _pi, ("derivation/pi_baseline.py",)),
+        pi_baseline, ["speed_error", "integrator", "Kp", "Ki"]),
     "physical": Controller(
         "physical", "physically consistent adaptive fuzzy backstepping AFTC, ω_r ← β ← u, "
                     "scheduled ∂T/∂β, anti-windup, eq (49)-style accommodation (ours)",
@@ -262,9 +250,14 @@ def as_json() -> dict:
     }
 
 
+def _checked(c: Controller) -> bool:
+    """Whether c is a derived design with checks (α_i, α̇_i) and a design model for them."""
+    return c.design is not None and hasattr(c.design, "design_model")
+
+
 def _checks_json(c: Controller) -> dict:
     """Where a derived design's verification functions are and how to drive its model."""
-    if c.design is None:
+    if not _checked(c):
         return {}
     return {"checks": f"alpha_{c.name}",
             "model": {"function": f"closed_loop_{c.name}_model",
@@ -305,7 +298,7 @@ def build_verification() -> list[ca.Function]:
     loop = ca.Function("closed_loop_physical_model", [z, dist, yd, sched, pc],
                        [ca.cse(zdot), b * z[1] + h0 + dist],
                        ["z", "d", "yd", "sched", "p_ctrl"], ["z_dot", "omega_dot"])
-    derived = [f for c in REGISTRY.values() if c.design is not None
+    derived = [f for c in REGISTRY.values() if _checked(c)
                for f in design_checks(c.name, c.design)]
     return [alpha, loop, *derived]
 

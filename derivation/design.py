@@ -24,14 +24,16 @@ from derivation.layout import N_MF, Entry
 
 @dataclass
 class ControllerDesign:
-    rule_base: fuzzy.RuleBase
-    fuzzy_inputs: list[str]  # measurement names feeding the rule base, in order
-    weights: list[str]  # state names of the rule base's weights θ̂ (rule order)
     v: sp.Expr  # the command of each free blade [rad]
     u0: sp.Expr  # the controller's scalar (mean pitch) command [rad]
     x_dot: list[sp.Expr]  # controller state derivatives, in state order
     diag: list[sp.Expr]  # four diagnostics
     x0: list[sp.Expr]  # initial controller state from the measurements
+    #: the fuzzy approximator, if the design has one: its rule base, the measurement names
+    #: feeding it (in order) and the state names of its weights θ̂ (rule order)
+    rule_base: fuzzy.RuleBase | None = None
+    fuzzy_inputs: list[str] = field(default_factory=list)
+    weights: list[str] = field(default_factory=list)
     intermediates: list[tuple[sp.Symbol, sp.Expr]] = field(default_factory=list)
     #: named expressions for verification (α_i, α̇_i full and computable, ...), and the
     #: extra inputs they need (true derivatives the controller cannot measure)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import sympy as sp
 
+from derivation.design import ControllerDesign
 from derivation.layout import N_BLADES, Entry
 
 omega_r, omega_g_hss = sp.symbols("omega_r omega_g_hss", real=True)
@@ -39,6 +40,13 @@ PARAMS = [
 ]
 wn, zeta, J, bmin, bmax, gmin = sp.symbols(
     "pi_omega_n pi_zeta pi_inertia pi_pitch_min pi_pitch_max pi_dTdbeta_min", real=True)
+
+
+def derive() -> ControllerDesign:
+    """The PI as a ControllerDesign: the same command to every blade (no accommodation)."""
+    cmd, xI_dot, diag = law()
+    return ControllerDesign(v=cmd, u0=cmd, x_dot=[xI_dot], diag=diag,
+                            x0=[initial_integrator()])
 
 
 def law():

@@ -20,7 +20,6 @@ from derivation import (
     lyapunov,
     observer,
     physical,
-    pi_baseline,
     plant,
     turbine,
 )
@@ -339,26 +338,12 @@ def physical_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tupl
 def controller_uniform_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     """ctrl_<name> / init_<name> of derivation/controllers.py from the SymPy laws."""
     meas = _flat(args, "meas")
-    vals = {n: float(x) for n, x in zip(MEAS, meas, strict=True)}
     if name.endswith("_external"):  # commands held from outside: v = p_ctrl
         if name.startswith("init"):
             return {"x_ctrl0": exact([0.0])}
         v = _flat(args, "p_ctrl")
         return {"v": exact(v), "x_ctrl_dot": exact([0.0]), "u0": exact([v.mean()]),
                 "diag": exact(np.concatenate([v, [0.0]]))}
-    if name.endswith("_pi"):
-        pc = _flat(args, "p_ctrl")
-        vals.update({e.name: float(x) for e, x in zip(pi_baseline.PARAMS, pc, strict=True)})
-        if name.startswith("init"):
-            return {"x_ctrl0": pair("pi_init", [pi_baseline.initial_integrator()], vals)}
-        vals.update({"yd_0": float(_flat(args, "yd")[0]),
-                     "dT_dbeta": float(_flat(args, "sched")[0]),
-                     "pi_integrator": float(_flat(args, "x_ctrl")[0])})
-        cmd, xi_dot, diag = pi_baseline.law()
-        c = pair("pi_cmd", [cmd], vals)
-        return {"v": (np.repeat(c[0], 3), np.repeat(c[1], 3)), "u0": c,
-                "x_ctrl_dot": pair("pi_xdot", [xi_dot], vals),
-                "diag": pair("pi_diag", diag, vals)}
     if name.startswith("init"):
         n_w = len(dlay.CONTROLLER_STATES) - 4
         x0 = np.concatenate([[meas[0], 0.0, meas[0], meas[2:].mean()], np.zeros(n_w)])
@@ -455,15 +440,8 @@ def design_reference(cname: str, name: str, args: dict[str, np.ndarray]) -> dict
     vals.update({e.name: float(x) for e, x in zip(module.STATES, xc, strict=True)})
     if name.startswith("init"):
         return {"x_ctrl0": pair(f"{cname}_x0", d.x0, vals)}
-    vals["xhat_1"] = vals[d.fuzzy_inputs[0]]  # the reference regressor's input symbol
-    theta = np.array([vals[w] for w in d.weights])
-    for sym, kind in d.rule_base.symbols().items():
-        if kind[0] == "L":
-            vals[sym.name] = float(theta @ dphi(1, kind[1], vals))
-        else:
-            vals[sym.name] = float(dphi(1, kind[1], vals) @ dphi(1, kind[2], vals))
-    phi = dphi(1, (0,), vals)
-    vals.update({sym.name: float(phi[m]) for sym, m in d.rule_base.phi_symbols().items()})
+    if d.rule_base is not None:
+        _fuzzy_values(d, vals)
     for sym, e in d.intermediates:
         vals[sym.name] = float(evaluate(f"{cname}_{sym.name}", [e], vals)[0])
     x_dot = pair(f"{cname}_xdot", d.x_dot, vals)
@@ -479,6 +457,19 @@ def design_reference(cname: str, name: str, args: dict[str, np.ndarray]) -> dict
     v = pair(f"{cname}_v", [d.v], vals)
     return {"v": (np.repeat(v[0], 3), np.repeat(v[1], 3)), "u0": pair(f"{cname}_u0", [d.u0], vals),
             "x_ctrl_dot": x_dot, "diag": pair(f"{cname}_diag", d.diag, vals)}
+
+
+def _fuzzy_values(d, vals: dict) -> None:
+    """The L/B/φ symbols of a design's rule base from the unfactored regressor."""
+    vals["xhat_1"] = vals[d.fuzzy_inputs[0]]  # the reference regressor's input symbol
+    theta = np.array([vals[w] for w in d.weights])
+    for sym, kind in d.rule_base.symbols().items():
+        if kind[0] == "L":
+            vals[sym.name] = float(theta @ dphi(1, kind[1], vals))
+        else:
+            vals[sym.name] = float(dphi(1, kind[1], vals) @ dphi(1, kind[2], vals))
+    phi = dphi(1, (0,), vals)
+    vals.update({sym.name: float(phi[m]) for sym, m in d.rule_base.phi_symbols().items()})
 
 
 def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
