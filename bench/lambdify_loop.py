@@ -148,7 +148,7 @@ class LambdifiedLoop:
 
     # --- the physical AFTC (derivation/physical.py), told the fault ---
     def _setup_physical(self):
-        d = physical.derive()
+        d = physical.chain()
         self.design = d
         self.p_names = [e.name for e in physical.PARAMS]
         th2, thdir = sp.Symbol("theta_norm2"), sp.Symbol("theta_dot_dir")

@@ -88,45 +88,6 @@ def _paper(sym: dict, controller_fn: ca.Function) -> dict:
             "diag": sym["x_ctrl"][:4], "x0": x0}
 
 
-def physical_translator(sym: dict) -> tuple[Translator, dict]:
-    """SX for every symbol of derivation/physical.py at the uniform inputs, κ included."""
-    d = physical.derive()
-    params = {e.name: sym["p_ctrl"][k] for k, e in enumerate(physical.PARAMS)}
-    theta = sym["x_ctrl"]
-    fz = FuzzyEvaluator(sym["meas"][0:1], params, [theta])
-    kf = sym["known_fault"]
-    names = {**{n: sym["meas"][k] for k, n in enumerate(MEAS)},
-             **{f"yd_{m}": sym["yd"][m] for m in range(3)}, "dT_dbeta": sym["sched"][0],
-             **params, **fz.symbol_values([d.rule_base]),
-             **{f"rho_hat_{j + 1}": kf[j] for j in range(lay.N_BLADES)},
-             **{f"lock_hat_{j + 1}": kf[lay.N_BLADES + j] for j in range(lay.N_BLADES)},
-             **{f"ubar_hat_{j + 1}": kf[2 * lay.N_BLADES + j] for j in range(lay.N_BLADES)}}
-    for extra in ("omega_dot", "b_dot"):
-        if extra in sym:
-            names[extra] = sym[extra]
-    tr = Translator(names)
-    L, theta2 = tr(d.rule_base.L()), ca.sumsqr(theta)
-    z1 = tr(d.z1)
-    gam, sig = params["phys_gamma"], params["phys_sigma"]
-    th_norm2, th_dir = sp.Symbol("theta_norm2"), sp.Symbol("theta_dot_dir")
-    tr.symbols.update({"theta_norm2": theta2, "theta_dot_dir": gam * z1 * L - sig * theta2})
-    kappa = tr(physical.freeze_conditions(d, th_norm2, th_dir))
-    tr.symbols["kappa"] = kappa
-    theta_dot = kappa * (gam * z1 * fz.phi(1) - sig * theta)
-    return tr, {"kappa": kappa, "theta_dot": theta_dot}
-
-
-def _physical(sym: dict) -> dict:
-    d = physical.derive()
-    tr, extra = physical_translator(sym)
-    U = tr(d.U)
-    v = tr(d.v_free)
-    # start in equilibrium: f̂ = -h0 - b β̄ (the normalized φ sum to one), i.e. ż1 = 0
-    x0 = ca.repmat(tr(physical.initial_residual()), len(physical.STATES), 1)
-    return {"v": ca.repmat(v, lay.N_BLADES, 1), "x_ctrl_dot": extra["theta_dot"], "u0": U,
-            "diag": ca.vertcat(tr(d.z1), tr(d.z2), tr(d.alpha1), extra["kappa"]), "x0": x0}
-
-
 def design_translator(module, sym: dict) -> tuple[Translator, object]:
     """SX for every symbol a :class:`derivation.design.ControllerDesign` may use (bound by
     name at the uniform inputs, plus any extra SX in ``sym`` such as true rates for the
@@ -187,11 +148,10 @@ REGISTRY: dict[str, Controller] = {
         "pi", "gain-scheduled PI on collective pitch with anti-windup (baseline, "
               "Jonkman 2009 / ROSCO)",
         pi_baseline, ["speed_error", "integrator", "Kp", "Ki"]),
-    "physical": Controller(
+    "physical": Controller.derived(
         "physical", "physically consistent adaptive fuzzy backstepping AFTC, ω_r ← β ← u, "
                     "scheduled ∂T/∂β, anti-windup, eq (49)-style accommodation (ours)",
-        physical.STATES, physical.PARAMS, "physical_states", "physical_params",
-        ["z1", "z2", "alpha1", "kappa"], _physical, ("derivation/physical.py",)),
+        physical, ["z1", "z2", "alpha1", "kappa"]),
     "drivetrain": Controller.derived(
         "drivetrain", "adaptive fuzzy backstepping AFTC through the drivetrain, "
                       "ω_g - (d_s/J_g)θ_s ← θ_s ← ω_r ← β ← u, scheduled ∂T/∂β, anti-windup, "
@@ -266,41 +226,8 @@ def _checks_json(c: Controller) -> dict:
 
 
 def build_verification() -> list[ca.Function]:
-    """α1 and its derivatives for the physical design, and its design-model closed loop.
-
-    closed_loop_physical_model: ω̇ = b β̄ + h0 + d(t), τ_a β̄̇ = U - β̄, the adaptive law;
-    b from a constant schedule (so ḃ = 0) and the three blades at β̄.
-    """
-    d = physical.derive()
-    sym = {"x_ctrl": ca.SX.sym("x_ctrl", len(physical.STATES)),
-           "meas": ca.SX.sym("meas", len(MEAS)), "yd": ca.SX.sym("yd", len(lay.REFERENCE)),
-           "sched": ca.SX.sym("sched", 1), "p_ctrl": ca.SX.sym("p_ctrl", len(physical.PARAMS)),
-           "known_fault": ca.DM([1, 1, 1, 0, 0, 0, 0, 0, 0]),
-           "omega_dot": ca.SX.sym("omega_dot"), "b_dot": ca.SX.sym("b_dot")}
-    tr, extra = physical_translator(sym)
-    alpha = ca.Function(
-        "alpha_physical",
-        [sym[k] for k in ("x_ctrl", "meas", "yd", "sched", "p_ctrl", "omega_dot", "b_dot")],
-        [ca.cse(tr(e)) for e in (d.alpha1, d.alpha1_dot_full, d.alpha1_dot_comp,
-                                 d.omega_dot_hat)] + [extra["kappa"]],
-        ["x_ctrl", "meas", "yd", "sched", "p_ctrl", "omega_dot", "b_dot"],
-        ["alpha1", "alpha1_dot_full", "alpha1_dot_comp", "omega_dot_hat", "kappa"])
-    z = ca.SX.sym("z", 2 + len(physical.STATES))
-    dist = ca.SX.sym("d")
-    yd, sched, pc = sym["yd"], sym["sched"], sym["p_ctrl"]
-    meas = ca.vertcat(z[0], 0, z[1], z[1], z[1])
-    s2 = {**sym, "x_ctrl": z[2:], "meas": meas}
-    del s2["omega_dot"], s2["b_dot"]
-    tr2, extra2 = physical_translator(s2)
-    b, h0 = tr2(d.b), tr2(d.h0)
-    zdot = ca.vertcat(b * z[1] + h0 + dist, (tr2(d.U) - z[1]) / pc[
-        [e.name for e in physical.PARAMS].index("phys_tau_a")], extra2["theta_dot"])
-    loop = ca.Function("closed_loop_physical_model", [z, dist, yd, sched, pc],
-                       [ca.cse(zdot), b * z[1] + h0 + dist],
-                       ["z", "d", "yd", "sched", "p_ctrl"], ["z_dot", "omega_dot"])
-    derived = [f for c in REGISTRY.values() if _checked(c)
-               for f in design_checks(c.name, c.design)]
-    return [alpha, loop, *derived]
+    """alpha_<name> and closed_loop_<name>_model of every derived design with checks."""
+    return [f for c in REGISTRY.values() if _checked(c) for f in design_checks(c.name, c.design)]
 
 
 def design_checks(name: str, module) -> list[ca.Function]:

@@ -35,7 +35,8 @@ from functools import cache
 
 import sympy as sp
 
-from derivation import design, fuzzy
+from derivation import design as design_
+from derivation import fuzzy
 from derivation.layout import N_BLADES, N_MF, Entry
 
 omega_r = sp.Symbol("omega_r", real=True)
@@ -46,7 +47,8 @@ omega_dot = sp.Symbol("omega_dot", real=True)  # true ω̇_r (unmeasured), for t
 b_dot = sp.Symbol("b_dot", real=True)  # true rate of b = G/J (unmeasured)
 kappa = sp.Symbol("kappa", real=True)  # 1 integrate, 0 frozen (anti-windup), set by the generator
 
-STATES = [Entry(f"phys_theta_hat[{m}]", 0.0, "rad/s^2", f"fuzzy weight {m} of f̂(ω_r)")
+STATES = [Entry(f"phys_theta_hat[{m}]", 0.0, "rad/s^2", f"fuzzy weight {m} of f̂(ω_r)",
+                sample=(-0.5, 1.0))
           for m in range(N_MF)]
 PARAMS = [
     # c1, c2, γ chosen among (1, 4, 0.5), (2, 6, 0.5), (2, 6, 2), (3, 8, 1) on 60 s of NTM
@@ -60,7 +62,7 @@ PARAMS = [
           "drivetrain inertia on the LSS, J_r + N² J_g (Jonkman 2009)"),
     Entry("phys_gen_torque", 43_093.55 * 97.0, "N m",
           "generator torque on the LSS above rated (constant torque, Jonkman 2009)"),
-    *design.actuator_and_fuzzy_params("phys"),
+    *design_.actuator_and_fuzzy_params("phys"),
 ]
 c1, c2, gam, sig, th_max, J, T_g, tau_a, bmin, bmax, gmin, rmax = sp.symbols(
     "phys_c1 phys_c2 phys_gamma phys_sigma phys_theta_max phys_inertia phys_gen_torque "
@@ -89,7 +91,7 @@ def beta_mean() -> sp.Expr:
 
 
 @cache
-def derive() -> PhysicalDesign:
+def chain() -> PhysicalDesign:
     rb = fuzzy.RuleBase(1)  # f̂(ω_r): the input x̂_1 of the rule base is ω_r here
     d = PhysicalDesign(rule_base=rb)
     g = -sp.Max(-dT_dbeta, gmin)  # G ≤ -gmin < 0 above rated
@@ -114,20 +116,65 @@ def derive() -> PhysicalDesign:
     d.z2 = x2 - d.alpha1
     d.U = x2 + tau_a * (-c2 * d.z2 - d.b * d.z1 + d.alpha1_dot_comp)
     u_clip = sp.Min(sp.Max(d.U, bmin), bmax)
-    d.v_free = design.free_blade_command(u_clip)
+    d.v_free = design_.free_blade_command(u_clip)
     d.adapt_gain = gam * d.z1
     return d
+
+
+WEIGHTS = [e.name for e in STATES]
+theta = sp.symbols(WEIGHTS, real=True)
+#: the design model of the α̇1 checks (design_model): start at the defaults, random
+#: verification inputs in the sample ranges
+MODEL_STATES = [
+    Entry("dm_omega_r", 1.28, "rad/s", "rotor speed ω_r", sample=(1.1, 1.45)),
+    Entry("dm_beta", 0.2, "rad", "mean blade pitch β̄", sample=(0.0, 0.4)),
+]
+#: the aerodynamic residual d: its mean balances rated torque near 0.17 rad of pitch
+MODEL_RESIDUAL = Entry("dm_residual", 0.13, "rad/s^2", "aerodynamic residual d",
+                       sample=(0.11, 0.15))
+
+
+@cache
+def derive() -> design_.ControllerDesign:
+    """The design as the generator takes it: κ (anti-windup, projection) bound first, then
+    the adaptive law θ̂̇ = κ (γ z1 φ - σ θ̂), the commands, and the checks of α̇1."""
+    d = chain()
+    theta_norm2, theta_dot_dir = sp.symbols("theta_norm2 theta_dot_dir", real=True)
+    return design_.ControllerDesign(
+        rule_base=d.rule_base, fuzzy_inputs=["omega_r"], weights=WEIGHTS,
+        v=d.v_free, u0=d.U,
+        x_dot=[kappa * (gam * d.z1 * d.rule_base.phi(m) - sig * t) for m, t in enumerate(theta)],
+        diag=[d.z1, d.z2, d.alpha1, kappa], x0=[initial_residual()] * N_MF,
+        intermediates=[(theta_norm2, sum(t**2 for t in theta)),
+                       (theta_dot_dir, gam * d.z1 * d.rule_base.L() - sig * theta_norm2),
+                       (kappa, freeze_conditions(d, theta_norm2, theta_dot_dir))],
+        checks={"alpha1": d.alpha1, "alpha1_dot_full": d.alpha1_dot_full,
+                "alpha1_dot_comp": d.alpha1_dot_comp, "omega_dot_hat": d.omega_dot_hat,
+                "kappa": kappa},
+        check_inputs=[omega_dot, b_dot])
+
+
+def design_model(d_sym: sp.Symbol) -> dict:
+    """ω̇_r = b β̄ + h0 + d (d the exogenous residual), τ_a β̄̇ = U - β̄ (β̄ last: its rate is
+    the caller's); the three blades at β̄, measured exactly; b from the schedule, ḃ = 0."""
+    d = chain()
+    w, bb = sp.symbols([e.name for e in MODEL_STATES], real=True)
+    w_dot = d.b * bb + d.h0 + d_sym
+    return {"states": [w, bb], "rates": [w_dot], "beta_mean": bb, "tau": tau_a,
+            "meas": {"omega_r": w, "omega_g_hss": sp.S.Zero,  # not used by the design
+                     **{f"beta_meas_{j}": bb for j in range(1, N_BLADES + 1)}},
+            "true_rates": {"omega_dot": w_dot, "b_dot": sp.S.Zero}}
 
 
 def freeze_conditions(d: PhysicalDesign, theta_norm2, theta_dot_dir) -> sp.Expr:
     """κ = 0 when the command is saturated and z1 pushes it out, or |θ̂| is at its bound
     and the update points outward; else 1. The saturation test uses the command computed
     with κ = 1 (U itself contains κ through α̇1)."""
-    return design.freeze(d.U.subs(kappa, 1), beta_mean(), tau_a, bmin, bmax, rmax, d.z1,
+    return design_.freeze(d.U.subs(kappa, 1), beta_mean(), tau_a, bmin, bmax, rmax, d.z1,
                          theta_norm2, theta_dot_dir, th_max)
 
 
 def initial_residual() -> sp.Expr:
     """f at an equilibrium on the measured pitch: 0 = b β̄ + h0 + f  ⇒  f = -h0 - b β̄."""
-    d = derive()
+    d = chain()
     return -d.h0 - d.b * beta_mean()

@@ -19,7 +19,6 @@ from derivation import (
     fuzzy,
     lyapunov,
     observer,
-    physical,
     plant,
     turbine,
 )
@@ -267,74 +266,6 @@ def _flat(args, key):
     return np.asarray(args[key], dtype=float).reshape(-1, order="F")
 
 
-def physical_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
-    """The physical AFTC (derivation/physical.py) from SymPy, fuzzy terms unfactored."""
-    d = physical.derive()
-    pc = _flat(args, "p_ctrl")
-    vals = {e.name: float(x) for e, x in zip(physical.PARAMS, pc, strict=True)}
-    if name == "closed_loop_physical_model":
-        z = _flat(args, "z")
-        meas, theta = np.array([z[0], 0.0, z[1], z[1], z[1]]), z[2:]
-        kf = np.array([1, 1, 1, 0, 0, 0, 0, 0, 0.0])
-    else:
-        meas = _flat(args, "meas")
-        theta = (_flat(args, "x_ctrl") if "x_ctrl" in args
-                 else np.zeros(len(physical.STATES)))
-        kf = _flat(args, "known_fault") if "known_fault" in args else np.array(
-            [1, 1, 1, 0, 0, 0, 0, 0, 0.0])
-    vals.update({n: float(x) for n, x in zip(MEAS, meas, strict=True)})
-    vals["xhat_1"] = vals["omega_r"]
-    vals.update({f"theta_hat_1[{m}]": float(t) for m, t in enumerate(theta)})
-    if "yd" in args:
-        vals.update({f"yd_{m}": float(x) for m, x in enumerate(_flat(args, "yd")[:3])})
-    if "sched" in args:
-        vals["dT_dbeta"] = float(_flat(args, "sched")[0])
-    for k, n in enumerate(["rho_hat", "lock_hat", "ubar_hat"]):
-        vals.update({f"{n}_{j + 1}": float(kf[3 * k + j]) for j in range(3)})
-    for key in ("omega_dot", "b_dot", "d"):
-        if key in args:
-            vals[key] = float(_flat(args, key)[0])
-    if name.startswith("init"):
-        return {"x_ctrl0": exact(np.repeat(evaluate("phys_init", [physical.initial_residual()],
-                                                    vals), len(theta)))}
-    for sym, kind in d.rule_base.symbols().items():
-        if kind[0] == "L":
-            vals[sym.name] = float(theta @ dphi(1, kind[1], vals))
-        else:
-            vals[sym.name] = float(dphi(1, kind[1], vals) @ dphi(1, kind[2], vals))
-    L = vals[d.rule_base.L().name]
-    z1 = vals["omega_r"] - vals["yd_0"]
-    th2 = float(theta @ theta)
-    vals["theta_norm2"] = th2
-    vals["theta_dot_dir"] = vals["phys_gamma"] * z1 * L - vals["phys_sigma"] * th2
-    kappa = evaluate("phys_kappa", [physical.freeze_conditions(
-        d, sp.Symbol("theta_norm2"), sp.Symbol("theta_dot_dir"))], vals)[0]
-    vals["kappa"] = kappa
-    phi = dphi(1, (0,), vals)
-    theta_dot = kappa * (vals["phys_gamma"] * z1 * phi - vals["phys_sigma"] * theta)
-    td_scale = np.abs(vals["phys_gamma"] * z1 * phi) + np.abs(vals["phys_sigma"] * theta)
-    if name == "alpha_physical":
-        out = {k: pair(f"phys_{k}", [getattr(d, k)], vals) for k in
-               ("alpha1", "alpha1_dot_full", "alpha1_dot_comp", "omega_dot_hat")}
-        out["kappa"] = exact([kappa])
-        return out
-    if name == "closed_loop_physical_model":
-        wdot = pair("phys_wdot", [d.b * physical.beta_meas[0] + d.h0 + sp.Symbol("d")],
-                    vals)
-        beta_dot = pair("phys_bdot", [(d.U - physical.beta_meas[0]) / physical.tau_a],
-                        vals)
-        return {"z_dot": (np.concatenate([wdot[0], beta_dot[0], theta_dot]),
-                          np.concatenate([wdot[1], beta_dot[1], td_scale])),
-                "omega_dot": wdot}
-    v = pair("phys_v", [d.v_free], vals)
-    return {"v": (np.repeat(v[0], 3), np.repeat(v[1], 3)), "u0": pair("phys_U", [d.U], vals),
-            "x_ctrl_dot": (theta_dot, td_scale),
-            "diag": (np.concatenate([pair("phys_diag", [d.z1, d.z2, d.alpha1], vals)[0],
-                                     [kappa]]),
-                     np.concatenate([pair("phys_diag", [d.z1, d.z2, d.alpha1], vals)[1],
-                                     [kappa]]))}
-
-
 def controller_uniform_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     """ctrl_<name> / init_<name> of derivation/controllers.py from the SymPy laws."""
     meas = _flat(args, "meas")
@@ -479,8 +410,6 @@ def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
             return design_reference(cname, name, args)
     if name in ("fdi", "init_fdi"):
         return fdi_reference(name, args)
-    if name.endswith("physical") or name.startswith("closed_loop_physical"):
-        return physical_reference(name, args)
     if name.startswith(("ctrl_", "init_")):
         return controller_uniform_reference(name, args)
     if name == "aero_torque_sensitivity":

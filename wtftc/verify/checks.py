@@ -134,8 +134,6 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
         "known_fault": np.concatenate([rng.uniform(0.5, 1.0, n), rng.uniform(0, 0.7, n),
                                        rng.uniform(0, 0.3, n)]),
         "dcp_dbeta": np.array([rng.uniform(-2.0, 0.2)]),
-        "z": np.concatenate([[rng.uniform(1.1, 1.45), rng.uniform(0.0, 0.4)],
-                             rng.uniform(-0.5, 1.0, 3)]),  # closed_loop_physical_model
         "omega_dot": np.array([rng.uniform(-0.2, 0.2)]),
         "b_dot": np.array([rng.uniform(-0.05, 0.05)]),
         "d": np.array([rng.uniform(-0.05, 0.05)]),
