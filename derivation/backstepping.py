@@ -2,7 +2,7 @@
 
 Reading of the paper (docs/paper-notes.md gives the reasons and the tests):
 
-* transformed errors (index typos of eqs 36, 41, 45 corrected, paper-notes defect 4):
+* transformed errors (index typos of eqs (36), (41), (45) corrected, paper-notes defect 4):
 
       χ1 = y - y_d                       (26)
       χ2 = x̂2 - α1 - ẏ_d                 (31: x̂2 = χ2 + α1 + ẏ_d)
@@ -10,7 +10,7 @@ Reading of the paper (docs/paper-notes.md gives the reasons and the tests):
       χ4 = x̂4 - α3 - y_d⁽³⁾              (45; printed with ÿ_d)
 
   With this reading α1, α2, α3 and u0 are exactly as printed in eqs (32), (37), (43),
-  (49) (with "ÿ_d^(4)" of eq 49 read as y_d⁽⁴⁾), and a time-varying reference is
+  (49) (with "ÿ_d^(4)" of eq (49) read as y_d⁽⁴⁾), and a time-varying reference is
   tracked: the y_d⁽ⁱ⁾ of χ_{i+1} cancels the -y_d⁽ⁱ⁾ of χ̇_i.
 * α̇_i is the total derivative of α_i along the closed loop. It contains ẏ, which is not
   measured (paper-notes defect 5): the controller uses the *computable* part, with ẏ replaced
@@ -36,7 +36,7 @@ c = sp.symbols(f"c_1:{N_CHAIN + 1}", positive=True)
 gamma = sp.symbols(f"gamma_1:{N_CHAIN + 1}", positive=True)
 r = sp.symbols(f"r_1:{N_CHAIN + 1}", positive=True)
 tau_young = sp.Symbol("tau_young", positive=True)
-# the controller's model of the actuators and of the fault it knows (eq 49)
+# the controller's model of the actuators and of the fault it knows (eq (49))
 tau_b_model = sp.Symbol("tau_b_model", positive=True)
 b = sp.symbols(f"b_1:{N_BLADES + 1}", real=True)
 rho_hat = sp.symbols(f"rho_hat_1:{N_BLADES + 1}", real=True)
@@ -126,14 +126,14 @@ def derive() -> Design:
     d.chi.append(chi1)
     d.alpha.append(alpha1)
     # step 2, eqs (34)-(37)
-    chi2 = xhat[1] - alpha1 - yd[1]
+    chi2 = xhat[1] - alpha1 - yd[1]  # (31)
     d.chi.append(chi2)
     _differentiate(d, 0)
     alpha2 = (-c[1] * chi2 - chi1 + d.alpha_dot_comp[0] - F[1]
               - K_obs[1] * d.e1 - tau * chi2)  # (37)
     d.alpha.append(alpha2)
     # step 3, eqs (39)-(43)
-    chi3 = xhat[2] - alpha2 - yd[2]
+    chi3 = xhat[2] - alpha2 - yd[2]  # (36)
     d.chi.append(chi3)
     _differentiate(d, 1)
     alpha3 = (-c[2] * chi3 - chi2 + d.alpha_dot_comp[1] - K_obs[2] * d.e1

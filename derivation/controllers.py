@@ -11,7 +11,7 @@ and lists it under "controllers" in generated/layout.json, from which wtftc read
 * meas = [ω_r, ω_g (HSS), β_meas,1..3]: what a turbine measures; never the plant state;
 * yd = the rotor-speed reference and its four derivatives;
 * sched = [∂T_aero/∂β] at the measured mean pitch on the steady operating curve, from
-  the Cp table (the runtime builds it; see wtftc.simulate.pitch_sensitivity_schedule);
+  the Cp table (the runtime builds it; see wtftc.model.aero.pitch_sensitivity_schedule);
 * known_fault = [ρ̂_j, σ̂_j, ū_j] as eq (49) is told (nominal when the fault is unknown);
 * v = the three blade pitch commands [rad]; u0 = the controller's scalar command;
 * diag = four controller-specific diagnostics (named in the registry).
@@ -73,7 +73,7 @@ def _source(module: ModuleType) -> str:
 
 
 def _paper(sym: dict, controller_fn: ca.Function) -> dict:
-    """The paper's design (eqs 21-49) behind the uniform signature."""
+    """The paper's design (eqs (21)-(49)) behind the uniform signature."""
     p = sym["p_ctrl"]
     i0 = [e.name for e in lay.CONTROLLER_PARAMS].index("rho_hat_1")
     kf = sym["known_fault"]
@@ -132,7 +132,7 @@ EXTERNAL_PARAMS = [lay.Entry(f"external_pitch_cmd_{j}", 0.0, "rad",
 
 
 def _external(sym: dict) -> dict:
-    """Commands from outside the compiled loop (ROSCO's libdiscon, wtftc/rosco.py), held
+    """Commands from outside the compiled loop (ROSCO's libdiscon, wtftc/sim/rosco.py), held
     over one call: the plant, the FDI and the measurements still run compiled."""
     v = sym["p_ctrl"][:lay.N_BLADES]
     return {"v": v, "x_ctrl_dot": ca.SX(1, 1), "u0": ca.sum1(v) / lay.N_BLADES,

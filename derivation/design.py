@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from derivation import fuzzy
+from derivation import fuzzy, nrel5mw
 from derivation.layout import N_MF, Entry
 
 
@@ -78,16 +78,16 @@ def actuator_and_fuzzy_params(prefix: str) -> list[Entry]:
     """The parameters a pitch backstepping design shares: the actuator model and limits
     its anti-windup tests, and the memberships of its f̂(ω_r)."""
     return [
-        Entry(f"{prefix}_tau_a", 0.108, "s",
+        Entry(f"{prefix}_tau_a", nrel5mw.PITCH_TIME_CONSTANT, "s",
               "actuator first-order equivalent 2ζ/ω_n (Odgaard 2013)"),
-        Entry(f"{prefix}_pitch_min", 0.0, "rad", "pitch command lower limit"),
-        Entry(f"{prefix}_pitch_max", 1.5707963267948966, "rad", "pitch command upper limit"),
+        Entry(f"{prefix}_pitch_min", nrel5mw.PITCH_MIN, "rad", "pitch command lower limit"),
+        Entry(f"{prefix}_pitch_max", nrel5mw.PITCH_MAX, "rad", "pitch command upper limit"),
         Entry(f"{prefix}_dTdbeta_min", 1.0e5, "N m/rad", "smallest |∂T/∂β| used (bounds 1/b)"),
-        Entry(f"{prefix}_rate_max", 0.13962634015954636, "rad/s",
+        Entry(f"{prefix}_rate_max", nrel5mw.PITCH_RATE_MAX, "rad/s",
               "actuator rate limit 8°/s, for the anti-windup (Jonkman 2009)"),
         Entry("mf_width", 0.6, "-", "Gaussian membership width on normalized ω_r"),
         *[Entry(f"mf_centre_{m}", -1.0 + 2.0 * (m - 1) / (N_MF - 1), "-",
                 f"centre of membership {m}") for m in range(1, N_MF + 1)],
-        Entry("x_offset_1", 1.26711, "rad/s", "normalization offset of ω_r (rated)"),
+        Entry("x_offset_1", nrel5mw.RATED_SPEED, "rad/s", "normalization offset of ω_r (rated)"),
         Entry("x_scale_1", 0.1, "rad/s", "normalization scale of ω_r"),
     ]

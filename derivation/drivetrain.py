@@ -1,7 +1,7 @@
 """Adaptive fuzzy backstepping AFTC through the drivetrain (ours, not the paper's).
 
 The other chain of the design notes (DESIGN.md): z1 = ω_g - (d_s/J_g)(θ_s - θ_s*) ← θ_s ←
-ω_r ← β̄ ← u, on the two-mass drivetrain of the NREL 5-MW plant (eqs 1-3 with the
+ω_r ← β̄ ← u, on the two-mass drivetrain of the NREL 5-MW plant (eqs (1)-(3) with the
 generator torque, derivation/turbine.py):
 
     J_r ω̇_r = T_aero - k_s θ_s - d_s (ω_r - ω_g),   θ̇_s = ω_r - ω_g,
@@ -36,7 +36,7 @@ from functools import cache
 
 import sympy as sp
 
-from derivation import design, fuzzy
+from derivation import design, fuzzy, nrel5mw
 from derivation.layout import N_BLADES, N_MF, Entry
 
 # measurements, reference, schedule (bound by name, derivation/design.py)
@@ -50,14 +50,15 @@ omega_r_dot, omega_g_dot, b_dot = sp.symbols("omega_r_dot omega_g_dot b_dot", re
 WEIGHTS = [f"dt_theta_hat[{m}]" for m in range(N_MF)]
 STATES = [*[Entry(w, 0.0, "rad/s^2", f"fuzzy weight {m} of f̂(ω_r)", sample=(-0.5, 1.0))
             for m, w in enumerate(WEIGHTS)],
-          Entry("dt_twist_hat", 4.818e-3, "rad",
+          Entry("dt_twist_hat", nrel5mw.RATED_SHAFT_TWIST, "rad",
                 "shaft twist estimate θ̂_s, integrated from the measured speeds",
                 sample=(2.4e-3, 7.2e-3))]
 #: the design model's states (design_model): the finite-difference checks start at the
 #: defaults, random inputs are drawn in the sample ranges
 MODEL_STATES = [
     Entry("dm_omega_r", 1.28, "rad/s", "rotor speed ω_r", sample=(1.1, 1.45)),
-    Entry("dm_theta_s", 4.818e-3, "rad", "shaft twist θ_s", sample=(2.4e-3, 7.2e-3)),
+    Entry("dm_theta_s", nrel5mw.RATED_SHAFT_TWIST, "rad", "shaft twist θ_s",
+          sample=(2.4e-3, 7.2e-3)),
     Entry("dm_omega_g", 1.28, "rad/s", "generator speed on the LSS ω_g", sample=(1.1, 1.45)),
     Entry("dm_beta", 0.14, "rad", "mean blade pitch β̄", sample=(0.0, 0.4)),
 ]
@@ -77,17 +78,25 @@ PARAMS = [
     Entry("dt_gamma", 2.0, "-", "adaptation rate γ"),
     Entry("dt_sigma", 0.01, "1/s", "σ-modification of the adaptive law"),
     Entry("dt_theta_max", 2.0, "rad/s^2", "projection bound |θ̂| ≤ θ_max"),
-    Entry("dt_J_r", 38_759_228.0, "kg m^2", "rotor inertia (Jonkman 2009)"),
-    Entry("dt_J_g", 534.116 * 97.0**2, "kg m^2", "generator inertia on the LSS (Jonkman 2009)"),
-    Entry("dt_k_s", 8.67637e8, "N m/rad", "drivetrain torsional stiffness (Jonkman 2009)"),
-    Entry("dt_d_s", 6.215e6, "N m s/rad", "drivetrain torsional damping (Jonkman 2009)"),
-    Entry("dt_gearbox_ratio", 97.0, "-", "gearbox ratio, HSS/LSS (Jonkman 2009)"),
-    Entry("dt_gen_torque", 43_093.55 * 97.0, "N m",
+    Entry("dt_J_r", nrel5mw.ROTOR_INERTIA, "kg m^2", "rotor inertia (Jonkman 2009)"),
+    Entry("dt_J_g", nrel5mw.GEN_INERTIA_LSS, "kg m^2",
+          "generator inertia on the LSS (Jonkman 2009)"),
+    Entry("dt_k_s", nrel5mw.SHAFT_STIFFNESS, "N m/rad",
+          "drivetrain torsional stiffness (Jonkman 2009)"),
+    Entry("dt_d_s", nrel5mw.SHAFT_DAMPING, "N m s/rad",
+          "drivetrain torsional damping (Jonkman 2009)"),
+    Entry("dt_gearbox_ratio", nrel5mw.GEARBOX_RATIO, "-",
+          "gearbox ratio, HSS/LSS (Jonkman 2009)"),
+    Entry("dt_gen_torque", nrel5mw.RATED_GEN_TORQUE_LSS, "N m",
           "generator torque on the LSS above rated (constant torque, Jonkman 2009)"),
     *design.actuator_and_fuzzy_params("dt"),
 ]
+# bound by name (an unknown name would be left unbound and fail the generation)
 (c1, c2, c3, c4, gam, sig, th_max, J_r, J_g, k_s, d_s, n_gear, T_g, tau_a, bmin, bmax, gmin,
- rmax) = sp.symbols([e.name for e in PARAMS[:18]], real=True)
+ rmax) = sp.symbols(
+    "dt_c1 dt_c2 dt_c3 dt_c4 dt_gamma dt_sigma dt_theta_max dt_J_r dt_J_g dt_k_s dt_d_s "
+    "dt_gearbox_ratio dt_gen_torque dt_tau_a dt_pitch_min dt_pitch_max dt_dTdbeta_min "
+    "dt_rate_max", real=True)
 kappa = sp.Symbol("kappa", real=True)  # adaptation switch, bound to design.freeze
 
 
@@ -111,7 +120,7 @@ def omega_g_dot_model() -> sp.Expr:
 
 
 def h3() -> sp.Expr:
-    """The known part of J_r ω̇_r besides G β̄, divided by J_r (eq 1): the shaft torque."""
+    """The known part of J_r ω̇_r besides G β̄, divided by J_r (eq (1)): the shaft torque."""
     return -(k_s * twist + d_s * (omega_r - omega_g())) / J_r
 
 

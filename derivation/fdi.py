@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from derivation import turbine
+from derivation import nrel5mw, turbine
 from derivation.layout import Entry
 
 v, beta_m = sp.symbols("v beta_m", real=True)
@@ -52,11 +52,12 @@ def states(n_blades: int) -> list[Entry]:
 
 
 PARAMS = [
-    Entry("fdi_omega_n", 11.11, "rad/s", "nominal actuator natural frequency (Odgaard 2013)"),
-    Entry("fdi_zeta", 0.6, "-", "nominal actuator damping (Odgaard 2013)"),
-    Entry("fdi_pitch_min", 0.0, "rad", "actuator position limits, as the plant's"),
-    Entry("fdi_pitch_max", 1.5707963267948966, "rad", ""),
-    Entry("fdi_rate_max", 0.13962634015954636, "rad/s", "actuator rate limit, 8°/s"),
+    Entry("fdi_omega_n", nrel5mw.ACTUATOR_OMEGA_N, "rad/s",
+          "nominal actuator natural frequency (Odgaard 2013)"),
+    Entry("fdi_zeta", nrel5mw.ACTUATOR_ZETA, "-", "nominal actuator damping (Odgaard 2013)"),
+    Entry("fdi_pitch_min", nrel5mw.PITCH_MIN, "rad", "actuator position limits, as the plant's"),
+    Entry("fdi_pitch_max", nrel5mw.PITCH_MAX, "rad", ""),
+    Entry("fdi_rate_max", nrel5mw.PITCH_RATE_MAX, "rad/s", "actuator rate limit, 8°/s"),
     Entry("fdi_T_f", 0.5, "s", "residual mean-square window"),
     Entry("fdi_r_thr", 0.0008726646259971648, "rad",
           "detection threshold on the residual RMS: 0.05°, an absolute pitch encoder's "
@@ -68,10 +69,14 @@ PARAMS = [
           "lock-in-place when the measured pitch rate's RMS is below this fraction of the "
           "model's (the blade does not follow its command)"),
     Entry("fdi_T_d", 0.05, "s", "time constant of the measured-pitch derivative filter"),
-    Entry("fdi_omega_pd", 5.73, "rad/s", "hydraulic pressure drop model ω_n (Odgaard 2013)"),
-    Entry("fdi_zeta_pd", 0.45, "-", "hydraulic pressure drop model ζ (Odgaard 2013)"),
-    Entry("fdi_omega_air", 3.42, "rad/s", "high air content in oil model ω_n (Odgaard 2013)"),
-    Entry("fdi_zeta_air", 0.9, "-", "high air content in oil model ζ (Odgaard 2013)"),
+    Entry("fdi_omega_pd", nrel5mw.PRESSURE_DROP_OMEGA_N, "rad/s",
+          "hydraulic pressure drop model ω_n (Odgaard 2013)"),
+    Entry("fdi_zeta_pd", nrel5mw.PRESSURE_DROP_ZETA, "-",
+          "hydraulic pressure drop model ζ (Odgaard 2013)"),
+    Entry("fdi_omega_air", nrel5mw.AIR_IN_OIL_OMEGA_N, "rad/s",
+          "high air content in oil model ω_n (Odgaard 2013)"),
+    Entry("fdi_zeta_air", nrel5mw.AIR_IN_OIL_ZETA, "-",
+          "high air content in oil model ζ (Odgaard 2013)"),
     Entry("fdi_rho_min", 0.3, "-", "smallest ρ̂ passed to the accommodation"),
     Entry("fdi_T_engage", 3.0, "s",
           "after detection, the accommodation is engaged linearly over this time (1.5 "

@@ -21,7 +21,7 @@ To keep the backstepping expressions small (issue 2), the controller never expan
     L_i[α]    = θ̂_iᵀ ∂^α φ_i                    (α a multi-index over x̂1..x̂i)
     B_i[α, β] = (∂^α φ_i)ᵀ (∂^β φ_i)            (symmetric in α, β)
 
-Along the closed loop, with θ̂̇_i = γ_i χ_i φ_i - r_i θ̂_i (eqs 32, 37, 43, 49),
+Along the closed loop, with θ̂̇_i = γ_i χ_i φ_i - r_i θ̂_i (eqs (32), (37), (43), (49)),
 
     d/dt L_i[α]    = Σ_k L_i[α + e_k] x̂̇_k + γ_i χ_i B_i[0, α] - r_i L_i[α]
     d/dt B_i[α, β] = Σ_k (B_i[α + e_k, β] + B_i[α, β + e_k]) x̂̇_k

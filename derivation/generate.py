@@ -96,7 +96,7 @@ class Symbols:
         return out
 
 
-def _function(name, inputs: dict, outputs: dict, doc: str = "") -> ca.Function:
+def _function(name, inputs: dict, outputs: dict) -> ca.Function:
     outs = joint_cse(list(outputs.values()))
     return ca.Function(name, list(inputs.values()), outs, list(inputs), list(outputs))
 
@@ -208,7 +208,7 @@ def build_lyapunov(S: Symbols) -> list[ca.Function]:
         {"kappa_terms": ca.vertcat(*[tr(e) for e in terms.kappa_terms]),
          "zeta_theta": tr(terms.zeta_theta)})
 
-    # AᵀP + PA = -Q, solved in the upper triangle of P; Routh-Hurwitz of A (eq 20)
+    # AᵀP + PA = -Q, solved in the upper triangle of P; Routh-Hurwitz of A (eq (20))
     K = _vec("K_obs", lay.N_CHAIN)
     Q = ca.SX.sym("Q", lay.N_CHAIN, lay.N_CHAIN)
     trk = Translator({**{f"K_obs_{k + 1}": K[k] for k in range(4)},

@@ -14,16 +14,19 @@ things (paper-notes defect 6) the code uses distinct names:
 * ``K_obs``        the observer gain K of eq (20); ``A_obs`` the observer matrix; the decay
   rate "A" of eq (51) is ``kappa``.
 
-SI units everywhere (rad, rad/s, N m, kg m², s).
+SI units everywhere (rad, rad/s, N m, kg m², s). The turbine's and the actuator benchmark's
+numbers come from :mod:`derivation.nrel5mw`, which gives their sources; Table 1's stay here.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+from derivation import nrel5mw
+
 #: number of Gaussian memberships per fuzzy input (structural: sets the weight counts)
 N_MF = 3
-#: number of blade pitch actuators (eq 49 read as three blade actuators, paper-notes defect 9)
+#: number of blade pitch actuators (eq (49) read as three blade actuators, paper-notes defect 9)
 N_BLADES = 3
 #: order of the strict-feedback chain, eqs (11)-(14)
 N_CHAIN = 4
@@ -51,16 +54,18 @@ def rule_count(i: int) -> int:
 
 # --- plant states: eqs (1)-(4), pitch of eq (4) per blade (x4 = mean blade pitch) ---
 PLANT_STATES = [
-    Entry("omega_r", 1.26711, "rad/s", "rotor speed, x1 of eq (5)"),
+    Entry("omega_r", nrel5mw.RATED_SPEED, "rad/s", "rotor speed, x1 of eq (5)"),
     Entry("theta_s", 0.0, "rad", "drivetrain torsion angle, x2 of eq (6)"),
-    Entry("omega_g", 1.26711, "rad/s", "generator speed referred to the LSS, x3 of eq (7)"),
+    Entry("omega_g", nrel5mw.RATED_SPEED, "rad/s",
+          "generator speed referred to the LSS, x3 of eq (7)"),
     *[Entry(f"beta_{j}", 0.0, "rad", f"pitch angle of blade {j}; x4 = mean, eq (8)")
       for j in range(1, N_BLADES + 1)],
 ]
 
 # --- controller states: fuzzy observer (21) and the adaptive weights (32), (37), (43), (49)
 CONTROLLER_STATES = [
-    Entry("xhat_1", 1.26711, "rad/s", "observer state x̂1 of eq (21), the estimate of ω_r"),
+    Entry("xhat_1", nrel5mw.RATED_SPEED, "rad/s",
+          "observer state x̂1 of eq (21), the estimate of ω_r"),
     *[Entry(f"xhat_{k}", 0.0, "-",
             f"observer state x̂{k} of eq (21) (formal, paper-notes defect 11)")
       for k in range(2, N_CHAIN + 1)],
@@ -70,16 +75,19 @@ CONTROLLER_STATES = [
 
 # --- plant parameters: eq (10); NREL 5-MW values referred to the low-speed shaft ---
 PLANT_PARAMS = [
-    Entry("J_r", 38_759_228.0, "kg m^2",
+    Entry("J_r", nrel5mw.ROTOR_INERTIA, "kg m^2",
           "rotor inertia (Jonkman et al. 2009, NREL/TP-500-38060, Table 5-1 rotor+hub "
           "about the LSS; the 38,677,040.6 of ROSCO's tuning file omits the hub)"),
-    Entry("J_g", 534.116 * 97.0**2, "kg m^2",
-          "generator inertia 534.116 kg m² on the HSS × gearbox ratio 97² (Jonkman 2009)"),
-    Entry("k_s", 8.67637e8, "N m/rad", "drivetrain torsional stiffness (Jonkman 2009)"),
-    Entry("d_s", 6.215e6, "N m s/rad", "drivetrain torsional damping (Jonkman 2009)"),
-    Entry("tau_b", 0.108, "s",
+    Entry("J_g", nrel5mw.GEN_INERTIA_LSS, "kg m^2",
+          f"generator inertia {nrel5mw.GEN_INERTIA_HSS} kg m² on the HSS × gearbox ratio "
+          f"{nrel5mw.GEARBOX_RATIO:g}² (Jonkman 2009)"),
+    Entry("k_s", nrel5mw.SHAFT_STIFFNESS, "N m/rad",
+          "drivetrain torsional stiffness (Jonkman 2009)"),
+    Entry("d_s", nrel5mw.SHAFT_DAMPING, "N m s/rad", "drivetrain torsional damping (Jonkman 2009)"),
+    Entry("tau_b", nrel5mw.PITCH_TIME_CONSTANT, "s",
           "pitch time constant of eq (4): 2ζ/ω_n of the benchmark actuator "
-          "(ω_n = 11.11 rad/s, ζ = 0.6, Odgaard et al. 2013), its first-order equivalent"),
+          f"(ω_n = {nrel5mw.ACTUATOR_OMEGA_N} rad/s, ζ = {nrel5mw.ACTUATOR_ZETA}, "
+          "Odgaard et al. 2013), its first-order equivalent"),
 ]
 
 # --- fault parameters of eq (19), one per blade actuator (true plant) ---
@@ -111,10 +119,10 @@ CONTROLLER_PARAMS = [
             f"centre of membership {m} on normalized inputs")
       for m in range(1, N_MF + 1)],
     *[Entry(f"x_offset_{k}", v, "-", f"normalization offset of x̂{k}: z = (x̂ - offset)/scale")
-      for k, v in zip(range(1, 5), (1.26711, 0.0, 0.0, 0.0), strict=True)],
+      for k, v in zip(range(1, 5), (nrel5mw.RATED_SPEED, 0.0, 0.0, 0.0), strict=True)],
     *[Entry(f"x_scale_{k}", v, "-", f"normalization scale of x̂{k}")
       for k, v in zip(range(1, 5), (0.2, 1.0, 1.0, 1.0), strict=True)],
-    Entry("tau_b_model", 0.108, "s",
+    Entry("tau_b_model", nrel5mw.PITCH_TIME_CONSTANT, "s",
           "pitch time constant the controller assumes: θ_j = 1/(3 τ_b) of θᵀu, eq (14)"),
     *[Entry(f"b_{j}", 1.0, "-", f"distribution b{j} of u0 to actuator {j}, eq (46)")
       for j in range(1, N_BLADES + 1)],
@@ -130,7 +138,7 @@ CONTROLLER_PARAMS = [
 ]
 
 # --- simulator plants (derivation/turbine.py) ---
-_T_RATED_LSS = 43_093.55 * 97.0  # rated generator torque 43,093.55 N m (HSS) × 97
+_N = nrel5mw.GEARBOX_RATIO  # HSS/LSS
 NREL_STATES = [
     *PLANT_STATES[:3],
     *[Entry(f"beta_{j}", 0.0, "rad", f"pitch angle of blade {j}") for j in range(1, N_BLADES + 1)],
@@ -139,47 +147,62 @@ NREL_STATES = [
 ]
 TURBINE_PARAMS = [
     *PLANT_PARAMS,
-    Entry("air_density", 1.225, "kg/m^3", "air density (Jonkman 2009)"),
-    Entry("rotor_radius", 63.0, "m", "tip radius (Jonkman 2009)"),
-    Entry("gearbox_ratio", 97.0, "-", "gearbox ratio (Jonkman 2009)"),
-    Entry("gen_torque_rated", _T_RATED_LSS, "N m",
-          "rated generator torque referred to the LSS: 43,093.55 N m × 97 (Jonkman 2009)"),
+    Entry("air_density", nrel5mw.AIR_DENSITY, "kg/m^3", "air density (Jonkman 2009)"),
+    Entry("rotor_radius", nrel5mw.ROTOR_RADIUS, "m", "tip radius (Jonkman 2009)"),
+    Entry("gearbox_ratio", nrel5mw.GEARBOX_RATIO, "-", "gearbox ratio (Jonkman 2009)"),
+    Entry("gen_torque_rated", nrel5mw.RATED_GEN_TORQUE_LSS, "N m",
+          "rated generator torque referred to the LSS: "
+          f"{nrel5mw.RATED_GEN_TORQUE_HSS:,} N m × {nrel5mw.GEARBOX_RATIO:g} (Jonkman 2009)"),
     Entry("gen_constant_power", 0.0, "-",
           "generator torque above rated: 0 constant torque, 1 constant power"),
-    Entry("omega_g_rated", 1.26711, "rad/s",
-          "rated generator speed referred to the LSS, 122.90967/97 (Jonkman 2009)"),
-    Entry("gen_efficiency", 0.944, "-", "generator efficiency (Jonkman 2009), outputs only"),
-    Entry("omega_n_nominal", 11.11, "rad/s", "pitch actuator natural frequency (Odgaard 2013)"),
-    Entry("zeta_nominal", 0.6, "-", "pitch actuator damping ratio (Odgaard 2013)"),
-    Entry("pitch_min", 0.0, "rad", "blade pitch lower limit, 0° (Jonkman 2009)"),
-    Entry("pitch_max", 1.5707963267948966, "rad", "blade pitch upper limit, 90°"),
-    Entry("pitch_rate_max", 0.13962634015954636, "rad/s",
+    Entry("omega_g_rated", nrel5mw.RATED_SPEED, "rad/s",
+          "rated generator speed referred to the LSS, "
+          f"{nrel5mw.RATED_GEN_SPEED_HSS}/{nrel5mw.GEARBOX_RATIO:g} (Jonkman 2009)"),
+    Entry("gen_efficiency", nrel5mw.GEN_EFFICIENCY, "-",
+          "generator efficiency (Jonkman 2009), outputs only"),
+    Entry("omega_n_nominal", nrel5mw.ACTUATOR_OMEGA_N, "rad/s",
+          "pitch actuator natural frequency (Odgaard 2013)"),
+    Entry("zeta_nominal", nrel5mw.ACTUATOR_ZETA, "-",
+          "pitch actuator damping ratio (Odgaard 2013)"),
+    Entry("pitch_min", nrel5mw.PITCH_MIN, "rad", "blade pitch lower limit, 0° (Jonkman 2009)"),
+    Entry("pitch_max", nrel5mw.PITCH_MAX, "rad", "blade pitch upper limit, 90°"),
+    Entry("pitch_rate_max", nrel5mw.PITCH_RATE_MAX, "rad/s",
           "blade pitch rate limit, 8°/s (Jonkman 2009; ROSCO's default is 10°/s)"),
     # the NREL 5-MW baseline variable-speed torque law (Jonkman et al. 2009, section 7.1 and
-    # its DISCON source), HSS values referred to the LSS with the gearbox ratio 97
+    # its DISCON source), HSS values referred to the LSS with the gearbox ratio
     Entry("gen_torque_law", 0.0, "-",
           "generator torque: 0 rated torque (or constant power, gen_constant_power); 1 the "
           "NREL 5-MW baseline variable-speed law, regions 1½, 2, 2½, 3 (Jonkman 2009, 7.1)"),
-    Entry("vs_cut_in_speed", 70.16224 / 97.0, "rad/s",
-          "VS_CtInSp: generator cut-in speed 70.16224 rad/s (670 rpm, HSS) / 97"),
-    Entry("vs_region2_speed", 91.21091 / 97.0, "rad/s",
-          "VS_Rgn2Sp: start of region 2, 91.21091 rad/s (871 rpm, HSS) / 97"),
-    Entry("vs_region2_k", 2.332287 * 97.0**3, "N m s^2/rad^2",
-          "VS_Rgn2K: optimal-mode gain 2.332287 N m/(rad/s)^2 (HSS) × 97^3"),
-    Entry("vs_rated_speed", 121.6805 / 97.0, "rad/s",
-          "VS_RtGnSp: rated generator speed of the torque law, 121.6805 rad/s (HSS) / 97"),
-    Entry("vs_slip", 0.10, "-", "VS_SlPc: region 2½ generator slip, 10 %"),
-    Entry("vs_rated_power", 5296610.0, "W", "VS_RtPwr: rated mechanical power, 5,296,610 W"),
-    Entry("vs_max_torque", 47402.91 * 97.0, "N m",
-          "VS_MaxTq: maximum generator torque 47,402.91 N m (HSS) × 97"),
+    Entry("vs_cut_in_speed", nrel5mw.VS_CUT_IN_SPEED_HSS / _N, "rad/s",
+          f"VS_CtInSp: generator cut-in speed {nrel5mw.VS_CUT_IN_SPEED_HSS} rad/s "
+          f"(670 rpm, HSS) / {_N:g}"),
+    Entry("vs_region2_speed", nrel5mw.VS_REGION2_SPEED_HSS / _N, "rad/s",
+          f"VS_Rgn2Sp: start of region 2, {nrel5mw.VS_REGION2_SPEED_HSS} rad/s "
+          f"(871 rpm, HSS) / {_N:g}"),
+    Entry("vs_region2_k", nrel5mw.VS_REGION2_K_HSS * _N**3, "N m s^2/rad^2",
+          f"VS_Rgn2K: optimal-mode gain {nrel5mw.VS_REGION2_K_HSS} N m/(rad/s)^2 (HSS) "
+          f"× {_N:g}^3"),
+    Entry("vs_rated_speed", nrel5mw.VS_RATED_SPEED_HSS / _N, "rad/s",
+          "VS_RtGnSp: rated generator speed of the torque law, "
+          f"{nrel5mw.VS_RATED_SPEED_HSS} rad/s (HSS) / {_N:g}"),
+    Entry("vs_slip", nrel5mw.VS_SLIP, "-",
+          f"VS_SlPc: region 2½ generator slip, {nrel5mw.VS_SLIP * 100:g} %"),
+    Entry("vs_rated_power", nrel5mw.VS_RATED_POWER, "W",
+          f"VS_RtPwr: rated mechanical power, {nrel5mw.VS_RATED_POWER:,.0f} W"),
+    Entry("vs_max_torque", nrel5mw.VS_MAX_TORQUE_HSS * _N, "N m",
+          f"VS_MaxTq: maximum generator torque {nrel5mw.VS_MAX_TORQUE_HSS:,} N m (HSS) "
+          f"× {_N:g}"),
 ]
 ACTUATOR_FAULTS = [
     *FAULT_INPUTS,
-    *[Entry(f"omega_n_{j}", 11.11, "rad/s",
-            f"actuator {j} natural frequency: 11.11 nominal, 5.73 hydraulic pressure drop, "
-            "3.42 high air content in oil (Odgaard 2013)") for j in range(1, N_BLADES + 1)],
-    *[Entry(f"zeta_{j}", 0.6, "-",
-            f"actuator {j} damping: 0.6 nominal, 0.45 pressure drop, 0.9 air in oil")
+    *[Entry(f"omega_n_{j}", nrel5mw.ACTUATOR_OMEGA_N, "rad/s",
+            f"actuator {j} natural frequency: {nrel5mw.ACTUATOR_OMEGA_N} nominal, "
+            f"{nrel5mw.PRESSURE_DROP_OMEGA_N} hydraulic pressure drop, "
+            f"{nrel5mw.AIR_IN_OIL_OMEGA_N} high air content in oil (Odgaard 2013)")
+      for j in range(1, N_BLADES + 1)],
+    *[Entry(f"zeta_{j}", nrel5mw.ACTUATOR_ZETA, "-",
+            f"actuator {j} damping: {nrel5mw.ACTUATOR_ZETA} nominal, "
+            f"{nrel5mw.PRESSURE_DROP_ZETA} pressure drop, {nrel5mw.AIR_IN_OIL_ZETA} air in oil")
       for j in range(1, N_BLADES + 1)],
 ]
 SENSOR_FAULTS = [
@@ -196,7 +219,7 @@ REFERENCE = [Entry(f"yd_{m}", 1.27 if m == 0 else 0.0, f"rad/s^{m + 1}" if m els
                    f"y_d^({m}), the rotor-speed reference and its derivative {m}")
              for m in range(5)]
 
-#: parameters of the optimal weights θ*_i (eq 30 onwards) for Lyapunov evaluation
+#: parameters of the optimal weights θ*_i (eq (30) onwards) for Lyapunov evaluation
 THETA_STAR = [Entry(f"theta_star_{i}[{m}]", 0.0, "-", f"optimal fuzzy weight {m} of f{i}")
               for i in range(1, N_CHAIN + 1) for m in range(rule_count(i))]
 

@@ -1,11 +1,11 @@
 """Lyapunov terms, eqs (22)-(52), in SymPy.
 
-* P from AᵀP + PA = -Q (eq 22) as a linear system in the entries of P; the generator
+* P from AᵀP + PA = -Q (eq (22)) as a linear system in the entries of P; the generator
   solves it. The Routh-Hurwitz conditions of A say whether a P > 0 exists
   (Table 1's K = [1 1 5 5]: it does not, paper-notes defect 1).
 * V_o = ½ eᵀPe (22), V_i = V_{i-1} + ½χ_i² + θ̃_iᵀθ̃_i/(2γ_i) (30, 35, 40, 47),
   with e = X - X̂ and θ̃_i = θ*_i - θ̂_i; θ*_i are parameters (fit them on a trajectory
-  with :func:`wtftc.lyapunov.fit_theta_star`).
+  with :func:`wtftc.verify.lyapunov.fit_theta_star`).
 * V̇_o .. V̇_4 along the closed loop in the paper's structured form, *before* any Young
   inequality: the exact identities behind eqs (22), (31), (36), (42), (48). Tests check
   them against ∇V·f of the generated closed loop.
@@ -72,7 +72,7 @@ def derive() -> Terms:
     ev = sp.Matrix(e)
     V_o = sp.Rational(1, 2) * (ev.T * P * ev)[0, 0]  # (22)
 
-    # true θᵀu (eq 14 on the plant) and the observer's model of it (eq 49)
+    # true θᵀu (eq (14) on the plant) and the observer's model of it (eq (49))
     a5 = plant.a_coefficients()[4]
     u0 = d.u0
     v = bs.applied_commands(u0)

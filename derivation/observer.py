@@ -14,7 +14,7 @@ y = sp.Symbol("y", real=True)
 def A_obs(K=K_obs) -> sp.Matrix:
     """A of eqs (20)-(21): -K in the first column, ones on the superdiagonal.
 
-    (Eq 20 says it rewrites "Eq. (4)"; it rewrites eqs (11)-(14), paper-notes defect 4.)
+    (Eq (20) says it rewrites "Eq. (4)"; it rewrites eqs (11)-(14), paper-notes defect 4.)
     """
     n = len(K)
     A = sp.zeros(n, n)
@@ -29,7 +29,7 @@ def observer_rhs(F, act) -> list[sp.Expr]:
     """Eq (21): x̂̇ = A x̂ + K y + Σ B_i f̂_i(x̂1..x̂i) + B θᵀu.
 
     F[i] is f̂_i = θ̂_iᵀφ_i(x̂1..x̂i) (triangular regressors, paper-notes defect 7);
-    act is θᵀu as the controller models it (with the fault it knows of, eq 49).
+    act is θᵀu as the controller models it (with the fault it knows of, eq (49)).
     """
     Ax = A_obs() * sp.Matrix(xhat)
     rhs = [Ax[k] + K_obs[k] * y + F[k] for k in range(N_CHAIN)]

@@ -1,7 +1,7 @@
 """A physically consistent adaptive fuzzy backstepping AFTC (ours, not the paper's).
 
 Chain of relative degree 2, ω_r ← β̄ ← u (the simpler of the two chains in the design
-notes; the three-state chain through θ_s is not implemented yet). The design model:
+notes; the other, through θ_s, is derivation/drivetrain.py). The design model:
 
     J ω̇_r = T_aero(ω_r, β̄, v_wind) - T_g        (rigid drivetrain on the LSS)
     τ_a β̄̇ = u - β̄                               (the actuators' first-order equivalent)
@@ -23,7 +23,7 @@ uses the computable part with ω̇_r → b β̄ + h0 + f̂, and ḃ (the schedul
 remainders are generated. Anti-windup: κ = 0 (conditional integration) when U is at a
 pitch position limit, or asks for a pitch rate (U - β̄)/τ_a beyond the rate limit, and z1
 pushes it further out; or when |θ̂| is at its bound and the update points outward
-(projection onto the ball |θ̂| ≤ θ_max). Accommodation (eq 49's structure
+(projection onto the ball |θ̂| ≤ θ_max). Accommodation (eq (49)'s structure
 for three blades): the free blades get v = (3U - Σ σ̂_j ū_j) / Σ (1 - σ̂_j) ρ̂_j, so that
 the mean of the effective blade inputs is U.
 """
@@ -36,7 +36,7 @@ from functools import cache
 import sympy as sp
 
 from derivation import design as design_
-from derivation import fuzzy
+from derivation import fuzzy, nrel5mw
 from derivation.layout import N_BLADES, N_MF, Entry
 
 omega_r = sp.Symbol("omega_r", real=True)
@@ -58,9 +58,9 @@ PARAMS = [
     Entry("phys_gamma", 2.0, "-", "adaptation rate γ"),
     Entry("phys_sigma", 0.01, "1/s", "σ-modification of the adaptive law"),
     Entry("phys_theta_max", 2.0, "rad/s^2", "projection bound |θ̂| ≤ θ_max"),
-    Entry("phys_inertia", 38_759_228.0 + 534.116 * 97.0**2, "kg m^2",
+    Entry("phys_inertia", nrel5mw.DRIVETRAIN_INERTIA, "kg m^2",
           "drivetrain inertia on the LSS, J_r + N² J_g (Jonkman 2009)"),
-    Entry("phys_gen_torque", 43_093.55 * 97.0, "N m",
+    Entry("phys_gen_torque", nrel5mw.RATED_GEN_TORQUE_LSS, "N m",
           "generator torque on the LSS above rated (constant torque, Jonkman 2009)"),
     *design_.actuator_and_fuzzy_params("phys"),
 ]

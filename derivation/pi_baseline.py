@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import sympy as sp
 
+from derivation import nrel5mw
 from derivation.design import ControllerDesign
 from derivation.layout import N_BLADES, Entry
 
@@ -29,12 +30,14 @@ x_I = sp.Symbol("pi_integrator", real=True)
 
 STATES = [Entry("pi_integrator", 0.0, "rad", "PI integrator x_I (pitch units)")]
 PARAMS = [
-    Entry("pi_omega_n", 0.6, "rad/s", "closed-loop natural frequency (ROSCO NREL5MW PC_omega)"),
-    Entry("pi_zeta", 0.7, "-", "closed-loop damping ratio (ROSCO NREL5MW PC_zeta)"),
-    Entry("pi_inertia", 38_759_228.0 + 534.116 * 97.0**2, "kg m^2",
+    Entry("pi_omega_n", nrel5mw.ROSCO_PC_OMEGA, "rad/s",
+          "closed-loop natural frequency (ROSCO NREL5MW PC_omega)"),
+    Entry("pi_zeta", nrel5mw.ROSCO_PC_ZETA, "-",
+          "closed-loop damping ratio (ROSCO NREL5MW PC_zeta)"),
+    Entry("pi_inertia", nrel5mw.DRIVETRAIN_INERTIA, "kg m^2",
           "drivetrain inertia on the LSS: J_r + N² J_g (Jonkman 2009)"),
-    Entry("pi_pitch_min", 0.0, "rad", "command lower limit"),
-    Entry("pi_pitch_max", 1.5707963267948966, "rad", "command upper limit"),
+    Entry("pi_pitch_min", nrel5mw.PITCH_MIN, "rad", "command lower limit"),
+    Entry("pi_pitch_max", nrel5mw.PITCH_MAX, "rad", "command upper limit"),
     Entry("pi_dTdbeta_min", 1.0e5, "N m/rad",
           "smallest |∂T/∂β| used in the schedule (bounds the gains near rated)"),
 ]

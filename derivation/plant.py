@@ -42,7 +42,7 @@ def actuator_input(v_j, rho_j, lock_j, ubar_j):
 
 
 def paper_rhs() -> list[sp.Expr]:
-    """Eqs (1)-(4) with eq (4) per blade; F ω_r of eq (1) written as d1 (eq 5)."""
+    """Eqs (1)-(4) with eq (4) per blade; F ω_r of eq (1) written as d1 (eq (5))."""
     u = [actuator_input(*a) for a in zip(v, rho, lock, ubar, strict=True)]
     return [
         -k_s / J_r * theta_s - d_s / J_r * omega_r + d_s / J_r * omega_g + d1,  # (1)

@@ -6,7 +6,7 @@ coefficient cp evaluated by the runtime's Cp(λ, β) interpolant, per-blade faul
 * ``paper``   eqs (1)-(4) exactly as printed, d1 = T_aero / J_r, no generator torque.
               Unloaded (paper-notes defect 3): its only steady state has T_aero = 0. Kept to
               reproduce the paper. Eq (4) per blade, with eq (19) faults.
-* ``nrel5mw`` two-mass drivetrain referred to the low-speed shaft (eqs 1-3 plus the
+* ``nrel5mw`` two-mass drivetrain referred to the low-speed shaft (eqs (1)-(3) plus the
               generator torque -T_g/J_g that eq (3) lacks), generator torque above rated
               (constant torque or constant power), and three second-order blade pitch
               actuators (Odgaard et al. 2013 benchmark) with position and rate limits.
@@ -51,7 +51,7 @@ pitch_min = sp.Symbol("pitch_min", real=True)  # [rad]
 pitch_max = sp.Symbol("pitch_max", real=True)  # [rad]
 pitch_rate_max = sp.Symbol("pitch_rate_max", positive=True)  # [rad/s]
 omega_g_rated = sp.Symbol("omega_g_rated", positive=True)  # LSS-referred [rad/s]
-# the baseline variable-speed torque law (layout.py: values and sources)
+# the baseline variable-speed torque law (values and sources: nrel5mw.py, layout.py)
 gen_torque_law = sp.Symbol("gen_torque_law", real=True)  # 0 fixed, 1 baseline law
 vs_cut_in_speed, vs_region2_speed, vs_rated_speed = sp.symbols(
     "vs_cut_in_speed vs_region2_speed vs_rated_speed", positive=True)  # LSS [rad/s]
@@ -75,7 +75,7 @@ def tip_speed_ratio() -> sp.Expr:
 
 
 def mean_pitch() -> sp.Expr:
-    """β̄: the effective pitch of a rigid rotor, the mean of the blades (x4 of eq 8)."""
+    """β̄: the effective pitch of a rigid rotor, the mean of the blades (x4 of eq (8))."""
     return sum(beta) / N_BLADES
 
 
@@ -151,9 +151,9 @@ def limited_actuator(b, w, u, wn, zt, b_min, b_max, r_max) -> list[sp.Expr]:
 def nrel5mw_rhs() -> list[sp.Expr]:
     """Two-mass drivetrain on the LSS with generator torque, and 2nd-order actuators.
 
-    J_r ω̇_r = T_aero - k_s θ_s - d_s (ω_r - ω_g)          (eq 1, F ω_r = T_aero/J_r)
-    θ̇_s = ω_r - ω_g                                          (eq 2)
-    J_g ω̇_g = k_s θ_s + d_s (ω_r - ω_g) - T_g                (eq 3 + the missing -T_g)
+    J_r ω̇_r = T_aero - k_s θ_s - d_s (ω_r - ω_g)          (eq (1), F ω_r = T_aero/J_r)
+    θ̇_s = ω_r - ω_g                                          (eq (2))
+    J_g ω̇_g = k_s θ_s + d_s (ω_r - ω_g) - T_g                (eq (3) + the missing -T_g)
     β̈_j = ω_n,j² (u_j - β_j) - 2 ζ_j ω_n,j β̇_j               (Odgaard et al. 2013)
 
     with u_j eq (19) clipped to [pitch_min, pitch_max]; the blade rate is held within

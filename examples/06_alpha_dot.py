@@ -6,7 +6,7 @@ Along the closed loop ż = f(z, t), d/dt α(z, y_d(t)) is the limit of
 [α(z + h ż, y_d(t + h)) − α(z − h ż, y_d(t − h))] / 2h, with an error falling as h².
 Functions are called by input name; `wtftc functions` lists every one with its inputs and
 outputs, and `wtftc.artefacts.layout` gives each vector's names, units and defaults.
-More: docs/verification.md (what is checked, and how), docs/paper-notes.md (eqs 26-49).
+More: docs/verification.md (what is checked, and how), docs/paper-notes.md (eqs (26)-(49)).
 
     python examples/06_alpha_dot.py [OUT_DIR]       # default out/examples/06_alpha_dot
 """
