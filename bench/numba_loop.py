@@ -222,7 +222,7 @@ def _basis(x, knots):
 def cp_spline(lam, beta, kx, ky, coef):
     """Cp(λ, β): the tensor-product cubic B-spline of CasADi's 'bspline' interpolant with
     its coefficients coef[i_λ + n_λ i_β], inputs clipped to the grid
-    (wtftc.simulate.cp_interpolant)."""
+    (wtftc.model.aero.cp_interpolant)."""
     lam = _fmin(_fmax(lam, kx[0]), kx[kx.shape[0] - 1])
     beta = _fmin(_fmax(beta, ky[0]), ky[ky.shape[0] - 1])
     i, x0, x1, x2, x3 = _basis(lam, kx)
@@ -242,7 +242,7 @@ def cp_spline(lam, beta, kx, ky, coef):
 @njit(**INLINE)
 def sched_linear(beta, grid, values):
     """∂T_aero/∂β from the linear schedule, held beyond its ends
-    (wtftc.simulate.pitch_sensitivity_schedule)."""
+    (wtftc.model.aero.pitch_sensitivity_schedule)."""
     n = grid.shape[0]
     x = _fmin(_fmax(beta, grid[0]), grid[n - 1])
     j = _interval(x, grid, 0, n)
@@ -717,7 +717,7 @@ def _rk4_loop(rhs):
     @njit(**JIT)
     def simulate(z0, wind3, af_all, sf_all, ck_all, bind_step, yd, pt, pc, kx, ky, coef, sb,
                  sg, dt, n_steps, decimate):
-        """Classical RK4 (Kutta 1901) over n_steps of dt, as wtftc.simulate.rk4_step.
+        """Classical RK4 (Kutta 1901) over n_steps of dt, as wtftc.sim.integrate.rk4_step.
 
         wind3[k] = wind at t_k, t_k + dt/2, t_k + dt; af_all, sf_all, ck_all[k] = actuator,
         sensor and eq-(49) fault rows at t_k (held over the step); bind_step[j] = step at
@@ -786,7 +786,7 @@ SIMULATE = {"physical": simulate_physical, "paper": simulate_paper}
 
 @dataclass
 class StepInputs:
-    """Exogenous inputs per RK4 step, as wtftc.simulate.run_loop feeds its chunks."""
+    """Exogenous inputs per RK4 step, as wtftc.sim.integrate.run_loops feeds its chunks."""
 
     wind3: np.ndarray       # (n_steps, 3): wind at t_k, t_k + dt/2, t_k + dt
     af: np.ndarray          # (n_steps, n actuator_faults) at t_k
@@ -857,7 +857,7 @@ class Prepared:
 
 
 def cp_spline_data(table) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(knots λ, knots β, coefficients) of wtftc.simulate.cp_interpolant(table): the
+    """(knots λ, knots β, coefficients) of wtftc.model.aero.cp_interpolant(table): the
     coefficients CasADi solved for when it built the interpolant, to the last bit."""
     from wtftc.model.aero import cp_interpolant
 
@@ -882,14 +882,14 @@ def sched_data(table, p_turbine: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def step_inputs(rc, dt: float, n_steps: int) -> StepInputs:
     """The wind at t_k, t_k + dt/2, t_k + dt and the fault rows at t_k of
-    wtftc.simulate.run_loop (the plant's schedule; eq (49)'s in case 3, nominal otherwise),
+    wtftc.sim.integrate.run_loops (the plant's schedule; eq (49)'s in case 3, nominal otherwise),
     with a lock "wherever the blade is" left NaN for the loop to bind at its onset step."""
     from wtftc.model.faults import Schedule
 
     tk = np.arange(n_steps) * dt
     wind3 = np.column_stack([rc.wind(tk), rc.wind(tk + dt / 2), rc.wind(tk + dt)])
     schedule = Schedule(copy.deepcopy(rc.faults)) if rc.faults else None
-    ctrl_schedule = Schedule(copy.deepcopy(rc.faults)) if rc.case == 3 else None
+    ctrl_schedule = Schedule(copy.deepcopy(rc.faults)) if rc.told_fault else None
     nominal = lay.defaults("fault_inputs")
     af = (schedule.actuator(tk) if schedule
           else np.tile(lay.defaults("actuator_faults")[:, None], (1, n_steps)))
@@ -921,7 +921,7 @@ def prepare(controller: str, config) -> Prepared:
         raise ValueError(f"controller {controller!r}: written for {', '.join(RHS)}")
     if rc.plant != "nrel5mw":
         raise ValueError(f"plant {rc.plant!r}: written for nrel5mw")
-    if rc.case == 4:
+    if rc.uses_fdi:
         raise ValueError("case 4 needs the FDI, which this baseline leaves out")
     table = rc.table
     n_c = N_C_PHYSICAL if controller == "physical" else N_C_PAPER

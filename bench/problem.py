@@ -1,9 +1,9 @@
 """The benchmark's closed loops, and their inputs as functions of time.
 
 Every method of `make bench` integrates the same problem: the right-hand side of
-:func:`wtftc.simulate.rhs_function` (plant, Cp interpolant, pitch-sensitivity schedule,
+:func:`wtftc.sim.rhs.rhs_function` (plant, Cp interpolant, pitch-sensitivity schedule,
 controller; without the FDI monitor, which the benchmarked case does not use), from the
-trimmed initial state of :func:`wtftc.cases.trim`, with the wind and the faults of the
+trimmed initial state of :func:`wtftc.sim.trim.trim`, with the wind and the faults of the
 configuration below as functions of time. Faults lock at a fixed angle (not "where the
 blade is"), so that the inputs depend on time only.
 """

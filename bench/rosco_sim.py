@@ -177,7 +177,7 @@ def _with_init_state(ControllerInterface):
     """ControllerInterface whose initialization call sees the simulator's initial state
     (the stock one passes 1 rad/s, 10 m/s and zero torque, which starts ROSCO's filters and
     integrators there: a 10 s start-up transient from a trimmed turbine). As in
-    wtftc/rosco.py; the calls during the run are ROSCO's own."""
+    wtftc/sim/rosco.py; the calls during the run are ROSCO's own."""
 
     class _InitState(ControllerInterface):
         init_state = None

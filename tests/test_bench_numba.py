@@ -1,4 +1,4 @@
-"""The hand-written numba baseline of the benchmark (wtftc/bench/numba_loop.py) computes
+"""The hand-written numba baseline of the benchmark (bench/numba_loop.py) computes
 the same closed loop as wtftc: Cp and the schedule, the right-hand side of each controller
 against the generated one, and a short RK4 run against ``cases.run``.
 
@@ -75,7 +75,7 @@ def _blocks(ctrl: str, n: int) -> list[slice]:
 
 
 def test_rhs_matches_generated(loop):
-    """ż of plant + controller against wtftc.simulate.rhs_function (use_fdi = 0) at 100
+    """ż of plant + controller against wtftc.sim.rhs.rhs_function (use_fdi = 0) at 100
     states along a faulted run, perturbed, with nominal and faulted inputs.
 
     Compared entry by entry relative to |ż_i|, floored at 1e-3 of the largest entry of its

@@ -1,4 +1,4 @@
-"""ROSCO's simple simulator as the benchmark's reference point (wtftc/bench/rosco_sim.py).
+"""ROSCO's simple simulator as the benchmark's reference point (bench/rosco_sim.py).
 
 Skipped only when rosco is absent, with the reason (``pytest -rs`` prints it)."""
 

@@ -47,7 +47,7 @@ def test_rk4_converges_with_order_4_against_dop853():
     errors = []
     for dt in dts:
         n = int(round(t_end / dt))
-        chunk = integrate.rk4_step(f).mapaccum("chunk", n)
+        chunk = integrate.rk4_step(f, exogenous="d1", report="y").mapaccum("chunk", n)
         tk = np.arange(n) * dt
         d3 = np.vstack([sig.d1(tk), sig.d1(tk + dt / 2), sig.d1(tk + dt)])
         z_end = np.array(chunk(z0, d3, *args, dt)[0])[:, -1]

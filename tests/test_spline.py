@@ -1,4 +1,4 @@
-"""The closed loop's Cp(λ, β) (wtftc.spline: bicubic cells of CasADi's B-spline, looked up on
+"""The closed loop's Cp(λ, β) (wtftc.model.spline: bicubic cells of CasADi's B-spline, looked up on
 the uniform grid) against CasADi's own evaluation of the same spline."""
 
 import casadi as ca

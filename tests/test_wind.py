@@ -1,4 +1,4 @@
-"""Wind inputs (wtftc.wind): IEC 61400-1 NTM and EOG against their formulas, the paper's
+"""Wind inputs (wtftc.model.wind): IEC 61400-1 NTM and EOG against their formulas, the paper's
 band-limited random wind, steps, OpenFAST uniform wind / CSV files, and every user error.
 
 Reference numbers are retyped here from IEC 61400-1 ed. 3 (6.3.1.3 NTM, 6.3.2.2 EOG,

@@ -305,7 +305,7 @@ def _cmd_cases(args) -> int:
     from wtftc.results.tables import write_table
 
     over = _run_overrides(args)
-    plants = tuple(args.plant) if args.plant else ("nrel5mw", "paper")
+    plants = tuple(args.plant) if args.plant else tuple(_plants())
     config.make_config({**over, "plant": plants[0]})  # validate before any work
     ensure_writable_dir(args.out, "--out", create=False)
     rows = cases.run_cases(args.out, plants, over, progress=not args.quiet)

@@ -21,8 +21,9 @@ from wtftc.sim.trim import trim
 
 CASES = {1: "no fault", 2: "fault, controller unaware", 3: "fault known to eq (49)",
          4: "fault detected and estimated by wtftc's FDI"}
-#: the case whose controller is told the fault (an oracle), and the one fed by the FDI
-ORACLE_CASE, FDI_CASE = 3, 4
+#: the fault-free case, the case whose controller is unaware of the fault, the one told the
+#: fault (an oracle), and the one fed by the FDI
+FAULT_FREE_CASE, UNAWARE_CASE, ORACLE_CASE, FDI_CASE = 1, 2, 3, 4
 
 TOP_KEYS = {"case", "plant", "controller", "t_final_s", "dt_s", "seed", "output_rate_hz",
             "control_sign", "reference_rad_s", "cp_table", "wind", "fault", "controller_params",
@@ -85,7 +86,7 @@ class RunConfig:
     def yd(self) -> np.ndarray:
         """The reference and its derivatives (a constant reference: zeros after y_d)."""
         yd = np.zeros(lay.size("reference"))
-        yd[0] = self.reference
+        yd[lay.index("reference", "yd_0")] = self.reference
         return yd
 
     @property
@@ -227,7 +228,7 @@ def _parameters(raw: dict, controller: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _faults(raw: dict, case: int, t_final: float) -> list:
-    if case == 1:
+    if case == FAULT_FREE_CASE:
         if raw.get("fault"):
             raise ConfigError("fault", raw["fault"], "no fault in case 1 (use case 2 or 3)")
         return []

@@ -22,6 +22,7 @@ from wtftc.results.tables import write_table
 from wtftc.results.traces import write_outputs
 from wtftc.sim import integrate, rhs, stability
 from wtftc.sim.integrate import Result
+from wtftc.sim.rhs import PLANTS
 
 
 def run(rc: RunConfig, progress: bool = True, keep_states: bool = False) -> Result:
@@ -138,7 +139,7 @@ def write_run_figures(out_dir: Path, rc: RunConfig, res: Result, m: dict) -> lis
     return paths
 
 
-def run_cases(out_dir: Path, plants=("nrel5mw", "paper"), overrides: dict | None = None,
+def run_cases(out_dir: Path, plants=tuple(PLANTS), overrides: dict | None = None,
               progress: bool = True, sign_as_written: bool = True) -> list[dict]:
     """The paper's three cases on each plant, figures and a metrics table under out_dir;
     then case 1 with the control sign as written (paper-notes defect 2)."""

@@ -22,8 +22,8 @@ from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_tex
 from wtftc.results.metrics import metrics
 
 ONSET_S = 20.0
-#: the case in which a controller runs on the estimates of wtftc's FDI (config.CASES)
-FDI_CASE = config.FDI_CASE
+#: the cases a variant runs in under a fault (config.CASES)
+FDI_CASE, ORACLE_CASE, UNAWARE_CASE = config.FDI_CASE, config.ORACLE_CASE, config.UNAWARE_CASE
 
 
 @dataclass(frozen=True)
@@ -42,18 +42,19 @@ class Variant:
 
 
 CONTROLLERS = {
-    "rosco": Variant(
-        "rosco", 2, "NREL ROSCO 2.10.6 through its ControllerInterface (optional extra)"),
-    "paper": Variant("paper", 3, "Bakhshi & Alfi, corrected sign, eq (49) told the fault"),
+    "rosco": Variant("rosco", UNAWARE_CASE,
+                     "NREL ROSCO 2.10.6 through its ControllerInterface (optional extra)"),
+    "paper": Variant("paper", ORACLE_CASE,
+                     "Bakhshi & Alfi, corrected sign, eq (49) told the fault"),
     "physical_fdi": Variant(
         "physical", FDI_CASE, "physical AFTC with wtftc's own FDI (no oracle)"),
-    "physical_known": Variant("physical", 3, "physical AFTC told the fault (oracle)"),
+    "physical_known": Variant("physical", ORACLE_CASE, "physical AFTC told the fault (oracle)"),
     "physical_unaccommodated": Variant(
-        "physical", 2, "physical backstepping, no accommodation"),
+        "physical", UNAWARE_CASE, "physical backstepping, no accommodation"),
     "drivetrain_fdi": Variant(
         "drivetrain", FDI_CASE, "drivetrain-chain AFTC (θ_s ← ω_r ← β ← u) with wtftc's own "
                                 "FDI: the measured alternative"),
-    "pi": Variant("pi", 2, "gain-scheduled PI baseline"),
+    "pi": Variant("pi", UNAWARE_CASE, "gain-scheduled PI baseline"),
 }
 #: every other controller derived as a ControllerDesign (eq (49)-style accommodation by
 #: construction) joins the matrix with wtftc's own FDI, as <name>_fdi

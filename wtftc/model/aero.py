@@ -27,7 +27,7 @@ def cp_interpolant(table: CpTable) -> ca.Function:
 
 def cp_loop_function(table: CpTable) -> ca.Function:
     """Cp(λ, β) for the closed loop: :func:`cp_interpolant`'s spline, evaluated by
-    uniform-grid lookup (wtftc.spline, about 6× cheaper in the compiled step; same values to
+    uniform-grid lookup (wtftc.model.spline, about 6× cheaper in the compiled step; same values to
     rounding) when the table grid is uniform, as CasADi's interpolant otherwise."""
     ref = cp_interpolant(table)
     if spline.is_uniform(table.tsr) and spline.is_uniform(table.pitch_rad):
@@ -61,7 +61,7 @@ def pitch_sensitivity_schedule(table: CpTable, p_turbine: np.ndarray) -> ca.Func
 
 def sched_loop_function(table: CpTable, p_turbine: np.ndarray) -> ca.Function:
     """:func:`pitch_sensitivity_schedule` for the closed loop: by uniform-grid lookup
-    (wtftc.spline) where its breakpoints are uniform (the table's pitch grid), else CasADi's
+    (wtftc.model.spline) where its breakpoints are uniform (the table's pitch grid), else CasADi's
     interpolant."""
     betas, grads = schedule_points(table, p_turbine)
     if spline.is_uniform(betas):

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError
 
 __all__ = [
@@ -45,8 +46,9 @@ __all__ = [
 NREL5MW_FILE = "Cp_Ct_Cq.NREL5MW.txt"
 NREL5MW_SOURCE = "NREL 5-MW (ROSCO 2.10.6)"
 
-RHO_AIR = 1.225  # Air density (kg/m^3), NREL 5-MW reference
-R_TIP = 63.0  # NREL 5-MW rotor (tip) radius (m)
+_TURBINE = lay.values("turbine_params", lay.defaults("turbine_params"))
+RHO_AIR = _TURBINE["air_density"]  # air density [kg/m^3], the layout's NREL 5-MW default
+R_TIP = _TURBINE["rotor_radius"]  # rotor (tip) radius [m], the layout's NREL 5-MW default
 
 _FIELD = "cp_table"
 _FORMAT = "the ROSCO Cp_Ct_Cq text format"

@@ -1,6 +1,6 @@
 """Lean evaluation of the Cp(λ, β) B-spline on a uniform table grid.
 
-CasADi's ``bspline`` interpolant (:func:`wtftc.simulate.cp_interpolant`) evaluates through
+CasADi's ``bspline`` interpolant (:func:`wtftc.model.aero.cp_interpolant`) evaluates through
 its generic N-dimensional de Boor routine: a search of the knot vector, loops over the
 dimensions, about 300 ns a call in the generated C, four calls per RK4 step (measured in
 ``make bench``: most of the physical AFTC's step). On a uniform table grid the knot span
@@ -116,7 +116,7 @@ def cell_coefficients(kx, ky, coef, x, y) -> np.ndarray:
 
 
 def fast_cp(interpolant: ca.Function, x: np.ndarray, y: np.ndarray) -> ca.Function:
-    """cp(tsr, beta) as :func:`wtftc.simulate.cp_interpolant` (inputs clipped to the grid),
+    """cp(tsr, beta) as :func:`wtftc.model.aero.cp_interpolant` (inputs clipped to the grid),
     evaluated as the bicubic polynomial of the cell holding (tsr, beta); x, y the uniform
     table grids. Never inlined: its lookups have no SX form, so an SX caller keeps a call."""
     kx, ky, coef = spline_data(interpolant, x, y)

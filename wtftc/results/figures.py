@@ -16,6 +16,7 @@ import numpy as np  # noqa: E402
 
 from wtftc.artefacts import layout as lay  # noqa: E402
 from wtftc.results.io import atomic_savefig  # noqa: E402
+from wtftc.sim.rhs import PLANTS  # noqa: E402
 
 CASE_COLORS = {1: "tab:blue", 2: "tab:red", 3: "tab:green", 4: "tab:purple"}
 
@@ -162,7 +163,7 @@ def comparison(runs: list[dict], out: Path, name: str = "cases_comparison") -> l
     axes[0].set_ylabel("rotor speed [rad/s]")
     axes[1].set_ylabel("mean pitch [deg]")
     axes[2].set_ylabel("generator power T_g·ω_g [MW]")
-    if runs[0]["plant"] == "paper":
+    if not PLANTS[runs[0]["plant"]]["loaded"]:
         axes[2].text(0.5, 0.5, "the paper's plant is unloaded: no generator torque",
                      transform=axes[2].transAxes, ha="center", va="center", color="tab:red")
     axes[2].set_xlabel("time [s]")

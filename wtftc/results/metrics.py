@@ -6,7 +6,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.config import CASES, RunConfig
-from wtftc.model.faults import HYDRAULIC
+from wtftc.model.faults import HYDRAULIC, TYPES
 from wtftc.sim import integrate
 
 
@@ -66,7 +66,7 @@ def fdi_report(rc: RunConfig, res: integrate.Result) -> dict:
     """
     t = res.t
     faults = res.schedule.faults if res.schedule is not None else rc.faults  # angles bound
-    actuator = [f for f in faults if f.type not in ("sensor_fixed", "sensor_gain")]
+    actuator = [f for f in faults if TYPES[f.type].acts_on == "actuator"]
     faulty = {f.blade: f for f in actuator}
     out = {"blades": {}, "false_alarms": [], "isolation_correct": True}
     for j in lay.blades():

@@ -31,22 +31,49 @@ from wtftc.sim.rhs import PLANTS, Loop, output_spec, rhs_function, state_names
 CHUNK = 1000  # RK4 steps per compiled call
 
 
-def rk4_step(rhs: ca.Function) -> ca.Function:
-    """Classical RK4 over one step dt (Kutta 1901), the exogenous input (input 1 of rhs, the
-    wind) at t, t + dt/2, t + dt; the other inputs held over the step."""
-    z = ca.MX.sym("z", rhs.size1_in(0))
-    w3 = ca.MX.sym("wind3", 3)
-    others = [ca.MX.sym(rhs.name_in(k), rhs.sparsity_in(k)) for k in range(2, rhs.n_in())]
+def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out") -> ca.Function:
+    """Classical RK4 over one step dt (Kutta 1901) of rhs's ``z_dot``: the ``exogenous``
+    input at t, t + dt/2, t + dt (given as <exogenous>3), the other inputs held over the
+    step; the ``report`` output at the start of the step."""
+    z = ca.MX.sym("z", rhs.sparsity_in("z"))
+    w3 = ca.MX.sym(f"{exogenous}3", 3)
+    held = [n for n in rhs.name_in() if n not in ("z", exogenous)]
+    others = {n: ca.MX.sym(n, rhs.sparsity_in(n)) for n in held}
     dt = ca.MX.sym("dt")
-    first = rhs(z, w3[0], *others)
-    k1, out = first[0], first[1]  # ż and the reported outputs at the start of the step
-    k2 = rhs(z + dt / 2 * k1, w3[1], *others)[0]
-    k3 = rhs(z + dt / 2 * k2, w3[1], *others)[0]
-    k4 = rhs(z + dt * k3, w3[2], *others)[0]
+
+    def f(zz, w):
+        return rhs.call({"z": zz, exogenous: w, **others})
+
+    first = f(z, w3[0])
+    k1, out = first["z_dot"], first[report]
+    k2 = f(z + dt / 2 * k1, w3[1])["z_dot"]
+    k3 = f(z + dt / 2 * k2, w3[1])["z_dot"]
+    k4 = f(z + dt * k3, w3[2])["z_dot"]
     z_next = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return ca.Function("rk4_step", [z, w3, *others, dt], [z_next, out],
-                       ["z", "wind3", *[rhs.name_in(k) for k in range(2, rhs.n_in())], "dt"],
-                       ["z_next", "out"])
+    return ca.Function("rk4_step", [z, w3, *others.values(), dt], [z_next, out],
+                       ["z", f"{exogenous}3", *held, "dt"], ["z_next", report])
+
+
+def rk4_path(rhs, z0, t0: float, t1: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The same RK4 in NumPy for a Python right-hand side ``rhs(t, z)``, n steps from t0 to
+    t1 (t1 < t0 runs backward): the times and the states, (n + 1) × len(z0). A non-finite
+    state stops it with the time and the last finite state."""
+    h = (t1 - t0) / n if n else 0.0
+    ts = t0 + h * np.arange(n + 1)
+    zs = np.empty((n + 1, np.size(z0)))
+    z = zs[0] = np.asarray(z0, dtype=float)
+    for k in range(n):
+        t = ts[k]
+        k1 = rhs(t, z)
+        k2 = rhs(t + h / 2, z + h / 2 * k1)
+        k3 = rhs(t + h / 2, z + h / 2 * k2)
+        k4 = rhs(t + h, z + h * k3)
+        z = z + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        if not np.all(np.isfinite(z)):
+            raise FloatingPointError(f"diverged at t = {ts[k + 1]:.6g} s; last finite "
+                                     f"state {zs[k].tolist()}")
+        zs[k + 1] = z
+    return ts, zs
 
 #: flags of the closed-loop chunks (the verified generated functions keep CFLAGS):
 #: -fno-semantic-interposition lets gcc inline CasADi's helpers (fmin, fmax, sq) instead of
@@ -312,8 +339,8 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     n_steps = int(round(t_final / dt))
     f = chunk_function(loop, n=hook.steps if hook else CHUNK, fast_math=fast_math)
     call = Buffered(_mapped(f, len(runs), threads))
-    n_c = f.size2_out(1)
-    batch = _Batch(runs, state_names(loop.plant, loop.controller)[:f.size1_in(0)],
+    n_c = f.size2_out("out")  # steps per chunk
+    batch = _Batch(runs, state_names(loop.plant, loop.controller)[:f.size1_in("z")],
                    [n for n, _ in output_spec(loop.controller, loop.fdi)],
                    np.column_stack([np.asarray(r.z0, dtype=float) for r in runs]),
                    keep_states, decimate)

@@ -16,11 +16,13 @@ from wtftc.artefacts.loader import load
 from wtftc.model.aero import cp_loop_function, sched_loop_function
 from wtftc.model.cp_table import CpTable, nrel5mw_cp_table
 
+#: the plants, the one list; ``loaded``: a generator torque carries the rotor (the paper's
+#: eq (3) has none: paper-notes defect 3)
 PLANTS = {
-    "nrel5mw": {"function": "turbine_nrel5mw", "states": "nrel5mw_states",
+    "nrel5mw": {"function": "turbine_nrel5mw", "states": "nrel5mw_states", "loaded": True,
                 "doc": "NREL 5-MW: two-mass drivetrain, generator torque, 2nd-order "
                        "limited actuators (default)"},
-    "paper": {"function": "turbine_paper", "states": "plant_states",
+    "paper": {"function": "turbine_paper", "states": "plant_states", "loaded": False,
               "doc": "eqs (1)-(4) as printed: UNLOADED, no generator torque "
                      "(paper-notes defect 3)"},
 }
@@ -136,9 +138,11 @@ def _closed_loop_rhs(loop: Loop) -> ca.Function:
     p = pf(x_plant=xp, v=c["v"], wind=sym["wind"], cp=m["cp"],
            actuator_faults=sym["actuator_faults"], sensor_faults=sym["sensor_faults"],
            p_turbine=sym["p_turbine"])
-    out = [xp[0], xp[1], m["meas"][1], xp[lay.block("nrel5mw_states", "beta")], m["sensors"],
-           c["u0"], c["v"], sym["wind"], m["tsr"], m["cp"], p["T_aero"], p["T_gen"], p["P_gen"],
-           m["sched"], sym["yd"][0]]
+    states = PLANTS[loop.plant]["states"]
+    out = [xp[lay.index(states, "omega_r")], xp[lay.index(states, "theta_s")],
+           m["meas"][measurement_index("omega_g_hss")], xp[lay.block(states, "beta")],
+           m["sensors"], c["u0"], c["v"], sym["wind"], m["tsr"], m["cp"], p["T_aero"],
+           p["T_gen"], p["P_gen"], m["sched"], sym["yd"][lay.index("reference", "yd_0")]]
     names = ["z", "wind", *_INPUT_GROUPS, "p_ctrl"]
     if loop.fdi:
         fd = fdi(x_fdi=xf, v=c["v"], beta_meas=m["sensors"], p_fdi=p_fdi)
@@ -173,11 +177,23 @@ def _measure(loop: Loop, pf: ca.Function, xp: ca.SX, sym: dict) -> dict:
     sensors = pf(x_plant=xp, v=ca.DM.zeros(n_b), wind=wind, cp=cp,
                  actuator_faults=sym["actuator_faults"], sensor_faults=sym["sensor_faults"],
                  p_turbine=pt)["beta_meas"]  # independent of v
-    omega_g = xp[lay.index("plant_states", "omega_g")]
-    meas = ca.vertcat(xp[0], omega_g * pt[lay.index("turbine_params", "gearbox_ratio")], sensors)
+    states = PLANTS[loop.plant]["states"]
+    omega_g = xp[lay.index(states, "omega_g")]
+    values = {"omega_r": xp[lay.index(states, "omega_r")],
+              "omega_g_hss": omega_g * pt[lay.index("turbine_params", "gearbox_ratio")],
+              **{f"beta_meas_{j}": sensors[k] for k, j in enumerate(lay.blades())}}
+    meas = ca.vertcat(*[values[e["name"]] for e in lay.layout()["measurements"]])
     sched_fn = sched_loop_function(loop.table, np.array(loop.p_turbine))
     return {"meas": meas, "sensors": sensors, "cp": cp, "tsr": op["tsr"],
             "sched": sched_fn(ca.sum1(sensors) / n_b)}
+
+
+def measurement_index(name: str) -> int:
+    """Where ``name`` sits in the controllers' measurement vector (generated/layout.json)."""
+    names = [e["name"] for e in lay.layout()["measurements"]]
+    if name not in names:
+        raise KeyError(f"{name!r} is not a measurement; allowed: {', '.join(names)}")
+    return names.index(name)
 
 
 @cache

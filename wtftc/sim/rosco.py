@@ -150,9 +150,10 @@ class _Discon(integrate.ChunkHook):
         self.tq_hss = self.tp["gen_torque_rated"] / n_g
         self.state = None
         self.i_omega_g = lay.index(PLANTS[loop.plant]["states"], "omega_g")
+        self.i_omega_r = lay.index(PLANTS[loop.plant]["states"], "omega_r")
         omega_g = z0[self.i_omega_g]
         self.ci = _interface(tmp, float(np.degrees(self.pitch.mean())),
-                             {"gen_speed": omega_g * n_g, "rot_speed": z0[0],
+                             {"gen_speed": omega_g * n_g, "rot_speed": z0[self.i_omega_r],
                               "ws": float(self.wind(0.0)), "gen_torque": self.tq_hss})
 
     def before(self, call: integrate.Buffered) -> None:
@@ -168,7 +169,7 @@ class _Discon(integrate.ChunkHook):
         self.state = {"iStatus": 1, "t": k * self.dt, "dt": CONTROL_DT,
                       "bld_pitch": float(np.mean(beta_meas)), "gen_torque": self.tq_hss,
                       "gen_speed": z[self.i_omega_g] * self.tp["gearbox_ratio"],
-                      "gen_eff": self.tp["gen_efficiency"], "rot_speed": z[0],
+                      "gen_eff": self.tp["gen_efficiency"], "rot_speed": z[self.i_omega_r],
                       "ws": float(self.wind(k * self.dt)), "Y_MeasErr": 0.0,
                       "Yaw_fromNorth": 0.0}
         tq, _, _ = self.ci.call_controller(self.state)

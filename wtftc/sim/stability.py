@@ -15,11 +15,12 @@ from wtftc.sim.rhs import Loop, rhs_function
 
 def stability_limit(loop: Loop, z0, wind0: float, yd, p_ctrl) -> float:
     """Largest |eigenvalue| of the closed-loop Jacobian at z0 (RK4: stable for |λ dt| < 2.78)."""
-    args = [lay.defaults("actuator_faults"), lay.defaults("sensor_faults"),
-            lay.defaults("fault_inputs"), yd, loop.p_turbine, p_ctrl]
-    if loop.fdi:
-        args.append(0.0)
-    eig = np.linalg.eigvals(np.array(_jacobian_function(loop)(z0, wind0, *args)))
+    args = {"z": z0, "wind": wind0, "actuator_faults": lay.defaults("actuator_faults"),
+            "sensor_faults": lay.defaults("sensor_faults"),
+            "ctrl_fault": lay.defaults("fault_inputs"), "yd": yd, "p_turbine": loop.p_turbine,
+            "p_ctrl": p_ctrl, "use_fdi": 0.0}
+    jac = _jacobian_function(loop)
+    eig = np.linalg.eigvals(np.array(jac.call({n: args[n] for n in jac.name_in()})["dz_dot_dz"]))
     return float(np.max(np.abs(eig)))
 
 
@@ -27,8 +28,10 @@ def stability_limit(loop: Loop, z0, wind0: float, yd, p_ctrl) -> float:
 def _jacobian_function(loop: Loop) -> ca.Function:
     """∂ż/∂z of the closed loop, built once per loop."""
     rhs = rhs_function(loop)
-    ins = [ca.SX.sym(rhs.name_in(i), rhs.sparsity_in(i)) for i in range(rhs.n_in())]
-    return ca.Function("closed_loop_jacobian", ins, [ca.jacobian(rhs(*ins)[0], ins[0])])
+    ins = {n: ca.SX.sym(n, rhs.sparsity_in(n)) for n in rhs.name_in()}
+    z_dot = rhs.call(ins)["z_dot"]
+    return ca.Function("closed_loop_jacobian", list(ins.values()),
+                       [ca.jacobian(z_dot, ins["z"])], list(ins), ["dz_dot_dz"])
 
 
 #: beyond this step the paper controller's start-up transient is not resolved: measured

@@ -19,7 +19,7 @@ def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0
     """
     tp = lay.values("turbine_params", loop.p_turbine)
     omega = tp["omega_g_rated"] + omega_offset
-    loaded = loop.plant == "nrel5mw"
+    loaded = PLANTS[loop.plant]["loaded"]
     torque = tp["gen_torque_rated"] if loaded else 0.0
     beta0 = aero.steady_pitch(aero.cp_interpolant(loop.table), omega, torque, wind0,
                               tp["air_density"], tp["rotor_radius"])

@@ -19,6 +19,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import layout_json, load
+from wtftc.sim.integrate import rk4_path
 
 #: input name → layout group whose defaults centre the random values
 _GROUP_OF_INPUT = {
@@ -41,9 +42,10 @@ def random_inputs(name: str, rng: np.random.Generator,
     sig = layout_json()["functions"][name]
     special = _turbine_inputs(rng)
     pc = lay.defaults("controller_params")
-    offsets = np.array([pc[lay.index("controller_params", f"x_offset_{k}")] for k in range(1, 5)])
-    scales = np.array([pc[lay.index("controller_params", f"x_scale_{k}")] for k in range(1, 5)])
-    n_plant = len(lay.names("plant_states"))
+    offsets = pc[lay.block("controller_params", "x_offset")]
+    scales = pc[lay.block("controller_params", "x_scale")]
+    xhat = lay.block("controller_states", "xhat")
+    n_plant = lay.size("plant_states")
     out = {}
     for inp in sig["inputs"]:
         n, shape = inp["name"], tuple(inp["shape"])
@@ -70,11 +72,13 @@ def random_inputs(name: str, rng: np.random.Generator,
             val = base + 0.3 * rng.standard_normal(base.size)
             k0 = {"x_ctrl": 0, "z": n_plant}.get(n)
             if k0 is not None:
-                val[k0:k0 + 4] = offsets + scales * rng.uniform(-z_span, z_span, 4)
+                val[k0 + xhat.start:k0 + xhat.stop] = offsets + scales * rng.uniform(
+                    -z_span, z_span, offsets.size)
         elif n == "xhat":
-            val = offsets + scales * rng.uniform(-z_span, z_span, 4)
+            val = offsets + scales * rng.uniform(-z_span, z_span, offsets.size)
         elif n == "K_obs":
-            val = lay.vector("controller_params")[:4] * (1 + 0.2 * rng.uniform(-1, 1, 4))
+            k_obs = lay.defaults("controller_params")[lay.block("controller_params", "K_obs")]
+            val = k_obs * (1 + 0.2 * rng.uniform(-1, 1, k_obs.size))
         elif n in ("Q", "P"):
             m = rng.standard_normal(shape)
             val = (m @ m.T + shape[0] * np.eye(shape[0])).reshape(-1, order="F")
@@ -137,24 +141,36 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
         "omega_dot": np.array([rng.uniform(-0.2, 0.2)]),
         "b_dot": np.array([rng.uniform(-0.05, 0.05)]),
         "d": np.array([rng.uniform(-0.05, 0.05)]),
-        "x_fdi": np.concatenate([_fdi_blade(rng) for _ in range(n)]),
+        "x_fdi": _fdi_states(rng),
         "beta_meas": rng.uniform(-0.05, 1.65, n),
         "p_fdi": lay.defaults("fdi_params") * (1 + 0.1 * rng.uniform(-1, 1, len(
             lay.names("fdi_params")))),
     }
 
 
-def _fdi_blade(rng: np.random.Generator) -> np.ndarray:
-    """Plausible FDI states of one blade (derivation/fdi.py order), limits and latch crossed."""
+def _fdi_states(rng: np.random.Generator) -> np.ndarray:
+    """Plausible FDI states (derivation/fdi.py), limits and latch crossed, in the layout's
+    order: drawn blade by blade, the regression sums S consistent with a mean and variance."""
+    values = {}
+    for j in lay.blades():
+        values |= {f"fdi_{kind}_{j}": v for kind, v in _fdi_blade(rng).items()}
+    return np.array([values[n] for n in lay.names("fdi_states")])
+
+
+def _fdi_blade(rng: np.random.Generator) -> dict[str, float]:
     s1 = rng.uniform(0.3, 1.0)
     mb, mm = rng.uniform(0, 0.5), rng.uniform(0, 0.5)
     var = rng.uniform(1e-5, 1e-2)
-    return np.array([rng.uniform(-0.05, 1.65), rng.uniform(-0.25, 0.25), rng.uniform(0, 1e-5),
-                     rng.uniform(0, 1), rng.uniform(0, 1.2), s1 * (mb**2 + var), s1 * mb, s1,
-                     s1 * (mb * mm + rng.uniform(-1, 1) * var), s1 * mm, rng.uniform(0, 0.5),
-                     rng.uniform(0, 1e-3), rng.uniform(0, 1e-3),
-                     rng.uniform(-0.05, 1.65), rng.uniform(-0.25, 0.25), rng.uniform(0, 1e-5),
-                     rng.uniform(-0.05, 1.65), rng.uniform(-0.25, 0.25), rng.uniform(0, 1e-5)])
+    return {"beta_hat": rng.uniform(-0.05, 1.65), "beta_hat_rate": rng.uniform(-0.25, 0.25),
+            "mean_sq": rng.uniform(0, 1e-5), "latch": rng.uniform(0, 1),
+            "confidence": rng.uniform(0, 1.2), "S_bb": s1 * (mb**2 + var), "S_b": s1 * mb,
+            "S_1": s1, "S_mb": s1 * (mb * mm + rng.uniform(-1, 1) * var), "S_m": s1 * mm,
+            "deriv_filter": rng.uniform(0, 0.5), "rate_msq_meas": rng.uniform(0, 1e-3),
+            "rate_msq_model": rng.uniform(0, 1e-3),
+            "beta_pd": rng.uniform(-0.05, 1.65), "beta_pd_rate": rng.uniform(-0.25, 0.25),
+            "mean_sq_pd": rng.uniform(0, 1e-5),
+            "beta_air": rng.uniform(-0.05, 1.65), "beta_air_rate": rng.uniform(-0.25, 0.25),
+            "mean_sq_air": rng.uniform(0, 1e-5)}
 
 
 def _evaluate(f, args: dict) -> dict[str, np.ndarray]:
@@ -219,10 +235,11 @@ def initial_state(seed: int = 0) -> np.ndarray:
     """Plant near rated speed, observer at rest, small seeded fuzzy weights."""
     rng = np.random.default_rng(seed)
     xp = lay.defaults("plant_states")
-    xp[0] *= 0.97
+    xp[lay.index("plant_states", "omega_r")] *= 0.97
     xc = lay.defaults("controller_states")
-    xc[0] = xp[0]
-    xc[4:] = 0.01 * rng.standard_normal(xc.size - 4)
+    xc[lay.index("controller_states", "xhat_1")] = xp[lay.index("plant_states", "omega_r")]
+    weights = lay.block("controller_states", "xhat").stop  # the fuzzy weights follow x̂
+    xc[weights:] = 0.01 * rng.standard_normal(xc.size - weights)
     return np.concatenate([xp, xc])
 
 
@@ -237,26 +254,12 @@ def closed_loop_trajectory(t_final: float = 1.0, dt: float = 1e-3, z0=None, p_pl
     fl = lay.vector("fault_inputs", fault)
     z = initial_state() if z0 is None else np.array(z0, dtype=float)
     n = int(round(abs(t_final - t0) / abs(dt)))
-    h = (t_final - t0) / n if n else 0.0
 
     def rhs(t, zz):
         return np.array(f(z=zz, d1=sig.d1(t), yd=sig.yd(t), fault=fl, p_plant=pp,
                           p_ctrl=pc)["z_dot"]).reshape(-1)
 
-    ts = t0 + h * np.arange(n + 1)
-    zs = np.empty((n + 1, z.size))
-    zs[0] = z
-    for k in range(n):
-        t = ts[k]
-        k1 = rhs(t, z)
-        k2 = rhs(t + h / 2, z + h / 2 * k1)
-        k3 = rhs(t + h / 2, z + h / 2 * k2)
-        k4 = rhs(t + h, z + h * k3)
-        z = z + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        if not np.all(np.isfinite(z)):
-            raise FloatingPointError(f"closed loop diverged at t = {ts[k + 1]:.6g} s; "
-                                     f"last finite state {zs[k].tolist()}")
-        zs[k + 1] = z
+    ts, zs = rk4_path(rhs, z, t0, t_final, n)
     return Trajectory(ts, zs, pp, pc, fl, sig)
 
 
@@ -297,7 +300,7 @@ def alpha_dot_fd(t_point: float = 0.5, h_values=(1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3
     zt = base.z[-1]
     at = alpha_values(base, len(base.t) - 1)
     h_values = np.asarray(h_values, dtype=float)
-    errors = np.empty((h_values.size, 3))
+    errors = np.empty((h_values.size, at["alpha"].size))
     for m, h in enumerate(h_values):
         n = max(1, int(np.ceil(h / substep)))
         fwd = closed_loop_trajectory(t_final=t_point + h, dt=h / n, z0=zt, t0=t_point, **kwargs)
@@ -309,7 +312,7 @@ def alpha_dot_fd(t_point: float = 0.5, h_values=(1e-2, 3e-3, 1e-3, 3e-4, 1e-4, 3
             np.abs(at["alpha_dot_full"]), 1e-300)
     sel = h_values >= 1e-3 * h_values.max()
     slopes = np.array([np.polyfit(np.log(h_values[sel]), np.log(errors[sel, i]), 1)[0]
-                       for i in range(3)])
+                       for i in range(errors.shape[1])])
     return FDResult(
         h=h_values, errors=errors, slopes=slopes, alpha_dot=at["alpha_dot_full"],
         comp_minus_full=at["alpha_dot_comp"] - at["alpha_dot_full"],
@@ -325,10 +328,11 @@ def grad_V_dot_f() -> ca.Function:
     cl = load("closed_loop_paper", "interpreted")
     n_p = len(lay.names("plant_states"))
     z = ca.SX.sym("z", n_p + len(lay.names("controller_states")))
-    yd = ca.SX.sym("yd", 5)
+    yd = ca.SX.sym("yd", lay.size("reference"))
     d1, fault = ca.SX.sym("d1"), ca.SX.sym("fault", len(lay.names("fault_inputs")))
     ts = ca.SX.sym("theta_star", len(lay.names("theta_star")))
-    P = ca.SX.sym("P", 4, 4)
+    n_chain = lay.layout()["n_chain"]
+    P = ca.SX.sym("P", n_chain, n_chain)
     pp = ca.SX.sym("p_plant", len(lay.names("plant_params")))
     pc = ca.SX.sym("p_ctrl", len(lay.names("controller_params")))
     V = lyap(x_plant=z[:n_p], x_ctrl=z[n_p:], d1=d1, yd=yd, fault=fault, theta_star=ts, P=P,

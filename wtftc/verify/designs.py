@@ -17,6 +17,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import load
+from wtftc.sim.integrate import rk4_path
 
 #: the schedule input ∂T_aero/∂β during the checks [N m/rad]: the NREL 5-MW near 12 m/s
 #: (docs/paper-notes.md, defect 2); constant, so that its rate (b_dot) is zero
@@ -59,7 +60,9 @@ class DesignModel:
         #: the α_i that have a generated total derivative α_i_dot_full
         self.alphas = [n for n in self.checks.name_out()
                        if f"{n}_dot_full" in self.checks.name_out()]
-        self.rate_inputs = self.checks.name_in()[5:]  # after x_ctrl, meas, yd, sched, p_ctrl
+        #: the true rates the checks take besides the controller's uniform inputs
+        self.rate_inputs = [n for n in self.checks.name_in()
+                            if n not in ("x_ctrl", "meas", "yd", "sched", "p_ctrl")]
 
     def signals(self, t: float) -> tuple[np.ndarray, float]:
         w, a = REF_FREQUENCY, REF_AMPLITUDE
@@ -76,16 +79,8 @@ class DesignModel:
         return np.array(self.evaluate(t, z)["z_dot"]).ravel()
 
     def rk4(self, z: np.ndarray, t0: float, t1: float, n: int) -> np.ndarray:
-        """n RK4 steps from t0 to t1 (t1 < t0 runs backward)."""
-        h = (t1 - t0) / n
-        for k in range(n):
-            t = t0 + k * h
-            k1 = self.rhs(t, z)
-            k2 = self.rhs(t + h / 2, z + h / 2 * k1)
-            k3 = self.rhs(t + h / 2, z + h / 2 * k2)
-            k4 = self.rhs(t + h, z + h * k3)
-            z = z + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        return z
+        """The state after n RK4 steps from t0 to t1 (t1 < t0 runs backward)."""
+        return rk4_path(self.rhs, z, t0, t1, n)[1][-1]
 
     def check_values(self, z: np.ndarray, t: float) -> dict[str, float]:
         """Every output of the checks function at model state z, with the true rates."""

@@ -78,8 +78,10 @@ def fit_theta_star(x_plant, x_ctrl, d1, p_plant=None, p_ctrl=None, ridge: float 
     pc = lay.vector("controller_params", p_ctrl)
     targets_fn = load("strict_feedback_targets").map(n)
     phi_fn = load("fuzzy_regressors").map(n)
-    targets = np.array(targets_fn(x_plant.T, d1[None, :], pp)[0])  # (4, N)
-    phis = [np.array(p) for p in phi_fn(x_ctrl[:, :lay.layout()['n_chain']].T, pc)]  # each (M_i, N)
+    targets = np.array(targets_fn(x_plant=x_plant.T, d1=d1[None, :], p_plant=pp)["f_plus_d"])
+    xhat = x_ctrl[:, lay.block("controller_states", "xhat")].T
+    out = phi_fn(xhat=xhat, p_ctrl=pc)
+    phis = [np.array(out[f"phi_{i}"]) for i in range(1, lay.layout()["n_chain"] + 1)]
     thetas, residuals = [], []
     for i, phi in enumerate(phis):
         Phi = phi.T
@@ -136,7 +138,8 @@ def along_run(rc, res):
     fault = (res.schedule.actuator(res.t)[:lay.size("fault_inputs")] if res.schedule
              else np.tile(lay.defaults("fault_inputs")[:, None], (1, n)))
     yd = np.tile(rc.yd[:, None], (1, n))
-    V = np.array(load("lyapunov").map(n)(x_plant.T, x_ctrl.T, d1[None, :], yd, fault,
-                                         theta_star, P, p_plant, rc.p_ctrl)[0])
+    V = np.array(load("lyapunov").map(n)(
+        x_plant=x_plant.T, x_ctrl=x_ctrl.T, d1=d1[None, :], yd=yd, fault=fault,
+        theta_star=theta_star, P=P, p_plant=p_plant, p_ctrl=rc.p_ctrl)["V"])
     bound = decay_bound(lay.values("controller_params", rc.p_ctrl), theta_star)
     return V[-1], bound, obs

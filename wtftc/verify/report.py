@@ -80,7 +80,7 @@ def _paper_lyapunov(summary: dict) -> None:
     _step("observer gain K: Hurwitz check and Lyapunov P (eqs (20)-(25))")
     obs = {"table1": lyapunov.observer_lyapunov(lay.paper_table1("K_obs")),
            "default": lyapunov.observer_lyapunov(
-               lay.vector("controller_params")[:4])}
+               lay.defaults("controller_params")[lay.block("controller_params", "K_obs")])}
     summary["observer"] = {k: {"K": v.K.tolist(), "hurwitz": v.hurwitz,
                                "eigenvalues": [str(np.round(z, 4)) for z in v.eigenvalues],
                                "report": v.report()} for k, v in obs.items()}
@@ -155,7 +155,7 @@ def _figure(fd: dict, path: Path) -> None:
     fig, axes = plt.subplots(1, len(fd), figsize=(6.5, 4.5), sharey=True, squeeze=False)
     axes = axes.ravel()
     for ax, (label, r) in zip(axes, fd.items(), strict=True):
-        for i in range(3):
+        for i in range(r.errors.shape[1]):
             ax.loglog(r.h, r.errors[:, i], "o-",
                       label=rf"$\dot\alpha_{i + 1}$ (slope {r.slopes[i]:.2f})")
         ref = 3 * r.errors[0].max() * (r.h / r.h[0]) ** 2  # offset above the data
@@ -190,11 +190,12 @@ def to_markdown(s: dict) -> str:
     lines += ["", "## Eq (51)", "", f"- {s['eq51_bound']['report']}", "",
               "## α̇_i against central differences (closed-loop RK4 trajectory)", ""]
     for label, r in s["alpha_dot_fd"].items():
-        lines += [f"**{label}**", "", "| h [s] | α̇1 rel. err | α̇2 rel. err | α̇3 rel. err |",
-                  "|---:|---:|---:|---:|"]
+        n = len(r["slope"])
+        lines += [f"**{label}**", "", "| h [s] | " + " | ".join(
+            f"α̇{i + 1} rel. err" for i in range(n)) + " |", "|---:|" + "---:|" * n]
         for m, h in enumerate(r["h_s"]):
             lines.append(f"| {h:.0e} | " + " | ".join(f"{r['rel_error'][i][m]:.2e}"
-                                                      for i in range(3)) + " |")
+                                                      for i in range(n)) + " |")
         lines += ["", "fitted slopes: " + ", ".join(f"{x:.3f}" for x in r["slope"])
                   + "; |(α̇_computable − α̇_full) − ∂α/∂y·(ẏ̂ − ẏ)| = "
                   f"{r['comp_minus_full_vs_ydot_term_max_abs']:.1e}", ""]
