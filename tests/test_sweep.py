@@ -277,3 +277,19 @@ def test_hydraulic_fault_severity_moves_the_actuator_part_of_the_way():
     assert a_half[zeta, 1] == pytest.approx(0.5 * (z0 + HYDRAULIC["air_in_oil"][1]))
     with pytest.raises(ConfigError, match="severity"):
         parse_faults([{"blade": 1, "type": "pressure_drop", "severity": 0.0}])
+
+
+def test_a_sigterm_while_waiting_stops_the_sweep_not_a_task(monkeypatch, tmp_path):
+    """The SIGTERM handler raises Interrupted wherever the main thread is; while it waits on
+    a task's result that must stop the sweep, not be counted as a lost task (it once was:
+    the sweep went on to the end and exited 1)."""
+    import dask.distributed
+
+    class Waiting:
+        def result(self):
+            raise sweep.Interrupted("SIGTERM")
+
+    monkeypatch.setattr(dask.distributed, "as_completed", lambda futures: iter(futures))
+    progress = sweep._Progress(2, 0, True)
+    with pytest.raises(sweep.Interrupted, match="SIGTERM"):
+        sweep._collect([Waiting(), Waiting()], tmp_path, set(), progress, quiet=True)

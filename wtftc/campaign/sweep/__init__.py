@@ -132,6 +132,8 @@ def _collect(futures: list, out_dir: Path, done: set[str], progress: _Progress,
     for fut in as_completed(futures):
         try:
             results = fut.result()
+        except Interrupted:  # SIGTERM while waiting: the sweep stops, not this task
+            raise
         except Exception as exc:  # noqa: BLE001 - a worker died: the runs stay missing
             lost += 1
             if not quiet:
