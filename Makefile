@@ -20,6 +20,11 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[dev]'
+	@# ROSCO's controller library for the ROSCO-in-the-loop tests and rows, without the
+	@# 1.4 GB its wheel pulls in (wisdem, openmdao, ...): wtftc needs only libdiscon and
+	@# its ControllerInterface (docs/controllers.md)
+	$(PY) -m pip install --quiet --no-deps 'rosco==2.10.6'
+	$(PY) -m pip install --quiet pyzmq pyyaml ruamel.yaml
 	@touch $(STAMP)
 
 setup: $(STAMP)
