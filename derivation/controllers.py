@@ -45,7 +45,7 @@ class Controller:
     params: list[lay.Entry]
     states_group: str
     params_group: str
-    diag_names: list[str]
+    diag: list[tuple[str, str]]  # the four diagnostics: (name, unit)
     build: Callable  # (symbols dict) -> dict of CasADi outputs v, x_ctrl_dot, u0, diag, x0
     sources: tuple[str, ...] = ()  # derivation modules it is derived in (for the manifest)
     #: the module of a controller derived as a derivation.design.ControllerDesign (its
@@ -55,11 +55,11 @@ class Controller:
 
     @classmethod
     def derived(cls, name: str, doc: str, module: ModuleType,
-                diag_names: list[str]) -> Controller:
+                diag: list[tuple[str, str]]) -> Controller:
         """The registry entry of a ControllerDesign module: its STATES and PARAMS become the
         layout groups <name>_states and <name>_params."""
         return cls(name, doc, module.STATES, module.PARAMS, f"{name}_states",
-                   f"{name}_params", diag_names, from_design(module),
+                   f"{name}_params", diag, from_design(module),
                    (_source(module), "derivation/design.py"), module)
 
 
@@ -143,24 +143,25 @@ REGISTRY: dict[str, Controller] = {
     "paper": Controller(
         "paper", "Bakhshi & Alfi (2020) observer-based adaptive fuzzy backstepping, eq (49)",
         lay.CONTROLLER_STATES, lay.CONTROLLER_PARAMS, "controller_states",
-        "controller_params", ["xhat_1", "xhat_2", "xhat_3", "xhat_4"], None),
+        "controller_params", [(e.name, e.unit) for e in lay.CONTROLLER_STATES[:N_DIAG]], None),
     "pi": Controller.derived(
         "pi", "gain-scheduled PI on collective pitch with anti-windup (baseline, "
               "Jonkman 2009 / ROSCO)",
-        pi_baseline, ["speed_error", "integrator", "Kp", "Ki"]),
+        pi_baseline, [("speed_error", "rad/s"), ("integrator", "rad"), ("Kp", "s"), ("Ki", "-")]),
     "physical": Controller.derived(
         "physical", "physically consistent adaptive fuzzy backstepping AFTC, ω_r ← β ← u, "
                     "scheduled ∂T/∂β, anti-windup, eq (49)-style accommodation (ours)",
-        physical, ["z1", "z2", "alpha1", "kappa"]),
+        physical, [("z1", "rad/s"), ("z2", "rad"), ("alpha1", "rad"), ("kappa", "-")]),
     "drivetrain": Controller.derived(
         "drivetrain", "adaptive fuzzy backstepping AFTC through the drivetrain, "
                       "ω_g - (d_s/J_g)θ_s ← θ_s ← ω_r ← β ← u, scheduled ∂T/∂β, anti-windup, "
                       "eq (49)-style accommodation (ours)",
-        drivetrain, ["z1", "z3", "z4", "kappa"]),
+        drivetrain, [("z1", "rad/s"), ("z3", "rad/s"), ("z4", "rad"), ("kappa", "-")]),
     "external": Controller(
         "external", "pitch commands from outside the compiled loop (ROSCO's libdiscon)",
         EXTERNAL_STATES, EXTERNAL_PARAMS, "external_states", "external_params",
-        ["pitch_cmd_1", "pitch_cmd_2", "pitch_cmd_3", "unused"], _external),
+        [*[(f"pitch_cmd_{j}", "rad") for j in range(1, lay.N_BLADES + 1)], ("unused", "-")],
+        _external),
 }
 
 
@@ -199,7 +200,9 @@ def as_json() -> dict:
     return {
         "controllers": {c.name: {"function": f"ctrl_{c.name}", "init": f"init_{c.name}",
                                  "states": c.states_group, "params": c.params_group,
-                                 "diag": c.diag_names, "doc": c.doc} | _checks_json(c)
+                                 "diag": [n for n, _ in c.diag],
+                                 "diag_units": [u for _, u in c.diag], "doc": c.doc}
+                        | _checks_json(c)
                         for c in REGISTRY.values()},
         "measurements": [{"name": n, "unit": u} for n, u in zip(MEAS, MEAS_UNITS, strict=True)],
         "schedule": SCHED,

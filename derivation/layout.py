@@ -226,6 +226,14 @@ THETA_STAR = [Entry(f"theta_star_{i}[{m}]", 0.0, "-", f"optimal fuzzy weight {m}
 #: paper values of Table 1 that differ from the defaults, kept by name for tests and docs
 PAPER_TABLE1 = {"K_obs": (1.0, 1.0, 5.0, 5.0)}
 
+#: the pitch actuator's dynamics under the hydraulic faults, at full severity (Odgaard,
+#: Stoustrup, Kinnaert 2013): the plant's fault inputs are built from these
+HYDRAULIC_FAULTS = {
+    "pressure_drop": {"omega_n": nrel5mw.PRESSURE_DROP_OMEGA_N,
+                      "zeta": nrel5mw.PRESSURE_DROP_ZETA},
+    "air_in_oil": {"omega_n": nrel5mw.AIR_IN_OIL_OMEGA_N, "zeta": nrel5mw.AIR_IN_OIL_ZETA},
+}
+
 
 def names(entries: list[Entry]) -> list[str]:
     return [e.name for e in entries]
@@ -250,6 +258,7 @@ def as_json() -> dict:
         "n_mf": N_MF,
         "n_blades": N_BLADES,
         "n_chain": N_CHAIN,
+        "hydraulic_faults": HYDRAULIC_FAULTS,
         "rule_counts": [rule_count(i) for i in range(1, N_CHAIN + 1)],
         "paper_table1": {k: list(v) for k, v in PAPER_TABLE1.items()},
     }

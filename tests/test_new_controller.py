@@ -26,7 +26,7 @@ from derivation import controllers
 import toy_design
 controllers.REGISTRY = {{**controllers.REGISTRY, "toy": controllers.Controller.derived(
     "toy", "test-only: physical chain without anti-windup", toy_design,
-    ["z1", "z2", "alpha1", "f_hat"])}}
+    [("z1", "rad/s"), ("z2", "rad"), ("alpha1", "rad"), ("f_hat", "rad/s^2")])}}
 """
 
 GENERATE = REGISTER + """

@@ -58,8 +58,8 @@ def controllers() -> dict:
 
 
 def output_spec(controller: str, fdi: bool = True) -> list[tuple[str, str]]:
-    diag = controllers()[controller]["diag"]
-    return common_outputs(fdi) + [(n, "rad/s" if n == "xhat_1" else "-") for n in diag]
+    reg = controllers()[controller]
+    return common_outputs(fdi) + list(zip(reg["diag"], reg["diag_units"], strict=True))
 
 
 def state_names(plant: str, controller: str = "paper") -> list[str]:
