@@ -70,6 +70,17 @@ def block(group: str, prefix: str) -> slice:
     return slice(at[0], at[-1] + 1)
 
 
+def prefix(group: str, of: str) -> slice:
+    """Where ``group`` sits at the start of group ``of`` (the paper's plant states at the
+    start of the NREL 5-MW's, the fault inputs at the start of the actuator faults): checked
+    by name, so that a slice never silently takes the wrong entries."""
+    inner, outer = names(group), names(of)
+    if outer[:len(inner)] != inner:
+        raise KeyError(f"{group} is not the start of {of}: {', '.join(inner)} against "
+                       f"{', '.join(outer[:len(inner)])}")
+    return slice(0, len(inner))
+
+
 def values(group: str, vec) -> dict[str, float]:
     """``vec`` (a vector of ``group``) by name."""
     return dict(zip(names(group), (float(x) for x in vec), strict=True))

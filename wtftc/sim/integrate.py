@@ -302,7 +302,7 @@ def _put_chunk(call: Buffered, runs: list[Run], k: int, m: int, n_c: int, dt: fl
     tf = tk[:1] if held else tk
     nominal = {g: lay.defaults(g)[:, None] for g in ("actuator_faults", "sensor_faults",
                                                       "fault_inputs")}
-    n_ctrl = lay.size("fault_inputs")
+    told = lay.prefix("fault_inputs", of="actuator_faults")
     n_runs = len(runs)
     for b, r in enumerate(runs):
         call.put("wind3", np.vstack([r.wind(tk), r.wind(tk + dt / 2), r.wind(tk + dt)]), b,
@@ -311,7 +311,7 @@ def _put_chunk(call: Buffered, runs: list[Run], k: int, m: int, n_c: int, dt: fl
         call.put("actuator_faults", s.actuator(tf) if s else nominal["actuator_faults"], b,
                  n_runs)
         call.put("sensor_faults", s.sensor(tf) if s else nominal["sensor_faults"], b, n_runs)
-        call.put("ctrl_fault", c.actuator(tf)[:n_ctrl] if c else nominal["fault_inputs"], b,
+        call.put("ctrl_fault", c.actuator(tf)[told] if c else nominal["fault_inputs"], b,
                  n_runs)
 
 

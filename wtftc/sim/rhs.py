@@ -172,7 +172,8 @@ def _measure(loop: Loop, pf: ca.Function, xp: ca.SX, sym: dict) -> dict:
     pt, wind = sym["p_turbine"], sym["wind"]
     n_b = lay.n_blades()
     op = load("aero_operating_point", "interpreted")(
-        x_plant=xp[:lay.size("plant_states")], wind=wind, p_turbine=pt)
+        x_plant=xp[lay.prefix("plant_states", of=PLANTS[loop.plant]["states"])], wind=wind,
+        p_turbine=pt)
     cp = cp_loop_function(loop.table)(op["tsr"], op["beta_mean"])
     sensors = pf(x_plant=xp, v=ca.DM.zeros(n_b), wind=wind, cp=cp,
                  actuator_faults=sym["actuator_faults"], sensor_faults=sym["sensor_faults"],

@@ -15,6 +15,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import load
+from wtftc.sim.rhs import PLANTS
 
 
 @dataclass
@@ -125,17 +126,18 @@ def along_run(rc, res):
     """V_4(t) of eq (47) along a run of the paper's design (``res`` kept its states), with
     θ* fitted on the run itself, and eq (51)'s check: (V, bound, observer analysis)."""
     n_p, n_c, _ = rc.loop.n_states
-    x_plant = res.z[:, :lay.size("plant_states")]
+    x_plant = res.z[:, lay.prefix("plant_states", of=PLANTS[rc.plant]["states"])]
     x_ctrl = res.z[:, n_p:n_p + n_c]
     d1 = res.column("T_aero") / rc.param("J_r")
-    p_plant = rc.p_turbine[:lay.size("plant_params")]
+    p_plant = rc.p_turbine[lay.prefix("plant_params", of="turbine_params")]
     theta_star, _ = fit_theta_star(x_plant, x_ctrl, d1, lay.values("plant_params", p_plant),
                                    lay.values("controller_params", rc.p_ctrl))
     obs = observer_lyapunov(rc.p_ctrl[lay.block("controller_params", "K_obs")])
     n_chain = lay.layout()["n_chain"]
     P = obs.P if obs.hurwitz else np.eye(n_chain)
     n = len(res.t)
-    fault = (res.schedule.actuator(res.t)[:lay.size("fault_inputs")] if res.schedule
+    fault = (res.schedule.actuator(res.t)[lay.prefix("fault_inputs", of="actuator_faults")]
+             if res.schedule
              else np.tile(lay.defaults("fault_inputs")[:, None], (1, n)))
     yd = np.tile(rc.yd[:, None], (1, n))
     V = np.array(load("lyapunov").map(n)(
