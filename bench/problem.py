@@ -71,7 +71,7 @@ class Problem:
 
     @property
     def n_states(self) -> int:
-        return self.rhs.size1_in(0)
+        return self.rhs.size1_in("z")
 
     @cached_property
     def yd(self) -> np.ndarray:
@@ -85,7 +85,7 @@ class Problem:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         af = self.schedule.actuator(t)
         return (self.config.wind(t), af, self.schedule.sensor(t),
-                af[:len(lay.names("fault_inputs"))])
+                af[lay.prefix("fault_inputs", of="actuator_faults")])
 
     @property
     def events(self) -> list[float]:

@@ -53,11 +53,15 @@ def rule_count(i: int) -> int:
 
 
 # --- plant states: eqs (1)-(4), pitch of eq (4) per blade (x4 = mean blade pitch) ---
-PLANT_STATES = [
+#: the two-mass drivetrain's states, shared by the paper's plant and the NREL 5-MW
+DRIVETRAIN_STATES = [
     Entry("omega_r", nrel5mw.RATED_SPEED, "rad/s", "rotor speed, x1 of eq (5)"),
     Entry("theta_s", 0.0, "rad", "drivetrain torsion angle, x2 of eq (6)"),
     Entry("omega_g", nrel5mw.RATED_SPEED, "rad/s",
           "generator speed referred to the LSS, x3 of eq (7)"),
+]
+PLANT_STATES = [
+    *DRIVETRAIN_STATES,
     *[Entry(f"beta_{j}", 0.0, "rad", f"pitch angle of blade {j}; x4 = mean, eq (8)")
       for j in range(1, N_BLADES + 1)],
 ]
@@ -140,7 +144,7 @@ CONTROLLER_PARAMS = [
 # --- simulator plants (derivation/turbine.py) ---
 _N = nrel5mw.GEARBOX_RATIO  # HSS/LSS
 NREL_STATES = [
-    *PLANT_STATES[:3],
+    *DRIVETRAIN_STATES,
     *[Entry(f"beta_{j}", 0.0, "rad", f"pitch angle of blade {j}") for j in range(1, N_BLADES + 1)],
     *[Entry(f"beta_rate_{j}", 0.0, "rad/s", f"pitch rate of blade {j}")
       for j in range(1, N_BLADES + 1)],

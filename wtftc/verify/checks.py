@@ -12,7 +12,7 @@ disturbance d1(t) so that every reference derivative and the ẏ term are exerci
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
@@ -205,7 +205,8 @@ def compiled_vs_interpreted(n_points: int = 50, seed: int = 0) -> dict[str, floa
 class Signals:
     """Exogenous signals of the verification run: y_d(t) and its derivatives, d1(t)."""
 
-    y0: float = 1.27
+    y0: float = field(default_factory=lambda: float(  # the reference's default, y_d = 1.27
+        lay.defaults("reference")[lay.index("reference", "yd_0")]))
     amp: float = 0.02  # rad/s
     omega: float = 0.8  # rad/s
     d_amp: float = 0.01  # rad/s²
