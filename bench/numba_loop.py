@@ -884,18 +884,20 @@ def step_inputs(rc, dt: float, n_steps: int) -> StepInputs:
     """The wind at t_k, t_k + dt/2, t_k + dt and the fault rows at t_k of
     wtftc.sim.integrate.run_loops (the plant's schedule; eq (49)'s in case 3, nominal otherwise),
     with a lock "wherever the blade is" left NaN for the loop to bind at its onset step."""
-    from wtftc.model.faults import Schedule
+    from wtftc.model.faults import Schedule, nominal_actuator
 
     tk = np.arange(n_steps) * dt
     wind3 = np.column_stack([rc.wind(tk), rc.wind(tk + dt / 2), rc.wind(tk + dt)])
-    schedule = Schedule(copy.deepcopy(rc.faults)) if rc.faults else None
-    ctrl_schedule = Schedule(copy.deepcopy(rc.faults)) if rc.told_fault else None
+    tp = rc.loop.p_turbine
+    schedule = Schedule(copy.deepcopy(rc.faults), tp) if rc.faults else None
+    ctrl_schedule = Schedule(copy.deepcopy(rc.faults), tp) if rc.told_fault else None
     nominal = lay.defaults("fault_inputs")
     af = (schedule.actuator(tk) if schedule
-          else np.tile(lay.defaults("actuator_faults")[:, None], (1, n_steps)))
+          else np.tile(nominal_actuator(tp)[:, None], (1, n_steps)))
     sf = (schedule.sensor(tk) if schedule
           else np.tile(lay.defaults("sensor_faults")[:, None], (1, n_steps)))
-    ck = (ctrl_schedule.actuator(tk)[:len(nominal)] if ctrl_schedule
+    ck = (ctrl_schedule.actuator(tk)[lay.prefix("fault_inputs", of="actuator_faults")]
+          if ctrl_schedule
           else np.tile(nominal[:, None], (1, n_steps)))
     bind = np.full(3, -1, dtype=np.int64)
     for f in schedule.faults if schedule else []:

@@ -55,7 +55,7 @@ class Problem:
 
     @cached_property
     def schedule(self) -> Schedule:
-        return Schedule(list(self.config.faults))
+        return Schedule(list(self.config.faults), self.config.loop.p_turbine)
 
     @cached_property
     def rhs(self) -> ca.Function:

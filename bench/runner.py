@@ -226,7 +226,8 @@ def rk4_default(p: Problem, dt: float, t_final: float, fast_math: bool = False,
                 ) -> integrate.Result:
     """wtftc's default path: the compiled whole-trajectory chunks (sim.integrate.run_loops)."""
     rc = p.config
-    run = integrate.Run(p.z0, rc.wind, Schedule(list(rc.faults)), Schedule(list(rc.faults)),
+    run = integrate.Run(p.z0, rc.wind, Schedule(list(rc.faults), rc.loop.p_turbine),
+                        Schedule(list(rc.faults), rc.loop.p_turbine),
                         p.yd, rc.p_ctrl)
     return integrate.run_loops(replace(rc.loop, fdi=False), [run], t_final, dt,
                                decimate=int(round(OUT_DT / dt)), progress=False,

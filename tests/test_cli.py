@@ -90,6 +90,7 @@ def _bad_cp_table(tmp_path):
     (["--plant", "vestas"], "plant"),
     (["--dt", "-0.001"], "dt_s"),
     (["--dt", "5"], "dt_s"),
+    (["--t-final", "1.0005"], "t_final_s"),  # not a whole number of steps: was run as 1.0 s
     (["--wind", "hurricane"], "kind"),
     (["--wind", "file", "--wind-file", "{wind}"], "wind.path"),
     (["--config", "{cfg_unknown}"], "turbo"),

@@ -178,7 +178,7 @@ def test_a_divergence_names_the_states_or_outputs_that_failed():
 
 
 def test_too_large_dt_is_refused_with_the_reason():
-    rc = config.make_config({"dt_s": 0.09, "t_final_s": 1.0, "wind": WIND_14,
+    rc = config.make_config({"dt_s": 0.09, "t_final_s": 0.9, "wind": WIND_14,
                             "controller_params": {"c": [60, 60, 60, 60]}})
     from wtftc.errors import ConfigError
 

@@ -180,6 +180,11 @@ def _timing(raw: dict) -> tuple[float, float, int, int]:
     dt = float(_number(raw, "dt_s", lo=0, hi=10.0))
     if dt > t_final:
         raise ConfigError("dt_s", dt, f"at most t_final_s = {t_final}")
+    n_steps = round(t_final / dt)
+    if abs(n_steps * dt - t_final) > 1e-9 * max(t_final, 1.0):
+        raise ConfigError("t_final_s", t_final, f"a whole number of steps of dt_s = {dt:g} s "
+                          f"(e.g. {n_steps * dt:g} or {(n_steps + 1) * dt:g} s): the run "
+                          "would otherwise end at a time other than the one asked for")
     seed = _number(raw, "seed", lo=-1, integer=True)
     rate = float(_number(raw, "output_rate_hz", lo=0, hi=1e6))
     decimate = max(1, int(round(1.0 / (rate * dt))))

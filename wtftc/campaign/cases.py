@@ -95,8 +95,9 @@ def _prepare(rc: RunConfig, check: bool = True) -> tuple[integrate.Run, float | 
     if check:
         lam = stability.stability_limit(rc.loop, z0, float(rc.wind(0.0)), rc.yd, rc.p_ctrl)
         stability.check_dt(rc.dt, lam)
-    schedule = Schedule(copy.deepcopy(rc.faults)) if rc.faults else None
-    ctrl_schedule = Schedule(copy.deepcopy(rc.faults)) if rc.told_fault else None
+    tp = rc.loop.p_turbine
+    schedule = Schedule(copy.deepcopy(rc.faults), tp) if rc.faults else None
+    ctrl_schedule = Schedule(copy.deepcopy(rc.faults), tp) if rc.told_fault else None
     return integrate.Run(z0, rc.wind, schedule, ctrl_schedule, rc.yd, rc.p_ctrl,
                          use_fdi=rc.uses_fdi), lam
 

@@ -162,11 +162,26 @@ DEFAULT_FAULT = [
 ]
 
 
+def _nominal_dynamics(p_turbine=None) -> tuple[float, float]:
+    """The actuator's nominal (ω_n [rad/s], ζ) of a turbine (the layout's default one)."""
+    tp = lay.vector("turbine_params") if p_turbine is None else np.asarray(p_turbine)
+    return (float(tp[lay.index("turbine_params", "omega_n_nominal")]),
+            float(tp[lay.index("turbine_params", "zeta_nominal")]))
+
+
+def nominal_actuator(p_turbine=None) -> np.ndarray:
+    """The actuator fault inputs of a fault-free turbine: ρ = 1, no lock, and the turbine's
+    nominal ω_n, ζ on every blade (not the layout's: the run's turbine may change them)."""
+    return Schedule([], p_turbine).actuator(np.zeros(1))[:, 0]
+
+
 @dataclass
 class Schedule:
     """Per-step fault inputs of the compiled loop, in the layout's order."""
 
     faults: list[Fault] = field(default_factory=list)
+    #: the turbine parameters of the run: the actuator's nominal ω_n, ζ come from them
+    p_turbine: tuple | None = None
 
     def events(self) -> list[float]:
         """Times at which a lock "wherever the blade is" must read the blade angle."""
@@ -199,9 +214,7 @@ class Schedule:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         n = lay.n_blades()
         rho, lock, ubar = np.ones((n, t.size)), np.zeros((n, t.size)), np.zeros((n, t.size))
-        tp = lay.vector("turbine_params")
-        wn0 = tp[lay.index("turbine_params", "omega_n_nominal")]
-        z0 = tp[lay.index("turbine_params", "zeta_nominal")]
+        wn0, z0 = _nominal_dynamics(self.p_turbine)
         wn, zt = np.full((n, t.size), wn0), np.full((n, t.size), z0)
         for f in self.faults:
             j, w = f.blade - 1, f.weight(t)

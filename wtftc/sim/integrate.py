@@ -26,6 +26,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import cache_dir, compile_cached, compiler, is_cached
+from wtftc.model.faults import nominal_actuator
 from wtftc.sim.rhs import PLANTS, Loop, output_spec, rhs_function, state_names
 
 CHUNK = 1000  # RK4 steps per compiled call
@@ -293,15 +294,16 @@ def _put_static(call: Buffered, loop: Loop, runs: list[Run], dt: float) -> None:
         call.put("dt", [dt], b, n_runs)
 
 
-def _put_chunk(call: Buffered, runs: list[Run], k: int, m: int, n_c: int, dt: float) -> None:
+def _put_chunk(call: Buffered, loop: Loop, runs: list[Run], k: int, m: int, n_c: int,
+               dt: float) -> None:
     """Wind at t, t + dt/2, t + dt of every step of the chunk; fault inputs per step, or one
     column held when they are constant over the chunk (the usual case)."""
     tk = (k + np.arange(n_c)) * dt
     held = all(s is None or s.constant_between(tk[0], tk[m - 1])
                for r in runs for s in (r.schedule, r.ctrl_schedule))
     tf = tk[:1] if held else tk
-    nominal = {g: lay.defaults(g)[:, None] for g in ("actuator_faults", "sensor_faults",
-                                                      "fault_inputs")}
+    nominal = {g: lay.defaults(g)[:, None] for g in ("sensor_faults", "fault_inputs")}
+    nominal["actuator_faults"] = nominal_actuator(loop.p_turbine)[:, None]
     told = lay.prefix("fault_inputs", of="actuator_faults")
     n_runs = len(runs)
     for b, r in enumerate(runs):
@@ -355,7 +357,7 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
         # a hook's chunks end on multiples of its interval, whatever events cut them
         end = (k // n_c + 1) * n_c if hook is not None else k + n_c
         stop = min([n_steps, end] + [e for e in events if e > k])
-        _put_chunk(call, runs, k, stop - k, n_c, dt)
+        _put_chunk(call, loop, runs, k, stop - k, n_c, dt)
         call.put("z", batch.z)
         if hook is not None:
             hook.before(call)
