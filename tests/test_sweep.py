@@ -242,6 +242,7 @@ def test_unreachable_scheduler_is_a_clear_error(tmp_path):
     assert p.returncode == 2, p.stderr
     assert "--scheduler = 'tcp://127.0.0.1:9' is not allowed" in p.stderr
     assert "Traceback" not in p.stderr
+    assert not (tmp_path / "x").exists()  # refused before anything was written
 
 
 def test_summary_of_a_folder_that_is_not_a_sweep(tmp_path):

@@ -17,6 +17,7 @@ from wtftc.artefacts import layout as lay
 from wtftc.config import CASES, RunConfig, make_config
 from wtftc.errors import ConfigError
 from wtftc.model.faults import Schedule
+from wtftc.results.io import run_folder
 from wtftc.results.metrics import metrics
 from wtftc.results.tables import write_table
 from wtftc.results.traces import write_outputs
@@ -103,13 +104,19 @@ def _prepare(rc: RunConfig, check: bool = True) -> tuple[integrate.Run, float | 
 
 
 def run_and_write(rc: RunConfig, out_dir: Path, progress: bool = True):
-    """``wtftc run``: one run, its files and figures; (result, metrics table, paths)."""
-    res = run(rc, progress=progress)
-    m = metrics(rc, res)
-    paths = write_outputs(out_dir, rc, res, m)
-    paths += write_run_figures(out_dir, rc, res, m)
-    table = write_table(out_dir, [m])
-    return res, table, paths + [Path(out_dir) / "metrics.md", Path(out_dir) / "metrics.csv"]
+    """``wtftc run``: one run, its files and figures; (result, metrics table, paths).
+
+    The files go into a temporary sibling that replaces ``out_dir`` as a whole when all are
+    written (results.io.run_folder): never a mix of two runs, never a stale file."""
+    out_dir = Path(out_dir)
+    with run_folder(out_dir) as tmp:
+        res = run(rc, progress=progress)
+        m = metrics(rc, res)
+        paths = write_outputs(tmp, rc, res, m)
+        paths += write_run_figures(tmp, rc, res, m)
+        table = write_table(tmp, [m])
+        paths += [tmp / "metrics.md", tmp / "metrics.csv"]
+    return res, table, [out_dir / Path(p).relative_to(tmp) for p in paths]
 
 
 def run_record(rc: RunConfig, res: Result, m: dict) -> dict:

@@ -2,10 +2,19 @@
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
+import shutil
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+
+from wtftc.errors import ConfigError
+
+#: what makes a folder a wtftc run folder, which a new run may replace as a whole
+RUN_MARKERS = ("config.toml", "metrics.json")
 
 
 def _umask_mode() -> int:
@@ -58,15 +67,17 @@ def ensure_writable_dir(path: Path, option: str = "--out", create: bool = True) 
     folder, so that a run can be refused before any output exists.
     """
     path = Path(path)
+    if not str(path):
+        raise ConfigError(option, "", "a folder name")
     if path.exists() and not path.is_dir():
-        raise ValueError(f"{option} {path}: exists and is not a folder")
+        raise ConfigError(option, str(path), "a folder (this is a file)")
     if not create:
         probe = path
         while not probe.exists():
             probe = probe.parent
         if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
-            raise ValueError(f"{option} {path}: cannot write there ({probe} is not a "
-                             "writable folder)")
+            raise ConfigError(option, str(path), f"a folder that can be written ({probe} is "
+                              "not a writable folder)")
         return path
     try:
         path.mkdir(parents=True, exist_ok=True)
@@ -74,8 +85,67 @@ def ensure_writable_dir(path: Path, option: str = "--out", create: bool = True) 
         os.close(fd)
         os.unlink(probe)
     except OSError as exc:
-        raise ValueError(f"{option} {path}: cannot write there ({exc.strerror})") from None
+        raise ConfigError(option, str(path),
+                          f"a folder that can be written ({exc.strerror})") from None
     return path
+
+
+@contextmanager
+def run_folder(out: Path, option: str = "--out") -> Iterator[Path]:
+    """Write a run's files into a hidden temporary sibling of ``out`` and put it in place as
+    a whole: a run folder is never mixed from two runs nor left half-written, and an old run
+    in ``out`` is replaced, stale files included. A folder that is not a run folder (no
+    config.toml and metrics.json) and is not empty is refused, as is the current folder or
+    one of its ancestors. Concurrent runs into one ``out`` swap in turn (a lock on the
+    parent folder): the last one's files are there, all of them."""
+    out = Path(out)
+    _check_replaceable(out, option)
+    parent = out.parent if str(out.parent) else Path(".")
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=parent))
+    except OSError as exc:
+        raise ConfigError(option, str(out),
+                          f"a folder that can be written ({exc.strerror})") from None
+    try:
+        yield tmp
+        os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp creates 0700
+        _swap_in(tmp, out, parent)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _check_replaceable(out: Path, option: str) -> None:
+    if not str(out) or out.resolve() in (Path.cwd(), *Path.cwd().parents):
+        raise ConfigError(option, str(out), "a folder of its own (not the current folder or "
+                          "one that contains it)")
+    if out.exists() and not out.is_dir():
+        raise ConfigError(option, str(out), "a folder (this is a file)")
+    if out.is_dir() and any(out.iterdir()) and not all((out / m).exists() for m in RUN_MARKERS):
+        raise ConfigError(option, str(out), "a new folder, an empty one or a wtftc run folder "
+                          "(this one holds other files; nothing was written)")
+
+
+def _swap_in(tmp: Path, out: Path, parent: Path) -> None:
+    fd = os.open(parent, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        old = None
+        if out.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=parent))
+            os.rename(out, old / out.name)
+        os.rename(tmp, out)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    finally:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        os.close(fd)
 
 
 def write_parquet(path: Path, columns: dict, units: dict) -> None:

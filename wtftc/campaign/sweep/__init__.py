@@ -158,7 +158,13 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
     sw = load_sweep(sweep_path)
     runs, dup = expand(sw)
     _check_runs(sw, runs, quiet)
-    done = _prepare(out_dir, sw, sweep_path.read_text(), overwrite)
+    # a remote scheduler first: one that cannot be reached leaves nothing in out_dir
+    client, cluster = _client(scheduler, workers) if scheduler else (None, None)
+    try:
+        done = _prepare(out_dir, sw, sweep_path.read_text(), overwrite)
+    except BaseException:
+        _close(client, cluster)
+        raise
     todo = [pt for pt in runs if pt["run_id"] not in done]
     if not quiet:
         print(f"sweep {sw.sweep_id} ({sw.mode}): {len(runs)} runs"
@@ -167,6 +173,7 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
                  else "") + f", {len(todo)} to run in batches of {sw.batch_size}", flush=True)
     summary = {"runs": len(runs), "already": len(runs) - len(todo), "ran": 0, "lost": 0}
     if not todo:
+        _close(client, cluster)
         return summary
     progress = _Progress(len(runs), len(runs) - len(todo), quiet)
 
@@ -174,8 +181,9 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
         raise Interrupted(signal.Signals(signum).name)
 
     old = signal.signal(signal.SIGTERM, _stop)
-    client, cluster = _client(scheduler, workers)
     try:
+        if client is None:
+            client, cluster = _client(None, workers)
         if not quiet:
             n_workers = len(client.scheduler_info()["workers"])
             print(f"Dask: {scheduler or 'local cluster'}, {n_workers} workers", flush=True)
@@ -186,7 +194,12 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
         raise Interrupted("SIGINT") from None
     finally:
         signal.signal(signal.SIGTERM, old)
-        client.close()
-        if cluster is not None:
-            cluster.close()
+        _close(client, cluster)
     return summary
+
+
+def _close(client, cluster) -> None:
+    if client is not None:
+        client.close()
+    if cluster is not None:
+        cluster.close()
