@@ -25,7 +25,7 @@ import casadi as ca
 import numpy as np
 
 from wtftc.artefacts import layout as lay
-from wtftc.artefacts.loader import cache_dir, compile_cached, compiler, is_cached
+from wtftc.artefacts.loader import cache_dir, compiled_external
 from wtftc.model.faults import nominal_actuator
 from wtftc.sim.rhs import PLANTS, Loop, output_spec, rhs_function, state_names
 
@@ -90,26 +90,23 @@ FAST_MATH_CFLAGS = ("-O2", "-fno-semantic-interposition", "-ffast-math", "-fPIC"
 
 def compiled(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
              quiet: bool = False) -> ca.Function:
-    """f as generated C, compiled once and cached (or f itself with no compiler)."""
+    """f as generated C, compiled once and cached (or f itself, on CasADi's virtual
+    machine, where compiling or caching is impossible: one warning per process)."""
     return _compile_function(f, label, flags, quiet)
 
 def _compile_function(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
                       quiet: bool = False) -> ca.Function:
-    """Generate C for f and load it through the loader's hash-keyed compile cache."""
-    cc = compiler()
-    if cc is None:
-        return f
+    """Generate C for f and load it through the loader's verified compile cache; f itself
+    where the loader cannot compile or cache it (the loader warns, once per process)."""
     with tempfile.TemporaryDirectory() as tmp:
         cname = f"{label}.c"
         cg = ca.CodeGenerator(cname, {"with_header": False})
         cg.add(f)
         cg.generate(tmp + os.sep)
-        c_path = Path(tmp, cname)
-        if not quiet and not is_cached(c_path, cc, flags):
-            print(f"  compiling the {label} loop (once; cached in {cache_dir()}) ...",
-                  file=sys.stderr, flush=True)
-        so = compile_cached(c_path, cc, flags)
-    return ca.external(f.name(), str(so))
+        note = None if quiet else (f"  compiling the {label} loop (once; cached in "
+                                   f"{cache_dir()}) ...")
+        loaded = compiled_external(f.name(), Path(tmp, cname), flags, note)
+    return f if loaded is None else loaded
 
 @cache
 def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False) -> ca.Function:
