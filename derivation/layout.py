@@ -230,6 +230,13 @@ THETA_STAR = [Entry(f"theta_star_{i}[{m}]", 0.0, "-", f"optimal fuzzy weight {m}
 #: paper values of Table 1 that differ from the defaults, kept by name for tests and docs
 PAPER_TABLE1 = {"K_obs": (1.0, 1.0, 5.0, 5.0)}
 
+#: the operating envelope of a run (ours): a rotor beyond ``overspeed`` × rated speed has
+#: run away (the campaign's largest peak that recovered was 1.27 × rated; an overspeed
+#: protection trips near 1.2-1.3 ×), and one below ``stall`` × rated has stalled (the
+#: NREL 5-MW's cut-in rotor speed is 0.57 × rated): either run is recorded as lost at the
+#: first step outside, with the reason (wtftc.sim.integrate.divergence)
+ENVELOPE = {"overspeed_over_rated": 2.0, "stall_under_rated": 0.3}
+
 #: the pitch actuator's dynamics under the hydraulic faults, at full severity (Odgaard,
 #: Stoustrup, Kinnaert 2013): the plant's fault inputs are built from these
 HYDRAULIC_FAULTS = {
@@ -263,6 +270,7 @@ def as_json() -> dict:
         "n_blades": N_BLADES,
         "n_chain": N_CHAIN,
         "hydraulic_faults": HYDRAULIC_FAULTS,
+        "envelope": ENVELOPE,
         "rule_counts": [rule_count(i) for i in range(1, N_CHAIN + 1)],
         "paper_table1": {k: list(v) for k, v in PAPER_TABLE1.items()},
     }

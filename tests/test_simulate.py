@@ -94,20 +94,37 @@ def test_case3_is_not_worse_than_case2():
     assert m3["max_abs_speed_error_rad_s"] <= 1.05 * m2["max_abs_speed_error_rad_s"]
 
 
-def test_sign_as_written_feathers_the_blades_and_loses_the_rotor():
+def test_sign_as_written_pitches_the_wrong_way_and_stalls_the_rotor():
     """Paper-notes defect 2: with the control direction as written the law pitches the wrong
-    way; the blades run to the 90° stop and the rotor slows to a fraction of rated within
-    seconds, where it stays (the controller's states wind up to about 6e4 and hold). Before
-    the membership form of derivation/fuzzy.py, the saturated memberships' derivatives
-    overflowed to NaN and this was reported as a divergence at 5.5 s."""
+    way, toward feather, while the rotor is below its reference; the rotor slows until it
+    leaves the operating envelope (below 0.3 × rated: stalled), where the run is recorded
+    as lost, with the reason. (Before the operating envelope it ran on to 90° of pitch and
+    a rotor at a fraction of rated, reported as not diverged.)"""
     rc, res, m = _run(control_sign=1, t_final_s=30.0)
-    assert m["diverged"] is None and np.all(np.isfinite(res.outputs))
-    late = res.t > 15.0  # at the 8°/s rate limit the blades need about 11 s to feather
-    for j in (1, 2, 3):
-        assert np.degrees(res.column(f"beta_{j}")[late]).min() > 85.0
-    assert res.column("omega_r")[late].max() < 0.5 * rc.reference
+    lost = m["diverged"]
+    assert lost is not None and "the rotor stalled" in lost["reason"], lost
+    assert 5.0 < lost["t_s"] < 10.0
+    assert res.t[-1] <= lost["t_s"] and np.all(np.isfinite(res.outputs))
+    beta = np.degrees(res.column("beta_1"))
+    assert beta[-1] > beta[0] + 30.0  # toward feather, away from the power it needs
+    w = res.column("omega_r")
+    assert w[-1] < 0.31 * rc.param("omega_g_rated") and np.all(np.diff(w[res.t > 1.0]) < 0)
     corrected = _run(t_final_s=30.0)[2]
-    assert corrected["max_abs_speed_error_rad_s"] < 0.1 * m["max_abs_speed_error_rad_s"]
+    assert corrected["diverged"] is None
+
+
+def test_a_rotor_that_runs_away_is_recorded_as_lost():
+    """A blade that cannot pitch (rate limit 1e-4 rad/s) under a step from 12 to 25 m/s:
+    the rotor accelerates past 2 × rated, the operating envelope's bound, and the run stops
+    there with the reason (it used to run on, reported as not diverged)."""
+    wind = {"kind": "steps", "speed_mps": 12.0, "steps": [[5.0, 25.0]]}
+    rc, res, m = _run(controller="physical", wind=wind, t_final_s=30.0,
+                      turbine_params={"pitch_rate_max": 1e-4})
+    lost = m["diverged"]
+    assert lost is not None and "the rotor ran away" in lost["reason"], lost
+    assert 5.0 < lost["t_s"] < 15.0
+    assert res.column("omega_r").max() <= 2.0 * rc.param("omega_g_rated")
+    assert res.t[-1] <= lost["t_s"]
 
 
 def test_a_real_divergence_stops_with_its_time_cause_and_last_finite_state():

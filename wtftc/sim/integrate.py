@@ -225,6 +225,37 @@ def _mapped(f: ca.Function, n_runs: int, threads: int) -> ca.Function:
     return f.map(n_runs, "thread", threads) if threads > 1 else f.map(n_runs, "serial")
 
 
+@dataclass(frozen=True)
+class Envelope:
+    """Where a run's rotor must stay (layout.json "envelope", derivation/layout.py): beyond
+    ``high`` it has run away, below ``low`` it has stalled; either ends the run as lost."""
+
+    row: int  # ω_r's row in the state
+    low: float  # rad/s
+    high: float  # rad/s
+
+    @classmethod
+    def of(cls, loop: Loop) -> Envelope:
+        rated = loop.p_turbine[lay.index("turbine_params", "omega_g_rated")]
+        env = lay.layout()["envelope"]
+        return cls(lay.index(PLANTS[loop.plant]["states"], "omega_r"),
+                   env["stall_under_rated"] * rated, env["overspeed_over_rated"] * rated)
+
+    def outside(self, zz: np.ndarray) -> np.ndarray:
+        w = zz[self.row]
+        return (w > self.high) | (w < self.low)
+
+    def reason(self, w: float) -> str:
+        env = lay.layout()["envelope"]
+        if w > self.high:
+            return (f"out of the operating envelope: ω_r = {w:.4g} rad/s, above "
+                    f"{env['overspeed_over_rated']:g} × rated ({self.high:.4g} rad/s): the "
+                    "rotor ran away")
+        return (f"out of the operating envelope: ω_r = {w:.4g} rad/s, below "
+                f"{env['stall_under_rated']:g} × rated ({self.low:.4g} rad/s): the rotor "
+                "stalled")
+
+
 @dataclass
 class _Batch:
     """Runs advancing together: their states (n_z, n_runs) and what has been recorded."""
@@ -235,6 +266,7 @@ class _Batch:
     z: np.ndarray
     keep_states: bool
     decimate: int
+    envelope: Envelope | None = None
     outs: list = field(default_factory=list)
     ts: list = field(default_factory=list)
     zs: list = field(default_factory=list)
@@ -252,8 +284,10 @@ class _Batch:
         divergence if one happened (the run then stops at its last finite state)."""
         first = (-k) % self.decimate  # the first step of this chunk on the output grid
         z_prev = self.z[:, b].copy()
-        if not (np.abs(zz).max() <= 1e8 and np.isfinite(oo).all()):
-            i, self.diverged[b] = divergence(zz, oo, z_prev, self.names, self.out_names, k, dt)
+        if not (np.abs(zz).max() <= 1e8 and np.isfinite(oo).all()) or (
+                self.envelope is not None and self.envelope.outside(zz).any()):
+            i, self.diverged[b] = divergence(zz, oo, z_prev, self.names, self.out_names, k, dt,
+                                             self.envelope)
             m = i + 1
         self.outs[b].append(oo[:, first:m:self.decimate].T.copy())
         self.ts[b].append(np.arange(k + first, k + m, self.decimate) * dt)
@@ -342,7 +376,7 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     batch = _Batch(runs, state_names(loop.plant, loop.controller)[:f.size1_in("z")],
                    [n for n, _ in output_spec(loop.controller, loop.fdi)],
                    np.column_stack([np.asarray(r.z0, dtype=float) for r in runs]),
-                   keep_states, decimate)
+                   keep_states, decimate, Envelope.of(loop))
     events = sorted({int(round(e / dt)) for r in runs if r.schedule
                      for e in r.schedule.events()})
     pitch = lay.block(PLANTS[loop.plant]["states"], "beta")
@@ -378,18 +412,22 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
 
 
 def divergence(zz: np.ndarray, oo: np.ndarray, z_prev: np.ndarray, names: list[str],
-               out_names: list[str], k: int, dt: float) -> tuple[int, dict]:
+               out_names: list[str], k: int, dt: float,
+               envelope: Envelope | None = None) -> tuple[int, dict]:
     """The first step of a chunk that blew up, and its record.
 
     Column i of zz is the state after step k + i, column i of oo the outputs at the state
     before it (z_prev for i = 0). Step i is bad when that state is non-finite or beyond
     1e8, or when the outputs at its start are non-finite (the control law can fail before
     any state does: a state that is still finite then carries the NaN into the next step).
-    The record names every quantity that failed, the time at the end of the step, and the
-    last finite state.
+    A rotor leaving the ``envelope`` ends the run too (lost: run away or stalled). The record
+    names every quantity that failed, the time at the end of the step, and the last finite
+    state.
     """
     bad = ~np.all(np.isfinite(oo), axis=0) | ~np.all(np.isfinite(zz), axis=0)
     bad |= np.any(np.abs(zz) > 1e8, axis=0)
+    left = envelope.outside(zz) if envelope is not None else np.zeros(zz.shape[1], bool)
+    bad |= left
     i = int(np.argmax(bad))
     blew = [n for n, a in zip(names, zz[:, i], strict=True)
             if not np.isfinite(a) or abs(a) > 1e8]
@@ -401,6 +439,8 @@ def divergence(zz: np.ndarray, oo: np.ndarray, z_prev: np.ndarray, names: list[s
     if nan_out:
         parts.append("non-finite outputs " + ", ".join(nan_out[:8])
                      + (" ..." if len(nan_out) > 8 else ""))
+    if left[i] and not parts:
+        parts.append(envelope.reason(float(zz[envelope.row, i])))
     before = zz[:, i - 1] if i > 0 else z_prev
     return i, {"t_s": float((k + i + 1) * dt), "reason": "; ".join(parts),
                "last_finite_state": {n: float(a) for n, a in zip(names, before, strict=True)}}
