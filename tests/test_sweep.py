@@ -294,3 +294,25 @@ def test_a_sigterm_while_waiting_stops_the_sweep_not_a_task(monkeypatch, tmp_pat
     progress = sweep._Progress(2, 0, True)
     with pytest.raises(sweep.Interrupted, match="SIGTERM"):
         sweep._collect([Waiting(), Waiting()], tmp_path, set(), progress, quiet=True)
+
+
+def test_a_sweep_too_large_to_list_is_refused_before_anything(tmp_path):
+    """A grid of 2e10 runs once used 2 GB in 40 s without a word: now it is refused at
+    once, with the axes' sizes, and nothing is written."""
+    f = write_sweep(tmp_path / "huge.toml", 'mode = "grid"\nt_final_s = 5.0\n'
+                    'controllers = ["physical_fdi", "paper"]\n[wind]\n'
+                    "mean_mps = { min = 12.0, max = 20.0, n = 100000 }\n"
+                    "seed = { min = 0, max = 99999 }\n")
+    t0 = time.monotonic()
+    p = wtftc("sweep", f, "--out", tmp_path / "out", timeout=60)
+    assert p.returncode == 2 and "20,000,000,000 runs" in p.stderr, p.stderr
+    assert "wind.seed: 100000" in p.stderr and "Traceback" not in p.stderr
+    assert time.monotonic() - t0 < 30 and not (tmp_path / "out").exists()
+
+
+def test_a_fault_free_short_sweep_needs_no_onset(tmp_path):
+    """The default onset (20 s) used to refuse a 5-s sweep without faults: a value the user
+    never wrote. The default now fits the run."""
+    sw = sweep.parse_sweep({"mode": "grid", "t_final_s": 5.0, "controllers": ["paper"]})
+    runs, _ = sweep.expand(sw)
+    assert len(runs) == 1 and runs[0]["fault_type"] == "none"

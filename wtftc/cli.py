@@ -19,6 +19,20 @@ from wtftc.artefacts.loader import GeneratedArtefactError
 from wtftc.errors import ConfigError
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, as every other user mistake:
+    ``wtftc: error: ...`` and exit code 2 (argparse's default prints the usage first)."""
+
+    def error(self, message: str):
+        self.exit(2, f"wtftc: error: {message} (see {self.prog} --help)\n")
+
+
+#: what reading a damaged generated artefact raises (JSON that does not parse, or that
+#: lacks the tables it should hold); a missing or edited one is a GeneratedArtefactError
+_DAMAGED = (OSError, ValueError, KeyError, TypeError, AttributeError)
+_UNREADABLE = (GeneratedArtefactError, *_DAMAGED)
+
+
 def _nonnegative_int(text: str) -> int:
     try:
         val = int(text)
@@ -40,7 +54,7 @@ def _positive_int(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="wtftc",
         description="wtftc: observer-based adaptive fuzzy backstepping fault-tolerant pitch "
                     "control of wind turbines (Bakhshi & Alfi 2020), derived in SymPy, "
@@ -94,9 +108,7 @@ def _add_run(sub) -> None:
                    help="1 no fault, 2 fault with the controller unaware, 3 fault known to "
                         "eq (49), 4 fault detected by wtftc's FDI")
     r.add_argument("--plant", help="nrel5mw (default) or paper (eqs (1)-(4), unloaded)")
-    r.add_argument("--controller",
-                   help="; ".join(f"{k}: {v['doc']}" for k, v in _controllers().items())
-                   + "; rosco: NREL's ROSCO (pip install 'wtftc[rosco]'). Default: paper")
+    r.add_argument("--controller", help=_controller_help())
     r.add_argument("--wind", help="wind kind: constant, steps, paper_random, ntm, eog, file")
     r.add_argument("--wind-mean", type=float, help="mean/constant wind speed [m/s]")
     r.add_argument("--wind-file", type=Path, help="OpenFAST .hh/.wnd or CSV (time_s, speed_mps)")
@@ -190,7 +202,7 @@ def _add_cases(sub) -> None:
 def _run_overrides(args) -> dict:
     from wtftc.config import load_toml
 
-    cfg = load_toml(args.config) if getattr(args, "config", None) else {}
+    cfg = load_toml(args.config, "--config") if getattr(args, "config", None) else {}
     simple = {"case": "case", "plant": "plant", "controller": "controller",
               "t_final": "t_final_s", "dt": "dt_s", "seed": "seed", "sign": "control_sign"}
     for attr, key in simple.items():
@@ -214,6 +226,17 @@ def _run_overrides(args) -> dict:
     if getattr(args, "fault", None) == "none":
         cfg["fault"] = []
     return cfg
+
+
+def _controller_help() -> str:
+    """The --controller help: the registered controllers, or where to find them when the
+    generated artefacts cannot be read (``--help`` works all the same)."""
+    try:
+        regs = "; ".join(f"{k}: {v['doc']}" for k, v in _controllers().items())
+    except _UNREADABLE:
+        regs = "the registered controllers (docs/controllers.md; the generated artefacts " \
+               "cannot be read now: run a command for the reason)"
+    return regs + "; rosco: NREL's ROSCO (pip install 'wtftc[rosco]'). Default: paper"
 
 
 def _controllers() -> dict:
@@ -248,9 +271,11 @@ def _cmd_sweep(args) -> int:
         return 0
     if args.sweep_file is None:
         raise ConfigError("SWEEP.toml", None, "a sweep file to run (or --summary DIR)")
-    out = args.out or Path("out/sweep") / args.sweep_file.stem
+    from wtftc.config import load_toml
     from wtftc.results.io import ensure_writable_dir
 
+    load_toml(args.sweep_file, "SWEEP.toml")  # unreadable: refused naming it, before any work
+    out = args.out or Path("out/sweep") / args.sweep_file.stem
     ensure_writable_dir(out, "--out", create=False)
     try:
         done = sweep.run_sweep(args.sweep_file, out, workers=args.workers,
@@ -343,23 +368,60 @@ COMMANDS = {"verify": _cmd_verify, "run": _cmd_run, "cases": _cmd_cases,
             "compare": _cmd_compare, "sweep": _cmd_sweep, "functions": _cmd_functions}
 
 
+def _check_artefacts() -> None:
+    """Read the generated artefacts' manifest and layout before any work: one missing,
+    damaged or stale is a GeneratedArtefactError naming the file (the loader refuses a
+    missing or edited one; here also one that does not parse or lacks its tables)."""
+    from wtftc.artefacts import loader
+
+    folder = loader.generated_dir()
+    for name, read, keys in (("manifest.json", loader.manifest, ("artefacts",)),
+                             ("layout.json", loader.layout_json,
+                              ("functions", "controllers", "turbine_params"))):
+        try:
+            data = read()
+        except _DAMAGED as exc:
+            data, why = None, _one_line(exc) or type(exc).__name__
+        else:
+            why = "not a JSON object with " + ", ".join(keys)
+        if not isinstance(data, dict) or any(k not in data for k in keys):
+            raise GeneratedArtefactError(
+                f"{folder / name} is damaged ({why}); in a source checkout run `make "
+                "regenerate`; an installed wtftc carries its own (reinstall it)")
+
+
+def _one_line(text) -> str:
+    """``text`` (or an exception's message) on one line."""
+    return " ".join(line.strip() for line in str(text).splitlines() if line.strip())
+
+
+def _artefact_message(exc: GeneratedArtefactError) -> str:
+    env = os.environ.get("WTFTC_GENERATED")
+    return f"WTFTC_GENERATED={env}: {exc}" if env else str(exc)
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Exit codes (docs/running.md, "Errors and exit codes"): 0 done; 2 refused input, one
+    line naming the field; 3 a run diverged; 1 a sweep with runs still missing; 130
+    interrupted."""
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:
         parser.print_help()
         return 2
     try:
+        _check_artefacts()
         return COMMANDS[args.command](args)
     except ConfigError as exc:
-        print(f"wtftc: error: {exc}", file=sys.stderr)
-        return 2
+        print(f"wtftc: error: {_one_line(exc)}", file=sys.stderr)
     except GeneratedArtefactError as exc:
-        print(f"wtftc: error: {exc}", file=sys.stderr)
-        return 1
+        print(f"wtftc: error: {_one_line(_artefact_message(exc))}", file=sys.stderr)
     except OSError as exc:  # a file that cannot be read or written
-        print(f"wtftc: error: {exc}", file=sys.stderr)
-        return 2
+        print(f"wtftc: error: {_one_line(exc)}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print("\nwtftc: interrupted", file=sys.stderr)
+        return 130
+    return 2
 
 
 if __name__ == "__main__":

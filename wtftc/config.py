@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import copy
-import hashlib
 import json
+import math
+import numbers
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,6 +38,50 @@ DEFAULTS = {
 
 #: the paper's reference: "the rotor speed to the 1.27 rad/s value" (Section 5)
 PAPER_REFERENCE = 1.27
+
+#: the largest seed: the sweep stores seeds as signed 64-bit integers
+SEED_MAX = 2**63 - 1
+
+_INF, _HALF_PI = math.inf, math.pi / 2
+#: The physical range of every turbine parameter (docs/running.md, "Errors and exit
+#: codes"): name → (low, high, low_open, high_open, unit). Whatever the source (defaults,
+#: a config file, the CLI, a sweep, a batch), :func:`check_turbine` refuses a value outside
+#: it, naming the field, the value and the range. Positive where the derivation declares
+#: the symbol positive (a zero inertia, stiffness, time constant or slip divides by zero);
+#: upper limits only where physics sets one (air density, blade length, an efficiency, a
+#: slip, a pitch angle). Flags are 0 or 1 (also checked as such).
+TURBINE_RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
+    "J_r": (0.0, _INF, True, True, "kg m^2"),
+    "J_g": (0.0, _INF, True, True, "kg m^2"),
+    "k_s": (0.0, _INF, True, True, "N m/rad"),
+    "d_s": (0.0, _INF, True, True, "N m s/rad"),
+    "tau_b": (0.0, _INF, True, True, "s"),
+    "air_density": (0.0, 2.0, True, False, "kg/m^3"),  # 1.225 at 15 °C, ~1.5 at -40 °C
+    "rotor_radius": (0.0, 250.0, True, False, "m"),  # the largest rotors: ~155 m
+    "gearbox_ratio": (0.0, _INF, True, True, "-"),  # 1: direct drive
+    "gen_torque_rated": (0.0, _INF, True, True, "N m"),
+    "gen_constant_power": (0.0, 1.0, False, False, "-"),
+    "omega_g_rated": (0.0, _INF, True, True, "rad/s"),
+    "gen_efficiency": (0.0, 1.0, True, False, "-"),
+    "omega_n_nominal": (0.0, _INF, True, True, "rad/s"),
+    "zeta_nominal": (0.0, _INF, True, True, "-"),
+    "pitch_min": (-_HALF_PI, _HALF_PI, False, False, "rad"),  # ±90°
+    "pitch_max": (-_HALF_PI, _HALF_PI, False, False, "rad"),
+    "pitch_rate_max": (0.0, _INF, True, True, "rad/s"),
+    "gen_torque_law": (0.0, 1.0, False, False, "-"),
+    "vs_cut_in_speed": (0.0, _INF, True, True, "rad/s"),
+    "vs_region2_speed": (0.0, _INF, True, True, "rad/s"),
+    "vs_region2_k": (0.0, _INF, True, True, "N m s^2/rad^2"),
+    "vs_rated_speed": (0.0, _INF, True, True, "rad/s"),
+    "vs_slip": (0.0, 1.0, True, True, "-"),
+    "vs_rated_power": (0.0, _INF, True, True, "W"),
+    "vs_max_torque": (0.0, _INF, True, True, "N m"),
+}
+#: turbine parameters that must increase strictly, in pairs (lower, upper): a pitch range,
+#: and the torque law's region 1½ (its slope divides by region2 - cut-in speed)
+TURBINE_ORDER = (("pitch_min", "pitch_max"), ("vs_cut_in_speed", "vs_region2_speed"))
+#: turbine parameters that switch a behaviour on (1) or off (0)
+TURBINE_FLAGS = ("gen_torque_law", "gen_constant_power")
 
 
 @dataclass
@@ -103,24 +148,58 @@ class RunConfig:
         return float(self.loop.p_turbine[lay.index("turbine_params", name)])
 
 
-def _number(cfg, key, lo=None, hi=None, integer=False):
-    val = cfg[key]
-    ok = isinstance(val, int) if integer else isinstance(val, int | float)
-    if isinstance(val, bool) or not ok or not np.isfinite(val):
-        raise ConfigError(key, val, "an integer" if integer else "a finite number")
-    if (lo is not None and val <= lo) or (hi is not None and val > hi):
-        raise ConfigError(key, val, f"a number in ({lo}, {hi}]")
+def _finite(val, field: str) -> float:
+    """``val`` as a float if it is a finite number (not a bool, a string, a list, a table);
+    else a ConfigError naming ``field``."""
+    if isinstance(val, bool) or not isinstance(val, numbers.Real):
+        raise ConfigError(field, val, "a finite number")
+    try:
+        x = float(val)
+    except OverflowError:  # an integer beyond a float's range
+        x = math.inf
+    if not math.isfinite(x):
+        raise ConfigError(field, val, "a finite number")
+    return x
+
+
+def _number(cfg, key, lo=None, hi=None) -> float:
+    """``cfg[key]``: a finite number in (lo, hi] (either bound may be None)."""
+    val = _finite(cfg[key], key)
+    if lo is not None and val <= lo:
+        raise ConfigError(key, cfg[key], f"a number > {lo}" if hi is None
+                          else f"a number in ({lo}, {hi}]")
+    if hi is not None and val > hi:
+        raise ConfigError(key, cfg[key], f"a number <= {hi}" if lo is None
+                          else f"a number in ({lo}, {hi}]")
     return val
 
 
-def load_toml(path: Path) -> dict:
+def _seed(raw: dict) -> int:
+    val = raw["seed"]
+    if isinstance(val, bool) or not isinstance(val, numbers.Integral) \
+            or not 0 <= val <= SEED_MAX:
+        raise ConfigError("seed", val, f"an integer in [0, {SEED_MAX}] (0 to 2^63 - 1)")
+    return int(val)
+
+
+def load_toml(path: Path, field: str = "config") -> dict:
+    """The table of a TOML file; anything unreadable is a ConfigError naming ``field`` (the
+    option or key that gave the path)."""
     try:
         with open(path, "rb") as fh:
             return tomllib.load(fh)
     except FileNotFoundError:
-        raise ConfigError("config", str(path), "an existing TOML file") from None
+        raise ConfigError(field, str(path), "an existing TOML file") from None
+    except IsADirectoryError:
+        raise ConfigError(field, str(path), "a TOML file, not a folder") from None
+    except OSError as exc:
+        raise ConfigError(field, str(path), f"a readable TOML file ({exc.strerror})") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(field, str(path), f"a UTF-8 text file in TOML (byte "
+                          f"0x{exc.object[exc.start]:02x} at offset {exc.start} is not "
+                          "UTF-8: a binary file?)") from None
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError("config", str(path), f"valid TOML ({exc})") from None
+        raise ConfigError(field, str(path), f"valid TOML ({exc})") from None
 
 
 def make_config(cfg: dict | None = None) -> RunConfig:
@@ -132,27 +211,39 @@ def make_config(cfg: dict | None = None) -> RunConfig:
             raise ConfigError(key, cfg[key], "a known key: " + ", ".join(sorted(TOP_KEYS)))
     raw = {**copy.deepcopy(DEFAULTS), **cfg}
     case = raw["case"]
-    if case not in CASES or isinstance(case, bool):
+    if isinstance(case, bool) or not isinstance(case, int) or case not in CASES:
         raise ConfigError("case", case, "1 (no fault), 2 (fault, controller unaware), "
                           "3 (fault known to eq (49)) or 4 (fault detected by wtftc's FDI)")
-    if raw["plant"] not in rhs.PLANTS:
+    if not isinstance(raw["plant"], str) or raw["plant"] not in rhs.PLANTS:
         raise ConfigError("plant", raw["plant"], "one of " + ", ".join(
             f"{k} ({v['doc']})" for k, v in rhs.PLANTS.items()))
     controller = _controller(raw["controller"])
+    if not isinstance(raw.get("label", ""), str):
+        raise ConfigError("label", raw["label"], "a string (the run's name in tables)")
     t_final, dt, seed, decimate = _timing(raw)
-    ref = _reference(raw)
+    _control_sign(raw)
     p_ctrl, p_turbine = _parameters(raw, controller)
+    ref = _reference(raw, p_turbine)
     if not isinstance(raw["wind"], dict):
         raise ConfigError("wind", raw["wind"], "a table with kind = ...")
     wind = wind_from_config(raw["wind"], t_final=t_final, seed=seed)
     faults = _faults(raw, case, t_final)
-    init = raw.get("initial", {})
-    if not isinstance(init, dict) or set(init) - {"omega_r_offset_rad_s"}:
-        raise ConfigError("initial", init, "a table with omega_r_offset_rad_s")
+    offset = _initial(raw)
     loop = rhs.Loop(raw["plant"], controller, *_cp_table(raw), tuple(float(x) for x in p_turbine))
     return RunConfig(raw=raw, case=case, loop=loop, t_final=t_final, dt=dt, seed=seed,
                      decimate=decimate, reference=ref, p_ctrl=p_ctrl, wind=wind, faults=faults,
-                     omega_offset=float(init.get("omega_r_offset_rad_s", 0.0)))
+                     omega_offset=offset)
+
+
+def _initial(raw: dict) -> float:
+    """The ``[initial]`` table's offset of the rotor speed from its trim [rad/s]."""
+    init = raw.get("initial", {})
+    if not isinstance(init, dict):
+        raise ConfigError("initial", init, "a table with omega_r_offset_rad_s")
+    for key in init:
+        if key != "omega_r_offset_rad_s":
+            raise ConfigError(f"initial.{key}", init[key], "a known key: omega_r_offset_rad_s")
+    return _finite(init.get("omega_r_offset_rad_s", 0.0), "initial.omega_r_offset_rad_s")
 
 
 def _controller(name) -> str:
@@ -165,7 +256,7 @@ def _controller(name) -> str:
         if reason:
             raise ConfigError("controller", "rosco", reason)
         return "external"
-    if name not in regs:
+    if not isinstance(name, str) or name not in regs:
         raise ConfigError("controller", name, "one of " + ", ".join(
             [f"{k} ({v['doc']})" for k, v in regs.items()]
             + ["rosco (NREL's ROSCO through its ControllerInterface; optional extra)"]))
@@ -185,7 +276,7 @@ def _timing(raw: dict) -> tuple[float, float, int, int]:
         raise ConfigError("t_final_s", t_final, f"a whole number of steps of dt_s = {dt:g} s "
                           f"(e.g. {n_steps * dt:g} or {(n_steps + 1) * dt:g} s): the run "
                           "would otherwise end at a time other than the one asked for")
-    seed = _number(raw, "seed", lo=-1, integer=True)
+    seed = _seed(raw)
     rate = float(_number(raw, "output_rate_hz", lo=0, hi=1e6))
     decimate = max(1, int(round(1.0 / (rate * dt))))
     if abs(decimate * dt * rate - 1.0) > 1e-6 and decimate > 1:
@@ -194,42 +285,96 @@ def _timing(raw: dict) -> tuple[float, float, int, int]:
     return t_final, dt, seed, decimate
 
 
-def _reference(raw: dict) -> float:
+def _control_sign(raw: dict) -> None:
     sign = raw["control_sign"]
-    if sign not in (-1, 1) or isinstance(sign, bool):
+    if isinstance(sign, bool) or not isinstance(sign, numbers.Real) or sign not in (-1, 1):
         raise ConfigError("control_sign", sign, "-1 (corrected, default) or +1 (as written, "
-                          "diverges: paper-notes defect 2)")
-    ref = raw.get("reference_rad_s", PAPER_REFERENCE if raw["plant"] == "paper"
-                  else lay.vector("turbine_params")[lay.index("turbine_params", "omega_g_rated")])
-    raw["reference_rad_s"] = float(ref)
-    return float(_number(raw, "reference_rad_s", lo=0, hi=10))
+                          "stalls the rotor: paper-notes defect 2)")
+
+
+def _reference(raw: dict, p_turbine) -> float:
+    """The rotor-speed reference: given, the paper's on its plant, else the run's turbine's
+    rated speed (not the layout's: a turbine with another rated speed regulates to it)."""
+    raw.setdefault("reference_rad_s", PAPER_REFERENCE if raw["plant"] == "paper" else
+                   float(p_turbine[lay.index("turbine_params", "omega_g_rated")]))
+    raw["reference_rad_s"] = _number(raw, "reference_rad_s", lo=0, hi=10)
+    return raw["reference_rad_s"]
 
 
 def _parameters(raw: dict, controller: str) -> tuple[np.ndarray, np.ndarray]:
-    """The controller's and the turbine's parameter vectors, defaults with overrides."""
+    """The controller's and the turbine's parameter vectors, defaults with overrides; the
+    turbine's checked against :data:`TURBINE_RANGES`."""
     ctrl_group = rhs.controllers()[controller]["params"]
     signed = "control_sign" in lay.names(ctrl_group)
-    vectors = {}
-    for key, group, extra in (
-            ("controller_params", ctrl_group,
-             {"control_sign": raw["control_sign"]} if signed else {}),
-            ("turbine_params", "turbine_params", {})):
-        over = raw.get(key, {})
-        if not isinstance(over, dict):
-            raise ConfigError(key, over, f"a table of {group} (see generated/layout.json)")
-        if "control_sign" in over:
-            raise ConfigError(f"{key}.control_sign", over["control_sign"],
-                              "set control_sign at the top level (or --sign)")
-        try:
-            vectors[key] = lay.vector(group, {**over, **extra})
-        except ValueError as exc:
-            raise ConfigError(key, over, str(exc).split(": ", 1)[-1]) from None
-    p_turbine = vectors["turbine_params"]
-    for flag in ("gen_torque_law", "gen_constant_power"):
-        val = p_turbine[lay.index("turbine_params", flag)]
-        if val not in (0.0, 1.0):
-            raise ConfigError(f"turbine_params.{flag}", float(val), "0 or 1 (docs/running.md)")
-    return vectors["controller_params"], p_turbine
+    p_ctrl = lay.vector(ctrl_group, {**_overrides(raw, "controller_params", ctrl_group),
+                                     **({"control_sign": raw["control_sign"]} if signed else {})})
+    over = _overrides(raw, "turbine_params", "turbine_params")
+    p_turbine = lay.vector("turbine_params", over)
+    check_turbine(p_turbine, given=over)
+    return p_ctrl, p_turbine
+
+
+def _overrides(raw: dict, key: str, group: str) -> dict:
+    """The table ``raw[key]`` of overrides of the layout group ``group``: each a finite
+    number, or for the prefix of numbered entries (``K_obs`` for ``K_obs_1..4``) a list of
+    as many; a ConfigError names ``key.name`` (and the list index) otherwise."""
+    over = raw.get(key, {})
+    if not isinstance(over, dict):
+        raise ConfigError(key, over, f"a table of {group} names = numbers "
+                          "(see generated/layout.json)")
+    all_names = lay.names(group)
+    out = {}
+    for name, val in over.items():
+        field = f"{key}.{name}"
+        if name == "control_sign":
+            raise ConfigError(field, val, "set control_sign at the top level (or --sign)")
+        if name in all_names:
+            out[name] = _finite(val, field)
+            continue
+        members = [n for n in all_names if n.rsplit("_", 1)[0] == name]
+        if not members:
+            prefixes = sorted({n.rsplit("_", 1)[0] for n in all_names if n[-1].isdigit()})
+            known = ", ".join(n for n in all_names if n != "control_sign")
+            raise ConfigError(field, val, f"a name of {group}: {known}" + (
+                f" (or the prefix of numbered ones: {', '.join(prefixes)})" if prefixes else ""))
+        if not isinstance(val, list) or len(val) != len(members):
+            raise ConfigError(field, val, f"a list of {len(members)} finite numbers "
+                              f"({', '.join(members)})")
+        out[name] = [_finite(x, f"{field}[{i}]") for i, x in enumerate(val)]
+    return out
+
+
+def _range_text(name: str) -> str:
+    lo, hi, lo_open, hi_open, unit = TURBINE_RANGES[name]
+    if hi == _INF:
+        return f"a number {'>' if lo_open else '>='} {lo:g} [{unit}]"
+    return f"a number in {'(' if lo_open else '['}{lo:.6g}, {hi:.6g}{')' if hi_open else ']'} " \
+           f"[{unit}]"
+
+
+def check_turbine(p_turbine, given=()) -> None:
+    """Refuse a turbine parameter vector with a value outside :data:`TURBINE_RANGES`, out of
+    :data:`TURBINE_ORDER`, or a flag other than 0 or 1: a ConfigError naming
+    ``turbine_params.<name>``, the value and the allowed range. ``given``: the names the
+    user set (an order error names the one of the pair that was set)."""
+    vals = lay.values("turbine_params", p_turbine)
+    for name, val in vals.items():
+        field = f"turbine_params.{name}"
+        if not math.isfinite(val):
+            raise ConfigError(field, val, "a finite number")
+        if name not in TURBINE_RANGES:
+            continue
+        lo, hi, lo_open, hi_open, _ = TURBINE_RANGES[name]
+        if val < lo or val > hi or (lo_open and val == lo) or (hi_open and val == hi):
+            raise ConfigError(field, val, _range_text(name))
+    for low, high in TURBINE_ORDER:
+        if vals[low] >= vals[high]:
+            name, other = (high, low) if high in given and low not in given else (low, high)
+            raise ConfigError(f"turbine_params.{name}", vals[name],
+                              f"{low} < {high} (here {other} = {vals[other]:g})")
+    for flag in TURBINE_FLAGS:
+        if vals[flag] not in (0.0, 1.0):
+            raise ConfigError(f"turbine_params.{flag}", vals[flag], "0 or 1 (docs/running.md)")
 
 
 def _faults(raw: dict, case: int, t_final: float) -> list:
@@ -248,10 +393,14 @@ def _faults(raw: dict, case: int, t_final: float) -> list:
 
 def _cp_table(raw: dict) -> tuple:
     """The Cp table and its key (the packaged NREL 5-MW table, or the file's sha256)."""
-    if not raw.get("cp_table"):
+    path = raw.get("cp_table")
+    if path is None or path == "":
         return nrel5mw_cp_table(), "nrel5mw"
-    path = Path(raw["cp_table"])
-    return read_cp_table(path), hashlib.sha256(path.read_bytes()).hexdigest()[:12]
+    if not isinstance(path, str):
+        raise ConfigError("cp_table", path, "the path of a Cp table file (a string), in the "
+                          "ROSCO Cp_Ct_Cq text format")
+    table = read_cp_table(Path(path))
+    return table, table.sha256[:12]
 
 
 def to_toml(d: dict, prefix: str = "") -> str:

@@ -46,9 +46,23 @@ __all__ = [
 NREL5MW_FILE = "Cp_Ct_Cq.NREL5MW.txt"
 NREL5MW_SOURCE = "NREL 5-MW (ROSCO 2.10.6)"
 
-_TURBINE = lay.values("turbine_params", lay.defaults("turbine_params"))
-RHO_AIR = _TURBINE["air_density"]  # air density [kg/m^3], the layout's NREL 5-MW default
-R_TIP = _TURBINE["rotor_radius"]  # rotor (tip) radius [m], the layout's NREL 5-MW default
+
+@functools.cache
+def _nrel5mw_air() -> tuple[float, float]:
+    """The air density [kg/m^3] and rotor (tip) radius [m]: the layout's NREL 5-MW defaults,
+    read when first needed (not at import: a damaged layout must not break ``wtftc --help``)."""
+    tp = lay.values("turbine_params", lay.defaults("turbine_params"))
+    return tp["air_density"], tp["rotor_radius"]
+
+
+def _air(rho, radius) -> tuple[float, float]:
+    """``rho`` and ``radius``, each None replaced by its NREL 5-MW default."""
+    if rho is None or radius is None:
+        d_rho, d_radius = _nrel5mw_air()
+        rho = d_rho if rho is None else rho
+        radius = d_radius if radius is None else radius
+    return rho, radius
+
 
 _FIELD = "cp_table"
 _FORMAT = "the ROSCO Cp_Ct_Cq text format"
@@ -342,9 +356,11 @@ def _check_positive(name: str, val: float) -> float:
     return val
 
 
-def aero_torque(cp, omega_r, v_wind, rho=RHO_AIR, radius=R_TIP):
+def aero_torque(cp, omega_r, v_wind, rho=None, radius=None):
     """Aerodynamic rotor torque [N m, LSS] T = ½ ρ π R² v³ Cp / ω_r (Jonkman 2009; the
-    derivation's aero_operating_point computes the same in the loop)."""
+    derivation's aero_operating_point computes the same in the loop). ``rho``, ``radius``:
+    the NREL 5-MW's when None."""
+    rho, radius = _air(rho, radius)
     return 0.5 * rho * math.pi * radius**2 * v_wind**3 * cp / omega_r
 
 
@@ -359,13 +375,14 @@ def bisect(on_lo_side, lo: float, hi: float, n: int = 60) -> float:
     return 0.5 * (lo + hi)
 
 
-def aero_torque_raw(table: CpTable, omega_r, v_wind, pitch_rad, rho=RHO_AIR,
-                    radius=R_TIP) -> float:
+def aero_torque_raw(table: CpTable, omega_r, v_wind, pitch_rad, rho=None,
+                    radius=None) -> float:
     """Aerodynamic rotor torque (N m, LSS) from the raw table, bilinear in (TSR, pitch).
 
     T = 0.5 rho pi R^2 v^3 Cp(lambda, beta) / omega_r with lambda = omega_r R / v.
     ValueError when lambda or the pitch falls outside the table (no extrapolation).
     """
+    rho, radius = _air(rho, radius)
     omega_r = _check_positive("omega_r", omega_r)
     v_wind = _check_positive("v_wind", v_wind)
     rho = _check_positive("rho", rho)
@@ -374,8 +391,8 @@ def aero_torque_raw(table: CpTable, omega_r, v_wind, pitch_rad, rho=RHO_AIR,
     return aero_torque(_cp_bilinear(table, tsr, float(pitch_rad)), omega_r, v_wind, rho, radius)
 
 
-def steady_pitch_raw(table: CpTable, omega_r, torque, v_wind, rho=RHO_AIR,
-                     radius=R_TIP) -> float:
+def steady_pitch_raw(table: CpTable, omega_r, torque, v_wind, rho=None,
+                     radius=None) -> float:
     """The pitch (rad) above the Cp-optimal pitch at which aero_torque_raw equals ``torque``.
 
     At lambda = omega_r R / v the raw bilinear Cp is piecewise linear in pitch, so it peaks
@@ -387,6 +404,7 @@ def steady_pitch_raw(table: CpTable, omega_r, torque, v_wind, rho=RHO_AIR,
     torque = float(torque)
     if not math.isfinite(torque):
         raise ValueError(f"torque must be finite, got {torque!r}")
+    rho, radius = _air(rho, radius)
     # Checks omega_r, v_wind, rho, radius and that lambda lies in the table.
     aero_torque_raw(table, omega_r, v_wind, table.pitch_rad[0], rho, radius)
 

@@ -491,11 +491,17 @@ def _file(path, field: str) -> SampledWind:
         i = int(bad[0]) + 1
         fail(rows[i], f"line {rows[i]}: time {t[i]:g} s is not after the previous row's "
                       f"{t[i - 1]:g} s (times must be strictly increasing)")
-    neg = np.flatnonzero(v < 0)
-    if neg.size:
-        i = int(neg[0])
-        what = "speed + gust speed" if gust else "speed"
-        fail(rows[i], f"line {rows[i]}: horizontal {what} {v[i]:g} m/s < 0 (must be >= 0)")
+    what = "speed + gust speed" if gust else "speed"
+    low = np.flatnonzero(v <= 0)
+    if low.size:  # a calm has no tip-speed ratio ω_r R / v: the run would stop there
+        i = int(low[0])
+        fail(rows[i], f"line {rows[i]}: horizontal {what} {v[i]:g} m/s "
+                      f"{'< 0' if v[i] < 0 else 'is zero'} (must be > 0, as every wind's)")
+    high = np.flatnonzero(v > V_MAX_MPS)
+    if high.size:
+        i = int(high[0])
+        fail(rows[i], f"line {rows[i]}: horizontal {what} {v[i]:g} m/s > {V_MAX_MPS:g} m/s "
+                      "(the limit of every wind: V_e50 of IEC class I)")
     fmt = "csv" if is_csv else "inflowwind_uniform"
     resolved = str(p.resolve())
     return SampledWind("file", t, v, parameters={"path": str(path)}, source=resolved,
