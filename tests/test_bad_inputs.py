@@ -53,6 +53,15 @@ def _cp_short_row() -> str:
     return "\n".join(lines) + "\n"
 
 
+def _cp_above_betz() -> str:
+    """The packaged Cp table with one power coefficient of 0.7, above the Betz limit."""
+    lines = _cp_text().splitlines()
+    i = next(k for k, line in enumerate(lines) if "Power coefficient" in line)
+    row = lines[i + 2].split()
+    lines[i + 2] = " ".join(["0.7", *row[1:]])
+    return "\n".join(lines) + "\n"
+
+
 def _wind(rows: str) -> dict:
     return {"w.csv": "time_s,speed_mps\n" + rows}
 
@@ -123,6 +132,8 @@ CASES = [
     Case("cp-short-row", "cp_table", cfg='cp_table = "{cp.txt}"\n',
          files={"cp.txt": _cp_short_row()}),
     Case("cp-binary", "cp_table", cfg='cp_table = "{cp.txt}"\n', files={"cp.txt": BINARY}),
+    Case("cp-above-betz", "cp_table", cfg='cp_table = "{cp.txt}"\n',
+         files={"cp.txt": _cp_above_betz()}),
     # --- the wind
     Case("wind-number", "wind", cfg="wind = 5\n"),
     Case("wind-array-of-tables", "wind", cfg='[[wind]]\nkind = "ntm"\n'),

@@ -186,6 +186,10 @@ def nrel5mw_cp_table() -> CpTable:
 _Sections = dict[str, tuple[int, int | None, list[tuple[int, list[float]]]]]
 
 
+#: no rotor extracts more than 16/27 of the wind's power (Betz 1920)
+BETZ_LIMIT = 16.0 / 27.0
+
+
 def _parse(raw: bytes, source: str, where: str) -> CpTable:
     """The table in a file's bytes ``raw``; :class:`ConfigError` naming ``where`` on any
     defect (the first one found, top to bottom)."""
@@ -204,6 +208,12 @@ def _parse(raw: bytes, source: str, where: str) -> CpTable:
     wind = _vector(sections, "wind", "m/s", where) if "wind" in sections else None
     shape = (tsr.size, pitch_deg.size)
     cp = _matrix(sections, "cp", shape, where)
+    if cp.max() > BETZ_LIMIT:
+        i, j = np.unravel_index(int(np.argmax(cp)), cp.shape)
+        raise _bad(where, f"Cp = {cp[i, j]:g} at TSR {tsr[i]:g}, pitch {pitch_deg[j]:g} deg",
+                   f"power coefficients at most the Betz limit 16/27 = {BETZ_LIMIT:.4f} "
+                   "(negative ones are physical: ROSCO's NREL 5-MW table reaches -11.9 where "
+                   "the rotor absorbs power)")
     ct = _matrix(sections, "ct", shape, where)
     cq = _matrix(sections, "cq", shape, where)
     return CpTable(pitch_rad=np.deg2rad(pitch_deg), tsr=tsr, cp=cp, ct=ct, cq=cq,
