@@ -20,7 +20,8 @@ numbers come from :mod:`derivation.nrel5mw`, which gives their sources; Table 1'
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 
 from derivation import nrel5mw
 
@@ -41,9 +42,15 @@ class Entry:
     #: where verification draws random values of this entry, (low, high) in its unit;
     #: None: near the default (wtftc.verify.checks.random_inputs)
     sample: tuple[float, float] | None = None
+    #: the physical range a value must lie in, (low, high, low_open, high_open), None for
+    #: an unbounded end; the runtime refuses any value outside it (wtftc.config)
+    valid: tuple | None = None
 
     def as_json(self) -> dict:
         out = {"name": self.name, "default": self.default, "unit": self.unit, "doc": self.doc}
+        if self.valid:
+            lo, hi, lo_open, hi_open = self.valid
+            out["valid"] = {"min": lo, "max": hi, "min_open": lo_open, "max_open": hi_open}
         return out | ({"sample": list(self.sample)} if self.sample else {})
 
 
@@ -197,6 +204,27 @@ TURBINE_PARAMS = [
           f"VS_MaxTq: maximum generator torque {nrel5mw.VS_MAX_TORQUE_HSS:,} N m (HSS) "
           f"× {_N:g}"),
 ]
+#: The physical range of every turbine parameter (docs/running.md, "Errors and exit codes").
+#: Positive where the derivation declares the symbol positive (a zero inertia, stiffness,
+#: time constant or slip divides by zero); upper limits only where physics sets one (air
+#: density, blade length, an efficiency, a slip, a pitch angle); flags 0 or 1.
+_POSITIVE = (0.0, None, True, True)
+TURBINE_VALID = {
+    **dict.fromkeys(("J_r", "J_g", "k_s", "d_s", "tau_b", "gearbox_ratio", "gen_torque_rated",
+                     "omega_g_rated", "omega_n_nominal", "zeta_nominal", "pitch_rate_max",
+                     "vs_cut_in_speed", "vs_region2_speed", "vs_region2_k", "vs_rated_speed",
+                     "vs_rated_power", "vs_max_torque"), _POSITIVE),
+    "air_density": (0.0, 2.0, True, False),  # 1.225 at 15 °C, about 1.5 at -40 °C
+    "rotor_radius": (0.0, 250.0, True, False),  # the largest rotors: about 155 m
+    "gen_efficiency": (0.0, 1.0, True, False),
+    "vs_slip": (0.0, 1.0, True, True),
+    "pitch_min": (-math.pi / 2, math.pi / 2, False, False),  # ±90°
+    "pitch_max": (-math.pi / 2, math.pi / 2, False, False),
+    **dict.fromkeys(("gen_constant_power", "gen_torque_law"), (0.0, 1.0, False, False)),
+}
+PLANT_PARAMS = [replace(e, valid=TURBINE_VALID[e.name]) for e in PLANT_PARAMS]
+TURBINE_PARAMS = [replace(e, valid=TURBINE_VALID[e.name]) for e in TURBINE_PARAMS]
+
 ACTUATOR_FAULTS = [
     *FAULT_INPUTS,
     *[Entry(f"omega_n_{j}", nrel5mw.ACTUATOR_OMEGA_N, "rad/s",

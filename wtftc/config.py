@@ -42,41 +42,23 @@ PAPER_REFERENCE = 1.27
 #: the largest seed: the sweep stores seeds as signed 64-bit integers
 SEED_MAX = 2**63 - 1
 
-_INF, _HALF_PI = math.inf, math.pi / 2
-#: The physical range of every turbine parameter (docs/running.md, "Errors and exit
-#: codes"): name → (low, high, low_open, high_open, unit). Whatever the source (defaults,
-#: a config file, the CLI, a sweep, a batch), :func:`check_turbine` refuses a value outside
-#: it, naming the field, the value and the range. Positive where the derivation declares
-#: the symbol positive (a zero inertia, stiffness, time constant or slip divides by zero);
-#: upper limits only where physics sets one (air density, blade length, an efficiency, a
-#: slip, a pitch angle). Flags are 0 or 1 (also checked as such).
-TURBINE_RANGES: dict[str, tuple[float, float, bool, bool, str]] = {
-    "J_r": (0.0, _INF, True, True, "kg m^2"),
-    "J_g": (0.0, _INF, True, True, "kg m^2"),
-    "k_s": (0.0, _INF, True, True, "N m/rad"),
-    "d_s": (0.0, _INF, True, True, "N m s/rad"),
-    "tau_b": (0.0, _INF, True, True, "s"),
-    "air_density": (0.0, 2.0, True, False, "kg/m^3"),  # 1.225 at 15 °C, ~1.5 at -40 °C
-    "rotor_radius": (0.0, 250.0, True, False, "m"),  # the largest rotors: ~155 m
-    "gearbox_ratio": (0.0, _INF, True, True, "-"),  # 1: direct drive
-    "gen_torque_rated": (0.0, _INF, True, True, "N m"),
-    "gen_constant_power": (0.0, 1.0, False, False, "-"),
-    "omega_g_rated": (0.0, _INF, True, True, "rad/s"),
-    "gen_efficiency": (0.0, 1.0, True, False, "-"),
-    "omega_n_nominal": (0.0, _INF, True, True, "rad/s"),
-    "zeta_nominal": (0.0, _INF, True, True, "-"),
-    "pitch_min": (-_HALF_PI, _HALF_PI, False, False, "rad"),  # ±90°
-    "pitch_max": (-_HALF_PI, _HALF_PI, False, False, "rad"),
-    "pitch_rate_max": (0.0, _INF, True, True, "rad/s"),
-    "gen_torque_law": (0.0, 1.0, False, False, "-"),
-    "vs_cut_in_speed": (0.0, _INF, True, True, "rad/s"),
-    "vs_region2_speed": (0.0, _INF, True, True, "rad/s"),
-    "vs_region2_k": (0.0, _INF, True, True, "N m s^2/rad^2"),
-    "vs_rated_speed": (0.0, _INF, True, True, "rad/s"),
-    "vs_slip": (0.0, 1.0, True, True, "-"),
-    "vs_rated_power": (0.0, _INF, True, True, "W"),
-    "vs_max_torque": (0.0, _INF, True, True, "N m"),
-}
+_INF = math.inf
+def _ranges(group: str) -> dict[str, tuple[float, float, bool, bool, str]]:
+    """The physical range of every entry of a layout group that has one (derivation/
+    layout.py, ``valid``): name → (low, high, low_open, high_open, unit). Whatever the
+    source (defaults, a config file, the CLI, a sweep, a batch), :func:`check_turbine`
+    refuses a value outside it, naming the field, the value and the range."""
+    out = {}
+    for e in lay.layout()[group]:
+        v = e.get("valid")
+        if v:
+            out[e["name"]] = (-_INF if v["min"] is None else v["min"],
+                              _INF if v["max"] is None else v["max"],
+                              v["min_open"], v["max_open"], e["unit"])
+    return out
+
+
+TURBINE_RANGES = _ranges("turbine_params")
 #: turbine parameters that must increase strictly, in pairs (lower, upper): a pitch range,
 #: and the torque law's region 1½ (its slope divides by region2 - cut-in speed)
 TURBINE_ORDER = (("pitch_min", "pitch_max"), ("vs_cut_in_speed", "vs_region2_speed"))
