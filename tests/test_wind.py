@@ -417,3 +417,16 @@ def test_bad_run_arguments(args, field):
     with pytest.raises(ConfigError) as e:
         wind_from_config(*args)
     assert e.value.field == field
+
+
+def test_a_wind_file_too_large_to_read_is_refused_before_reading(tmp_path):
+    """A 2-million-row file once took 0.9 GB while parsed: over 100 MB is refused from its
+    size alone (a sparse file here: nothing is read)."""
+    from wtftc.errors import ConfigError
+    from wtftc.model.wind import MAX_FILE_BYTES, wind_from_config
+
+    f = tmp_path / "huge.hh"
+    with open(f, "wb") as fh:
+        fh.truncate(MAX_FILE_BYTES + 1)
+    with pytest.raises(ConfigError, match="at most 100,000,000 bytes"):
+        wind_from_config({"kind": "file", "path": str(f)}, t_final=10.0)

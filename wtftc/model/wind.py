@@ -457,12 +457,22 @@ def _read_csv(lines, fail) -> tuple[list, list, list]:
     return times, speeds, rows
 
 
+#: the largest wind file read (about 1.5 million rows of an OpenFAST uniform wind file:
+#: a 2-million-row file once took 0.9 GB while being parsed)
+MAX_FILE_BYTES = 100_000_000
+
+
 def _file(path, field: str) -> SampledWind:
     if not isinstance(path, str | Path) or not str(path):
         raise ConfigError(field, path, "the path of an OpenFAST uniform wind file (.hh, .wnd) "
                                        "or a CSV with columns time_s, speed_mps")
     p = Path(path)
     try:
+        size = p.stat().st_size
+        if size > MAX_FILE_BYTES:  # refused before it is read: about 0.45 kB of memory a row
+            raise ConfigError(field, str(path), f"a wind file of at most {MAX_FILE_BYTES:,} "
+                              f"bytes (this one: {size:,}; a 10-min series at 100 Hz is about "
+                              "3 MB): resample it")
         raw = p.read_bytes()
     except OSError as exc:
         raise ConfigError(field, str(path), f"an existing, readable file ({exc.strerror})") \
