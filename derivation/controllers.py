@@ -208,7 +208,7 @@ def as_json() -> dict:
         "schedule": SCHED,
         "groups": {f"{c.states_group}": c.states for c in REGISTRY.values()
                    if c.states_group != "controller_states"}
-        | {f"{c.params_group}": c.params for c in REGISTRY.values()
+        | {f"{c.params_group}": lay.with_controller_ranges(c.params) for c in REGISTRY.values()
            if c.params_group != "controller_params"},
     }
 

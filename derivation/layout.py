@@ -21,6 +21,7 @@ numbers come from :mod:`derivation.nrel5mw`, which gives their sources; Table 1'
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, replace
 
 from derivation import nrel5mw
@@ -222,6 +223,40 @@ TURBINE_VALID = {
     "pitch_max": (-math.pi / 2, math.pi / 2, False, False),
     **dict.fromkeys(("gen_constant_power", "gen_torque_law"), (0.0, 1.0, False, False)),
 }
+#: The physical range of a controller parameter, by its role: the name without the
+#: controller's prefix (phys_, dt_, pi_) and blade or step number. Gains, rates, time
+#: constants, inertias and widths are positive (each divides or sets a sign the design
+#: relies on); σ-modifications and torques non-negative; pitch angles within ±90°; the
+#: observer gain K (Table 1's is not even Hurwitz: paper-notes defect 1), centres, offsets
+#: and b any finite number; the fault estimates of eq (49) in their own ranges.
+_NONNEG = (0.0, None, False, True)
+_ANY = (None, None, True, True)
+_ANGLE = (-math.pi / 2, math.pi / 2, False, False)
+CONTROLLER_VALID = {
+    **dict.fromkeys(("c", "gamma", "theta_max", "inertia", "J_r", "J_g", "k_s", "d_s",
+                     "gearbox_ratio", "tau_a", "dTdbeta_min", "rate_max", "mf_width", "x_scale",
+                     "omega_n", "zeta", "tau_young", "tau_b_model"), _POSITIVE),
+    **dict.fromkeys(("sigma", "r", "gen_torque"), _NONNEG),
+    **dict.fromkeys(("K_obs", "mf_centre", "x_offset", "b"), _ANY),
+    **dict.fromkeys(("pitch_min", "pitch_max", "ubar_hat"), _ANGLE),
+    "control_sign": (-1.0, 1.0, False, False),
+    "rho_hat": (0.0, 1.0, True, False),
+    "lock_hat": (0.0, 1.0, False, False),
+}
+
+
+def controller_role(name: str) -> str:
+    """``phys_c1`` → ``c``, ``gamma_3`` → ``gamma``, ``dt_theta_max`` → ``theta_max``."""
+    return re.sub(r"_?\d+$", "", re.sub(r"^(phys|dt|pi)_", "", name))
+
+
+def with_controller_ranges(entries: list[Entry]) -> list[Entry]:
+    """The entries with their physical range from :data:`CONTROLLER_VALID` (by role);
+    an entry whose role has none (a held external command) keeps ``valid`` unset."""
+    return [replace(e, valid=CONTROLLER_VALID.get(controller_role(e.name), e.valid))
+            for e in entries]
+
+
 PLANT_PARAMS = [replace(e, valid=TURBINE_VALID[e.name]) for e in PLANT_PARAMS]
 TURBINE_PARAMS = [replace(e, valid=TURBINE_VALID[e.name]) for e in TURBINE_PARAMS]
 
@@ -285,7 +320,7 @@ def as_json() -> dict:
         "controller_states": CONTROLLER_STATES,
         "plant_params": PLANT_PARAMS,
         "fault_inputs": FAULT_INPUTS,
-        "controller_params": CONTROLLER_PARAMS,
+        "controller_params": with_controller_ranges(CONTROLLER_PARAMS),
         "reference": REFERENCE,
         "theta_star": THETA_STAR,
         "nrel5mw_states": NREL_STATES,

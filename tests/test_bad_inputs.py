@@ -125,6 +125,15 @@ CASES = [
     Case("label-int", "label", cfg="label = 5\n"),
     Case("label-list", "label", cfg='label = ["a"]\n'),
     # --- the Cp table
+    # --- controller parameters: each in its physical range (layout.json "valid")
+    Case("ctrl-gain-zero", "controller_params.phys_c1",
+         cfg='controller = "physical"\n[controller_params]\nphys_c1 = 0.0\n'),
+    Case("ctrl-gamma-negative", "controller_params.gamma_2",
+         cfg="[controller_params]\ngamma = [1.0, -1.0, 1.0, 1.0]\n"),
+    Case("ctrl-pitch-range", "controller_params.pi_pitch_min",
+         cfg='controller = "pi"\n[controller_params]\npi_pitch_min = 0.5\npi_pitch_max = 0.4\n'),
+    Case("ctrl-pitch-beyond-90", "controller_params.dt_pitch_max",
+         cfg='controller = "drivetrain"\n[controller_params]\ndt_pitch_max = 2.0\n'),
     Case("cp-number", "cp_table", cfg="cp_table = 5\n"),
     Case("cp-bool", "cp_table", cfg="cp_table = true\n"),
     Case("cp-missing", "cp_table", cfg='cp_table = "{tmp}/nowhere.txt"\n'),

@@ -91,8 +91,8 @@ def test_each_turbine_parameter_changes_the_run(key):
 def test_each_controllers_parameters_change_its_run(controller):
     group = controllers()[controller]["params"]
     raw = {**SCENARIOS["above"], "controller": controller}
-    changed = {n: 1.1 * v if v else 0.05 for n, v in zip(lay.names(group), lay.defaults(group),
-                                                            strict=True)}
+    changed = {n: (0.9 if "pitch_max" in n else 1.1) * v if v else 0.05  # within ±90°
+               for n, v in zip(lay.names(group), lay.defaults(group), strict=True)}
     changed = {n: v for n, v in changed.items()
                if not n.startswith(("rho_hat", "lock_hat", "ubar_hat", "control_sign"))}
     base, _ = _outcome(raw)

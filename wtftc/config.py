@@ -290,6 +290,12 @@ def _parameters(raw: dict, controller: str) -> tuple[np.ndarray, np.ndarray]:
     signed = "control_sign" in lay.names(ctrl_group)
     p_ctrl = lay.vector(ctrl_group, {**_overrides(raw, "controller_params", ctrl_group),
                                      **({"control_sign": raw["control_sign"]} if signed else {})})
+    vals = check_ranges(ctrl_group, p_ctrl, "controller_params")
+    for low in (n for n in vals if n.endswith("pitch_min")):  # a controller's pitch range
+        high = low.replace("pitch_min", "pitch_max")
+        if high in vals and vals[low] >= vals[high]:
+            raise ConfigError(f"controller_params.{low}", vals[low],
+                              f"{low} < {high} (here {high} = {vals[high]:g})")
     over = _overrides(raw, "turbine_params", "turbine_params")
     p_turbine = lay.vector("turbine_params", over)
     check_turbine(p_turbine, given=over)
@@ -326,12 +332,29 @@ def _overrides(raw: dict, key: str, group: str) -> dict:
     return out
 
 
-def _range_text(name: str) -> str:
-    lo, hi, lo_open, hi_open, unit = TURBINE_RANGES[name]
+def _range_text(rng: tuple) -> str:
+    lo, hi, lo_open, hi_open, unit = rng
     if hi == _INF:
         return f"a number {'>' if lo_open else '>='} {lo:g} [{unit}]"
     return f"a number in {'(' if lo_open else '['}{lo:.6g}, {hi:.6g}{')' if hi_open else ']'} " \
            f"[{unit}]"
+
+
+def check_ranges(group: str, vec, key: str) -> dict[str, float]:
+    """Refuse a parameter vector of a layout group with a value that is not finite or is
+    outside its physical range (layout.json ``valid``): a ConfigError naming
+    ``<key>.<name>``, the value and the range. Returns the values by name."""
+    ranges = _ranges(group)
+    vals = lay.values(group, vec)
+    for name, val in vals.items():
+        field = f"{key}.{name}"
+        if not math.isfinite(val):
+            raise ConfigError(field, val, "a finite number")
+        if name in ranges:
+            lo, hi, lo_open, hi_open, _ = ranges[name]
+            if val < lo or val > hi or (lo_open and val == lo) or (hi_open and val == hi):
+                raise ConfigError(field, val, _range_text(ranges[name]))
+    return vals
 
 
 def check_turbine(p_turbine, given=()) -> None:
@@ -339,16 +362,7 @@ def check_turbine(p_turbine, given=()) -> None:
     :data:`TURBINE_ORDER`, or a flag other than 0 or 1: a ConfigError naming
     ``turbine_params.<name>``, the value and the allowed range. ``given``: the names the
     user set (an order error names the one of the pair that was set)."""
-    vals = lay.values("turbine_params", p_turbine)
-    for name, val in vals.items():
-        field = f"turbine_params.{name}"
-        if not math.isfinite(val):
-            raise ConfigError(field, val, "a finite number")
-        if name not in TURBINE_RANGES:
-            continue
-        lo, hi, lo_open, hi_open, _ = TURBINE_RANGES[name]
-        if val < lo or val > hi or (lo_open and val == lo) or (hi_open and val == hi):
-            raise ConfigError(field, val, _range_text(name))
+    vals = check_ranges("turbine_params", p_turbine, "turbine_params")
     for low, high in TURBINE_ORDER:
         if vals[low] >= vals[high]:
             name, other = (high, low) if high in given and low not in given else (low, high)
