@@ -107,9 +107,15 @@ def _schedule_points(table: CpTable, p_turbine: tuple) -> tuple[np.ndarray, np.n
                        dcp_dbeta=dcp_fn(omega * R / v, beta), p_turbine=p_turbine)["dT_dbeta"])
         betas.append(float(beta))
         grads.append(g)
-    if len(betas) < 2:
+    if len(betas) < 2:  # the table and the turbine together: name both
+        tp = lay.values("turbine_params", p_turbine)
         raise ConfigError("cp_table", table.source, "a table with an above-rated operating "
-                          "range at rated speed and torque (none found)")
+                          "range at this turbine's rated speed and torque, for winds of 3-45 "
+                          "m/s (none found with turbine_params.air_density = "
+                          f"{tp['air_density']:g} kg/m^3, rotor_radius = "
+                          f"{tp['rotor_radius']:g} m, omega_g_rated = "
+                          f"{tp['omega_g_rated']:g} rad/s, gen_torque_rated = "
+                          f"{tp['gen_torque_rated']:g} N m)")
     return np.array(betas), np.array(grads)
 
 def _schedule_function(betas: np.ndarray, grads: np.ndarray) -> ca.Function:
