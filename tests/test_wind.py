@@ -430,3 +430,13 @@ def test_a_wind_file_too_large_to_read_is_refused_before_reading(tmp_path):
         fh.truncate(MAX_FILE_BYTES + 1)
     with pytest.raises(ConfigError, match="at most 100,000,000 bytes"):
         wind_from_config({"kind": "file", "path": str(f)}, t_final=10.0)
+
+
+def test_a_wind_file_of_too_many_rows_is_refused_before_parsing(tmp_path):
+    from wtftc.errors import ConfigError
+    from wtftc.model.wind import MAX_FILE_LINES, wind_from_config
+
+    f = tmp_path / "long.csv"
+    f.write_text("time_s,speed_mps\n" + "0 12\n" * MAX_FILE_LINES)
+    with pytest.raises(ConfigError, match="at most 1,000,000 lines"):
+        wind_from_config({"kind": "file", "path": str(f)}, t_final=10.0)

@@ -457,9 +457,10 @@ def _read_csv(lines, fail) -> tuple[list, list, list]:
     return times, speeds, rows
 
 
-#: the largest wind file read (about 1.5 million rows of an OpenFAST uniform wind file:
-#: a 2-million-row file once took 0.9 GB while being parsed)
+#: the largest wind file read, in bytes and in lines (a 2-million-row file once took
+#: 0.9 GB while being parsed)
 MAX_FILE_BYTES = 100_000_000
+MAX_FILE_LINES = 1_000_000
 
 
 def _file(path, field: str) -> SampledWind:
@@ -485,6 +486,10 @@ def _file(path, field: str) -> SampledWind:
     def fail(no, msg):
         raise ConfigError(field, str(path), msg, where=f"{path}:{no}")
 
+    n_lines = text.count("\n") + 1
+    if n_lines > MAX_FILE_LINES:  # counted before any line is parsed
+        raise ConfigError(field, str(path), f"a wind file of at most {MAX_FILE_LINES:,} lines "
+                          f"(this one: {n_lines:,}; 10 min at 1 kHz is 600,000): resample it")
     lines = list(enumerate(text.splitlines(), start=1))
     is_csv = p.suffix.lower() == ".csv"
     if is_csv:
