@@ -126,6 +126,8 @@ CASES = [
     Case("label-list", "label", cfg='label = ["a"]\n'),
     # --- the Cp table
     # --- controller parameters: each in its physical range (layout.json "valid")
+    Case("ctrl-told-fault", "controller_params.lock_hat_2",  # was accepted and ignored
+         cfg="[controller_params]\nlock_hat_2 = 1.0\n"),
     Case("ctrl-gain-zero", "controller_params.phys_c1",
          cfg='controller = "physical"\n[controller_params]\nphys_c1 = 0.0\n'),
     Case("ctrl-gamma-negative", "controller_params.gamma_2",

@@ -288,6 +288,13 @@ def _parameters(raw: dict, controller: str) -> tuple[np.ndarray, np.ndarray]:
     turbine's checked against :data:`TURBINE_RANGES`."""
     ctrl_group = rhs.controllers()[controller]["params"]
     signed = "control_sign" in lay.names(ctrl_group)
+    table = raw.get("controller_params")
+    told = [n for n in (table if isinstance(table, dict) else {})
+            if isinstance(n, str) and n.startswith(("rho_hat", "lock_hat", "ubar_hat"))]
+    if told:  # the generated law takes them from its known_fault input, set by the case
+        raise ConfigError(f"controller_params.{told[0]}", raw["controller_params"][told[0]],
+                          "not a parameter: eq (49) is told the fault by the case (3: the "
+                          "true fault; 4: wtftc's FDI), so a value here would be ignored")
     p_ctrl = lay.vector(ctrl_group, {**_overrides(raw, "controller_params", ctrl_group),
                                      **({"control_sign": raw["control_sign"]} if signed else {})})
     vals = check_ranges(ctrl_group, p_ctrl, "controller_params")
