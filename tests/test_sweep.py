@@ -316,3 +316,15 @@ def test_a_fault_free_short_sweep_needs_no_onset(tmp_path):
     sw = sweep.parse_sweep({"mode": "grid", "t_final_s": 5.0, "controllers": ["paper"]})
     runs, _ = sweep.expand(sw)
     assert len(runs) == 1 and runs[0]["fault_type"] == "none"
+
+
+def test_overwrite_never_removes_a_folder_that_is_not_a_sweeps(tmp_path):
+    """--overwrite used to rmtree any non-empty --out (even the current folder, --out "")."""
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep me")
+    for out, cwd in ((mine, None), ("", mine), (".", mine)):
+        p = wtftc("sweep", ROOT / "examples" / "sweep_small.toml", "--out", out,
+                  "--overwrite", cwd=cwd, timeout=120)
+        assert p.returncode == 2 and "--out" in p.stderr and "Traceback" not in p.stderr
+        assert (mine / "notes.txt").read_text() == "keep me"

@@ -81,11 +81,14 @@ def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> set[
 
     out_dir = Path(out_dir)
     meta = out_dir / "sweep.json"
+    if out_dir.resolve() in (Path.cwd(), *Path.cwd().parents):
+        raise ConfigError("--out", str(out_dir), "a folder of its own (not the current folder "
+                          "or one that contains it)")
     if out_dir.exists() and any(out_dir.iterdir()):
-        if not meta.exists():
-            if not overwrite:
-                raise ConfigError("--out", str(out_dir), "an empty folder or a sweep's results "
-                                  "folder (it holds other files; --overwrite clears it)")
+        if not meta.exists():  # never removed, even with --overwrite: it is not ours
+            raise ConfigError("--out", str(out_dir), "an empty folder or a sweep's results "
+                              "folder (this one holds other files; --overwrite removes only "
+                              "a sweep's results folder)")
         else:
             _check_same_sweep(out_dir, json.loads(meta.read_text()), sw.sweep_id, overwrite)
         if overwrite:
