@@ -268,7 +268,29 @@ def _controller_nan_cases() -> list[Case]:
     return out
 
 
-ALL = CASES + _turbine_range_cases() + _controller_nan_cases()
+def _controller_range_cases() -> list[Case]:
+    """For every parameter of every registered controller with a finite end to its range
+    (layout.json ``valid``; not eq (49)'s told fault, refused as such): a value just
+    beyond it, refused naming controller_params.<name>. A new parameter adds its cases."""
+    out = []
+    for ctrl, reg in controllers().items():
+        if ctrl == "external":
+            continue
+        for name, (lo, hi, lo_open, hi_open, _) in config._ranges(reg["params"]).items():
+            if name.startswith(("rho_hat", "lock_hat", "ubar_hat", "control_sign")):
+                continue
+            for end, is_open, step in ((lo, lo_open, -0.5), (hi, hi_open, 0.5)):
+                if math.isfinite(end):
+                    value = end if is_open else end + step
+                    out.append(Case(f"controller-{ctrl}-{name}-{value:g}",
+                                    f"controller_params.{name}",
+                                    cfg=f'controller = "{ctrl}"\n[controller_params]\n'
+                                        f"{name} = {value!r}\n"))
+    return out
+
+
+ALL = (CASES + _turbine_range_cases() + _controller_nan_cases()
+       + _controller_range_cases())
 
 
 def _materialize(case: Case, tmp: Path) -> list[str]:
