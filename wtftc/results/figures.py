@@ -60,7 +60,10 @@ def rotor_speed(run, out: Path, name: str, paper_fig: str) -> list[Path]:
 def control(run, out: Path, name: str, paper_fig: str) -> list[Path]:
     res = run["result"]
     fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
-    axes[0].plot(res.t, res.column("u0"), color="k", lw=1, label="u0, eq (49)")
+    paper = run["rc"].controller == "paper"  # the others' mean-pitch command is theirs
+    axes[0].plot(res.t, res.column("u0"), color="k", lw=1,
+                 label="u0, eq (49)" if paper else f"u0, the {run['rc'].controller} "
+                                                  "controller's mean pitch command")
     axes[0].set_ylabel("control signal u0 [rad]")
     axes[0].legend(fontsize=8)
     lo, hi = run["pitch_limits_deg"]
