@@ -109,15 +109,17 @@ def _compile_function(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_
     return f if loaded is None else loaded
 
 @cache
-def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False) -> ca.Function:
+def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False,
+                   quiet: bool = False) -> ca.Function:
     """``n`` RK4 steps of ``loop`` in one compiled call (mapaccum over the step);
-    ``fast_math``: compiled with FAST_MATH_CFLAGS instead of LOOP_CFLAGS."""
+    ``fast_math``: compiled with FAST_MATH_CFLAGS instead of LOOP_CFLAGS; ``quiet``: no
+    note when it is compiled."""
     step = rk4_step(rhs_function(loop))
     tag = "" if loop.fdi else "_nofdi"
     chunk = step.mapaccum(f"loop_{loop.plant}_{loop.controller}{tag}", n)
     return _compile_function(chunk, f"loop_{loop.plant}_{loop.controller}{tag}_"
                              f"{loop.table_key}_{n}",
-                             FAST_MATH_CFLAGS if fast_math else LOOP_CFLAGS)
+                             FAST_MATH_CFLAGS if fast_math else LOOP_CFLAGS, quiet)
 
 
 class Buffered:
@@ -370,7 +372,8 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     if hook is not None and len(runs) != 1:
         raise ValueError("a chunk hook drives one run at a time")
     n_steps = int(round(t_final / dt))
-    f = chunk_function(loop, n=hook.steps if hook else CHUNK, fast_math=fast_math)
+    f = chunk_function(loop, n=hook.steps if hook else CHUNK, fast_math=fast_math,
+                       quiet=not progress)
     call = Buffered(_mapped(f, len(runs), threads))
     n_c = f.size2_out("out")  # steps per chunk
     batch = _Batch(runs, state_names(loop.plant, loop.controller)[:f.size1_in("z")],
