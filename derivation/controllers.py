@@ -33,6 +33,8 @@ from derivation.casadi_build import FuzzyEvaluator, Translator, joint_cse
 
 MEAS = ["omega_r", "omega_g_hss", *[f"beta_meas_{j}" for j in range(1, lay.N_BLADES + 1)]]
 MEAS_UNITS = ["rad/s", "rad/s", *["rad"] * lay.N_BLADES]
+#: where verification draws each measurement (the pitch beyond 0..90°)
+MEAS_SAMPLES = [(1.0, 1.5), (100.0, 145.0), *[(-0.05, 1.65)] * lay.N_BLADES]
 SCHED = ["dT_dbeta"]
 N_DIAG = 4
 
@@ -204,7 +206,8 @@ def as_json() -> dict:
                                  "diag_units": [u for _, u in c.diag], "doc": c.doc}
                         | _checks_json(c)
                         for c in REGISTRY.values()},
-        "measurements": [{"name": n, "unit": u} for n, u in zip(MEAS, MEAS_UNITS, strict=True)],
+        "measurements": [{"name": n, "unit": u, "sample": list(r)}
+                         for n, u, r in zip(MEAS, MEAS_UNITS, MEAS_SAMPLES, strict=True)],
         "schedule": SCHED,
         "groups": {f"{c.states_group}": c.states for c in REGISTRY.values()
                    if c.states_group != "controller_states"}

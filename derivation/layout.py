@@ -103,13 +103,14 @@ PLANT_PARAMS = [
 ]
 
 # --- fault parameters of eq (19), one per blade actuator (true plant) ---
+#: (the sample ranges: where verification draws the fault estimates eq (49) is told)
 FAULT_INPUTS = [
-    *[Entry(f"rho_{j}", 1.0, "-", f"loss of effectiveness ρ of actuator {j}, eq (19)")
-      for j in range(1, N_BLADES + 1)],
-    *[Entry(f"lock_{j}", 0.0, "-", f"lock-in-place indicator σ of actuator {j}, eq (19)")
-      for j in range(1, N_BLADES + 1)],
-    *[Entry(f"ubar_{j}", 0.0, "rad", f"stuck command ū of actuator {j}, eq (19)")
-      for j in range(1, N_BLADES + 1)],
+    *[Entry(f"rho_{j}", 1.0, "-", f"loss of effectiveness ρ of actuator {j}, eq (19)",
+            sample=(0.5, 1.0)) for j in range(1, N_BLADES + 1)],
+    *[Entry(f"lock_{j}", 0.0, "-", f"lock-in-place indicator σ of actuator {j}, eq (19)",
+            sample=(0.0, 0.7)) for j in range(1, N_BLADES + 1)],
+    *[Entry(f"ubar_{j}", 0.0, "rad", f"stuck command ū of actuator {j}, eq (19)",
+            sample=(0.0, 0.3)) for j in range(1, N_BLADES + 1)],
 ]
 
 # --- controller parameters: Table 1 and the design choices of docs/paper-notes.md ---
@@ -151,10 +152,13 @@ CONTROLLER_PARAMS = [
 
 # --- simulator plants (derivation/turbine.py) ---
 _N = nrel5mw.GEARBOX_RATIO  # HSS/LSS
+#: (the sample ranges: verification crosses the actuator's limits, beyond 0..90°)
 NREL_STATES = [
-    *DRIVETRAIN_STATES,
-    *[Entry(f"beta_{j}", 0.0, "rad", f"pitch angle of blade {j}") for j in range(1, N_BLADES + 1)],
-    *[Entry(f"beta_rate_{j}", 0.0, "rad/s", f"pitch rate of blade {j}")
+    *[replace(e, sample=r) for e, r in zip(DRIVETRAIN_STATES, ((0.8, 1.6), (-0.01, 0.01),
+                                                                (0.8, 1.6)), strict=True)],
+    *[Entry(f"beta_{j}", 0.0, "rad", f"pitch angle of blade {j}", sample=(-0.1, 1.7))
+      for j in range(1, N_BLADES + 1)],
+    *[Entry(f"beta_rate_{j}", 0.0, "rad/s", f"pitch rate of blade {j}", sample=(-0.25, 0.25))
       for j in range(1, N_BLADES + 1)],
 ]
 TURBINE_PARAMS = [
@@ -260,25 +264,27 @@ def with_controller_ranges(entries: list[Entry]) -> list[Entry]:
 PLANT_PARAMS = [replace(e, valid=TURBINE_VALID[e.name]) for e in PLANT_PARAMS]
 TURBINE_PARAMS = [replace(e, valid=TURBINE_VALID[e.name]) for e in TURBINE_PARAMS]
 
+#: (the sample ranges exercise every fault, beyond those eq (49) is told)
+_FAULT_SAMPLES = {"rho": (0.3, 1.0), "lock": (0.0, 1.0), "ubar": (0.0, 0.5)}
 ACTUATOR_FAULTS = [
-    *FAULT_INPUTS,
+    *[replace(e, sample=_FAULT_SAMPLES[e.name.rsplit("_", 1)[0]]) for e in FAULT_INPUTS],
     *[Entry(f"omega_n_{j}", nrel5mw.ACTUATOR_OMEGA_N, "rad/s",
             f"actuator {j} natural frequency: {nrel5mw.ACTUATOR_OMEGA_N} nominal, "
             f"{nrel5mw.PRESSURE_DROP_OMEGA_N} hydraulic pressure drop, "
-            f"{nrel5mw.AIR_IN_OIL_OMEGA_N} high air content in oil (Odgaard 2013)")
-      for j in range(1, N_BLADES + 1)],
+            f"{nrel5mw.AIR_IN_OIL_OMEGA_N} high air content in oil (Odgaard 2013)",
+            sample=(3.0, 12.0)) for j in range(1, N_BLADES + 1)],
     *[Entry(f"zeta_{j}", nrel5mw.ACTUATOR_ZETA, "-",
             f"actuator {j} damping: {nrel5mw.ACTUATOR_ZETA} nominal, "
-            f"{nrel5mw.PRESSURE_DROP_ZETA} pressure drop, {nrel5mw.AIR_IN_OIL_ZETA} air in oil")
-      for j in range(1, N_BLADES + 1)],
+            f"{nrel5mw.PRESSURE_DROP_ZETA} pressure drop, {nrel5mw.AIR_IN_OIL_ZETA} air in oil",
+            sample=(0.4, 1.0)) for j in range(1, N_BLADES + 1)],
 ]
 SENSOR_FAULTS = [
-    *[Entry(f"sensor_gain_{j}", 1.0, "-", f"pitch sensor {j} gain (fault: ≠ 1)")
-      for j in range(1, N_BLADES + 1)],
-    *[Entry(f"sensor_fixed_{j}", 0.0, "-", f"pitch sensor {j} stuck (1) at sensor_value")
-      for j in range(1, N_BLADES + 1)],
-    *[Entry(f"sensor_value_{j}", 0.0, "rad", f"pitch sensor {j} fixed value")
-      for j in range(1, N_BLADES + 1)],
+    *[Entry(f"sensor_gain_{j}", 1.0, "-", f"pitch sensor {j} gain (fault: ≠ 1)",
+            sample=(0.8, 1.2)) for j in range(1, N_BLADES + 1)],
+    *[Entry(f"sensor_fixed_{j}", 0.0, "-", f"pitch sensor {j} stuck (1) at sensor_value",
+            sample=(0.0, 1.0)) for j in range(1, N_BLADES + 1)],
+    *[Entry(f"sensor_value_{j}", 0.0, "rad", f"pitch sensor {j} fixed value",
+            sample=(0.0, 0.5)) for j in range(1, N_BLADES + 1)],
 ]
 
 #: the reference y_d and its first four derivatives, eqs (26), (37), (43), (49)

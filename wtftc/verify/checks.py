@@ -97,6 +97,8 @@ def _models() -> dict[str, dict]:
 def _draw(entries: list[dict], rng: np.random.Generator) -> np.ndarray:
     """Random values of layout entries: uniform in each entry's sample range where the
     derivation gives one, else its default plus 0.05 N(0, 1)."""
+    if all("sample" in e for e in entries):  # (measurements have no default)
+        return np.array([rng.uniform(*e["sample"]) for e in entries])
     base = np.array([e["default"] for e in entries], dtype=float)
     if not any("sample" in e for e in entries):
         return base + 0.05 * rng.standard_normal(base.size)
@@ -119,55 +121,31 @@ def _group_of(name: str, kind: str, size: int) -> str:
 
 
 def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """Plant inputs that cross the actuator limits and exercise every fault, by name."""
-    n = lay.n_blades()
-    x_plant = {"omega_r": rng.uniform(0.8, 1.6), "theta_s": rng.uniform(-0.01, 0.01),
-               "omega_g": rng.uniform(0.8, 1.6),
-               **_blades("beta", rng.uniform(-0.1, 1.7, n)),  # beyond the 0..90° limits
-               **_blades("beta_rate", rng.uniform(-0.25, 0.25, n))}
+    """Plant inputs that cross the actuator limits and exercise every fault: the layout
+    groups drawn in their sample ranges (derivation/layout.py), the scalars here."""
+    x_plant = _draw(lay.layout()["nrel5mw_states"], rng)
     wind, cp = rng.uniform(3.0, 25.0), rng.uniform(-0.1, 0.5)
-    actuator = {**_blades("rho", rng.uniform(0.3, 1.0, n)), **_blades("lock", rng.uniform(0, 1, n)),
-                **_blades("ubar", rng.uniform(0, 0.5, n)),
-                **_blades("omega_n", rng.uniform(3.0, 12.0, n)),
-                **_blades("zeta", rng.uniform(0.4, 1.0, n))}
-    sensor = {**_blades("sensor_gain", rng.uniform(0.8, 1.2, n)),
-              **_blades("sensor_fixed", rng.uniform(0, 1, n)),
-              **_blades("sensor_value", rng.uniform(0, 0.5, n))}
-    meas = {"omega_r": rng.uniform(1.0, 1.5), "omega_g_hss": rng.uniform(100.0, 145.0),
-            **_blades("beta_meas", rng.uniform(-0.05, 1.65, n))}
+    actuator = _draw(lay.layout()["actuator_faults"], rng)
+    sensor = _draw(lay.layout()["sensor_faults"], rng)
+    meas = _draw(lay.layout()["measurements"], rng)
     return {
-        "x_plant": _ordered("nrel5mw_states", x_plant),
+        "x_plant": x_plant,
         "wind": np.array([wind]),
         "cp": np.array([cp]),
-        "actuator_faults": _ordered("actuator_faults", actuator),
-        "sensor_faults": _ordered("sensor_faults", sensor),
-        "meas": np.array([meas[e["name"]] for e in lay.layout()["measurements"]]),
+        "actuator_faults": actuator,
+        "sensor_faults": sensor,
+        "meas": meas,
         "sched": np.array([-rng.uniform(2e6, 3e7)]),
-        "known_fault": _ordered("fault_inputs", {**_blades("rho", rng.uniform(0.5, 1.0, n)),
-                                                 **_blades("lock", rng.uniform(0, 0.7, n)),
-                                                 **_blades("ubar", rng.uniform(0, 0.3, n))}),
+        "known_fault": _draw(lay.layout()["fault_inputs"], rng),
         "dcp_dbeta": np.array([rng.uniform(-2.0, 0.2)]),
         "omega_dot": np.array([rng.uniform(-0.2, 0.2)]),
         "b_dot": np.array([rng.uniform(-0.05, 0.05)]),
         "d": np.array([rng.uniform(-0.05, 0.05)]),
         "x_fdi": _fdi_states(rng),
-        "beta_meas": rng.uniform(-0.05, 1.65, n),
+        "beta_meas": rng.uniform(-0.05, 1.65, lay.n_blades()),
         "p_fdi": lay.defaults("fdi_params") * (1 + 0.1 * rng.uniform(-1, 1, len(
             lay.names("fdi_params")))),
     }
-
-
-def _blades(prefix: str, draws: np.ndarray) -> dict[str, float]:
-    """``prefix_j``: the draws, one per blade."""
-    return {f"{prefix}_{j}": float(x) for j, x in zip(lay.blades(), draws, strict=True)}
-
-
-def _ordered(group: str, values: dict[str, float]) -> np.ndarray:
-    """``values`` in the layout's order of ``group`` (every entry named once)."""
-    missing = set(lay.names(group)) ^ set(values)
-    if missing:
-        raise KeyError(f"{group}: random values for {sorted(missing)} missing or unknown")
-    return np.array([values[name] for name in lay.names(group)])
 
 
 def _fdi_states(rng: np.random.Generator) -> np.ndarray:
