@@ -23,8 +23,8 @@ $(STAMP): pyproject.toml
 	@# ROSCO's controller library for the ROSCO-in-the-loop tests and rows, without the
 	@# 1.4 GB its wheel pulls in (wisdem, openmdao, ...): wtftc needs only libdiscon and
 	@# its ControllerInterface (docs/controllers.md)
-	$(PY) -m pip install --quiet --no-deps 'rosco==2.10.6'
 	$(PY) -m pip install --quiet pyzmq pyyaml ruamel.yaml
+	$(PY) -m pip install --quiet --no-deps 'rosco==2.10.6' 
 	@touch $(STAMP)
 
 setup: $(STAMP)

@@ -37,6 +37,10 @@ angle_deg = "current"
 
 
 def main(out_dir: Path) -> None:
+    try:
+        import distributed  # noqa: F401 - Dask runs the sweep
+    except ImportError:
+        sys.exit("this example needs Dask: pip install 'wtftc[sweep]' (make setup has it)")
     out_dir.mkdir(parents=True, exist_ok=True)
     sweep_file = out_dir / "tiny_sweep.toml"
     sweep_file.write_text(SWEEP)

@@ -118,7 +118,8 @@ def _add_run(sub) -> None:
     r.add_argument("--dt", type=float, help="RK4 step [s] (default 0.001)")
     r.add_argument("--seed", type=_nonnegative_int, help="random seed (default 0)")
     r.add_argument("--sign", type=int, choices=(-1, 1),
-                   help="control sign: -1 corrected (default), +1 as written (diverges)")
+                   help="control sign: -1 corrected (default), +1 as written (pitches the "
+                        "wrong way and stalls the rotor: paper-notes defect 2)")
     r.add_argument("--out", type=Path, default=Path("out/run"),
                    help="output folder (default: out/run under the current folder)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -416,6 +417,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wtftc: error: {_one_line(exc)}", file=sys.stderr)
     except GeneratedArtefactError as exc:
         print(f"wtftc: error: {_one_line(_artefact_message(exc))}", file=sys.stderr)
+    except BrokenPipeError:  # the reader stopped (wtftc functions | head): not an error
+        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - so that exit's flush is quiet
+        return 0
     except OSError as exc:  # a file that cannot be read or written
         print(f"wtftc: error: {_one_line(exc)}", file=sys.stderr)
     except KeyboardInterrupt:

@@ -239,9 +239,8 @@ def _controller(name) -> str:
             raise ConfigError("controller", "rosco", reason)
         return "external"
     if not isinstance(name, str) or name not in regs:
-        raise ConfigError("controller", name, "one of " + ", ".join(
-            [f"{k} ({v['doc']})" for k, v in regs.items()]
-            + ["rosco (NREL's ROSCO through its ControllerInterface; optional extra)"]))
+        raise ConfigError("controller", name, "one of " + ", ".join([*regs, "rosco"])
+                          + " (docs/controllers.md)")
     return name
 
 
@@ -385,12 +384,15 @@ def _faults(raw: dict, case: int, t_final: float) -> list:
         if raw.get("fault"):
             raise ConfigError("fault", raw["fault"], "no fault in case 1 (use case 2 or 3)")
         return []
+    default = "fault" not in raw
     raw.setdefault("fault", copy.deepcopy(DEFAULT_FAULT))
     faults = parse_faults(raw["fault"])
     for k, f in enumerate(faults):
         if f.onset_s >= t_final:
             raise ConfigError(f"fault[{k}].onset_s", f.onset_s,
-                              f"a time before t_final_s = {t_final:g} s")
+                              f"a time before t_final_s = {t_final:g} s"
+                              + (" (the default fault starts at 20 s: a longer --t-final, or "
+                                 "a [[fault]] table with its own onset_s)" if default else ""))
     return faults
 
 

@@ -250,10 +250,10 @@ class Envelope:
     def reason(self, w: float) -> str:
         env = lay.layout()["envelope"]
         if w > self.high:
-            return (f"out of the operating envelope: ω_r = {w:.4g} rad/s, above "
+            return (f"out of the operating envelope: ω_r = {w:.6g} rad/s, above "
                     f"{env['overspeed_over_rated']:g} × rated ({self.high:.4g} rad/s): the "
                     "rotor ran away")
-        return (f"out of the operating envelope: ω_r = {w:.4g} rad/s, below "
+        return (f"out of the operating envelope: ω_r = {w:.6g} rad/s, below "
                 f"{env['stall_under_rated']:g} × rated ({self.low:.4g} rad/s): the rotor "
                 "stalled")
 
