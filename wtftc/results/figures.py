@@ -141,7 +141,8 @@ def fault_shape(run, out: Path, name: str = "fig06_fault") -> list[Path]:
     for ax in axes:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, ncol=3)
-    locks = [f"blade {f['blade']} at " + (f"{a:.2f}°" if isinstance(a, float) else
+    locks = [f"blade {f['blade']} at " + (f"{round(a, 2) + 0.0:.2f}°"  # no "-0.00°"
+                                           if isinstance(a, float) else
                                            f"its {a} angle")
              for f in sched.describe() if f["type"] == "lock"
              for a in [f.get("angle_deg", "current")]]
