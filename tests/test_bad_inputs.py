@@ -126,6 +126,13 @@ CASES = [
     Case("label-list", "label", cfg='label = ["a"]\n'),
     # --- the Cp table
     # --- controller parameters: each in its physical range (layout.json "valid")
+    # --- found in review: accepted, then ignored or lost at once
+    Case("sign-physical", "control_sign", ("run", "--controller", "physical", "--sign", "1")),
+    Case("prefix-not-numbered", "gen_torque",
+         cfg="[turbine_params]\ngen_torque = [4180074.35, 1]\n"),
+    Case("reference-beyond-envelope", "reference_rad_s", cfg="reference_rad_s = 9.0\n"),
+    Case("offset-stalls-at-start", "initial.omega_r_offset_rad_s",
+         cfg="[initial]\nomega_r_offset_rad_s = -0.95\n"),
     Case("ctrl-told-fault", "controller_params.lock_hat_2",  # was accepted and ignored
          cfg="[controller_params]\nlock_hat_2 = 1.0\n"),
     Case("ctrl-gain-zero", "controller_params.phys_c1",

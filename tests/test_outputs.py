@@ -73,3 +73,22 @@ def test_the_current_folder_and_a_path_under_a_file_are_refused(tmp_path):
         assert p.returncode == 2, (out, p.stderr)
         assert p.stderr.startswith("wtftc: error: --out") and "Traceback" not in p.stderr
     assert sorted(q.name for q in tmp_path.iterdir()) == ["afile"]
+
+
+def test_a_folder_that_only_looks_like_a_run_folder_is_refused(tmp_path):
+    """config.toml and metrics.json beside other files (a user's, or added to a run
+    folder) make no run folder: nothing is deleted (it was, before review)."""
+    out = tmp_path / "p"
+    (out / "notes").mkdir(parents=True)
+    (out / "config.toml").write_text("x = 1\n")
+    (out / "metrics.json").write_text("{}")
+    (out / "thesis.tex").write_text("keep")
+    p = _done(wtftc("--t-final", 1, "--out", out))
+    assert p.returncode == 2 and "--out" in p.stderr
+    assert (out / "thesis.tex").read_text() == "keep" and (out / "notes").is_dir()
+
+
+def test_a_refused_run_leaves_no_folder(tmp_path):
+    p = _done(wtftc("--dt", 0.5, "--t-final", 1, "--out", tmp_path / "a" / "b" / "run"))
+    assert p.returncode == 2 and "dt_s" in p.stderr
+    assert list(tmp_path.iterdir()) == []

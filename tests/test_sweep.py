@@ -328,3 +328,12 @@ def test_overwrite_never_removes_a_folder_that_is_not_a_sweeps(tmp_path):
                   "--overwrite", cwd=cwd, timeout=120)
         assert p.returncode == 2 and "--out" in p.stderr and "Traceback" not in p.stderr
         assert (mine / "notes.txt").read_text() == "keep me"
+
+
+def test_a_damaged_sweep_json_is_one_line_and_overwrite_recovers(tmp_path):
+    out = tmp_path / "d"
+    out.mkdir()
+    for text in ("not json", '{"a": 1}'):
+        (out / "sweep.json").write_text(text)
+        p = wtftc("sweep", ROOT / "examples" / "sweep_small.toml", "--out", out, timeout=120)
+        assert p.returncode == 2 and "damaged" in p.stderr and "Traceback" not in p.stderr

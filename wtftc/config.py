@@ -125,6 +125,11 @@ class RunConfig:
         """The trimmed initial state of the loop (wtftc.sim.trim) at the wind at t = 0."""
         return trim(self.loop, self.p_ctrl, float(self.wind(0.0)), self.omega_offset)
 
+    @property
+    def signed(self) -> bool:
+        """Whether the controller has the paper's control sign (paper-notes defect 2)."""
+        return "control_sign" in lay.names(rhs.controllers()[self.controller]["params"])
+
     def param(self, name: str) -> float:
         """A turbine parameter by its layout name."""
         return float(self.loop.p_turbine[lay.index("turbine_params", name)])
@@ -193,9 +198,10 @@ def make_config(cfg: dict | None = None) -> RunConfig:
             raise ConfigError(key, cfg[key], "a known key: " + ", ".join(sorted(TOP_KEYS)))
     raw = {**copy.deepcopy(DEFAULTS), **cfg}
     case = raw["case"]
-    if isinstance(case, bool) or not isinstance(case, int) or case not in CASES:
+    if isinstance(case, bool) or not isinstance(case, numbers.Integral) or case not in CASES:
         raise ConfigError("case", case, "1 (no fault), 2 (fault, controller unaware), "
                           "3 (fault known to eq (49)) or 4 (fault detected by wtftc's FDI)")
+    raw["case"] = case = int(case)  # a NumPy integer too
     if not isinstance(raw["plant"], str) or raw["plant"] not in rhs.PLANTS:
         raise ConfigError("plant", raw["plant"], "one of " + ", ".join(
             f"{k} ({v['doc']})" for k, v in rhs.PLANTS.items()))
@@ -211,10 +217,26 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     wind = wind_from_config(raw["wind"], t_final=t_final, seed=seed)
     faults = _faults(raw, case, t_final)
     offset = _initial(raw)
+    _check_envelope(p_turbine, ref, offset)
     loop = rhs.Loop(raw["plant"], controller, *_cp_table(raw), tuple(float(x) for x in p_turbine))
     return RunConfig(raw=raw, case=case, loop=loop, t_final=t_final, dt=dt, seed=seed,
                      decimate=decimate, reference=ref, p_ctrl=p_ctrl, wind=wind, faults=faults,
                      omega_offset=offset)
+
+
+def _check_envelope(p_turbine, ref: float, offset: float) -> None:
+    """The reference and the start inside the operating envelope (layout.json "envelope";
+    a run outside it is lost at once, or driven out of it)."""
+    rated = float(p_turbine[lay.index("turbine_params", "omega_g_rated")])
+    env = lay.layout()["envelope"]
+    lo, hi = env["stall_under_rated"] * rated, env["overspeed_over_rated"] * rated
+    what = (f"inside the operating envelope, {env['stall_under_rated']:g}-"
+            f"{env['overspeed_over_rated']:g} × rated speed ({lo:.4g}-{hi:.4g} rad/s)")
+    if not lo < ref < hi:
+        raise ConfigError("reference_rad_s", ref, f"a speed {what}")
+    if not lo < rated + offset < hi:
+        raise ConfigError("initial.omega_r_offset_rad_s", offset, f"an offset from rated "
+                          f"speed ({rated:.6g} rad/s) that starts the rotor {what}")
 
 
 def _initial(raw: dict) -> float:
@@ -287,6 +309,10 @@ def _parameters(raw: dict, controller: str) -> tuple[np.ndarray, np.ndarray]:
     turbine's checked against :data:`TURBINE_RANGES`."""
     ctrl_group = rhs.controllers()[controller]["params"]
     signed = "control_sign" in lay.names(ctrl_group)
+    if not signed and raw["control_sign"] != -1:
+        raise ConfigError("control_sign", raw["control_sign"], f"-1: the {raw['controller']} "
+                          "controller has no sign to flip (only the paper's design has it: "
+                          "paper-notes defect 2)")
     table = raw.get("controller_params")
     told = [n for n in (table if isinstance(table, dict) else {})
             if isinstance(n, str) and n.startswith(("rho_hat", "lock_hat", "ubar_hat"))]
@@ -325,9 +351,11 @@ def _overrides(raw: dict, key: str, group: str) -> dict:
         if name in all_names:
             out[name] = _finite(val, field)
             continue
-        members = [n for n in all_names if n.rsplit("_", 1)[0] == name]
+        members = [n for n in all_names
+                   if n.rsplit("_", 1)[0] == name and n.rsplit("_", 1)[-1].isdigit()]
         if not members:
-            prefixes = sorted({n.rsplit("_", 1)[0] for n in all_names if n[-1].isdigit()})
+            prefixes = sorted({n.rsplit("_", 1)[0] for n in all_names
+                               if "_" in n and n.rsplit("_", 1)[-1].isdigit()})
             known = ", ".join(n for n in all_names if n != "control_sign")
             raise ConfigError(field, val, f"a name of {group}: {known}" + (
                 f" (or the prefix of numbered ones: {', '.join(prefixes)})" if prefixes else ""))

@@ -62,7 +62,8 @@ def block(group: str, prefix: str) -> slice:
     at = [k for k, n in enumerate(all_names)
           if n.rsplit("_", 1)[0] == prefix and n.rsplit("_", 1)[-1].isdigit()]
     if not at:
-        prefixes = sorted({n.rsplit("_", 1)[0] for n in all_names if n[-1].isdigit()})
+        prefixes = sorted({n.rsplit("_", 1)[0] for n in all_names
+                               if "_" in n and n.rsplit("_", 1)[-1].isdigit()})
         raise KeyError(f"no numbered entries {prefix}_<n> in {group}; prefixes: "
                        f"{', '.join(prefixes)}")
     if at != list(range(at[0], at[-1] + 1)):
@@ -98,9 +99,11 @@ def vector(group: str, values: Mapping[str, float] | None = None) -> np.ndarray:
         if key in all_names:
             vec[all_names.index(key)] = float(val)
             continue
-        members = [n for n in all_names if n.rsplit("_", 1)[0] == key]
+        members = [n for n in all_names  # numbered entries only: gen_torque is no prefix
+                   if n.rsplit("_", 1)[0] == key and n.rsplit("_", 1)[-1].isdigit()]
         if not members:
-            prefixes = sorted({n.rsplit("_", 1)[0] for n in all_names if n[-1].isdigit()})
+            prefixes = sorted({n.rsplit("_", 1)[0] for n in all_names
+                               if "_" in n and n.rsplit("_", 1)[-1].isdigit()})
             raise ValueError(f"{group}: unknown field {key!r} = {val!r}; allowed names: "
                              f"{', '.join(all_names)} (or the prefixes {', '.join(prefixes)})")
         seq = np.atleast_1d(np.asarray(val, dtype=float))

@@ -255,6 +255,9 @@ def _build(c_path: Path, cc: str, flags: tuple[str, ...], announce: str | None) 
             raise _cc_error(cc, f"wrote nothing for {c_path.name}")
         out = prefix.parent / f"{prefix.name}-{len(data)}-{_digest(data)}.so"
         try:
+            mask = os.umask(0)
+            os.umask(mask)
+            os.chmod(tmp, 0o777 & ~mask)  # mkstemp's 0600: readable by a shared cache's users
             os.replace(tmp, out)
         except OSError as exc:
             raise _cache_error(prefix.parent, exc) from None

@@ -150,28 +150,33 @@ def write_run_figures(out_dir: Path, rc: RunConfig, res: Result, m: dict) -> lis
 def run_cases(out_dir: Path, plants=tuple(PLANTS), overrides: dict | None = None,
               progress: bool = True, sign_as_written: bool = True) -> list[dict]:
     """The paper's three cases on each plant, figures and a metrics table under out_dir;
-    then case 1 with the control sign as written (paper-notes defect 2)."""
+    then case 1 with the control sign as written (paper-notes defect 2), for a controller
+    that has that sign. Every configuration is validated before the first run."""
     out_dir = Path(out_dir)
+    over = overrides or {}
+    configs = {plant: [make_config({**over, "plant": plant, "case": case}) for case in (1, 2, 3)]
+               for plant in plants}
+    sign_rc = None
+    if sign_as_written and configs[plants[0]][0].signed:
+        sign_rc = make_config({**over, "plant": plants[0], "case": 1, "control_sign": 1,
+                               "label": f"{plants[0]}_case1_sign_as_written"})
     rows = []
-    for plant in plants:
+    for plant, rcs in configs.items():
         runs = []
-        for case in (1, 2, 3):
-            rc = make_config({**(overrides or {}), "plant": plant, "case": case})
-            print(f"{plant}, case {case} ({CASES[case]}): {rc.t_final:g} s at dt = {rc.dt:g} s",
-                  flush=True)
+        for rc in rcs:
+            print(f"{plant}, case {rc.case} ({CASES[rc.case]}): {rc.t_final:g} s at "
+                  f"dt = {rc.dt:g} s", flush=True)
             res = run(rc, progress=progress, keep_states=True)
             m = metrics(rc, res)
-            write_outputs(out_dir / plant / f"case{case}", rc, res, m)
+            write_outputs(out_dir / plant / f"case{rc.case}", rc, res, m)
             runs.append(run_record(rc, res, m))
             rows.append(m)
         _case_figures(runs, out_dir / plant)
-    if sign_as_written:
-        rc = make_config({**(overrides or {}), "plant": plants[0], "case": 1,
-                          "control_sign": 1, "label": f"{plants[0]}_case1_sign_as_written"})
+    if sign_rc is not None:
         print(f"{plants[0]}, case 1 with the control sign as written (s = +1)", flush=True)
-        res = run(rc, progress=progress)
-        m = metrics(rc, res)
-        write_outputs(out_dir / plants[0] / "case1_sign_as_written", rc, res, m)
+        res = run(sign_rc, progress=progress)
+        m = metrics(sign_rc, res)
+        write_outputs(out_dir / plants[0] / "case1_sign_as_written", sign_rc, res, m)
         rows.append(m)
     write_table(out_dir, rows)
     return rows

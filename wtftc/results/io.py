@@ -15,6 +15,9 @@ from wtftc.errors import ConfigError
 
 #: what makes a folder a wtftc run folder, which a new run may replace as a whole
 RUN_MARKERS = ("config.toml", "metrics.json")
+#: everything a run folder may hold: a folder with anything else is not replaced
+RUN_FILES = {*RUN_MARKERS, "traces.csv", "traces.parquet", "metrics.md", "metrics.csv",
+             "figures"}
 
 
 def _umask_mode() -> int:
@@ -101,18 +104,26 @@ def run_folder(out: Path, option: str = "--out") -> Iterator[Path]:
     out = Path(out)
     _check_replaceable(out, option)
     parent = out.parent if str(out.parent) else Path(".")
+    made = [p for p in (parent, *parent.parents) if not p.exists()]  # removed on a failure
     try:
         parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=parent))
     except OSError as exc:
         raise ConfigError(option, str(out),
                           f"a folder that can be written ({exc.strerror})") from None
+    done = False
     try:
         yield tmp
         os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp creates 0700
-        _swap_in(tmp, out, parent)
+        _swap_in(tmp, out, parent, option)
+        done = True
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+        for p in made if not done else ():  # a refused or failed run leaves no folder
+            try:
+                p.rmdir()
+            except OSError:
+                break
 
 
 def _umask() -> int:
@@ -127,15 +138,31 @@ def _check_replaceable(out: Path, option: str) -> None:
                           "one that contains it)")
     if out.exists() and not out.is_dir():
         raise ConfigError(option, str(out), "a folder (this is a file)")
-    if out.is_dir() and any(out.iterdir()) and not all((out / m).exists() for m in RUN_MARKERS):
+    if out.is_dir() and not _is_run_folder(out):
         raise ConfigError(option, str(out), "a new folder, an empty one or a wtftc run folder "
                           "(this one holds other files; nothing was written)")
 
 
-def _swap_in(tmp: Path, out: Path, parent: Path) -> None:
+def _is_run_folder(out: Path) -> bool:
+    """Empty, or only a run's files with its metrics.json (checked before the run and again
+    under the lock, just before the swap: a file added meanwhile is never deleted)."""
+    names = {p.name for p in out.iterdir()}
+    if not names:
+        return True
+    if not names <= RUN_FILES or not all(m in names for m in RUN_MARKERS):
+        return False
+    try:
+        m = json.loads((out / "metrics.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(m, dict) and {"label", "config", "case"} <= set(m)
+
+
+def _swap_in(tmp: Path, out: Path, parent: Path, option: str) -> None:
     fd = os.open(parent, os.O_RDONLY)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)
+        _check_replaceable(out, option)  # again: out may have changed during the run
         old = None
         if out.exists():
             old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=parent))

@@ -126,7 +126,7 @@ def _closed_loop_rhs(loop: Loop) -> ca.Function:
     if loop.fdi:
         # the FDI's outputs depend on its states and the measurements only (no algebraic
         # loop)
-        p_fdi = ca.DM(lay.defaults("fdi_params"))
+        p_fdi = ca.DM(_fdi_params(loop))
         fdi = load("fdi", "interpreted")
         fd0 = fdi(x_fdi=xf, v=ca.DM.zeros(lay.n_blades()), beta_meas=m["sensors"], p_fdi=p_fdi)
         known = (1 - sym["use_fdi"]) * sym["ctrl_fault"] + sym["use_fdi"] * fd0["known_fault"]
@@ -164,6 +164,16 @@ def _closed_loop_rhs(loop: Loop) -> ca.Function:
 _INPUT_GROUPS = {"actuator_faults": "actuator_faults", "sensor_faults": "sensor_faults",
                  "ctrl_fault": "fault_inputs", "yd": "reference",
                  "p_turbine": "turbine_params"}
+
+
+def _fdi_params(loop: Loop) -> np.ndarray:
+    """The FDI's parameters, its actuator model the run's turbine's nominal one (ω_n, ζ):
+    the FDI is designed for the turbine it watches (its defaults are the NREL 5-MW's)."""
+    p = lay.defaults("fdi_params")
+    tp = lay.values("turbine_params", loop.p_turbine)
+    p[lay.index("fdi_params", "fdi_omega_n")] = tp["omega_n_nominal"]
+    p[lay.index("fdi_params", "fdi_zeta")] = tp["zeta_nominal"]
+    return p
 
 
 def _measure(loop: Loop, pf: ca.Function, xp: ca.SX, sym: dict) -> dict:

@@ -10,12 +10,13 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError
+from wtftc.model.faults import nominal_actuator
 from wtftc.sim.rhs import Loop, rhs_function
 
 
 def stability_limit(loop: Loop, z0, wind0: float, yd, p_ctrl) -> float:
     """Largest |eigenvalue| of the closed-loop Jacobian at z0 (RK4: stable for |λ dt| < 2.78)."""
-    args = {"z": z0, "wind": wind0, "actuator_faults": lay.defaults("actuator_faults"),
+    args = {"z": z0, "wind": wind0, "actuator_faults": nominal_actuator(loop.p_turbine),
             "sensor_faults": lay.defaults("sensor_faults"),
             "ctrl_fault": lay.defaults("fault_inputs"), "yd": yd, "p_turbine": loop.p_turbine,
             "p_ctrl": p_ctrl, "use_fdi": 0.0}

@@ -90,7 +90,17 @@ def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> set[
                               "folder (this one holds other files; --overwrite removes only "
                               "a sweep's results folder)")
         else:
-            _check_same_sweep(out_dir, json.loads(meta.read_text()), sw.sweep_id, overwrite)
+            try:
+                old = json.loads(meta.read_text())
+                old["sweep_id"], old["versions"]["generated_manifest_sha256"]  # noqa: B018
+            except (OSError, ValueError, KeyError, TypeError):
+                if not overwrite:
+                    raise ConfigError("--out", str(out_dir), "a sweep's results folder with a "
+                                      "readable sweep.json (this one is damaged; --overwrite "
+                                      "discards it)") from None
+                old = None
+            if old is not None:
+                _check_same_sweep(out_dir, old, sw.sweep_id, overwrite)
         if overwrite:
             shutil.rmtree(out_dir)
     (out_dir / "runs").mkdir(parents=True, exist_ok=True)
