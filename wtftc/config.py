@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import functools
 import json
 import math
 import numbers
@@ -18,6 +19,7 @@ from wtftc.model.cp_table import nrel5mw_cp_table, read_cp_table
 from wtftc.model.faults import DEFAULT_FAULT, parse_faults
 from wtftc.model.wind import wind_from_config
 from wtftc.sim import rhs
+from wtftc.sim.integrate import Envelope
 from wtftc.sim.trim import trim
 
 CASES = {1: "no fault", 2: "fault, controller unaware", 3: "fault known to eq (49)",
@@ -43,6 +45,7 @@ PAPER_REFERENCE = 1.27
 SEED_MAX = 2**63 - 1
 
 _INF = math.inf
+@functools.cache
 def _ranges(group: str) -> dict[str, tuple[float, float, bool, bool, str]]:
     """The physical range of every entry of a layout group that has one (derivation/
     layout.py, ``valid``): name → (low, high, low_open, high_open, unit). Whatever the
@@ -217,21 +220,19 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     wind = wind_from_config(raw["wind"], t_final=t_final, seed=seed)
     faults = _faults(raw, case, t_final)
     offset = _initial(raw)
-    _check_envelope(p_turbine, ref, offset)
     loop = rhs.Loop(raw["plant"], controller, *_cp_table(raw), tuple(float(x) for x in p_turbine))
+    _check_envelope(loop, ref, offset)
     return RunConfig(raw=raw, case=case, loop=loop, t_final=t_final, dt=dt, seed=seed,
                      decimate=decimate, reference=ref, p_ctrl=p_ctrl, wind=wind, faults=faults,
                      omega_offset=offset)
 
 
-def _check_envelope(p_turbine, ref: float, offset: float) -> None:
-    """The reference and the start inside the operating envelope (layout.json "envelope";
-    a run outside it is lost at once, or driven out of it)."""
-    rated = float(p_turbine[lay.index("turbine_params", "omega_g_rated")])
-    env = lay.layout()["envelope"]
-    lo, hi = env["stall_under_rated"] * rated, env["overspeed_over_rated"] * rated
-    what = (f"inside the operating envelope, {env['stall_under_rated']:g}-"
-            f"{env['overspeed_over_rated']:g} × rated speed ({lo:.4g}-{hi:.4g} rad/s)")
+def _check_envelope(loop: rhs.Loop, ref: float, offset: float) -> None:
+    """The reference and the start inside the loop's operating envelope (the one that ends
+    a run as lost: sim.integrate.Envelope); outside, a run is lost at once, or driven out."""
+    env, rated = Envelope.of(loop), loop.p_turbine[lay.index("turbine_params", "omega_g_rated")]
+    lo, hi = env.low, env.high
+    what = f"inside the operating envelope ({lo:.4g}-{hi:.4g} rad/s, layout.json envelope)"
     if not lo < ref < hi:
         raise ConfigError("reference_rad_s", ref, f"a speed {what}")
     if not lo < rated + offset < hi:

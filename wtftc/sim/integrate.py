@@ -327,7 +327,14 @@ def _put_static(call: Buffered, loop: Loop, runs: list[Run], dt: float) -> None:
         call.put("dt", [dt], b, n_runs)
 
 
-def _put_chunk(call: Buffered, loop: Loop, runs: list[Run], k: int, m: int, n_c: int,
+def _nominal_inputs(loop: Loop) -> dict[str, np.ndarray]:
+    """The fault inputs of a fault-free run of ``loop`` (its turbine's nominal actuator),
+    as one column each: built once per run_loops, not per chunk."""
+    return {"actuator_faults": nominal_actuator(loop.p_turbine)[:, None],
+            **{g: lay.defaults(g)[:, None] for g in ("sensor_faults", "fault_inputs")}}
+
+
+def _put_chunk(call: Buffered, nominal: dict, runs: list[Run], k: int, m: int, n_c: int,
                dt: float) -> None:
     """Wind at t, t + dt/2, t + dt of every step of the chunk; fault inputs per step, or one
     column held when they are constant over the chunk (the usual case)."""
@@ -335,8 +342,6 @@ def _put_chunk(call: Buffered, loop: Loop, runs: list[Run], k: int, m: int, n_c:
     held = all(s is None or s.constant_between(tk[0], tk[m - 1])
                for r in runs for s in (r.schedule, r.ctrl_schedule))
     tf = tk[:1] if held else tk
-    nominal = {g: lay.defaults(g)[:, None] for g in ("sensor_faults", "fault_inputs")}
-    nominal["actuator_faults"] = nominal_actuator(loop.p_turbine)[:, None]
     told = lay.prefix("fault_inputs", of="actuator_faults")
     n_runs = len(runs)
     for b, r in enumerate(runs):
@@ -384,6 +389,7 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
                      for e in r.schedule.events()})
     pitch = lay.block(PLANTS[loop.plant]["states"], "beta")
     _put_static(call, loop, runs, dt)
+    nominal = _nominal_inputs(loop)
     k, t0 = 0, time.perf_counter()
     last_print = t0
     while k < n_steps and not all(batch.diverged):
@@ -391,7 +397,7 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
         # a hook's chunks end on multiples of its interval, whatever events cut them
         end = (k // n_c + 1) * n_c if hook is not None else k + n_c
         stop = min([n_steps, end] + [e for e in events if e > k])
-        _put_chunk(call, loop, runs, k, stop - k, n_c, dt)
+        _put_chunk(call, nominal, runs, k, stop - k, n_c, dt)
         call.put("z", batch.z)
         if hook is not None:
             hook.before(call)

@@ -18,6 +18,7 @@ import numpy as np
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import load
 from wtftc.sim.integrate import rk4_path
+from wtftc.verify.checks import Signals
 
 #: the schedule input ∂T_aero/∂β during the checks [N m/rad]: the NREL 5-MW near 12 m/s
 #: (docs/paper-notes.md, defect 2); constant, so that its rate (b_dot) is zero
@@ -65,10 +66,7 @@ class DesignModel:
                             if n not in ("x_ctrl", "meas", "yd", "sched", "p_ctrl")]
 
     def signals(self, t: float) -> tuple[np.ndarray, float]:
-        w, a = REF_FREQUENCY, REF_AMPLITUDE
-        s, c = np.sin(w * t), np.cos(w * t)
-        yd = np.array([self.y0 + a * s, a * w * c, -a * w**2 * s, -a * w**3 * c,
-                       a * w**4 * s])
+        yd = Signals(self.y0, REF_AMPLITUDE, REF_FREQUENCY).yd(t)
         return yd, self.d0 + self.d_amp * np.sin(RESIDUAL_FREQUENCY * t)
 
     def evaluate(self, t: float, z: np.ndarray) -> dict:
