@@ -22,7 +22,7 @@ from wtftc.model import aero
 
 require_source_tree()
 from derivation import backstepping as bs  # noqa: E402
-from derivation import fuzzy, observer, physical, turbine  # noqa: E402
+from derivation import fuzzy, observer, physical, sensors, turbine  # noqa: E402
 from derivation import layout as dlay  # noqa: E402
 
 
@@ -56,17 +56,24 @@ class LambdifiedLoop:
         rc = problem.config
         self.controller = rc.controller
         self.pt, self.pc, self.yd = rc.p_turbine, rc.p_ctrl, problem.yd
+        self.gear = float(rc.param("gearbox_ratio"))
         self.cp = aero.cp_interpolant(rc.table)
         self.sched = aero.pitch_sensitivity_schedule(rc.table,
                                                     rc.p_turbine)
         tp = [sp.Symbol(e.name, real=True) for e in dlay.TURBINE_PARAMS]
         af = list(turbine.ACTUATOR_FAULTS)
-        sf = list(turbine.SENSOR_FAULTS)
         states = list(turbine.NREL_STATES)
         self.n_p = len(states)
-        args = [*states, *turbine.v, turbine.wind, turbine.cp, *af, *sf, *tp]
+        args = [*states, *turbine.v, turbine.wind, turbine.cp, *af, *tp]
         self.plant = _lambdify(args, self._named(turbine.nrel5mw_rhs(), args))
-        self.meas = _lambdify(args, self._named(turbine.measured_pitch(), args))
+        # the sensors (derivation/sensors.py) on the true signals: no lag, no noise
+        m_args = [*sensors.true, *sensors.lagged, *sensors.noise,
+                  *[sp.Symbol(e.name, real=True) for e in sensors.fault_entries()],
+                  *[sp.Symbol(e.name, real=True) for e in sensors.param_entries()]]
+        self.meas = _lambdify(m_args, self._named(sensors.measured(), m_args))
+        self.i_pitch = [sensors.NAMES.index(f"beta_meas_{j}") for j in (1, 2, 3)]
+        self.n_sens = len(sensors.NAMES)
+        self.p_sensors = np.zeros(len(sensors.param_entries()))
         self.op = _lambdify(args, self._named([turbine.tip_speed_ratio(),
                                                turbine.mean_pitch()], args))
         self.regressors = _Regressors()
@@ -193,11 +200,13 @@ class LambdifiedLoop:
 
     def __call__(self, z, wind, af, sf, known) -> np.ndarray:
         xp, xc = z[:self.n_p], z[self.n_p:]
-        base = [*xp, 0.0, 0.0, 0.0, wind, 0.0, *af, *sf, *self.pt]
+        base = [*xp, 0.0, 0.0, 0.0, wind, 0.0, *af, *self.pt]
         lam, beta_mean = self.op(base)
         cp = float(self.cp(lam, beta_mean))
         base[self.n_p + 4] = cp
-        beta_meas = self.meas(base)
+        true = [xp[0], xp[2] * self.gear, *xp[3:6]]  # in sensors.NAMES' order
+        beta_meas = self.meas([*true, *true, *np.zeros(self.n_sens), *sf, *self.p_sensors])[
+            self.i_pitch]
         if self.controller == "paper":
             v, xc_dot = self._paper(xc, xp[0], known)
         else:

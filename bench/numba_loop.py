@@ -96,9 +96,10 @@ A_LOCK = _family("actuator_faults", "lock", 3)
 A_UBAR = _family("actuator_faults", "ubar", 3)
 A_WN = _family("actuator_faults", "omega_n", 3)
 A_ZETA = _family("actuator_faults", "zeta", 3)
-S_GAIN = _family("sensor_faults", "sensor_gain", 3)
-S_FIXED = _family("sensor_faults", "sensor_fixed", 3)
-S_VALUE = _family("sensor_faults", "sensor_value", 3)
+S_GAIN = _family("sensor_faults", "gain_beta_meas", 3)
+S_OFFSET = _family("sensor_faults", "offset_beta_meas", 3)
+S_FIXED = _family("sensor_faults", "stuck_beta_meas", 3)
+S_VALUE = _family("sensor_faults", "stuck_value_beta_meas", 3)
 K_RHO = _family("fault_inputs", "rho", 3)
 K_LOCK = _family("fault_inputs", "lock", 3)
 K_UBAR = _family("fault_inputs", "ubar", 3)
@@ -308,9 +309,12 @@ def _nu_derivatives(z, pc, i_cen, width, nmax, ws, o):
 @njit(**INLINE)
 def _measure(z, sf):
     """Pitch sensors (turbine.measured_pitch): gain fault, or stuck at a fixed value."""
-    b1 = (1.0 - sf[S_FIXED]) * sf[S_GAIN] * z[3] + sf[S_FIXED] * sf[S_VALUE]
-    b2 = (1.0 - sf[S_FIXED + 1]) * sf[S_GAIN + 1] * z[4] + sf[S_FIXED + 1] * sf[S_VALUE + 1]
-    b3 = (1.0 - sf[S_FIXED + 2]) * sf[S_GAIN + 2] * z[5] + sf[S_FIXED + 2] * sf[S_VALUE + 2]
+    b1 = ((1.0 - sf[S_FIXED]) * (sf[S_GAIN] * z[3] + sf[S_OFFSET])
+          + sf[S_FIXED] * sf[S_VALUE])
+    b2 = ((1.0 - sf[S_FIXED + 1]) * (sf[S_GAIN + 1] * z[4] + sf[S_OFFSET + 1])
+          + sf[S_FIXED + 1] * sf[S_VALUE + 1])
+    b3 = ((1.0 - sf[S_FIXED + 2]) * (sf[S_GAIN + 2] * z[5] + sf[S_OFFSET + 2])
+          + sf[S_FIXED + 2] * sf[S_VALUE + 2])
     return b1, b2, b3
 
 

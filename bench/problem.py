@@ -51,7 +51,9 @@ class Problem:
     def config(self) -> config.RunConfig:
         return config.make_config({"controller": self.controller, "plant": self.plant,
                                   "case": 3, "t_final_s": self.t_final, "fault": FAULTS,
-                                  "wind": WIND, "seed": 0})
+                                  "wind": WIND, "seed": 0,
+                                  # the hand-written loops have the fixed rated torque
+                                  "turbine_params": {"gen_torque_law": 0.0}})
 
     @cached_property
     def schedule(self) -> Schedule:
@@ -108,9 +110,11 @@ class Problem:
         mids = np.concatenate([[0.0], bounds]) + 1e-9
         seg_inputs = [[a[:, 0] for a in self.inputs(m)[1:]] for m in mids]
         wind = rc.wind
+        p_sensors = lay.defaults("sensor_params")  # exact sensors: the continuous loop
 
         def fun(t, z):
             k = int(np.searchsorted(bounds, t, side="right")) if segment is None else segment
             af, sf, ck = seg_inputs[k]
-            return f(z, float(wind(t)), af, sf, ck, self.yd, rc.p_turbine, rc.p_ctrl)[0][:, 0]
+            return f(z, float(wind(t)), af, sf, ck, self.yd, rc.p_turbine, p_sensors,
+                     rc.p_ctrl, 1.0)[0][:, 0]
         return fun

@@ -41,6 +41,7 @@ import numpy as np
 from bench import require_source_tree
 from bench.problem import LOOPS, T_FINAL_S, Problem
 from wtftc import config
+from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import layout_json, manifest
 from wtftc.campaign import cases
 from wtftc.errors import ConfigError
@@ -251,12 +252,13 @@ def rk4_python_loop(p: Problem, f, dt: float, t_final: float) -> np.ndarray:
     rc = p.config
     call = integrate.Buffered(f)
     z = p.z0.copy()
+    p_sensors = lay.defaults("sensor_params")  # exact sensors: the continuous loop
     out = []
     for k in range(n):
         if k % every == 0:
             out.append(z[0])
-        z = call(z, w3[:, k], af[:, k], sf[:, k], ck[:, k], p.yd, rc.p_turbine, rc.p_ctrl,
-                 dt)[0][:, 0]
+        z = call(z, w3[:, k], af[:, k], sf[:, k], ck[:, k], p.yd, rc.p_turbine, p_sensors,
+                 rc.p_ctrl, 1.0, dt)[0][:, 0]
     return np.array(out)
 
 

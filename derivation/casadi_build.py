@@ -99,6 +99,8 @@ class Translator:
             return ca.exp(self(e.args[0]))
         if isinstance(e, sp.Abs):
             return ca.fabs(self(e.args[0]))
+        if isinstance(e, sp.floor):
+            return ca.floor(self(e.args[0]))
         if isinstance(e, sp.Min):
             return self._fold(ca.fmin, e.args)
         if isinstance(e, sp.Max):

@@ -29,7 +29,7 @@ import casadi as ca
 import sympy as sp
 
 from derivation import backstepping as bs
-from derivation import controllers, fdi, lyapunov, observer, plant, turbine
+from derivation import controllers, fdi, lyapunov, observer, plant, sensors, turbine
 from derivation import layout as lay
 from derivation.casadi_build import FuzzyEvaluator, Translator, joint_cse
 
@@ -246,11 +246,10 @@ def build_turbine() -> list[ca.Function]:
     x_n = _vec("x_plant", len(lay.NREL_STATES))
     p_t = _vec("p_turbine", len(lay.TURBINE_PARAMS))
     af = _vec("actuator_faults", len(lay.ACTUATOR_FAULTS))
-    sf = _vec("sensor_faults", len(lay.SENSOR_FAULTS))
     v = _vec("v", lay.N_BLADES)
     wind, cp = ca.SX.sym("wind"), ca.SX.sym("cp")
     common = {**_named(p_t, lay.TURBINE_PARAMS), **_named(af, lay.ACTUATOR_FAULTS),
-              **_named(sf, lay.SENSOR_FAULTS), "wind": wind, "cp": cp,
+              "wind": wind, "cp": cp,
               **{f"v_{j + 1}": v[j] for j in range(lay.N_BLADES)}}
     out = []
     for name, x, entries, rhs, loaded in (
@@ -263,11 +262,9 @@ def build_turbine() -> list[ca.Function]:
             "T_aero": tr(turbine.aero_torque()),
             "T_gen": t_gen,
             "P_gen": t_gen * x[2],
-            "beta_meas": ca.vertcat(*[tr(e) for e in turbine.measured_pitch()]),
         }
         out.append(_function(name, {"x_plant": x, "v": v, "wind": wind, "cp": cp,
-                                    "actuator_faults": af, "sensor_faults": sf,
-                                    "p_turbine": p_t}, outs))
+                                    "actuator_faults": af, "p_turbine": p_t}, outs))
     # (λ, β̄) at which the runtime evaluates Cp; the same for both plants (first 6 states)
     tr = Translator({**common, **_named(x_p, lay.PLANT_STATES)})
     out.append(_function("aero_operating_point",
@@ -286,6 +283,24 @@ def build_turbine() -> list[ca.Function]:
 
 
 FDI_STATES = fdi.states(lay.N_BLADES)
+SENSOR_FAULTS, SENSOR_PARAMS = sensors.fault_entries(), sensors.param_entries()
+
+
+def build_sensors() -> list[ca.Function]:
+    """The measurement chain of derivation/sensors.py: lag, fault, bias, noise, resolution."""
+    n = len(sensors.NAMES)
+    ins = {"true_signals": _vec("true_signals", n), "x_lag": _vec("x_lag", n),
+           "noise": _vec("noise", n), "sensor_faults": _vec("sensor_faults", len(SENSOR_FAULTS)),
+           "p_sensors": _vec("p_sensors", len(SENSOR_PARAMS))}
+    names = {**{s.name: ins["true_signals"][k] for k, s in enumerate(sensors.true)},
+             **{s.name: ins["x_lag"][k] for k, s in enumerate(sensors.lagged)},
+             **{s.name: ins["noise"][k] for k, s in enumerate(sensors.noise)},
+             **_named(ins["sensor_faults"], SENSOR_FAULTS),
+             **_named(ins["p_sensors"], SENSOR_PARAMS)}
+    tr = Translator(names)
+    return [_function("sensors", ins, {"meas": ca.vertcat(*[tr(e) for e in sensors.measured()]),
+                                       "x_lag_dot": ca.vertcat(*[tr(e) for e in
+                                                                 sensors.lag_rhs()])})]
 
 
 def build_fdi() -> list[ca.Function]:
@@ -336,7 +351,8 @@ def groups() -> list[Group]:
         Group("plant", ["derivation/plant.py"], plant_fns),
         Group("controller", ["derivation/backstepping.py", "derivation/observer.py",
                              "derivation/fuzzy.py"], ctrl_fns),
-        Group("turbine", ["derivation/turbine.py", "derivation/plant.py"], build_turbine()),
+        Group("turbine", ["derivation/turbine.py", "derivation/plant.py",
+                          "derivation/sensors.py"], build_turbine() + build_sensors()),
         Group("controllers", controllers.sources(), controllers.build(ctrl_fns[0])),
         Group("fdi", ["derivation/fdi.py", "derivation/turbine.py"], build_fdi()),
         Group("closed_loop", ["derivation/plant.py", "derivation/backstepping.py",
@@ -403,7 +419,8 @@ def write(outdir: Path) -> dict:
             functions[f.name()] = {"group": g.name, "c_file": cname,
                                    "serialized": path.name, **_signature(f), **_count_ops(f)}
     reg = controllers.as_json()
-    groups_extra = {**reg.pop("groups"), "fdi_states": FDI_STATES, "fdi_params": fdi.PARAMS}
+    groups_extra = {**reg.pop("groups"), "fdi_states": FDI_STATES, "fdi_params": fdi.PARAMS,
+                    "sensor_faults": SENSOR_FAULTS, "sensor_params": SENSOR_PARAMS}
     extra_groups = {g: [e.as_json() for e in entries] for g, entries in groups_extra.items()}
     layout = {"_header": HEADER.format(modules="derivation/layout.py"), **lay.as_json(),
               **extra_groups, **reg,

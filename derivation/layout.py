@@ -278,15 +278,6 @@ ACTUATOR_FAULTS = [
             f"{nrel5mw.PRESSURE_DROP_ZETA} pressure drop, {nrel5mw.AIR_IN_OIL_ZETA} air in oil",
             sample=(0.4, 1.0)) for j in range(1, N_BLADES + 1)],
 ]
-SENSOR_FAULTS = [
-    *[Entry(f"sensor_gain_{j}", 1.0, "-", f"pitch sensor {j} gain (fault: ≠ 1)",
-            sample=(0.8, 1.2)) for j in range(1, N_BLADES + 1)],
-    *[Entry(f"sensor_fixed_{j}", 0.0, "-", f"pitch sensor {j} stuck (1) at sensor_value",
-            sample=(0.0, 1.0)) for j in range(1, N_BLADES + 1)],
-    *[Entry(f"sensor_value_{j}", 0.0, "rad", f"pitch sensor {j} fixed value",
-            sample=(0.0, 0.5)) for j in range(1, N_BLADES + 1)],
-]
-
 #: the reference y_d and its first four derivatives, eqs (26), (37), (43), (49)
 REFERENCE = [Entry(f"yd_{m}", 1.27 if m == 0 else 0.0, f"rad/s^{m + 1}" if m else "rad/s",
                    f"y_d^({m}), the rotor-speed reference and its derivative {m}")
@@ -332,7 +323,6 @@ def as_json() -> dict:
         "nrel5mw_states": NREL_STATES,
         "turbine_params": TURBINE_PARAMS,
         "actuator_faults": ACTUATOR_FAULTS,
-        "sensor_faults": SENSOR_FAULTS,
     }
     out: dict = {
         "n_mf": N_MF,

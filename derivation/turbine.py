@@ -33,11 +33,7 @@ rho, lock, ubar = plant.rho, plant.lock, plant.ubar  # eq (19)
 omega_n = sp.symbols("omega_n_1:4", positive=True)  # actuator natural frequency [rad/s]
 zeta = sp.symbols("zeta_1:4", positive=True)  # actuator damping ratio [-]
 ACTUATOR_FAULTS = [*rho, *lock, *ubar, *omega_n, *zeta]
-# pitch sensor faults (Odgaard et al. 2013): fixed value or gain
-sensor_gain = sp.symbols("sensor_gain_1:4", real=True)
-sensor_fixed = sp.symbols("sensor_fixed_1:4", real=True)  # 1 = stuck at the fixed value
-sensor_value = sp.symbols("sensor_value_1:4", real=True)  # [rad]
-SENSOR_FAULTS = [*sensor_gain, *sensor_fixed, *sensor_value]
+# the sensors (noise, faults, lag, resolution) are derivation/sensors.py
 
 # --- parameters ---
 air_density = sp.Symbol("air_density", positive=True)  # [kg/m^3]
@@ -173,12 +169,6 @@ def nrel5mw_rhs() -> list[sp.Expr]:
         rates.append(rate)
         accels.append(acc)
     return out + rates + accels
-
-
-def measured_pitch() -> list[sp.Expr]:
-    """Pitch sensors: gain fault g_j β_j, or stuck at a fixed value (benchmark faults)."""
-    return [(1 - sensor_fixed[j]) * sensor_gain[j] * beta[j] + sensor_fixed[j] * sensor_value[j]
-            for j in range(N_BLADES)]
 
 
 def generator_power() -> sp.Expr:

@@ -3,7 +3,7 @@ from 5 s; the physical AFTC run unaware of it (case 2) and with wtftc's own faul
 and estimation feeding its accommodation (case 4), and what happened printed.
 
 Fault tables are those of a configuration's `[[fault]]` (types: lock,
-loss_of_effectiveness, pressure_drop, air_in_oil, sensor_fixed, sensor_gain; optional
+loss_of_effectiveness, pressure_drop, air_in_oil and the sensor faults of docs/sensors.md; optional
 end_s and ramp_s). More: docs/running.md (faults), docs/fdi.md (detection and estimation).
 
     python examples/02_custom_fault.py [OUT_DIR]    # default out/examples/02_custom_fault

@@ -20,6 +20,7 @@ from derivation import (
     lyapunov,
     observer,
     plant,
+    sensors,
     turbine,
 )
 from derivation import layout as dlay
@@ -238,8 +239,7 @@ def observer_lyapunov_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]
 
 def turbine_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     entries = {"x_plant": dlay.NREL_STATES if name == "turbine_nrel5mw" else dlay.PLANT_STATES,
-               "p_turbine": dlay.TURBINE_PARAMS, "actuator_faults": dlay.ACTUATOR_FAULTS,
-               "sensor_faults": dlay.SENSOR_FAULTS}
+               "p_turbine": dlay.TURBINE_PARAMS, "actuator_faults": dlay.ACTUATOR_FAULTS}
     vals: dict[str, float] = {}
     for key, val in args.items():
         flat = np.asarray(val, dtype=float).reshape(-1, order="F")
@@ -258,8 +258,21 @@ def turbine_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple
     return {"x_plant_dot": pair(name, rhs, vals),
             "T_aero": pair("taero", [turbine.aero_torque()], vals),
             "T_gen": pair(f"tgen{loaded}", [t_gen], vals),
-            "P_gen": pair(f"pgen{loaded}", [t_gen * turbine.omega_g], vals),
-            "beta_meas": pair("bmeas", turbine.measured_pitch(), vals)}
+            "P_gen": pair(f"pgen{loaded}", [t_gen * turbine.omega_g], vals)}
+
+
+def sensors_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
+    """The measurement chain of derivation/sensors.py (lag, fault, bias, noise,
+    resolution) from SymPy."""
+    vals: dict[str, float] = {}
+    for key, syms in (("true_signals", sensors.true), ("x_lag", sensors.lagged),
+                      ("noise", sensors.noise)):
+        vals.update({s.name: float(x) for s, x in zip(syms, _flat(args, key), strict=True)})
+    for key, entries in (("sensor_faults", sensors.fault_entries()),
+                         ("p_sensors", sensors.param_entries())):
+        vals.update({e.name: float(x) for e, x in zip(entries, _flat(args, key), strict=True)})
+    return {"meas": pair("meas", sensors.measured(), vals),
+            "x_lag_dot": pair("lagdot", sensors.lag_rhs(), vals)}
 
 
 def _flat(args, key):
@@ -410,6 +423,8 @@ def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
             return design_reference(cname, name, args)
     if name in ("fdi", "init_fdi"):
         return fdi_reference(name, args)
+    if name == "sensors":
+        return sensors_reference(args)
     if name.startswith(("ctrl_", "init_")):
         return controller_uniform_reference(name, args)
     if name == "aero_torque_sensitivity":

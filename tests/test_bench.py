@@ -15,6 +15,7 @@ from bench import numba_loop as nl
 from bench import runner
 from bench.problem import LOOPS, Problem
 from wtftc import config
+from wtftc.artefacts import layout as lay
 from wtftc.campaign import cases
 from wtftc.errors import ConfigError
 from wtftc.sim import integrate
@@ -149,7 +150,8 @@ def test_loop_flags_are_bit_identical_and_fast_math_is_close(problem):
     step = integrate.rk4_step(p.rhs)
     chunk = step.mapaccum(f"flags_{p.name}", 1000)
     w3, af, sf, ck = runner.step_inputs(p, DT, 1000)
-    args = (p.z0, w3, af, sf, ck, p.yd, rc.p_turbine, rc.p_ctrl, DT)
+    args = (p.z0, w3, af, sf, ck, p.yd, rc.p_turbine, lay.defaults("sensor_params"),
+            rc.p_ctrl, 1.0, DT)
     plain = integrate.compiled(chunk, f"plain_{p.name}", ("-O2", "-fPIC", "-shared"), quiet=True)
     default = integrate.compiled(chunk, f"default_{p.name}", quiet=True)
     fast = integrate.compiled(chunk, f"fast_{p.name}", integrate.FAST_MATH_CFLAGS, quiet=True)

@@ -100,11 +100,15 @@ def test_rhs_matches_generated(loop):
         af[np.isnan(af)] = 0.05  # a lock "wherever it is" not bound yet at this time
         sf = res.schedule.sensor([res.t[k]])[:, 0]
         if trial % 3 == 0:
-            sf[lay.index("sensor_faults", "sensor_gain_2")] = 1.1
+            sf[lay.index("sensor_faults", "gain_beta_meas_2")] = 1.1
         ck = af[:len(lay.names("fault_inputs"))].copy()
         z_in[:n] = z[:n]
-        ref = np.array(f(z_in, wind, af, sf, ck, prep.yd, rc.p_turbine, rc.p_ctrl,
-                           *use_fdi)[0]).ravel()[:n]
+        ref = np.array(f.call({"z": z_in, "wind": wind, "actuator_faults": af,
+                               "sensor_faults": sf, "ctrl_fault": ck, "yd": prep.yd,
+                               "p_turbine": rc.p_turbine, "p_ctrl": rc.p_ctrl,
+                               "p_sensors": lay.defaults("sensor_params"), "cp_scale": 1.0,
+                               **({"use_fdi": 0.0} if use_fdi else {})})["z_dot"]
+                       ).ravel()[:n]
         got = prep.closed_loop_rhs(z[:n], wind, af, sf, ck)
         assert np.all(np.isfinite(got))
         for s in _blocks(ctrl, n):

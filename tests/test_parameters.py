@@ -19,9 +19,12 @@ from wtftc.sim.rhs import controllers
 COLUMNS = ("omega_r", "omega_g_hss", "beta_1", "beta_2", "P_gen", "T_gen")
 SCENARIOS = {
     # above rated, a hydraulic fault on blade 2: the actuator's nominal dynamics matter
+    # (the fixed torque pinned: this wind dips below rated, where a run would otherwise
+    # take the baseline law)
     "above": {"controller": "physical", "case": 2, "t_final_s": 8.0,
               "wind": {"kind": "ntm", "mean_mps": 16.0, "turbulence_class": "B"},
-              "fault": [{"blade": 2, "type": "pressure_drop", "onset_s": 2.0}]},
+              "fault": [{"blade": 2, "type": "pressure_drop", "onset_s": 2.0}],
+              "turbine_params": {"gen_torque_law": 0.0}},
     # the baseline torque law above rated (its torque ceiling)
     "above_law": {"controller": "physical", "t_final_s": 8.0,
                   "wind": {"kind": "ntm", "mean_mps": 16.0},

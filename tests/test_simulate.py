@@ -100,7 +100,8 @@ def test_sign_as_written_pitches_the_wrong_way_and_stalls_the_rotor():
     leaves the operating envelope (below 0.3 × rated: stalled), where the run is recorded
     as lost, with the reason. (Before the operating envelope it ran on to 90° of pitch and
     a rotor at a fraction of rated, reported as not diverged.)"""
-    rc, res, m = _run(control_sign=1, t_final_s=30.0)
+    rc, res, m = _run(control_sign=1, t_final_s=30.0,
+                      turbine_params={"gen_torque_law": 0.0})  # the paper's fixed torque
     lost = m["diverged"]
     assert lost is not None and "the rotor stalled" in lost["reason"], lost
     assert 5.0 < lost["t_s"] < 10.0

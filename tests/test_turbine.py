@@ -76,8 +76,7 @@ def test_baseline_torque_law_is_jonkmans(w_hss):
     n = 97.0
     x = np.array([w_hss / n, 0.0, w_hss / n, 0.1, 0.1, 0.1, 0.0, 0.0, 0.0])
     args = dict(x_plant=x, v=np.full(3, 0.1), wind=12.0, cp=0.4,
-                actuator_faults=lay.defaults("actuator_faults"),
-                sensor_faults=lay.defaults("sensor_faults"))
+                actuator_faults=lay.defaults("actuator_faults"))
     t1 = float(f(**args, p_turbine=lay.vector("turbine_params", {"gen_torque_law": 1.0}))[
         "T_gen"]) / n
     assert t1 == pytest.approx(_jonkman_torque_hss(w_hss), rel=1e-9, abs=1e-6)

@@ -100,7 +100,8 @@ def _add_run(sub) -> None:
         epilog="Example: wtftc run --case 3 --plant nrel5mw --wind ntm --wind-mean 16 "
                "--t-final 60 --out out/ntm16. Config file keys: case, plant, controller, "
                "t_final_s, dt_s, seed, output_rate_hz, control_sign, reference_rad_s, "
-               "cp_table, label, [wind] (kind = constant | steps | paper_random | ntm | eog | "
+               "cp_table, label, profile, control_interval_s, control_delay, [sensors], "
+               "[mismatch], [wind] (kind = constant | steps | paper_random | ntm | eog | "
                "file, ...), [[fault]] (blade, type, onset_s, ...), [controller_params], "
                "[turbine_params], [initial]. See docs/running.md.")
     r.add_argument("--config", type=Path, help="TOML configuration file")
@@ -120,6 +121,15 @@ def _add_run(sub) -> None:
     r.add_argument("--sign", type=int, choices=(-1, 1),
                    help="control sign: -1 corrected (default), +1 as written (pitches the "
                         "wrong way and stalls the rotor: paper-notes defect 2)")
+    r.add_argument("--profile", choices=("ideal", "realistic"),
+                   help="ideal (default): continuous-time controller, exact sensors (the "
+                        "paper's world); realistic: 100 Hz sampled controller, the benchmark's "
+                        "sensor noise, the baseline torque law (docs/sensors.md)")
+    r.add_argument("--control-interval", type=float, metavar="SECONDS",
+                   help="controller and FDI sampling interval [s], a multiple of --dt; 0: "
+                        "continuous time (default of the ideal profile)")
+    r.add_argument("--control-delay", action="store_true",
+                   help="apply each command one control interval late")
     r.add_argument("--out", type=Path, default=Path("out/run"),
                    help="output folder (default: out/run under the current folder)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -205,7 +215,8 @@ def _run_overrides(args) -> dict:
 
     cfg = load_toml(args.config, "--config") if getattr(args, "config", None) else {}
     simple = {"case": "case", "plant": "plant", "controller": "controller",
-              "t_final": "t_final_s", "dt": "dt_s", "seed": "seed", "sign": "control_sign"}
+              "t_final": "t_final_s", "dt": "dt_s", "seed": "seed", "sign": "control_sign",
+              "profile": "profile", "control_interval": "control_interval_s"}
     for attr, key in simple.items():
         val = getattr(args, attr, None)
         if val is not None:
@@ -224,6 +235,8 @@ def _run_overrides(args) -> dict:
             wind.setdefault("kind", kind)
             wind["speed_mps" if kind in ("constant", "steps") else "mean_mps"] = args.wind_mean
         cfg["wind"] = wind
+    if getattr(args, "control_delay", False):
+        cfg["control_delay"] = True
     if getattr(args, "fault", None) == "none":
         cfg["fault"] = []
     return cfg

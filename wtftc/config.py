@@ -30,13 +30,41 @@ FAULT_FREE_CASE, UNAWARE_CASE, ORACLE_CASE, FDI_CASE = 1, 2, 3, 4
 
 TOP_KEYS = {"case", "plant", "controller", "t_final_s", "dt_s", "seed", "output_rate_hz",
             "control_sign", "reference_rad_s", "cp_table", "wind", "fault", "controller_params",
-            "turbine_params", "initial", "label"}
+            "turbine_params", "initial", "label", "profile", "control_interval_s",
+            "control_delay", "sensors", "mismatch"}
 
 DEFAULTS = {
     "case": 1, "plant": "nrel5mw", "controller": "paper", "t_final_s": 60.0, "dt_s": 1e-3,
     "seed": 0, "output_rate_hz": 50.0, "control_sign": -1,
-    "wind": {"kind": "paper_random"},
+    "wind": {"kind": "paper_random"}, "profile": "ideal", "control_delay": False,
 }
+
+#: measurement profiles (docs/sensors.md): what a run's controller sees unless the
+#: configuration says otherwise. "ideal": continuous time, exact sensors (the paper's
+#: world); "realistic": 100 Hz sampled control with the benchmark's sensor noise (Odgaard,
+#: Stoustrup & Kinnaert 2013) and the baseline torque law
+PROFILES = {
+    "ideal": {"control_interval_s": 0.0, "sensors": {}},
+    "realistic": {"control_interval_s": 0.01,
+                  "sensors": {"pitch_noise_deg": 0.2, "rotor_speed_noise_rad_s": 0.0251,
+                              "generator_speed_noise_rad_s": 0.05},
+                  "turbine_params": {"gen_torque_law": 1.0}},
+}
+
+#: the [sensors] table: signal → (its measurements, degrees at the edge); each signal takes
+#: <signal>_noise, _bias, _resolution in its unit (deg or rad/s) and <signal>_lag_s
+SENSOR_KEYS = {"pitch": (("beta_meas_1", "beta_meas_2", "beta_meas_3"), True),
+               "rotor_speed": (("omega_r",), False),
+               "generator_speed": (("omega_g_hss",), False)}
+#: [sensors] key kind → the layout sensor_params prefix
+_SENSOR_PARAM = {"noise": "sigma", "bias": "bias", "resolution": "resolution", "lag": "lag"}
+
+#: the [mismatch] table: the plant's parameters relative to the model the controllers and
+#: the FDI carry (factors; 1: none) → the turbine parameters each scales (cp_scale: the
+#: plant's Cp surface)
+MISMATCH = {"inertia": ("J_r", "J_g"), "shaft_stiffness": ("k_s",), "shaft_damping": ("d_s",),
+            "air_density": ("air_density",), "cp_scale": (),
+            "actuator_omega_n": ("omega_n_nominal",), "actuator_zeta": ("zeta_nominal",)}
 
 #: the paper's reference: "the rotor speed to the 1.27 rad/s value" (Section 5)
 PAPER_REFERENCE = 1.27
@@ -87,6 +115,11 @@ class RunConfig:
     wind: object
     faults: list = field(default_factory=list)
     omega_offset: float = 0.0
+    #: the sensors' parameters (layout sensor_params); the plant's turbine parameters and
+    #: Cp scale under model mismatch
+    p_sensors: np.ndarray = field(default_factory=lambda: lay.defaults("sensor_params"))
+    p_plant: np.ndarray | None = None
+    cp_scale: float = 1.0
 
     plant = property(lambda self: self.loop.plant)
     controller = property(lambda self: self.loop.controller)
@@ -127,6 +160,11 @@ class RunConfig:
     def initial_state(self) -> np.ndarray:
         """The trimmed initial state of the loop (wtftc.sim.trim) at the wind at t = 0."""
         return trim(self.loop, self.p_ctrl, float(self.wind(0.0)), self.omega_offset)
+
+    @property
+    def control_interval(self) -> float:
+        """The controller's sampling interval [s] (0: continuous time)."""
+        return self.loop.interval * self.dt
 
     @property
     def signed(self) -> bool:
@@ -211,7 +249,10 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     controller = _controller(raw["controller"])
     if not isinstance(raw.get("label", ""), str):
         raise ConfigError("label", raw["label"], "a string (the run's name in tables)")
+    _profile(raw, cfg)
     t_final, dt, seed, decimate = _timing(raw)
+    interval = _control_interval(raw, dt, t_final)
+    p_sensors = _sensors(raw, interval)
     _control_sign(raw)
     p_ctrl, p_turbine = _parameters(raw, controller)
     ref = _reference(raw, p_turbine)
@@ -220,11 +261,132 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     wind = wind_from_config(raw["wind"], t_final=t_final, seed=seed)
     faults = _faults(raw, case, t_final)
     offset = _initial(raw)
-    loop = rhs.Loop(raw["plant"], controller, *_cp_table(raw), tuple(float(x) for x in p_turbine))
+    table = _cp_table(raw)
+    _torque_law(raw, p_turbine, wind, t_final, table[0])
+    loop = rhs.Loop(raw["plant"], controller, *table, tuple(float(x) for x in p_turbine),
+                    interval=interval, delay=raw["control_delay"])
     _check_envelope(loop, ref, offset)
+    p_plant, cp_scale = _mismatch(raw, p_turbine)
     return RunConfig(raw=raw, case=case, loop=loop, t_final=t_final, dt=dt, seed=seed,
                      decimate=decimate, reference=ref, p_ctrl=p_ctrl, wind=wind, faults=faults,
-                     omega_offset=offset)
+                     omega_offset=offset, p_sensors=p_sensors, p_plant=p_plant,
+                     cp_scale=cp_scale)
+
+
+def _profile(raw: dict, given: dict) -> None:
+    """Fill in the profile's defaults where the configuration is silent."""
+    name = raw["profile"]
+    if not isinstance(name, str) or name not in PROFILES:
+        raise ConfigError("profile", name, "one of " + ", ".join(PROFILES)
+                          + " (docs/sensors.md)")
+    prof = PROFILES[name]
+    raw.setdefault("control_interval_s", prof["control_interval_s"])
+    if not isinstance(raw.get("sensors", {}), dict):
+        raise ConfigError("sensors", raw["sensors"], "a table of sensor keys (docs/sensors.md)")
+    raw["sensors"] = {**prof["sensors"], **raw.get("sensors", {})}
+    for key, table in prof.items():
+        if key.endswith("_params") and isinstance(given.get(key, {}), dict):
+            raw[key] = {**table, **given.get(key, {})}
+
+
+def _control_interval(raw: dict, dt: float, t_final: float) -> int:
+    """The controller's sampling interval in plant steps (0: continuous time)."""
+    val = _finite(raw["control_interval_s"], "control_interval_s")
+    if val < 0 or val > 1.0:
+        raise ConfigError("control_interval_s", val, "0 (continuous) or an interval in "
+                          "(0, 1] s")
+    if isinstance(raw["control_delay"], bool) is False:
+        raise ConfigError("control_delay", raw["control_delay"], "true or false")
+    if val == 0:
+        if raw["control_delay"]:
+            raise ConfigError("control_delay", True, "false with control_interval_s = 0 "
+                              "(a delay of one interval needs an interval)")
+        return 0
+    n = round(val / dt)
+    if n < 1 or abs(n * dt - val) > 1e-9 * max(val, 1.0):
+        raise ConfigError("control_interval_s", val, f"a whole multiple of dt_s = {dt:g} s "
+                          f"(e.g. {max(n, 1) * dt:g} s)")
+    if abs(round(t_final / (n * dt)) * n * dt - t_final) > 1e-9 * max(t_final, 1.0):
+        raise ConfigError("control_interval_s", val, f"an interval that divides t_final_s = "
+                          f"{t_final:g} s into whole intervals")
+    return n
+
+
+def _sensors(raw: dict, interval: int) -> np.ndarray:
+    """The ``[sensors]`` table as the layout's sensor_params vector (SI)."""
+    p = lay.defaults("sensor_params")
+    for key, val in raw["sensors"].items():
+        sig = next((s for s in SENSOR_KEYS if isinstance(key, str) and key.startswith(s + "_")),
+                   None)
+        rest = key[len(sig) + 1:] if sig else ""
+        deg = sig is not None and SENSOR_KEYS[sig][1]
+        unit = "_s" if rest.startswith("lag") else ("_deg" if deg else "_rad_s")
+        kind = rest[:-len(unit)] if rest.endswith(unit) else None
+        if kind not in _SENSOR_PARAM:
+            raise ConfigError(f"sensors.{key}", val, "a known key: " + ", ".join(
+                f"{s}_{k}{'_s' if k == 'lag' else ('_deg' if d else '_rad_s')}"
+                for s, (_, d) in SENSOR_KEYS.items() for k in _SENSOR_PARAM))
+        x = _finite(val, f"sensors.{key}")
+        if kind != "bias" and x < 0:
+            raise ConfigError(f"sensors.{key}", val, "a number >= 0")
+        if kind in ("noise", "lag") and x > 0 and interval == 0:
+            raise ConfigError(f"sensors.{key}", val, "0 with control_interval_s = 0: noise and "
+                              "lags need a sampled controller (e.g. control_interval_s = 0.01, "
+                              "or profile = \"realistic\")")
+        for m in SENSOR_KEYS[sig][0]:
+            p[lay.index("sensor_params", f"{_SENSOR_PARAM[kind]}_{m}")] = (
+                np.radians(x) if unit == "_deg" else x)
+    return p
+
+
+def _torque_law(raw: dict, p_turbine: np.ndarray, wind, t_final: float, table) -> None:
+    """The NREL 5-MW baseline torque law (in ``p_turbine`` and the saved configuration)
+    when the configuration sets none and the wind falls below the turbine's rated wind
+    speed during the run: with the fixed rated torque such a wind stalls the rotor (issue
+    15). The paper's own wind keeps the paper's fixed torque (docs/cases.md), and ROSCO
+    commands its own torque."""
+    tp = raw.get("turbine_params", {})
+    if (raw["plant"] != "nrel5mw" or "gen_torque_law" in tp or raw["controller"] == "rosco"
+            or raw["wind"].get("kind") == "paper_random"):
+        return
+    if float(np.min(wind(np.linspace(0.0, t_final, int(t_final / 0.1) + 2)))) \
+            >= rated_wind_speed(p_turbine, table):
+        return
+    raw["turbine_params"] = {**tp, "gen_torque_law": 1.0}
+    p_turbine[lay.index("turbine_params", "gen_torque_law")] = 1.0
+
+
+def rated_wind_speed(p_turbine, table) -> float:
+    """The wind [m/s] at which the rotor at its best Cp makes rated power,
+    (2 T_rated ω_rated / (ρ π R² Cp_max))^(1/3): 11.42 m/s for the NREL 5-MW (Jonkman et
+    al. 2009 give 11.4 m/s)."""
+    tp = lay.values("turbine_params", p_turbine)
+    power = tp["gen_torque_rated"] * tp["omega_g_rated"]
+    area = math.pi * tp["rotor_radius"] ** 2
+    return (2 * power / (tp["air_density"] * area * table.cp_max()[0])) ** (1 / 3)
+
+
+def _mismatch(raw: dict, p_turbine: np.ndarray) -> tuple[np.ndarray | None, float]:
+    """The plant's turbine parameters under the ``[mismatch]`` table's factors, and its Cp
+    scale (None, 1.0 without mismatch)."""
+    table = raw.get("mismatch", {})
+    if not isinstance(table, dict):
+        raise ConfigError("mismatch", table, "a table of factors: " + ", ".join(MISMATCH))
+    if not table:
+        return None, 1.0
+    p = np.array(p_turbine, dtype=float)
+    cp_scale = 1.0
+    for key, val in table.items():
+        if key not in MISMATCH:
+            raise ConfigError(f"mismatch.{key}", val, "a known factor: " + ", ".join(MISMATCH))
+        x = _finite(val, f"mismatch.{key}")
+        if not 0.1 <= x <= 10:
+            raise ConfigError(f"mismatch.{key}", val, "a factor in [0.1, 10] (1: no mismatch)")
+        for name in MISMATCH[key]:
+            p[lay.index("turbine_params", name)] *= x
+        cp_scale = x if key == "cp_scale" else cp_scale
+    check_turbine(p)
+    return p, cp_scale
 
 
 def _check_envelope(loop: rhs.Loop, ref: float, offset: float) -> None:

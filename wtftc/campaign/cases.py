@@ -24,6 +24,7 @@ from wtftc.results.traces import write_outputs
 from wtftc.sim import integrate, rhs, stability
 from wtftc.sim.integrate import Result
 from wtftc.sim.rhs import PLANTS
+from wtftc.sim.sampled import sampled_state
 
 
 def run(rc: RunConfig, progress: bool = True, keep_states: bool = False) -> Result:
@@ -96,11 +97,18 @@ def _prepare(rc: RunConfig, check: bool = True) -> tuple[integrate.Run, float | 
     if check:
         lam = stability.stability_limit(rc.loop, z0, float(rc.wind(0.0)), rc.yd, rc.p_ctrl)
         stability.check_dt(rc.dt, lam)
-    tp = rc.loop.p_turbine
+        if rc.loop.sampled:
+            stability.check_interval(rc.control_interval, stability.controller_limit(
+                rc.loop, z0, float(rc.wind(0.0)), rc.yd, rc.p_ctrl))
+    tp = rc.loop.p_turbine if rc.p_plant is None else rc.p_plant
     schedule = Schedule(copy.deepcopy(rc.faults), tp) if rc.faults else None
-    ctrl_schedule = Schedule(copy.deepcopy(rc.faults), tp) if rc.told_fault else None
-    return integrate.Run(z0, rc.wind, schedule, ctrl_schedule, rc.yd, rc.p_ctrl,
-                         use_fdi=rc.uses_fdi), lam
+    # eq (49) is told the fault as the model knows it (the nominal actuator)
+    ctrl_schedule = Schedule(copy.deepcopy(rc.faults), rc.loop.p_turbine) if rc.told_fault \
+        else None
+    return integrate.Run(sampled_state(rc.loop, z0), rc.wind, schedule, ctrl_schedule, rc.yd,
+                         rc.p_ctrl, use_fdi=rc.uses_fdi, p_plant=rc.p_plant,
+                         cp_scale=rc.cp_scale, p_sensors=rc.p_sensors,
+                         noise_seed=rc.seed), lam
 
 
 def run_and_write(rc: RunConfig, out_dir: Path, progress: bool = True):

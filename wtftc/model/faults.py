@@ -8,15 +8,21 @@ A fault configuration is a list of tables, each:
     end_s = 1e9          # optional: the fault disappears at end_s
     ramp_s = 0.0         # 0: abrupt; > 0: linear transition over ramp_s at onset and end
     # type-specific: rho (loss_of_effectiveness), angle_deg or "current" (lock),
-    #                severity (pressure_drop, air_in_oil), value_deg (sensor_fixed),
-    #                gain (sensor_gain)
+    #                severity (pressure_drop, air_in_oil); sensor faults: see SENSOR_TYPES
 
 Types: eq (19) ``lock`` (lock-in-place at a given angle, or ``angle_deg = "current"``:
 wherever the blade is at onset) and ``loss_of_effectiveness`` (ρ); the benchmark's
 ``pressure_drop`` (ω_n 5.73 rad/s, ζ 0.45) and ``air_in_oil`` (ω_n 3.42 rad/s, ζ 0.9), at
 full severity (1, the default) or part of the way from the nominal actuator (severity s in
 (0, 1]: ω_n = ω_n0 + s (ω_n,fault − ω_n0), the same for ζ);
-pitch sensor ``sensor_fixed`` and ``sensor_gain`` faults.
+and sensor faults on every measured signal (derivation/sensors.py): the pitch sensors'
+``pitch_sensor_stuck|gain|offset|drift|precision`` (blade j), and the rotor and generator
+speed sensors' ``rotor_speed_sensor_stuck|gain|offset`` and
+``generator_speed_sensor_stuck|gain|offset`` (no blade; the generator speed on the
+high-speed shaft). Types of the benchmark (Odgaard et al. 2013: stuck, gain) and of
+FOWLTY (Peña-Sanchez et al. 2024: offset, drift, precision degradation). The old names
+``sensor_fixed`` and ``sensor_gain`` are aliases of ``pitch_sensor_stuck`` and
+``pitch_sensor_gain``.
 """
 
 from __future__ import annotations
@@ -38,8 +44,37 @@ HYDRAULIC = {typ: (d["omega_n"], d["zeta"]) for typ, d in lay.layout()["hydrauli
 class FaultType:
     """What a fault type acts on, and the key of its fault table that sets how large it is."""
 
-    acts_on: str  # "actuator" (the pitch actuator) or "sensor" (the pitch sensor)
+    acts_on: str  # "actuator" (the pitch actuator) or "sensor"
     magnitude: str  # the type-specific key of a fault table
+    signal: str = ""  # a sensor fault's signal: "pitch" (per blade), "omega_r", "omega_g_hss"
+    kind: str = ""  # a sensor fault's kind: stuck, gain, offset, drift, precision
+    default: float = 0.0  # the magnitude's default, in the key's unit
+    bounds: tuple = (None, None, False)  # (low, high, low_open) of the magnitude
+
+
+#: the sensor faults' signals: name in the fault type → (measurement, degrees at the edge)
+SENSOR_SIGNALS = {"pitch": ("beta_meas", True), "rotor_speed": ("omega_r", False),
+                  "generator_speed": ("omega_g_hss", False)}
+_SENSOR_KINDS = {  # kind → (key stem, default, bounds, pitch only)
+    "stuck": ("value", 0.0, (None, None, False), False),
+    "gain": ("gain", 1.2, (0.0, None, True), False),
+    "offset": ("offset", 1.0, (None, None, False), False),
+    "drift": ("rate", 0.01, (None, None, False), True),
+    "precision": ("factor", 3.0, (0.0, None, True), True),
+}
+
+
+def _sensor_types() -> dict[str, FaultType]:
+    out = {}
+    for sig, (_, deg) in SENSOR_SIGNALS.items():
+        for kind, (stem, default, bounds, pitch_only) in _SENSOR_KINDS.items():
+            if pitch_only and sig != "pitch":
+                continue
+            unit = {"value": "_deg" if deg else "_rad_s", "offset": "_deg" if deg else "_rad_s",
+                    "rate": "_deg_s", "gain": "", "factor": ""}[stem]
+            out[f"{sig}_sensor_{kind}"] = FaultType("sensor", stem + unit, sig, kind, default,
+                                                    bounds)
+    return out
 
 
 #: every fault type, the one list: `wtftc sweep` and `wtftc compare` derive theirs from it
@@ -48,25 +83,28 @@ TYPES = {
     "loss_of_effectiveness": FaultType("actuator", "rho"),  # eq (19)
     "pressure_drop": FaultType("actuator", "severity"),  # Odgaard et al. 2013
     "air_in_oil": FaultType("actuator", "severity"),  # Odgaard et al. 2013
-    "sensor_fixed": FaultType("sensor", "value_deg"),
-    "sensor_gain": FaultType("sensor", "gain"),
+    **_sensor_types(),
 }
+#: old names of sensor fault types, still read
+ALIASES = {"sensor_fixed": "pitch_sensor_stuck", "sensor_gain": "pitch_sensor_gain"}
 FAULT_TYPES = tuple(TYPES)
 ACTUATOR_FAULT_TYPES = tuple(t for t, k in TYPES.items() if k.acts_on == "actuator")
+SENSOR_FAULT_TYPES = tuple(t for t, k in TYPES.items() if k.acts_on == "sensor")
 
 
 @dataclass
 class Fault:
-    blade: int  # 1-based
+    blade: int  # 1-based; 0 for a speed sensor's fault
     type: str
     onset_s: float
     end_s: float = np.inf
     ramp_s: float = 0.0
     rho: float = 1.0
     angle: float | None = None  # rad; None = wherever the blade is at onset
-    value: float = 0.0  # rad, sensor_fixed
-    gain: float = 1.0  # sensor_gain
     severity: float = 1.0  # pressure_drop, air_in_oil: fraction of the way to the fault's (ω_n, ζ)
+    #: a sensor fault's magnitude in SI (stuck value, gain, offset, drift rate per s,
+    #: noise factor)
+    magnitude: float = 0.0
 
     def weight(self, t: np.ndarray) -> np.ndarray:
         """0 before onset, 1 while active, linear over ramp_s at both ends."""
@@ -86,10 +124,12 @@ class Fault:
             d["rho"] = self.rho
         if self.type == "lock":
             d["angle_deg"] = "current" if self.angle is None else float(np.degrees(self.angle))
-        if self.type == "sensor_fixed":
-            d["value_deg"] = float(np.degrees(self.value))
-        if self.type == "sensor_gain":
-            d["gain"] = self.gain
+        ft = TYPES[self.type]
+        if ft.acts_on == "sensor":
+            if not self.blade:
+                del d["blade"]
+            key = ft.magnitude
+            d[key] = float(np.degrees(self.magnitude)) if "_deg" in key else self.magnitude
         if self.type in HYDRAULIC:
             d["severity"] = self.severity
         return d
@@ -117,41 +157,47 @@ def parse_faults(tables, where: str = "fault") -> list[Fault]:
         tables = [tables]
     if not isinstance(tables, list):
         raise ConfigError(where, tables, "a list of fault tables")
+    return [_parse_fault(tab, f"{where}[{k}]") for k, tab in enumerate(tables)]
+
+
+def _parse_fault(tab, w: str) -> Fault:
+    if not isinstance(tab, dict):
+        raise ConfigError(w, tab, "a table with blade, type, onset_s, ...")
+    typ = tab.get("type")
+    typ = ALIASES.get(typ, typ) if isinstance(typ, str) else typ
+    if typ not in FAULT_TYPES:
+        raise ConfigError(f"{w}.type", tab.get("type"), "one of " + ", ".join(FAULT_TYPES))
+    ft = TYPES[typ]
+    per_blade = ft.acts_on == "actuator" or ft.signal == "pitch"
+    allowed = {"type", "onset_s", "end_s", "ramp_s", ft.magnitude} | (
+        {"blade"} if per_blade else set())
+    for key in tab:
+        if key not in allowed:
+            raise ConfigError(f"{w}.{key}", tab[key],
+                              f"a key of a {typ} fault: {', '.join(sorted(allowed))}"
+                              + ("" if per_blade else " (a speed sensor has no blade)"))
     n_blades = lay.n_blades()
-    out = []
-    for k, tab in enumerate(tables):
-        w = f"{where}[{k}]"
-        if not isinstance(tab, dict):
-            raise ConfigError(w, tab, "a table with blade, type, onset_s, ...")
-        typ = tab.get("type")
-        if typ not in FAULT_TYPES:
-            raise ConfigError(f"{w}.type", typ, "one of " + ", ".join(FAULT_TYPES))
-        allowed = {"blade", "type", "onset_s", "end_s", "ramp_s", TYPES[typ].magnitude}
-        for key in tab:
-            if key not in allowed:
-                raise ConfigError(f"{w}.{key}", tab[key],
-                                  f"a key of a {typ} fault: {', '.join(sorted(allowed))}")
-        blade = tab.get("blade")
-        if isinstance(blade, bool) or not isinstance(blade, int) or not 1 <= blade <= n_blades:
-            raise ConfigError(f"{w}.blade", blade, f"an integer 1..{n_blades}")
-        onset = _num(tab, "onset_s", w, 20.0, lo=0.0)
-        end = _num(tab, "end_s", w, np.inf, lo=onset, lo_open=True) if "end_s" in tab else np.inf
-        f = Fault(blade=blade, type=typ, onset_s=onset, end_s=end,
-                  ramp_s=_num(tab, "ramp_s", w, 0.0, lo=0.0))
-        if typ == "loss_of_effectiveness":
-            f.rho = _num(tab, "rho", w, 0.5, lo=0.0, hi=1.0, lo_open=True)
-        elif typ == "lock":
-            ang = tab.get("angle_deg", "current")
-            if ang != "current":
-                f.angle = np.radians(_num(tab, "angle_deg", w, lo=0.0, hi=90.0))
-        elif typ == "sensor_fixed":
-            f.value = np.radians(_num(tab, "value_deg", w, 0.0, lo=-90.0, hi=90.0))
-        elif typ == "sensor_gain":
-            f.gain = _num(tab, "gain", w, 1.2, lo=0.0, lo_open=True)
-        elif typ in HYDRAULIC:
-            f.severity = _num(tab, "severity", w, 1.0, lo=0.0, hi=1.0, lo_open=True)
-        out.append(f)
-    return out
+    blade = tab.get("blade") if per_blade else 0
+    if per_blade and (isinstance(blade, bool) or not isinstance(blade, int)
+                      or not 1 <= blade <= n_blades):
+        raise ConfigError(f"{w}.blade", blade, f"an integer 1..{n_blades}")
+    onset = _num(tab, "onset_s", w, 20.0, lo=0.0)
+    end = _num(tab, "end_s", w, np.inf, lo=onset, lo_open=True) if "end_s" in tab else np.inf
+    f = Fault(blade=blade, type=typ, onset_s=onset, end_s=end,
+              ramp_s=_num(tab, "ramp_s", w, 0.0, lo=0.0))
+    if typ == "loss_of_effectiveness":
+        f.rho = _num(tab, "rho", w, 0.5, lo=0.0, hi=1.0, lo_open=True)
+    elif typ == "lock":
+        ang = tab.get("angle_deg", "current")
+        if ang != "current":
+            f.angle = np.radians(_num(tab, "angle_deg", w, lo=0.0, hi=90.0))
+    elif typ in HYDRAULIC:
+        f.severity = _num(tab, "severity", w, 1.0, lo=0.0, hi=1.0, lo_open=True)
+    else:
+        lo, hi, lo_open = ft.bounds
+        val = _num(tab, ft.magnitude, w, ft.default, lo=lo, hi=hi, lo_open=lo_open)
+        f.magnitude = np.radians(val) if "_deg" in ft.magnitude else val
+    return f
 
 
 #: the default fault of the paper's cases 2 and 3 (Fig. 6 gives no numbers; docs/cases.md)
@@ -191,22 +237,27 @@ class Schedule:
         """Whether every fault input is the same at all times in [a, b] (no onset, end or
         ramp inside): the loop then passes one column for the whole chunk."""
         for f in self.faults:
+            if f.type.endswith("_drift") and b >= f.onset_s and a < f.end_s:
+                return False  # a drift grows all the time it is active
             if not (b < f.onset_s or a >= f.onset_s + f.ramp_s):
                 return False
             if not (b < f.end_s - f.ramp_s or a >= f.end_s):
                 return False
         return True
 
-    def bind_current_angles(self, t: float, beta: np.ndarray, dt: float) -> None:
+    def bind_current_angles(self, t: float, beta: np.ndarray, dt: float, every: int = 1
+                            ) -> None:
         """Lock "wherever the blade is": each such lock whose onset falls on the step at t
-        (the step nearest its onset, on a grid of dt) takes the angle beta of its blade.
+        (the step nearest its onset, on a grid of dt; in a sampled loop, of ``every``
+        steps: the interval that holds the onset step) takes the angle beta of its blade.
 
         An onset need not lie on the grid (a sweep draws it at random); an unbound lock
         would command NaN, which the actuator's position clip turns into 0° in the plant.
         """
         step = int(round(t / dt))
         for f in self.faults:
-            if f.type == "lock" and f.angle is None and int(round(f.onset_s / dt)) == step:
+            if (f.type == "lock" and f.angle is None
+                    and int(round(f.onset_s / dt)) // every * every == step):
                 f.angle = float(beta[f.blade - 1])
 
     def actuator(self, t: np.ndarray) -> np.ndarray:
@@ -232,19 +283,39 @@ class Schedule:
                         zeta=zt)
 
     def sensor(self, t: np.ndarray) -> np.ndarray:
-        """(n_sensor_faults, len(t)): gain_j, fixed_j, value_j (layout sensor_faults)."""
+        """(n_sensor_faults, len(t)): per measured signal its gain, offset, stuck weight,
+        stuck value and noise factor (layout sensor_faults, derivation/sensors.py)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        n = lay.n_blades()
-        gain, fixed, value = np.ones((n, t.size)), np.zeros((n, t.size)), np.zeros((n, t.size))
+        names = [e["name"] for e in lay.layout()["measurements"]]
+        rows = {k: {n: np.full(t.size, d) for n in names}
+                for k, d in (("gain", 1.0), ("offset", 0.0), ("stuck", 0.0),
+                             ("stuck_value", 0.0), ("noise_factor", 1.0))}
         for f in self.faults:
-            j, w = f.blade - 1, f.weight(t)
-            if f.type == "sensor_gain":
-                gain[j] = 1 + (f.gain - 1) * w
-            elif f.type == "sensor_fixed":
-                fixed[j] = np.maximum(fixed[j], w)
-                value[j] = np.where(w > 0, f.value, value[j])
-        return _stacked("sensor_faults", t.size, sensor_gain=gain, sensor_fixed=fixed,
-                        sensor_value=value)
+            ft = TYPES[f.type]
+            if ft.acts_on != "sensor":
+                continue
+            base = SENSOR_SIGNALS[ft.signal][0]
+            sig = f"{base}_{f.blade}" if ft.signal == "pitch" else base
+            w = f.weight(t)
+            if ft.kind == "gain":
+                rows["gain"][sig] = rows["gain"][sig] + (f.magnitude - 1) * w
+            elif ft.kind == "offset":
+                rows["offset"][sig] = rows["offset"][sig] + f.magnitude * w
+            elif ft.kind == "drift":  # an offset growing from the onset
+                grown = f.magnitude * np.clip(t - f.onset_s, 0.0, None)
+                rows["offset"][sig] = rows["offset"][sig] + grown * (w > 0)
+            elif ft.kind == "precision":
+                rows["noise_factor"][sig] = rows["noise_factor"][sig] + (f.magnitude - 1) * w
+            elif ft.kind == "stuck":
+                rows["stuck"][sig] = np.maximum(rows["stuck"][sig], w)
+                rows["stuck_value"][sig] = np.where(w > 0, f.magnitude, rows["stuck_value"][sig])
+        order = lay.names("sensor_faults")
+        out = np.empty((len(order), t.size))
+        for i, name in enumerate(order):
+            kind = next(k for k in ("stuck_value", "gain", "offset", "stuck", "noise_factor")
+                        if name.startswith(k + "_"))
+            out[i] = rows[kind][name[len(kind) + 1:]]
+        return out
 
     def describe(self) -> list[dict]:
         return [f.describe() for f in self.faults]

@@ -135,9 +135,9 @@ def fault_shape(run, out: Path, name: str = "fig06_fault") -> list[Path]:
     axes[1].set_ylabel("lock indicator σ [-]")
     axes[2].set_ylabel("actuator ω_n [rad/s]")
     axes[2].set_xlabel("time [s]")
-    stuck = s[lay.block("sensor_faults", "sensor_fixed")]
-    if np.any(stuck > 0) or np.any(s[lay.block("sensor_faults", "sensor_gain")] != 1):
-        axes[1].plot(t, stuck[0], "k:", label="sensor stuck")
+    stuck = s[lay.block("sensor_faults", "stuck_beta_meas")]
+    if np.any(stuck > 0):
+        axes[1].plot(t, stuck.max(axis=0), "k:", label="pitch sensor stuck")
     for ax in axes:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, ncol=3)

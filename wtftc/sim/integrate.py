@@ -27,7 +27,8 @@ import numpy as np
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import cache_dir, compiled_external
 from wtftc.model.faults import nominal_actuator
-from wtftc.sim.rhs import PLANTS, Loop, output_spec, rhs_function, state_names
+from wtftc.sim.rhs import PLANTS, Loop, output_spec, rhs_function, sensor_names
+from wtftc.sim.sampled import interval_function
 
 CHUNK = 1000  # RK4 steps per compiled call
 
@@ -111,12 +112,19 @@ def _compile_function(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_
 @cache
 def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False,
                    quiet: bool = False) -> ca.Function:
-    """``n`` RK4 steps of ``loop`` in one compiled call (mapaccum over the step);
+    """``n`` RK4 steps of ``loop`` in one compiled call (mapaccum over the step, or over
+    the control interval of a sampled loop: n rounded down to whole intervals);
     ``fast_math``: compiled with FAST_MATH_CFLAGS instead of LOOP_CFLAGS; ``quiet``: no
     note when it is compiled."""
-    step = rk4_step(rhs_function(loop))
     tag = "" if loop.fdi else "_nofdi"
-    chunk = step.mapaccum(f"loop_{loop.plant}_{loop.controller}{tag}", n)
+    if loop.sampled:
+        tag += f"_s{loop.interval}{'d' if loop.delay else ''}"
+        m = max(1, n // loop.interval)
+        chunk = interval_function(loop).mapaccum(f"loop_{loop.plant}_{loop.controller}{tag}", m)
+        n = m * loop.interval
+    else:
+        chunk = rk4_step(rhs_function(loop)).mapaccum(
+            f"loop_{loop.plant}_{loop.controller}{tag}", n)
     return _compile_function(chunk, f"loop_{loop.plant}_{loop.controller}{tag}_"
                              f"{loop.table_key}_{n}",
                              FAST_MATH_CFLAGS if fast_math else LOOP_CFLAGS, quiet)
@@ -203,6 +211,14 @@ class Run:
     yd: np.ndarray | None = None  # reference and its derivatives
     p_ctrl: np.ndarray | None = None
     use_fdi: bool = False
+    #: the plant's turbine parameters (model mismatch), None: the loop's (the controllers'
+    #: and the FDI's model); the plant's Cp relative to the table's
+    p_plant: np.ndarray | None = None
+    cp_scale: float = 1.0
+    #: the sensors' parameters (layout sensor_params: σ, bias, resolution, lag), None: ideal
+    p_sensors: np.ndarray | None = None
+    #: the seed of the sensor noise (a sampled loop): one stream per signal
+    noise_seed: int = 0
 
 
 class ChunkHook:
@@ -316,52 +332,90 @@ class _Batch:
 
 
 def _put_static(call: Buffered, loop: Loop, runs: list[Run], dt: float) -> None:
-    """The run-independent inputs, written once."""
+    """The inputs constant over a run, written once."""
     n_runs = len(runs)
     for b, r in enumerate(runs):
         call.put("yd", r.yd, b, n_runs)
-        call.put("p_turbine", loop.p_turbine, b, n_runs)
+        call.put("p_turbine", plant_params(loop, r), b, n_runs)
+        call.put("cp_scale", [r.cp_scale], b, n_runs)
+        call.put("p_sensors", lay.defaults("sensor_params") if r.p_sensors is None
+                 else r.p_sensors, b, n_runs)
         call.put("p_ctrl", r.p_ctrl, b, n_runs)
         if loop.fdi:
             call.put("use_fdi", [float(r.use_fdi)], b, n_runs)
         call.put("dt", [dt], b, n_runs)
 
 
-def _nominal_inputs(loop: Loop) -> dict[str, np.ndarray]:
-    """The fault inputs of a fault-free run of ``loop`` (its turbine's nominal actuator),
-    as one column each: built once per run_loops, not per chunk."""
-    return {"actuator_faults": nominal_actuator(loop.p_turbine)[:, None],
-            **{g: lay.defaults(g)[:, None] for g in ("sensor_faults", "fault_inputs")}}
+def plant_params(loop: Loop, run: Run) -> np.ndarray:
+    """The turbine parameters of ``run``'s plant: its own (model mismatch) or the loop's."""
+    return np.asarray(loop.p_turbine if run.p_plant is None else run.p_plant, dtype=float)
 
 
-def _put_chunk(call: Buffered, nominal: dict, runs: list[Run], k: int, m: int, n_c: int,
-               dt: float) -> None:
+def _nominal_inputs(loop: Loop, runs: list[Run]) -> list[dict[str, np.ndarray]]:
+    """The fault inputs of a fault-free run (its plant's nominal actuator), as one column
+    each, per run: built once per run_loops, not per chunk."""
+    return [{"actuator_faults": nominal_actuator(plant_params(loop, r))[:, None],
+             **{g: lay.defaults(g)[:, None] for g in ("sensor_faults", "fault_inputs")}}
+            for r in runs]
+
+
+def _noise_streams(loop: Loop, runs: list[Run]) -> list[list[np.random.Generator]]:
+    """Per run, one generator per measured signal (deterministic from the run's noise
+    seed, independent across signals): the draws of a signal do not depend on how the
+    run is cut into chunks."""
+    if not loop.sampled:
+        return [[] for _ in runs]
+    return [[np.random.default_rng(np.random.SeedSequence(r.noise_seed, spawn_key=(7, k)))
+             for k in range(len(sensor_names()))] for r in runs]
+
+
+def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: int, n_c: int,
+               dt: float, loop: Loop, noise: list) -> None:
     """Wind at t, t + dt/2, t + dt of every step of the chunk; fault inputs per step, or one
-    column held when they are constant over the chunk (the usual case)."""
+    column held when they are constant over the chunk (the usual case). A sampled loop
+    takes the sensor faults, eq (49)'s told fault and one noise draw per signal at each
+    interval's start."""
     tk = (k + np.arange(n_c)) * dt
     held = all(s is None or s.constant_between(tk[0], tk[m - 1])
                for r in runs for s in (r.schedule, r.ctrl_schedule))
     tf = tk[:1] if held else tk
+    ts = tf[::loop.interval] if loop.sampled and not held else tf
     told = lay.prefix("fault_inputs", of="actuator_faults")
     n_runs = len(runs)
     for b, r in enumerate(runs):
         call.put("wind3", np.vstack([r.wind(tk), r.wind(tk + dt / 2), r.wind(tk + dt)]), b,
                  n_runs)
         s, c = r.schedule, r.ctrl_schedule
-        call.put("actuator_faults", s.actuator(tf) if s else nominal["actuator_faults"], b,
+        call.put("actuator_faults", s.actuator(tf) if s else nominal[b]["actuator_faults"], b,
                  n_runs)
-        call.put("sensor_faults", s.sensor(tf) if s else nominal["sensor_faults"], b, n_runs)
-        call.put("ctrl_fault", c.actuator(tf)[told] if c else nominal["fault_inputs"], b,
+        call.put("sensor_faults", s.sensor(ts) if s else nominal[b]["sensor_faults"], b, n_runs)
+        call.put("ctrl_fault", c.actuator(ts)[told] if c else nominal[b]["fault_inputs"], b,
                  n_runs)
+        if loop.sampled:  # draws for the intervals this chunk uses, in order
+            n_int = n_c // loop.interval
+            used = -(-m // loop.interval)
+            draws = np.zeros((len(noise[b]), n_int))
+            draws[:, :used] = [g.standard_normal(used) for g in noise[b]]
+            call.put("noise", draws, b, n_runs)
 
 
-def _bind_locks(runs: list[Run], k: int, dt: float, z: np.ndarray, pitch: slice) -> None:
-    """Bind "lock wherever the blade is" at its onset step, from the current state."""
+def _event_steps(runs: list[Run], dt: float, every: int) -> list[int]:
+    """The steps at which a lock "wherever the blade is" reads its blade's angle: its onset
+    step, or in a sampled loop the start of the interval that holds it (chunks end on
+    intervals)."""
+    return sorted({int(round(e / dt)) // every * every for r in runs if r.schedule
+                   for e in r.schedule.events()})
+
+
+def _bind_locks(runs: list[Run], k: int, dt: float, z: np.ndarray, pitch: slice,
+                every: int = 1) -> None:
+    """Bind "lock wherever the blade is" at its onset step (or its interval's start),
+    from the current state."""
     for b, r in enumerate(runs):
-        if r.schedule and k in {int(round(e / dt)) for e in r.schedule.events()}:
-            r.schedule.bind_current_angles(k * dt, z[pitch, b], dt)
+        if r.schedule and k in _event_steps([r], dt, every):
+            r.schedule.bind_current_angles(k * dt, z[pitch, b], dt, every)
             if r.ctrl_schedule is not None:
-                r.ctrl_schedule.bind_current_angles(k * dt, z[pitch, b], dt)
+                r.ctrl_schedule.bind_current_angles(k * dt, z[pitch, b], dt, every)
 
 
 def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: int = 1,
@@ -381,27 +435,29 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
                        quiet=not progress)
     call = Buffered(_mapped(f, len(runs), threads))
     n_c = f.size2_out("out")  # steps per chunk
-    batch = _Batch(runs, state_names(loop.plant, loop.controller)[:f.size1_in("z")],
+    every = loop.interval if loop.sampled else 1
+    batch = _Batch(runs, loop.state_names(),
                    [n for n, _ in output_spec(loop.controller, loop.fdi)],
                    np.column_stack([np.asarray(r.z0, dtype=float) for r in runs]),
                    keep_states, decimate, Envelope.of(loop))
-    events = sorted({int(round(e / dt)) for r in runs if r.schedule
-                     for e in r.schedule.events()})
+    events = _event_steps(runs, dt, every)
     pitch = lay.block(PLANTS[loop.plant]["states"], "beta")
     _put_static(call, loop, runs, dt)
-    nominal = _nominal_inputs(loop)
+    nominal, noise = _nominal_inputs(loop, runs), _noise_streams(loop, runs)
     k, t0 = 0, time.perf_counter()
     last_print = t0
     while k < n_steps and not all(batch.diverged):
-        _bind_locks(runs, k, dt, batch.z, pitch)
+        _bind_locks(runs, k, dt, batch.z, pitch, every)
         # a hook's chunks end on multiples of its interval, whatever events cut them
         end = (k // n_c + 1) * n_c if hook is not None else k + n_c
         stop = min([n_steps, end] + [e for e in events if e > k])
-        _put_chunk(call, nominal, runs, k, stop - k, n_c, dt)
+        _put_chunk(call, nominal, runs, k, stop - k, n_c, dt, loop, noise)
         call.put("z", batch.z)
         if hook is not None:
             hook.before(call)
-        zz_all, oo_all = call.evaluate()
+        res = call.evaluate()
+        # a sampled chunk's states after every plant step are its third output
+        zz_all, oo_all = (res[2], res[1]) if loop.sampled else res
         for b in range(len(runs)):
             if not batch.diverged[b]:  # views, valid until the next call
                 batch.record(b, zz_all[:, b * n_c:b * n_c + stop - k],

@@ -30,7 +30,8 @@ PLANTS = {
 #: per-step outputs common to every controller, with units; per blade j; then y_d and the
 #: controller's four diagnostics (named in generated/layout.json, e.g. x̂1..x̂4 for the
 #: paper's design)
-_PLANT_OUTPUTS = [("omega_r", "rad/s"), ("theta_s", "rad"), ("omega_g_hss", "rad/s")]
+_PLANT_OUTPUTS = [("omega_r", "rad/s"), ("theta_s", "rad"), ("omega_g_hss", "rad/s"),
+                  ("omega_r_meas", "rad/s")]
 _BLADE_OUTPUTS = [("beta", "rad"), ("beta_meas", "rad")]
 _LOOP_OUTPUTS = [("u0", "rad")]
 _COMMAND_OUTPUTS = [("v", "rad")]
@@ -71,7 +72,12 @@ def state_names(plant: str, controller: str = "paper") -> list[str]:
 class Loop:
     """What one compiled closed loop is built for, resolved once (wtftc.config) and handed
     down: every run of a batch shares it. Hashable: the compiled functions are cached by it
-    (the Cp table by its key, the turbine parameters by value)."""
+    (the Cp table by its key, the turbine parameters by value).
+
+    ``interval``: 0, the controller and the FDI in continuous time inside the RK4 step (the
+    paper's loop); n > 0, sampled every n plant steps (zero-order hold, wtftc.sim.sampled);
+    ``delay``: the command of a sample applied one interval later.
+    """
 
     plant: str
     controller: str
@@ -79,21 +85,29 @@ class Loop:
     table_key: str = "nrel5mw"
     p_turbine: tuple = ()
     fdi: bool = True
+    interval: int = 0
+    delay: bool = False
 
     @classmethod
     def default(cls, plant: str = "nrel5mw", controller: str = "paper", fdi: bool = True,
-                p_turbine=None) -> Loop:
+                p_turbine=None, interval: int = 0, delay: bool = False) -> Loop:
         """The loop on the packaged NREL 5-MW Cp table and the layout's turbine."""
         pt = lay.vector("turbine_params") if p_turbine is None else p_turbine
         return cls(plant, controller, nrel5mw_cp_table(), "nrel5mw",
-                   tuple(float(x) for x in pt), fdi)
+                   tuple(float(x) for x in pt), fdi, interval, delay)
 
     def with_controller(self, controller: str, fdi: bool | None = None) -> Loop:
         return replace(self, controller=controller, fdi=self.fdi if fdi is None else fdi)
 
     @property
+    def sampled(self) -> bool:
+        return self.interval > 0
+
+    @property
     def label(self) -> str:
-        return f"{self.plant}_{self.controller}{'' if self.fdi else '_nofdi'}_{self.table_key}"
+        timing = f"_s{self.interval}{'d' if self.delay else ''}" if self.sampled else ""
+        return (f"{self.plant}_{self.controller}{'' if self.fdi else '_nofdi'}{timing}_"
+                f"{self.table_key}")
 
     @property
     def n_states(self) -> tuple[int, int, int]:
@@ -102,27 +116,27 @@ class Loop:
                 lay.size(controllers()[self.controller]["states"]),
                 lay.size("fdi_states") if self.fdi else 0)
 
+    def state_names(self) -> list[str]:
+        """The loop's state, in order: plant, controller, FDI; sampled: then the sensors'
+        lag states and (with ``delay``) the command held for the next interval."""
+        n_f = self.n_states[2]
+        out = state_names(self.plant, self.controller)
+        out = out[:len(out) - lay.size("fdi_states") + n_f]
+        if self.sampled:
+            out += [f"sensor_lag_{n}" for n in sensor_names()]
+            out += [f"v_held_{j}" for j in lay.blades()] if self.delay else []
+        return out
 
-def _closed_loop_rhs(loop: Loop) -> ca.Function:
-    """ż = f(z, wind, faults, reference, parameters): z = [plant states, controller states,
-    FDI states].
 
-    The controller sees only the measurements [ω_r, ω_g, β_meas,j] and the pitch-scheduled
-    sensitivity; the plant state never enters it. ``loop.fdi = False`` leaves the FDI out
-    (no FDI states, no ``use_fdi`` input, no fdi_* outputs): the loop of cases 1-3 without
-    the monitor, as the benchmark runs it.
-    """
+def sensor_names() -> list[str]:
+    """The measured signals, in the controllers' measurement order (derivation/sensors.py)."""
+    return [e["name"] for e in lay.layout()["measurements"]]
+
+
+def controller_block(loop: Loop, xc, xf, m: dict, sym: dict) -> dict:
+    """The controller and the FDI on the measurements ``m``: the command, the controller's
+    and the FDI's state derivatives, and their reported outputs."""
     reg = controllers()[loop.controller]
-    n_p, n_c, n_f = loop.n_states
-    sym = {"z": ca.SX.sym("z", n_p + n_c + n_f), "wind": ca.SX.sym("wind"),
-           **{n: ca.SX.sym(n, lay.size(g)) for n, g in _INPUT_GROUPS.items()},
-           "p_ctrl": ca.SX.sym("p_ctrl", lay.size(reg["params"])),
-           # 1: the accommodation is fed by the FDI, 0: by ctrl_fault
-           "use_fdi": ca.SX.sym("use_fdi")}
-    z = sym["z"]
-    xp, xc, xf = z[:n_p], z[n_p:n_p + n_c], z[n_p + n_c:]
-    pf = load(PLANTS[loop.plant]["function"], "interpreted")
-    m = _measure(loop, pf, xp, sym)
     if loop.fdi:
         # the FDI's outputs depend on its states and the measurements only (no algebraic
         # loop)
@@ -135,24 +149,70 @@ def _closed_loop_rhs(loop: Loop) -> ca.Function:
     c = load(reg["function"], "interpreted")(
         x_ctrl=xc, meas=m["meas"], yd=sym["yd"], sched=m["sched"], p_ctrl=sym["p_ctrl"],
         known_fault=known)
-    p = pf(x_plant=xp, v=c["v"], wind=sym["wind"], cp=m["cp"],
-           actuator_faults=sym["actuator_faults"], sensor_faults=sym["sensor_faults"],
-           p_turbine=sym["p_turbine"])
-    states = PLANTS[loop.plant]["states"]
-    out = [xp[lay.index(states, "omega_r")], xp[lay.index(states, "theta_s")],
-           m["meas"][measurement_index("omega_g_hss")], xp[lay.block(states, "beta")],
-           m["sensors"], c["u0"], c["v"], sym["wind"], m["tsr"], m["cp"], p["T_aero"],
-           p["T_gen"], p["P_gen"], m["sched"], sym["yd"][lay.index("reference", "yd_0")]]
-    names = ["z", "wind", *_INPUT_GROUPS, "p_ctrl"]
+    out = {"v": c["v"], "u0": c["u0"], "diag": c["diag"], "x_ctrl_dot": c["x_ctrl_dot"]}
     if loop.fdi:
         fd = fdi(x_fdi=xf, v=c["v"], beta_meas=m["sensors"], p_fdi=p_fdi)
-        zdot = ca.vertcat(p["x_plant_dot"], c["x_ctrl_dot"], fd["x_fdi_dot"])
-        out += [fd0[k] for k in ("latch", "rho_hat", "c_hat", "residual_rms", "omega_n_hat",
-                                 "zeta_hat")]
-        names.append("use_fdi")
-    else:
-        zdot = ca.vertcat(p["x_plant_dot"], c["x_ctrl_dot"])
-    out = ca.vertcat(*out, c["diag"])
+        out["x_fdi_dot"] = fd["x_fdi_dot"]
+        out["fdi"] = [fd0[k] for k in ("latch", "rho_hat", "c_hat", "residual_rms",
+                                       "omega_n_hat", "zeta_hat")]
+    return out
+
+
+def plant_block(loop: Loop, xp, v, sym: dict) -> dict:
+    """The plant driven by the commands v: its state derivative and its true outputs."""
+    pf = load(PLANTS[loop.plant]["function"], "interpreted")
+    pt, wind = sym["p_turbine"], sym["wind"]
+    op = load("aero_operating_point", "interpreted")(
+        x_plant=xp[lay.prefix("plant_states", of=PLANTS[loop.plant]["states"])], wind=wind,
+        p_turbine=pt)
+    # the plant's Cp: the table's, scaled by the model mismatch (1: none)
+    cp = sym["cp_scale"] * _cp_function(loop)(op["tsr"], op["beta_mean"])
+    p = pf(x_plant=xp, v=v, wind=wind, cp=cp, actuator_faults=sym["actuator_faults"],
+           p_turbine=pt)
+    return {"x_plant_dot": p["x_plant_dot"], "tsr": op["tsr"], "cp": cp,
+            "T_aero": p["T_aero"], "T_gen": p["T_gen"], "P_gen": p["P_gen"]}
+
+
+@cache
+def _cp_function(loop: Loop) -> ca.Function:
+    """The Cp interpolant of the loop's table (built once per loop)."""
+    return cp_loop_function(loop.table)
+
+
+def output_row(loop: Loop, xp, m: dict, ctl: dict, pl: dict, sym: dict) -> ca.SX:
+    """The reported outputs, in output_spec's order."""
+    states = PLANTS[loop.plant]["states"]
+    out = [xp[lay.index(states, "omega_r")], xp[lay.index(states, "theta_s")],
+           m["meas"][measurement_index("omega_g_hss")],
+           m["meas"][measurement_index("omega_r")], xp[lay.block(states, "beta")],
+           m["sensors"], ctl["u0"], ctl["v"], sym["wind"], pl["tsr"], pl["cp"], pl["T_aero"],
+           pl["T_gen"], pl["P_gen"], m["sched"], sym["yd"][lay.index("reference", "yd_0")]]
+    return ca.vertcat(*out, *ctl.get("fdi", []), ctl["diag"])
+
+
+def _closed_loop_rhs(loop: Loop) -> ca.Function:
+    """ż = f(z, wind, faults, reference, parameters): z = [plant states, controller states,
+    FDI states] (the continuous loop, ``loop.interval = 0``).
+
+    The controller sees only the measurements [ω_r, ω_g, β_meas,j] through the sensor
+    model (derivation/sensors.py: faults, bias, resolution; no noise or lag in continuous
+    time) and the pitch-scheduled sensitivity; the plant state never enters it.
+    ``loop.fdi = False`` leaves the FDI out (no FDI states, no ``use_fdi`` input, no fdi_*
+    outputs): the loop of cases 1-3 without the monitor, as the benchmark runs it.
+    """
+    n_p, n_c, n_f = loop.n_states
+    sym = loop_symbols(loop, n_p + n_c + n_f)
+    z = sym["z"]
+    xp, xc, xf = z[:n_p], z[n_p:n_p + n_c], z[n_p + n_c:]
+    true = true_signals(loop, xp, sym["p_turbine"])
+    m = measure(loop, true, true, ca.DM.zeros(true.numel()), sym)
+    ctl = controller_block(loop, xc, xf, m, sym)
+    pl = plant_block(loop, xp, ctl["v"], sym)
+    names = ["z", "wind", *_INPUT_GROUPS, "p_ctrl", "cp_scale"] + (["use_fdi"] if loop.fdi
+                                                                    else [])
+    zdot = ca.vertcat(pl["x_plant_dot"], ctl["x_ctrl_dot"], *([ctl["x_fdi_dot"]] if loop.fdi
+                                                              else []))
+    out = output_row(loop, xp, m, ctl, pl, sym)
     assert out.numel() == len(output_spec(loop.controller, loop.fdi))
     # one pass of common-subexpression elimination over the assembled loop: the plant, the
     # controller and the FDI share the measured quantities and the aerodynamics
@@ -160,10 +220,22 @@ def _closed_loop_rhs(loop: Loop) -> ca.Function:
     return ca.Function("rhs", [sym[n] for n in names], [zdot, out], names, ["z_dot", "out"])
 
 
+def loop_symbols(loop: Loop, n_z: int) -> dict[str, ca.SX]:
+    """The symbolic inputs of a loop's functions, by name."""
+    reg = controllers()[loop.controller]
+    return {"z": ca.SX.sym("z", n_z), "wind": ca.SX.sym("wind"),
+            **{n: ca.SX.sym(n, lay.size(g)) for n, g in _INPUT_GROUPS.items()},
+            "p_ctrl": ca.SX.sym("p_ctrl", lay.size(reg["params"])),
+            # the plant's Cp relative to the table's (model mismatch; 1: none)
+            "cp_scale": ca.SX.sym("cp_scale"),
+            # 1: the accommodation is fed by the FDI, 0: by ctrl_fault
+            "use_fdi": ca.SX.sym("use_fdi")}
+
+
 #: the loop's inputs that are layout groups, in input order after z and wind
 _INPUT_GROUPS = {"actuator_faults": "actuator_faults", "sensor_faults": "sensor_faults",
                  "ctrl_fault": "fault_inputs", "yd": "reference",
-                 "p_turbine": "turbine_params"}
+                 "p_turbine": "turbine_params", "p_sensors": "sensor_params"}
 
 
 def _fdi_params(loop: Loop) -> np.ndarray:
@@ -176,27 +248,29 @@ def _fdi_params(loop: Loop) -> np.ndarray:
     return p
 
 
-def _measure(loop: Loop, pf: ca.Function, xp: ca.SX, sym: dict) -> dict:
-    """What the controller sees: [ω_r, ω_g (HSS), β_meas,j], the Cp at the operating point,
-    and the ∂T_aero/∂β schedule at the measured mean pitch."""
-    pt, wind = sym["p_turbine"], sym["wind"]
-    n_b = lay.n_blades()
-    op = load("aero_operating_point", "interpreted")(
-        x_plant=xp[lay.prefix("plant_states", of=PLANTS[loop.plant]["states"])], wind=wind,
-        p_turbine=pt)
-    cp = cp_loop_function(loop.table)(op["tsr"], op["beta_mean"])
-    sensors = pf(x_plant=xp, v=ca.DM.zeros(n_b), wind=wind, cp=cp,
-                 actuator_faults=sym["actuator_faults"], sensor_faults=sym["sensor_faults"],
-                 p_turbine=pt)["beta_meas"]  # independent of v
+def true_signals(loop: Loop, xp: ca.SX, pt: ca.SX) -> ca.SX:
+    """What the sensors measure, exactly, in the measurement order: ω_r, ω_g on the HSS,
+    β_j."""
     states = PLANTS[loop.plant]["states"]
-    omega_g = xp[lay.index(states, "omega_g")]
     values = {"omega_r": xp[lay.index(states, "omega_r")],
-              "omega_g_hss": omega_g * pt[lay.index("turbine_params", "gearbox_ratio")],
-              **{f"beta_meas_{j}": sensors[k] for k, j in enumerate(lay.blades())}}
-    meas = ca.vertcat(*[values[e["name"]] for e in lay.layout()["measurements"]])
+              "omega_g_hss": xp[lay.index(states, "omega_g")]
+              * pt[lay.index("turbine_params", "gearbox_ratio")],
+              **{f"beta_meas_{j}": xp[lay.index(states, f"beta_{j}")] for j in lay.blades()}}
+    return ca.vertcat(*[values[n] for n in sensor_names()])
+
+
+def measure(loop: Loop, true: ca.SX, x_lag: ca.SX, noise: ca.SX, sym: dict) -> dict:
+    """What the controller sees: the measurements through the sensor model (generated
+    ``sensors``), the measured pitches, and the ∂T_aero/∂β schedule at the measured mean
+    pitch (the controllers' model: the nominal turbine and table, whatever the plant)."""
+    meas = load("sensors", "interpreted")(
+        true_signals=true, x_lag=x_lag, noise=noise, sensor_faults=sym["sensor_faults"],
+        p_sensors=sym["p_sensors"])["meas"]
+    names = sensor_names()
+    sensors = ca.vertcat(*[meas[names.index(f"beta_meas_{j}")] for j in lay.blades()])
     sched_fn = sched_loop_function(loop.table, np.array(loop.p_turbine))
-    return {"meas": meas, "sensors": sensors, "cp": cp, "tsr": op["tsr"],
-            "sched": sched_fn(ca.sum1(sensors) / n_b)}
+    return {"meas": meas, "sensors": sensors, "sched": sched_fn(ca.sum1(sensors)
+                                                                / lay.n_blades())}
 
 
 def measurement_index(name: str) -> int:

@@ -14,15 +14,22 @@ from wtftc.model.faults import nominal_actuator
 from wtftc.sim.rhs import Loop, rhs_function
 
 
-def stability_limit(loop: Loop, z0, wind0: float, yd, p_ctrl) -> float:
-    """Largest |eigenvalue| of the closed-loop Jacobian at z0 (RK4: stable for |λ dt| < 2.78)."""
+def _jacobian(loop: Loop, z0, wind0: float, yd, p_ctrl) -> np.ndarray:
+    """The closed-loop Jacobian ∂ż/∂z at z0, fault-free (the continuous loop's states: a
+    sampled loop's sensor lags and held command are cut off)."""
     args = {"z": z0, "wind": wind0, "actuator_faults": nominal_actuator(loop.p_turbine),
             "sensor_faults": lay.defaults("sensor_faults"),
             "ctrl_fault": lay.defaults("fault_inputs"), "yd": yd, "p_turbine": loop.p_turbine,
-            "p_ctrl": p_ctrl, "use_fdi": 0.0}
+            "p_ctrl": p_ctrl, "use_fdi": 0.0, "cp_scale": 1.0,
+            "p_sensors": lay.defaults("sensor_params")}
     jac = _jacobian_function(loop)
-    eig = np.linalg.eigvals(np.array(jac.call({n: args[n] for n in jac.name_in()})["dz_dot_dz"]))
-    return float(np.max(np.abs(eig)))
+    args["z"] = np.asarray(z0, dtype=float)[:jac.size1_in("z")]
+    return np.array(jac.call({n: args[n] for n in jac.name_in()})["dz_dot_dz"])
+
+
+def stability_limit(loop: Loop, z0, wind0: float, yd, p_ctrl) -> float:
+    """Largest |eigenvalue| of the closed-loop Jacobian at z0 (RK4: stable for |λ dt| < 2.78)."""
+    return float(np.max(np.abs(np.linalg.eigvals(_jacobian(loop, z0, wind0, yd, p_ctrl)))))
 
 
 @cache
@@ -53,3 +60,22 @@ def check_dt(dt: float, lam_max: float) -> None:
         print(f"  warning: dt_s = {dt:g} s is larger than {DT_ACCURATE_S:g} s, the step at "
               "which the closed loop's RK4 integration is verified accurate "
               "(docs/verification.md); results may be inaccurate", file=sys.stderr)
+
+
+def controller_limit(loop: Loop, z0, wind0: float, yd, p_ctrl) -> float:
+    """Largest |eigenvalue| of the controller's and the FDI's own dynamics at z0 (their
+    block of the closed-loop Jacobian): a sampled loop advances them by one RK4 step of the
+    control interval."""
+    n_p = loop.n_states[0]
+    block = _jacobian(loop, z0, wind0, yd, p_ctrl)[n_p:, n_p:]
+    return float(np.max(np.abs(np.linalg.eigvals(block)))) if block.size else 0.0
+
+
+def check_interval(interval: float, lam_max: float) -> None:
+    """Refuse a control interval beyond RK4's stability limit of the controller's own
+    dynamics (they advance by one RK4 step of the interval)."""
+    if lam_max > 0 and interval > 2.78 / lam_max:
+        raise ConfigError("control_interval_s", interval,
+                          f"at most {2.78 / lam_max:.3g} s: the controller's and the FDI's "
+                          f"fastest mode has |λ| = {lam_max:.4g} 1/s and their RK4 step over "
+                          "the interval is stable only for |λ·T| < 2.78")

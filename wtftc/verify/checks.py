@@ -128,6 +128,10 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
     actuator = _draw(lay.layout()["actuator_faults"], rng)
     sensor = _draw(lay.layout()["sensor_faults"], rng)
     meas = _draw(lay.layout()["measurements"], rng)
+    n_s = meas.size
+    # the sensors' draws from a generator of their own, seeded by rng's state without
+    # advancing it: every other function's points stay what they were
+    rs = np.random.default_rng(int(rng.bit_generator.state["state"]["state"]) % 2**63)
     return {
         "x_plant": x_plant,
         "wind": np.array([wind]),
@@ -135,6 +139,14 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
         "actuator_faults": actuator,
         "sensor_faults": sensor,
         "meas": meas,
+        # the sensors' chain: signals and lag states where they live, standard-normal
+        # draws, parameters in their sample ranges (some zero: the no-lag, no-resolution
+        # branches)
+        "true_signals": meas,
+        "x_lag": meas + 0.01 * rs.standard_normal(n_s),
+        "noise": rs.standard_normal(n_s),
+        "p_sensors": _draw(lay.layout()["sensor_params"], rs)
+        * (rs.uniform(size=lay.size("sensor_params")) > 0.3),
         "sched": np.array([-rng.uniform(2e6, 3e7)]),
         "known_fault": _draw(lay.layout()["fault_inputs"], rng),
         "dcp_dbeta": np.array([rng.uniform(-2.0, 0.2)]),

@@ -1,0 +1,154 @@
+"""Sensor faults, model mismatch and their refusals: each sensor fault does to its
+measurement what its type says, from its onset on, and nothing before; the plant under
+mismatch is another plant than the controllers' model; bad values are refused naming
+the field."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.campaign import cases
+from wtftc.errors import ConfigError
+
+ONSET = 1.0
+BASE = {"case": 2, "controller": "physical", "t_final_s": 3.0, "control_interval_s": 0.01,
+        "wind": {"kind": "constant", "speed_mps": 16.0}, "output_rate_hz": 100.0}
+GEAR = lay.defaults("turbine_params")[lay.index("turbine_params", "gearbox_ratio")]
+
+
+def _run(fault: dict, **over):
+    rc = config.make_config({**BASE, **over, "fault": [{"onset_s": ONSET, **fault}]})
+    res = cases.run(rc, progress=False, keep_states=True)
+    assert res.diverged is None
+    return rc, res
+
+
+def _signals(res, signal: str) -> tuple[np.ndarray, np.ndarray]:
+    """(measured, true) of a signal at the output times (= the sample instants)."""
+    if signal == "omega_g_hss":
+        return res.column("omega_g_hss"), GEAR * res.z[:, lay.index("nrel5mw_states",
+                                                                     "omega_g")]
+    if signal == "omega_r":
+        return res.column("omega_r_meas"), res.column("omega_r")
+    j = signal[-1]
+    return res.column(f"beta_meas_{j}"), res.column(f"beta_{j}")
+
+
+#: (fault table, signal, expected measurement from (true, t))
+CASES = {
+    "pitch_sensor_stuck": ({"type": "pitch_sensor_stuck", "blade": 2, "value_deg": 5.0},
+                           "beta_2", lambda x, t: np.full_like(x, np.radians(5.0))),
+    "pitch_sensor_gain": ({"type": "pitch_sensor_gain", "blade": 3, "gain": 1.2},
+                          "beta_3", lambda x, t: 1.2 * x),
+    "pitch_sensor_offset": ({"type": "pitch_sensor_offset", "blade": 1, "offset_deg": -1.0},
+                            "beta_1", lambda x, t: x - np.radians(1.0)),
+    "pitch_sensor_drift": ({"type": "pitch_sensor_drift", "blade": 1, "rate_deg_s": 0.5},
+                           "beta_1", lambda x, t: x + np.radians(0.5) * (t - ONSET)),
+    "rotor_speed_sensor_stuck": ({"type": "rotor_speed_sensor_stuck", "value_rad_s": 1.4},
+                                 "omega_r", lambda x, t: np.full_like(x, 1.4)),
+    "rotor_speed_sensor_gain": ({"type": "rotor_speed_sensor_gain", "gain": 1.1},
+                                "omega_r", lambda x, t: 1.1 * x),
+    "rotor_speed_sensor_offset": ({"type": "rotor_speed_sensor_offset", "offset_rad_s": 0.1},
+                                  "omega_r", lambda x, t: x + 0.1),
+    "generator_speed_sensor_stuck": ({"type": "generator_speed_sensor_stuck",
+                                      "value_rad_s": 140.0}, "omega_g_hss",
+                                     lambda x, t: np.full_like(x, 140.0)),
+    "generator_speed_sensor_gain": ({"type": "generator_speed_sensor_gain", "gain": 0.9},
+                                    "omega_g_hss", lambda x, t: 0.9 * x),
+    "generator_speed_sensor_offset": ({"type": "generator_speed_sensor_offset",
+                                       "offset_rad_s": 2.0}, "omega_g_hss",
+                                      lambda x, t: x + 2.0),
+}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_sensor_fault_acts_on_its_measurement_from_its_onset(name):
+    fault, signal, expected = CASES[name]
+    rc, res = _run(fault)
+    meas, true = _signals(res, signal)
+    before, after = res.t < ONSET, res.t >= ONSET
+    np.testing.assert_allclose(meas[before], true[before], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(meas[after], expected(true[after], res.t[after]), rtol=1e-12,
+                               atol=1e-12)
+    # every other measurement untouched
+    others = ["omega_r", "omega_g_hss", "beta_1", "beta_2", "beta_3"]
+    for other in (o for o in others if o != signal):
+        m, x = _signals(res, other)
+        np.testing.assert_allclose(m, x, rtol=1e-12, atol=1e-9 if "omega_g" in other else 0)
+
+
+def test_precision_degradation_multiplies_the_noise():
+    rc, res = _run({"type": "pitch_sensor_precision", "blade": 2, "factor": 3.0},
+                   profile="realistic", t_final_s=30.0, control_interval_s=0.01)
+    e = res.column("beta_meas_2") - res.column("beta_2")
+    ratio = e[res.t >= ONSET].std() / e[res.t < ONSET].std()
+    assert ratio == pytest.approx(3.0, rel=0.2)  # 100 samples before the onset
+    e1 = res.column("beta_meas_1") - res.column("beta_1")
+    assert e1.std() == pytest.approx(np.radians(0.2), rel=0.1)
+
+
+def test_old_sensor_fault_names_are_aliases():
+    rc = config.make_config({**BASE, "fault": [
+        {"type": "sensor_fixed", "blade": 1, "value_deg": 3.0, "onset_s": 1.0},
+        {"type": "sensor_gain", "blade": 2, "gain": 1.1, "onset_s": 1.0}]})
+    assert [f.type for f in rc.faults] == ["pitch_sensor_stuck", "pitch_sensor_gain"]
+
+
+def test_mismatch_changes_the_plant_not_the_model():
+    nominal = config.make_config({**BASE, "case": 1})
+    rc = config.make_config({**BASE, "case": 1, "mismatch": {"inertia": 1.1, "cp_scale": 0.95,
+                                                             "actuator_omega_n": 0.9}})
+    assert rc.loop == nominal.loop  # the controllers' and the FDI's model: the same
+    tp = lay.values("turbine_params", rc.p_plant)
+    tn = lay.values("turbine_params", nominal.p_turbine)
+    assert tp["J_r"] == pytest.approx(1.1 * tn["J_r"]) and tp["J_g"] == pytest.approx(
+        1.1 * tn["J_g"])
+    assert tp["omega_n_nominal"] == pytest.approx(0.9 * tn["omega_n_nominal"])
+    a = cases.run(nominal, progress=False)
+    b = cases.run(rc, progress=False)
+    assert not np.allclose(a.column("omega_r"), b.column("omega_r"), rtol=1e-6)
+    # the plant's Cp is the table's times cp_scale (at the common trimmed start)
+    assert b.column("cp")[0] / a.column("cp")[0] == pytest.approx(0.95, rel=1e-12)
+
+
+BAD = [
+    ({"sensors": {"pitch_noise_deg": -0.1}, "control_interval_s": 0.01},
+     "sensors.pitch_noise_deg"),
+    ({"sensors": {"pitch_noise_deg": 0.1}}, "sensors.pitch_noise_deg"),  # continuous time
+    ({"sensors": {"pitch_noise": 0.1}, "control_interval_s": 0.01}, "sensors.pitch_noise"),
+    ({"control_interval_s": 0.0015}, "control_interval_s"),
+    ({"control_interval_s": -0.01}, "control_interval_s"),
+    ({"control_delay": True}, "control_delay"),
+    ({"control_delay": "yes", "control_interval_s": 0.01}, "control_delay"),
+    ({"profile": "noisy"}, "profile"),
+    ({"mismatch": {"inertia": 0.0}}, "mismatch.inertia"),
+    ({"mismatch": {"mass": 1.1}}, "mismatch.mass"),
+    ({"case": 2, "fault": [{"type": "pitch_sensor_wobble", "blade": 1}]}, "fault[0].type"),
+    ({"case": 2, "fault": [{"type": "rotor_speed_sensor_gain", "blade": 1}]},
+     "fault[0].blade"),
+    ({"case": 2, "fault": [{"type": "pitch_sensor_gain", "blade": 1, "gain": -1}]},
+     "fault[0].gain"),
+]
+
+
+@pytest.mark.parametrize("over, field", BAD, ids=[f for _, f in BAD])
+def test_bad_measurement_input_names_the_field(over, field):
+    with pytest.raises(ConfigError) as exc:
+        config.make_config({"t_final_s": 2.0, **over})
+    assert exc.value.field == field
+
+
+def test_cli_refuses_an_interval_off_the_grid_in_one_line(tmp_path):
+    p = subprocess.run([sys.executable, "-m", "wtftc.cli", "run", "--control-interval", "0.0015",
+                        "--t-final", "1", "--out", str(tmp_path / "x")],
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and "control_interval_s" in lines[0] and "0.0015" in lines[0]
+    assert not (tmp_path / "x").exists()

@@ -1,0 +1,197 @@
+"""The sampled loop: the controller and the FDI as a discrete-time system (ours).
+
+Every control interval T = n·dt (``Loop.interval`` = n plant steps):
+
+1. **Sample**: the sensors (derivation/sensors.py: lag, fault, bias, noise, resolution)
+   read the plant at the interval's start; one standard-normal draw per signal, held
+   over the interval, comes in as ``noise``.
+2. **Command**: the controller computes v_k from its state and the samples; it is held
+   over the interval (zero-order hold), or, with ``delay``, over the next one (v_{k-1}
+   is applied now).
+3. **Controller and FDI states**: advanced from t_k to t_k + T by one classical RK4 step
+   of their own equations with the samples held (the measurements are a zero-order hold,
+   as a DISCON call sees them). The error against the continuous loop is O(T): the
+   measurements are held, not interpolated (tests/test_sampled.py measures it).
+4. **Plant**: n RK4 steps of dt with the command held; the sensors' lag states advance
+   with it (they are the sensors' physics, in continuous time).
+
+Outputs are reported every plant step: the plant's true quantities at that step, the
+controller's (measurements, command, FDI, diagnostics) as held from the last sample.
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import casadi as ca
+import numpy as np
+
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import load
+from wtftc.sim.rhs import (
+    PLANTS,
+    Loop,
+    controller_block,
+    loop_symbols,
+    measure,
+    output_row,
+    plant_block,
+    sensor_names,
+    true_signals,
+)
+
+#: the inputs of a sampled interval held per interval (one column), and per plant step
+PER_INTERVAL = ("sensor_faults", "ctrl_fault", "noise")
+PER_STEP = ("wind3", "actuator_faults")
+
+
+def _sizes(loop: Loop) -> dict[str, int]:
+    n_p, n_c, n_f = loop.n_states
+    n_s, n_b = len(sensor_names()), lay.n_blades()
+    return {"p": n_p, "c": n_c, "f": n_f, "s": n_s, "b": n_b,
+            "z": n_p + n_c + n_f + n_s + (n_b if loop.delay else 0)}
+
+
+def _held_size(loop: Loop) -> int:
+    n = _sizes(loop)
+    return n["s"] + 1 + n["b"] + 1 + (6 * n["b"] if loop.fdi else 0) + 4
+
+
+def _unpack_held(loop: Loop, held: ca.SX) -> tuple[dict, dict]:
+    """The measurements and the controller's outputs from the held vector (_sample's
+    layout: meas, u0, v, sched, fdi outputs, diag)."""
+    n = _sizes(loop)
+    k = 0
+
+    def take(size):
+        nonlocal k
+        k += size
+        return held[k - size:k]
+
+    meas, u0, v, sched = take(n["s"]), take(1), take(n["b"]), take(1)
+    fdi = [take(n["b"]) for _ in range(6)] if loop.fdi else []
+    diag = take(4)
+    names = sensor_names()
+    sensors = ca.vertcat(*[meas[names.index(f"beta_meas_{j}")] for j in lay.blades()])
+    return ({"meas": meas, "sensors": sensors, "sched": sched},
+            {"u0": u0, "v": v, "fdi": fdi, "diag": diag})
+
+
+def _sample(loop: Loop) -> ca.Function:
+    """The sample at t_k: the command, the controller and FDI states at t_k + T, and the
+    held outputs."""
+    n = _sizes(loop)
+    sym = loop_symbols(loop, n["z"])
+    z, noise, T = sym["z"], ca.SX.sym("noise", n["s"]), ca.SX.sym("T")
+    xp = z[:n["p"]]
+    o = n["p"] + n["c"] + n["f"]
+    true = true_signals(loop, xp, sym["p_turbine"])
+    m = measure(loop, true, z[o:o + n["s"]], noise, sym)
+
+    def f(x):
+        c = controller_block(loop, x[:n["c"]], x[n["c"]:], m, sym)
+        return ca.vertcat(c["x_ctrl_dot"], *([c["x_fdi_dot"]] if loop.fdi else []))
+
+    x = z[n["p"]:o]
+    k1 = f(x)
+    k2 = f(x + T / 2 * k1)
+    k3 = f(x + T / 2 * k2)
+    k4 = f(x + T * k3)
+    x_next = x + T / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    ctl = controller_block(loop, x[:n["c"]], x[n["c"]:], m, sym)
+    held = ca.vertcat(m["meas"], ctl["u0"], ctl["v"], m["sched"], *ctl.get("fdi", []),
+                      ctl["diag"])
+    assert held.numel() == _held_size(loop)
+    names = ["z", "noise", "sensor_faults", "ctrl_fault", "yd", "p_turbine", "p_sensors",
+             "p_ctrl", *(["use_fdi"] if loop.fdi else []), "T"]
+    args = {**sym, "noise": noise, "T": T}
+    x_next, held = ca.cse([x_next, held])
+    return ca.Function("sample", [args[k] for k in names], [x_next, held], names,
+                       ["x_next", "held"])
+
+
+def _plant_step(loop: Loop) -> ca.Function:
+    """One RK4 step of dt of the plant and the sensors' lags, the command held; the
+    outputs at the step's start."""
+    n = _sizes(loop)
+    sym = loop_symbols(loop, n["p"] + n["s"])
+    x, w3, v, held, dt = (sym["z"], ca.SX.sym("wind3", 3), ca.SX.sym("v", n["b"]),
+                          ca.SX.sym("held", _held_size(loop)), ca.SX.sym("dt"))
+    lag = load("sensors", "interpreted")
+
+    def f(xx, wind):
+        s = {**sym, "wind": wind}
+        pl = plant_block(loop, xx[:n["p"]], v, s)
+        true = true_signals(loop, xx[:n["p"]], sym["p_turbine"])
+        dl = lag(true_signals=true, x_lag=xx[n["p"]:], noise=ca.DM.zeros(n["s"]),
+                 sensor_faults=sym["sensor_faults"], p_sensors=sym["p_sensors"])["x_lag_dot"]
+        return ca.vertcat(pl["x_plant_dot"], dl), pl
+
+    k1, pl = f(x, w3[0])
+    k2 = f(x + dt / 2 * k1, w3[1])[0]
+    k3 = f(x + dt / 2 * k2, w3[1])[0]
+    k4 = f(x + dt * k3, w3[2])[0]
+    x_next = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    m, ctl = _unpack_held(loop, held)
+    out = output_row(loop, x[:n["p"]], m, ctl, pl, {**sym, "wind": w3[0]})
+    x_next, out = ca.cse([x_next, out])
+    names = ["x", "wind3", "actuator_faults", "p_turbine", "cp_scale", "sensor_faults",
+             "p_sensors", "yd", "v", "held", "dt"]
+    args = {**sym, "x": x, "wind3": w3, "v": v, "held": held, "dt": dt}
+    return ca.Function("plant_step", [args[k] for k in names], [x_next, out], names,
+                       ["x_next", "out"])
+
+
+@cache
+def interval_function(loop: Loop) -> ca.Function:
+    """One control interval of ``loop`` (``loop.interval`` plant steps): z_next, the outputs
+    of every plant step (n_out × n), and the state after every plant step (n_z × n: the
+    controller's as sampled until the last column, which is z_next)."""
+    n, steps = _sizes(loop), loop.interval
+    sample, plant = _sample(loop), _plant_step(loop).mapaccum("plant_steps", steps)
+    ins = {k: ca.MX.sym(k, sample.sparsity_in(k)) for k in sample.name_in() if k != "T"}
+    ins |= {"wind3": ca.MX.sym("wind3", 3, steps),
+            "actuator_faults": ca.MX.sym("actuator_faults", lay.size("actuator_faults"), steps),
+            "cp_scale": ca.MX.sym("cp_scale"), "dt": ca.MX.sym("dt")}
+    z = ins["z"]
+    s = sample.call({**{k: ins[k] for k in sample.name_in() if k != "T"},
+                     "T": steps * ins["dt"]})
+    o = n["p"] + n["c"] + n["f"]
+    xps0 = ca.vertcat(z[:n["p"]], z[o:o + n["s"]])
+    v_new = s["held"][n["s"] + 1:n["s"] + 1 + n["b"]]
+    v_apply = z[o + n["s"]:] if loop.delay else v_new
+
+    def rep(x):
+        return ca.repmat(x, 1, steps)
+
+    p = plant.call({"x": xps0, "wind3": ins["wind3"], "actuator_faults": ins["actuator_faults"],
+                    **{k: rep(ins[k]) for k in ("p_turbine", "cp_scale", "sensor_faults",
+                                                "p_sensors", "yd", "dt")},
+                    "v": rep(v_apply), "held": rep(s["held"])})
+    xs = p["x_next"]
+    ctrl_cols = ca.horzcat(ca.repmat(z[n["p"]:o], 1, steps - 1), s["x_next"])
+    held_v = [ca.repmat(v_new, 1, steps)] if loop.delay else []
+    z_steps = ca.vertcat(xs[:n["p"], :], ctrl_cols, xs[n["p"]:, :], *held_v)
+    z_next = z_steps[:, steps - 1]
+    names = ["z", *PER_STEP, *[k for k in ins if k not in ("z", *PER_STEP)]]
+    return ca.Function("interval", [ins[k] for k in names], [z_next, p["out"], z_steps],
+                       names, ["z_next", "out", "z_steps"])
+
+
+def sampled_state(loop: Loop, z0) -> np.ndarray:
+    """A trimmed state (wtftc.sim.trim: plant, controller, FDI) extended to ``loop``'s: a
+    sampled loop's sensor lags start at the true signals (in balance) and its held command
+    at the blades' pitch. A continuous loop's is returned as it is."""
+    z0 = np.asarray(z0, dtype=float)
+    if not loop.sampled:
+        return z0
+    n = _sizes(loop)
+    xp = z0[:n["p"]]
+    states = PLANTS[loop.plant]["states"]
+    gear = loop.p_turbine[lay.index("turbine_params", "gearbox_ratio")]
+    true = {"omega_r": xp[lay.index(states, "omega_r")],
+            "omega_g_hss": xp[lay.index(states, "omega_g")] * gear,
+            **{f"beta_meas_{j}": xp[lay.index(states, f"beta_{j}")] for j in lay.blades()}}
+    held = xp[lay.block(states, "beta")] if loop.delay else []
+    return np.concatenate([z0[:n["p"] + n["c"] + n["f"]], [true[s] for s in sensor_names()],
+                           held])
