@@ -5,17 +5,26 @@ pitch β_m,j.
 
 * **Model**: the nominal actuator (Odgaard et al. 2013), the same second-order law with
   the same limits as the plant's, driven by v_j: β̂̈ = ω0²(sat(v_j) - β̂) - 2ζ0ω0 β̂̇.
-* **Residual** r_j = β_m,j - β̂_j, and its mean square over a window T_f:
-  ė_j = (r_j² - e_j)/T_f.
-* **Detection and isolation**: a latch D_j rises to 1 (rate k_D) once √e_j exceeds the
-  threshold r_thr; the blade whose latch rises is the faulty one.
+* **Residual** r_j = β_m,j - β̂_j, low-pass filtered (T_r: the sensor noise is white, a
+  fault's residual is not), r_f,j, and its mean square over a window T_f:
+  ė_j = (r_f,j² - e_j)/T_f.
+* **Detection and isolation**: a latch D_j rises to 1 (rate k_D) once e_j exceeds the
+  threshold, a χ² test: e_j ≥ max(r_thr², h_noise) + δ² τ_a² R_h,j, where h_noise is the
+  filtered noise's variance times a χ² quantile for the target false-alarm rate
+  (computed at run time from the sensors' σ and the control interval: wtftc.sim.fdi),
+  and the second term allows for a model error of δ on the actuator's time constant
+  τ_a = 2ζ/ω_n at the model's pitch rate (R_h,j: its mean square). The blade whose latch
+  rises is the faulty one.
 * **Estimation**: two least-squares fits over an exponentially weighted window T_w
   (sufficient statistics as states): β_m ≈ ρ₁ β̂ + c, which tells a lock (ρ₁ ≈ 0, c ≈ the
   stuck angle), and β_m ≈ ρ₀ β̂ through the origin, which estimates a loss of
   effectiveness (with the pitch varying over a few degrees, ρ₁ and c are nearly
   collinear and ρ₁ alone is poorly determined). After detection the accommodation is told
-  σ̂_j = 1, ū_j = c_j when ρ₁ < ρ_lock, else σ̂_j = 0 and ρ̂_j = ρ₀ clipped to [ρ_min, 1];
-  before detection, the nominal values.
+  σ̂_j = 1, ū_j = c_j when ρ₁ < ρ_lock (the blade does not follow the model: a slope of
+  the windowed regression, which averages the sensor noise out), else σ̂_j = 0 and ρ̂_j =
+  ρ₀ clipped to [ρ_min, 1]; before detection, the nominal values. (Until issue 15 a lock
+  was told by the RMS of the measured pitch's filtered derivative, which the sensor noise
+  swamps: a locked blade was taken for a loss of effectiveness.)
 
 The hydraulic faults (pressure drop, air in oil) change the dynamics, not the gain: a
 bank of the benchmark's two faulty actuator models runs beside the nominal one, and
@@ -31,19 +40,19 @@ from derivation.layout import Entry
 
 v, beta_m = sp.symbols("v beta_m", real=True)
 bh, bhd, e, D, q = sp.symbols("beta_hat beta_hat_rate mean_sq latch confidence", real=True)
-S_bb, S_b, S_1, S_mb, S_m = sp.symbols("S_bb S_b S_1 S_mb S_m", real=True)
-xd, R_m, R_h = sp.symbols("deriv_filter rate_msq_meas rate_msq_model", real=True)
+S_bb, S_b, S_1, S_mb, S_m, S_mm = sp.symbols("S_bb S_b S_1 S_mb S_m S_mm", real=True)
+r_f, R_h = sp.symbols("residual_filtered rate_msq_model", real=True)
 # the model bank: the benchmark's hydraulic faults as alternative actuator models
 bp, bpd, ep, ba, bad, ea = sp.symbols(
     "beta_pd beta_pd_rate mean_sq_pd beta_air beta_air_rate mean_sq_air", real=True)
-STATE_SYMBOLS = [bh, bhd, e, D, q, S_bb, S_b, S_1, S_mb, S_m, xd, R_m, R_h,
+STATE_SYMBOLS = [bh, bhd, e, D, q, S_bb, S_b, S_1, S_mb, S_m, S_mm, r_f, R_h,
                  bp, bpd, ep, ba, bad, ea]
 PER_BLADE = ["beta_hat", "beta_hat_rate", "mean_sq", "latch", "confidence", "S_bb", "S_b",
-             "S_1", "S_mb", "S_m", "deriv_filter", "rate_msq_meas", "rate_msq_model",
+             "S_1", "S_mb", "S_m", "S_mm", "residual_filtered", "rate_msq_model",
              "beta_pd", "beta_pd_rate", "mean_sq_pd", "beta_air", "beta_air_rate",
              "mean_sq_air"]
-UNITS = ["rad", "rad/s", "rad^2", "-", "-", "rad^2", "rad", "-", "rad^2", "rad", "rad",
-         "rad^2/s^2", "rad^2/s^2", "rad", "rad/s", "rad^2", "rad", "rad/s", "rad^2"]
+UNITS = ["rad", "rad/s", "rad^2", "-", "-", "rad^2", "rad", "-", "rad^2", "rad", "rad^2",
+         "rad", "rad^2/s^2", "rad", "rad/s", "rad^2", "rad", "rad/s", "rad^2"]
 
 
 def states(n_blades: int) -> list[Entry]:
@@ -60,15 +69,31 @@ PARAMS = [
     Entry("fdi_rate_max", nrel5mw.PITCH_RATE_MAX, "rad/s", "actuator rate limit, 8°/s"),
     Entry("fdi_T_f", 0.5, "s", "residual mean-square window"),
     Entry("fdi_r_thr", 0.0008726646259971648, "rad",
-          "detection threshold on the residual RMS: 0.05°, an absolute pitch encoder's "
-          "accuracy; the fault-free residual is below 1e-9 rad on nrel5mw (no sensor noise "
-          "is simulated; docs/fdi.md)"),
+          "smallest detection threshold on the residual RMS: 0.05°, an absolute pitch "
+          "encoder's accuracy (exact sensors: the fault-free residual is below 1e-9 rad; "
+          "docs/fdi.md)"),
+    Entry("fdi_thr2_noise", 0.0, "rad^2",
+          "the χ² threshold of the filtered residual's mean square for the sensor noise "
+          "and the target false-alarm rate (computed per run: wtftc.sim.fdi; 0: exact "
+          "sensors)"),
+    Entry("fdi_T_r", 0.2, "s", "residual low-pass filter time constant"),
+    Entry("fdi_T_s", 0.0, "s",
+          "the control interval: a sample held over it against a moving model adds a "
+          "residual of the pitch rate × the time since the sample (0: continuous time; set "
+          "per run)"),
+    Entry("fdi_var_noise", 0.0, "rad^2",
+          "the pitch sensor's noise variance σ² (set per run from the sensors: a locked "
+          "blade's measured pitch still varies by it)"),
+    Entry("fdi_delta", 0.3, "-",
+          "model uncertainty allowed for: relative error of the actuator's time constant "
+          "2ζ/ω_n; ±10 % on each of ω_n and ζ is ±20 %, plus a margin for the second-order "
+          "response at the rate and position limits (with 0.2 a fault-free campaign with "
+          "±10 % mismatch came within 7 % of alarming; docs/fdi.md)"),
     Entry("fdi_k_latch", 20.0, "1/s", "latch rise rate"),
     Entry("fdi_T_w", 2.0, "s", "least-squares window (exponential forgetting)"),
     Entry("fdi_rho_lock", 0.2, "-",
-          "lock-in-place when the measured pitch rate's RMS is below this fraction of the "
-          "model's (the blade does not follow its command)"),
-    Entry("fdi_T_d", 0.05, "s", "time constant of the measured-pitch derivative filter"),
+          "lock-in-place when the windowed regression's slope of the measured pitch on the "
+          "model's is below this (the blade does not follow its command)"),
     Entry("fdi_omega_pd", nrel5mw.PRESSURE_DROP_OMEGA_N, "rad/s",
           "hydraulic pressure drop model ω_n (Odgaard 2013)"),
     Entry("fdi_zeta_pd", nrel5mw.PRESSURE_DROP_ZETA, "-",
@@ -83,9 +108,11 @@ PARAMS = [
           "least-squares windows; chosen with T_w among (3, 4) × (2, 3) s on NTM B at 16 and "
           "20 m/s and the paper's wind: docs/fdi.md)"),
 ]
-wn, zt, bmin, bmax, rmax, T_f, r_thr, k_D, T_w, rho_lock, rho_min, T_e, T_d = sp.symbols(
+wn, zt, bmin, bmax, rmax, T_f, r_thr, k_D, T_w, rho_lock, rho_min, T_e = sp.symbols(
     "fdi_omega_n fdi_zeta fdi_pitch_min fdi_pitch_max fdi_rate_max fdi_T_f fdi_r_thr "
-    "fdi_k_latch fdi_T_w fdi_rho_lock fdi_rho_min fdi_T_engage fdi_T_d", real=True)
+    "fdi_k_latch fdi_T_w fdi_rho_lock fdi_rho_min fdi_T_engage", real=True)
+h_noise, T_r, delta, var_n, T_s = sp.symbols(
+    "fdi_thr2_noise fdi_T_r fdi_delta fdi_var_noise fdi_T_s", real=True)
 w_pd, z_pd, w_air, z_air = sp.symbols("fdi_omega_pd fdi_zeta_pd fdi_omega_air fdi_zeta_air",
                                       real=True)
 
@@ -96,19 +123,29 @@ def actuator_model(b, bdot, w, z) -> list[sp.Expr]:
     return turbine.limited_actuator(b, bdot, u, w, z, bmin, bmax, rmax)
 
 
+def threshold_sq() -> sp.Expr:
+    """The detection threshold on the filtered residual's mean square: the larger of the
+    encoder's accuracy and the noise's χ² bound, plus the allowances for the model's
+    uncertainty, δ² τ_a² R_h (a time-constant error Δτ makes a residual Δτ·β̂̇), and for
+    the sampling, T_s² R_h / 3 (a sample held over T_s against a moving model: the mean
+    square of β̂̇·(t − t_k) over the interval)."""
+    tau_a = 2 * zt / wn
+    return sp.Max(r_thr**2, h_noise) + ((delta * tau_a) ** 2 + T_s**2 / 3) * R_h
+
+
 def blade_rhs() -> list[sp.Expr]:
     """Time derivatives of one blade's FDI states."""
     rate, acc = actuator_model(bh, bhd, wn, zt)
     r = beta_m - bh
-    latch = sp.Piecewise((k_D * (1 - D), e >= r_thr**2), (0, True))
+    latch = sp.Piecewise((k_D * (1 - D), e >= threshold_sq()), (0, True))
     confidence = sp.Piecewise((1 / T_e, sp.And(D >= sp.Rational(1, 2), q < 1)), (0, True))
-    stats = [bh * bh, bh, 1, beta_m * bh, beta_m]
-    rate_meas = (beta_m - xd) / T_d  # filtered derivative of the measured pitch
+    stats = [bh * bh, bh, 1, beta_m * bh, beta_m, beta_m * beta_m]
     pd = actuator_model(bp, bpd, w_pd, z_pd)
     air = actuator_model(ba, bad, w_air, z_air)
-    return [rate, acc, (r**2 - e) / T_f, latch, confidence,
-            *[(x - s) / T_w for x, s in zip(stats, [S_bb, S_b, S_1, S_mb, S_m], strict=True)],
-            rate_meas, (rate_meas**2 - R_m) / T_f, (rate**2 - R_h) / T_f,
+    return [rate, acc, (r_f**2 - e) / T_f, latch, confidence,
+            *[(x - s) / T_w for x, s in zip(stats, [S_bb, S_b, S_1, S_mb, S_m, S_mm],
+                                             strict=True)],
+            (r - r_f) / T_r, (rate**2 - R_h) / T_f,
             *pd, ((beta_m - bp) ** 2 - ep) / T_w, *air, ((beta_m - ba) ** 2 - ea) / T_w]
 
 
@@ -137,8 +174,16 @@ def estimates() -> tuple[sp.Expr, sp.Expr, sp.Expr]:
 
 
 def is_locked() -> sp.Expr:
-    """The blade does not follow: measured rate RMS below ρ_lock × the model's (window T_f)."""
-    return R_m < rho_lock**2 * R_h + sp.Rational(1, 10**12)
+    """The blade does not follow its model: over the window T_w the regression's slope ρ₁
+    of the measured pitch on the model's is below ρ_lock, and so is the measured pitch's
+    spread against the model's, var(β_m) < ρ_lock² var(β̂) + 2σ² (σ the sensor noise). The
+    second test keeps a loss of effectiveness from passing for a lock while the window
+    still mixes the pre-fault slope 1 with the new one (ρ₁ then dips below 0)."""
+    rho1, _, _ = estimates()
+    n = sp.Max(S_1, 1e-9)
+    var_m = S_mm / n - (S_m / n) ** 2
+    var_h = S_bb / n - (S_b / n) ** 2
+    return sp.And(rho1 < rho_lock, var_m < rho_lock**2 * var_h + 2 * var_n)
 
 
 def accommodation() -> tuple[sp.Expr, sp.Expr, sp.Expr]:
@@ -161,5 +206,5 @@ def initial(beta_meas0) -> list[sp.Expr]:
     with unit weight and a small spread so that the first estimates are defined."""
     b0 = beta_meas0
     spread = sp.Rational(1, 10**4)
-    return [b0, 0, 0, 0, 0, b0**2 + spread, b0, 1, b0**2 + spread, b0, b0, 0, 0,
+    return [b0, 0, 0, 0, 0, b0**2 + spread, b0, 1, b0**2 + spread, b0, b0**2 + spread, 0, 0,
             b0, 0, 0, b0, 0, 0]

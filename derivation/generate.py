@@ -312,7 +312,7 @@ def build_fdi() -> list[ca.Function]:
     p = _vec("p_fdi", len(fdi.PARAMS))
     params = _named(p, fdi.PARAMS)
     rhs, rho, lock, ubar, rho_est, c_est, latch, rms = [], [], [], [], [], [], [], []
-    w_hat, z_hat = [], []
+    w_hat, z_hat, thr = [], [], []
     init = []
     for j in range(lay.N_BLADES):
         xs = x[j * n:(j + 1) * n]
@@ -328,6 +328,7 @@ def build_fdi() -> list[ca.Function]:
         c_est.append(tr(ce))
         latch.append(xs[3])
         rms.append(ca.sqrt(ca.fmax(xs[2], 0)))
+        thr.append(ca.sqrt(tr(fdi.threshold_sq())))
         wh, zh = fdi.dynamics_estimate()
         w_hat.append(tr(wh))
         z_hat.append(tr(zh))
@@ -337,7 +338,8 @@ def build_fdi() -> list[ca.Function]:
                   {"x_fdi_dot": ca.vertcat(*rhs), "known_fault": known,
                    "rho_hat": ca.vertcat(*rho_est), "c_hat": ca.vertcat(*c_est),
                    "latch": ca.vertcat(*latch), "residual_rms": ca.vertcat(*rms),
-                   "omega_n_hat": ca.vertcat(*w_hat), "zeta_hat": ca.vertcat(*z_hat)})
+                   "omega_n_hat": ca.vertcat(*w_hat), "zeta_hat": ca.vertcat(*z_hat),
+                   "threshold": ca.vertcat(*thr)})
     g = _function("init_fdi", {"beta_meas": bm}, {"x_fdi0": ca.vertcat(*init)})
     return [f, g]
 

@@ -317,7 +317,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     x, v, p = _flat(args, "x_fdi"), _flat(args, "v"), _flat(args, "p_fdi")
     n = len(fdi.PER_BLADE)
     base = {e.name: float(y) for e, y in zip(fdi.PARAMS, p, strict=True)}
-    rhs, known, rho, c, latch, rms, wh, zh = [], [[], [], []], [], [], [], [], [], []
+    rhs, known, rho, c, latch, rms, wh, zh, thr = [], [[], [], []], [], [], [], [], [], [], []
     r1, ce, r0 = fdi.estimates()
     for j in range(3):
         xs = x[j * n:(j + 1) * n]
@@ -333,13 +333,15 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         w_hat, z_hat = fdi.dynamics_estimate()
         wh.append(pair("fdi_wh", [w_hat], vals))
         zh.append(pair("fdi_zh", [z_hat], vals))
+        thr.append(pair("fdi_thr", [sp.sqrt(fdi.threshold_sq())], vals))
 
     def cat(parts):
         return (np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]))
 
     return {"x_fdi_dot": cat(rhs), "known_fault": cat(known[0] + known[1] + known[2]),
             "rho_hat": cat(rho), "c_hat": cat(c), "latch": cat(latch),
-            "residual_rms": cat(rms), "omega_n_hat": cat(wh), "zeta_hat": cat(zh)}
+            "residual_rms": cat(rms), "omega_n_hat": cat(wh), "zeta_hat": cat(zh),
+            "threshold": cat(thr)}
 
 
 #: controllers derived as a derivation.design.ControllerDesign, by registered name

@@ -107,7 +107,8 @@ def test_rhs_matches_generated(loop):
                                "sensor_faults": sf, "ctrl_fault": ck, "yd": prep.yd,
                                "p_turbine": rc.p_turbine, "p_ctrl": rc.p_ctrl,
                                "p_sensors": lay.defaults("sensor_params"), "cp_scale": 1.0,
-                               **({"use_fdi": 0.0} if use_fdi else {})})["z_dot"]
+                               **({"use_fdi": 0.0, "p_fdi": rhs.fdi_params(rc.loop)}
+                                  if use_fdi else {})})["z_dot"]
                        ).ravel()[:n]
         got = prep.closed_loop_rhs(z[:n], wind, af, sf, ck)
         assert np.all(np.isfinite(got))

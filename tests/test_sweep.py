@@ -125,7 +125,7 @@ def test_a_diverging_run_is_recorded_with_time_state_and_cause_and_a_bad_one_as_
     out = sweep.run_task([ok, diverging, broken])
     rows = {r["run_id"]: r for r, _ in out}
     assert rows[ok["run_id"]]["status"] == "ok"
-    assert 0 < rows[ok["run_id"]]["rms_speed_error_rad_s"] < 0.05
+    assert 0 < rows[ok["run_id"]]["rms_speed_error_rad_s"] < 0.1  # the paper design, noisy
     d = rows["diverging"]
     assert d["status"] == "diverged" and 20 < d["diverged_at_s"] < 40
     assert "xhat_4" in d["cause"]

@@ -154,6 +154,9 @@ def _add_compare(sub) -> None:
     k.add_argument("--winds", nargs="+", help="subset of winds")
     k.add_argument("--t-final", type=float, default=60.0, help="simulated time per run [s]")
     k.add_argument("--seed", type=_nonnegative_int, default=0, help="random seed")
+    k.add_argument("--profile", choices=("realistic", "ideal"), default="realistic",
+                   help="realistic (default): 100 Hz sampled control, the benchmark's sensor "
+                        "noise; ideal: continuous time, exact sensors (docs/sensors.md)")
     k.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
@@ -361,7 +364,8 @@ def _cmd_compare(args) -> int:
 
     ensure_writable_dir(args.out, "--out", create=False)
     rows = compare.run_compare(args.out, args.controllers, args.faults, args.winds,
-                               t_final=args.t_final, seed=args.seed, progress=not args.quiet)
+                               t_final=args.t_final, seed=args.seed, progress=not args.quiet,
+                               profile=args.profile)
     print(compare.write_compare_table(args.out, rows))
     print(f"written under {args.out}/: compare.md, compare.csv, compare.png, "
           "<wind>/<fault>/<controller>/{config.toml,metrics.json}")

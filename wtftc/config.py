@@ -18,7 +18,7 @@ from wtftc.errors import ConfigError
 from wtftc.model.cp_table import nrel5mw_cp_table, read_cp_table
 from wtftc.model.faults import DEFAULT_FAULT, parse_faults
 from wtftc.model.wind import wind_from_config
-from wtftc.sim import rhs
+from wtftc.sim import fdi, rhs
 from wtftc.sim.integrate import Envelope
 from wtftc.sim.trim import trim
 
@@ -31,7 +31,7 @@ FAULT_FREE_CASE, UNAWARE_CASE, ORACLE_CASE, FDI_CASE = 1, 2, 3, 4
 TOP_KEYS = {"case", "plant", "controller", "t_final_s", "dt_s", "seed", "output_rate_hz",
             "control_sign", "reference_rad_s", "cp_table", "wind", "fault", "controller_params",
             "turbine_params", "initial", "label", "profile", "control_interval_s",
-            "control_delay", "sensors", "mismatch"}
+            "control_delay", "sensors", "mismatch", "fdi"}
 
 DEFAULTS = {
     "case": 1, "plant": "nrel5mw", "controller": "paper", "t_final_s": 60.0, "dt_s": 1e-3,
@@ -120,6 +120,8 @@ class RunConfig:
     p_sensors: np.ndarray = field(default_factory=lambda: lay.defaults("sensor_params"))
     p_plant: np.ndarray | None = None
     cp_scale: float = 1.0
+    #: the FDI's parameters of this run (its thresholds from the sensors: wtftc.sim.fdi)
+    p_fdi: np.ndarray = field(default_factory=lambda: lay.defaults("fdi_params"))
 
     plant = property(lambda self: self.loop.plant)
     controller = property(lambda self: self.loop.controller)
@@ -253,6 +255,10 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     t_final, dt, seed, decimate = _timing(raw)
     interval = _control_interval(raw, dt, t_final)
     p_sensors = _sensors(raw, interval)
+    if raw["controller"] == "rosco" and any(
+            float(raw["sensors"].get(f"{s}_lag_s", 0.0)) > 0 for s in SENSOR_KEYS):
+        raise ConfigError("sensors", raw["sensors"], "no lag with controller = rosco (it "
+                          "reads the speeds with their noise only: docs/sensors.md)")
     _control_sign(raw)
     p_ctrl, p_turbine = _parameters(raw, controller)
     ref = _reference(raw, p_turbine)
@@ -267,10 +273,40 @@ def make_config(cfg: dict | None = None) -> RunConfig:
                     interval=interval, delay=raw["control_delay"])
     _check_envelope(loop, ref, offset)
     p_plant, cp_scale = _mismatch(raw, p_turbine)
+    p_fdi = _fdi(raw, loop, p_sensors, interval * dt)
     return RunConfig(raw=raw, case=case, loop=loop, t_final=t_final, dt=dt, seed=seed,
                      decimate=decimate, reference=ref, p_ctrl=p_ctrl, wind=wind, faults=faults,
                      omega_offset=offset, p_sensors=p_sensors, p_plant=p_plant,
-                     cp_scale=cp_scale)
+                     cp_scale=cp_scale, p_fdi=p_fdi)
+
+
+#: the [fdi] table: key → (default, low, high, what)
+FDI_KEYS = {"target_false_alarms_per_hour": (fdi.TARGET_ALARMS_PER_HOUR, 1e-12, 3600.0,
+                                             "false alarms per hour the threshold allows"),
+            "model_uncertainty": (None, 0.0, 1.0, "relative error of the actuator's time "
+                                                  "constant the threshold allows for")}
+
+
+def _fdi(raw: dict, loop: rhs.Loop, p_sensors: np.ndarray, interval: float) -> np.ndarray:
+    """The FDI's parameters: its thresholds from the run's sensors and the ``[fdi]``
+    table's target false-alarm rate and model uncertainty (docs/fdi.md)."""
+    table = raw.get("fdi", {})
+    if not isinstance(table, dict):
+        raise ConfigError("fdi", table, "a table with " + ", ".join(FDI_KEYS))
+    vals = {}
+    for key, (default, lo, hi, what) in FDI_KEYS.items():
+        if default is None and key not in table:  # the FDI's own default (layout.json)
+            vals[key] = None
+            continue
+        x = _finite(table.get(key, default), f"fdi.{key}")
+        if not lo <= x <= hi:
+            raise ConfigError(f"fdi.{key}", table[key], f"{what}: a number in [{lo:g}, {hi:g}]")
+        vals[key] = x
+    for key in table:
+        if key not in FDI_KEYS:
+            raise ConfigError(f"fdi.{key}", table[key], "a known key: " + ", ".join(FDI_KEYS))
+    return fdi.run_params(rhs.fdi_params(loop), p_sensors, interval,
+                          vals["target_false_alarms_per_hour"], vals["model_uncertainty"])
 
 
 def _profile(raw: dict, given: dict) -> None:
@@ -280,18 +316,36 @@ def _profile(raw: dict, given: dict) -> None:
         raise ConfigError("profile", name, "one of " + ", ".join(PROFILES)
                           + " (docs/sensors.md)")
     prof = PROFILES[name]
-    raw.setdefault("control_interval_s", prof["control_interval_s"])
+    interval = prof["control_interval_s"]
+    if raw["controller"] == "rosco" and interval > 0:
+        interval = ROSCO_INTERVAL_S  # ROSCO is called at its own interval
+    raw.setdefault("control_interval_s", interval)
     if not isinstance(raw.get("sensors", {}), dict):
         raise ConfigError("sensors", raw["sensors"], "a table of sensor keys (docs/sensors.md)")
     raw["sensors"] = {**prof["sensors"], **raw.get("sensors", {})}
     for key, table in prof.items():
+        if key == "turbine_params" and raw["controller"] == "rosco":
+            continue  # ROSCO commands the generator torque itself
         if key.endswith("_params") and isinstance(given.get(key, {}), dict):
             raw[key] = {**table, **given.get(key, {})}
 
 
+#: ROSCO's call interval [s] (wtftc.sim.rosco.CONTROL_DT; not imported: ROSCO is optional)
+ROSCO_INTERVAL_S = 0.005
+
+
 def _control_interval(raw: dict, dt: float, t_final: float) -> int:
-    """The controller's sampling interval in plant steps (0: continuous time)."""
+    """The controller's sampling interval in plant steps (0: continuous time). ROSCO
+    samples the loop itself, every 5 ms: its compiled loop stays continuous (0)."""
     val = _finite(raw["control_interval_s"], "control_interval_s")
+    if raw["controller"] == "rosco":
+        if val not in (0.0, ROSCO_INTERVAL_S) or raw["control_delay"] is not False:
+            raise ConfigError("control_interval_s" if val not in (0.0, ROSCO_INTERVAL_S)
+                              else "control_delay", val if val not in (0.0, ROSCO_INTERVAL_S)
+                              else raw["control_delay"],
+                              f"{ROSCO_INTERVAL_S} s (or 0) and no delay with controller = "
+                              "rosco: ROSCO is called at its own interval")
+        return 0
     if val < 0 or val > 1.0:
         raise ConfigError("control_interval_s", val, "0 (continuous) or an interval in "
                           "(0, 1] s")
@@ -329,7 +383,8 @@ def _sensors(raw: dict, interval: int) -> np.ndarray:
         x = _finite(val, f"sensors.{key}")
         if kind != "bias" and x < 0:
             raise ConfigError(f"sensors.{key}", val, "a number >= 0")
-        if kind in ("noise", "lag") and x > 0 and interval == 0:
+        if kind in ("noise", "lag") and x > 0 and interval == 0 \
+                and raw["controller"] != "rosco":
             raise ConfigError(f"sensors.{key}", val, "0 with control_interval_s = 0: noise and "
                               "lags need a sampled controller (e.g. control_interval_s = 0.01, "
                               "or profile = \"realistic\")")
@@ -346,6 +401,10 @@ def _torque_law(raw: dict, p_turbine: np.ndarray, wind, t_final: float, table) -
     15). The paper's own wind keeps the paper's fixed torque (docs/cases.md), and ROSCO
     commands its own torque."""
     tp = raw.get("turbine_params", {})
+    if raw["controller"] == "rosco" and p_turbine[lay.index("turbine_params",
+                                                           "gen_torque_law")] != 0.0:
+        raise ConfigError("turbine_params.gen_torque_law", tp.get("gen_torque_law"),
+                          "0 with controller = rosco (ROSCO commands the generator torque)")
     if (raw["plant"] != "nrel5mw" or "gen_torque_law" in tp or raw["controller"] == "rosco"
             or raw["wind"].get("kind") == "paper_random"):
         return

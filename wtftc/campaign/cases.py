@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 
-from wtftc.artefacts import layout as lay
 from wtftc.config import CASES, RunConfig, make_config
 from wtftc.errors import ConfigError
 from wtftc.model.faults import Schedule
@@ -108,7 +107,7 @@ def _prepare(rc: RunConfig, check: bool = True) -> tuple[integrate.Run, float | 
     return integrate.Run(sampled_state(rc.loop, z0), rc.wind, schedule, ctrl_schedule, rc.yd,
                          rc.p_ctrl, use_fdi=rc.uses_fdi, p_plant=rc.p_plant,
                          cp_scale=rc.cp_scale, p_sensors=rc.p_sensors,
-                         noise_seed=rc.seed), lam
+                         noise_seed=rc.seed, p_fdi=rc.p_fdi), lam
 
 
 def run_and_write(rc: RunConfig, out_dir: Path, progress: bool = True):
@@ -150,8 +149,7 @@ def write_run_figures(out_dir: Path, rc: RunConfig, res: Result, m: dict) -> lis
     if res.schedule is not None:
         paths += figures.fault_shape(rec, fdir, "fault")
     if rc.uses_fdi:
-        thr = float(lay.defaults("fdi_params")[lay.index("fdi_params", "fdi_r_thr")])
-        paths += figures.fdi(rec, fdir, "fdi", threshold_rad=thr)
+        paths += figures.fdi(rec, fdir, "fdi")
     return paths
 
 

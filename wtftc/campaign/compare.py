@@ -93,22 +93,27 @@ def _check(kind: str, names, allowed: dict) -> list[str]:
     return names
 
 
+#: the measurement profile campaigns run by default (docs/sensors.md): 100 Hz sampled
+#: control, the benchmark's sensor noise, the baseline torque law
+PROFILE = "realistic"
+
+
 def cell_config(controller: str, fault: str, wind: str, t_final: float, dt: float,
-                seed: int) -> dict:
+                seed: int, profile: str = PROFILE) -> dict:
     return variant_config(controller, FAULTS[fault], WINDS[wind], t_final, dt, seed,
-                          label=f"{wind}/{fault}/{controller}")
+                          label=f"{wind}/{fault}/{controller}", profile=profile)
 
 
 def variant_config(controller: str, faults: list | None, wind: dict, t_final: float,
-                   dt: float, seed: int, label: str) -> dict:
+                   dt: float, seed: int, label: str, profile: str = PROFILE) -> dict:
     """The run configuration of one controller variant (CONTROLLERS) under ``faults`` (a
-    list of fault tables, or None) and ``wind`` (a wind table): `wtftc compare`'s cells and
-    `wtftc sweep`'s runs."""
+    list of fault tables, or None) and ``wind`` (a wind table), in the measurement
+    ``profile``: `wtftc compare`'s cells and `wtftc sweep`'s runs."""
     variant = CONTROLLERS[controller]
     name = variant.controller
     cfg = {"controller": name, "case": 1 if not faults else variant.fault_case,
            "wind": copy.deepcopy(wind), "t_final_s": t_final, "dt_s": dt,
-           "seed": seed, "label": label}
+           "seed": seed, "label": label, "profile": profile}
     if faults:
         cfg["fault"] = copy.deepcopy(faults)
     if name != "rosco":
@@ -133,7 +138,7 @@ def _row(controller, fault, wind, m) -> dict:
 
 
 def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_final=60.0,
-                dt=1e-3, seed=0, progress=True) -> list[dict]:
+                dt=1e-3, seed=0, progress=True, profile: str = PROFILE) -> list[dict]:
     from wtftc.sim import rosco
 
     ctrl_names = _check("controllers", controllers, CONTROLLERS)
@@ -149,7 +154,7 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
         raise ConfigError("t-final", t_final, f"more than {ONSET_S:g} s, the faults' onset "
                           "(or --faults none)")
     # validate every cell before running any
-    configs = {(w, f, c): config.make_config(cell_config(c, f, w, t_final, dt, seed))
+    configs = {(w, f, c): config.make_config(cell_config(c, f, w, t_final, dt, seed, profile))
                for w in wind_names for f in fault_names for c in ctrl_names}
     rows = []
     n = len(configs)

@@ -179,24 +179,26 @@ def comparison(runs: list[dict], out: Path, name: str = "cases_comparison") -> l
     return _save(fig, out, name)
 
 
-def fdi(run, out: Path, name: str = "fdi", threshold_rad: float | None = None) -> list[Path]:
-    """wtftc's fault detection in the loop (case 4): per blade, the residual RMS against
-    its threshold, the latch, the effectiveness estimate ρ̂ and the stuck-angle estimate."""
+def fdi(run, out: Path, name: str = "fdi") -> list[Path]:
+    """wtftc's fault detection in the loop (case 4): per blade, the filtered residual's RMS
+    against its threshold (thin, same style: the χ² bound of the sensor noise plus the
+    model-uncertainty allowance, which grows with the pitch rate), the latch, the
+    effectiveness estimate ρ̂ and the stuck-angle estimate."""
     res = run["result"]
     fig, axes = plt.subplots(4, 1, figsize=(7.5, 7.5), sharex=True)
     for j, ls in zip(lay.blades(), ("-", "--", ":"), strict=True):  # equal blades overlap
         kw = {"label": f"blade {j}", "ls": ls}
-        axes[0].semilogy(res.t, np.maximum(np.degrees(res.column(f"fdi_residual_rms_{j}")),
-                                           1e-12), **kw)
+        line, = axes[0].semilogy(res.t, np.maximum(np.degrees(
+            res.column(f"fdi_residual_rms_{j}")), 1e-12), **kw)
+        axes[0].semilogy(res.t, np.degrees(res.column(f"fdi_threshold_{j}")), ls=ls, lw=0.7,
+                         color=line.get_color(), alpha=0.6,
+                         label="thresholds" if j == 1 else None)
         axes[1].plot(res.t, res.column(f"fdi_latch_{j}"), **kw)
         axes[2].plot(res.t, res.column(f"fdi_rho_hat_{j}"), **kw)
         axes[3].plot(res.t, np.degrees(res.column(f"fdi_c_hat_{j}")), **kw)
-    if threshold_rad is not None:
-        axes[0].axhline(np.degrees(threshold_rad), color="k", ls=":", lw=1,
-                        label=f"threshold {np.degrees(threshold_rad):.3g}°")
     axes[1].axhline(0.5, color="k", ls=":", lw=1, label="isolation at 0.5")
     axes[0].set_ylim(bottom=1e-10)
-    axes[0].set_ylabel("residual RMS [deg]")
+    axes[0].set_ylabel("filtered residual RMS [deg]")
     axes[1].set_ylabel("latch [-]")
     axes[2].set_ylabel("ρ̂ effectiveness [-]")
     axes[3].set_ylabel("stuck-angle estimate ĉ [deg]")

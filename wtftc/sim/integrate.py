@@ -27,7 +27,7 @@ import numpy as np
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import cache_dir, compiled_external
 from wtftc.model.faults import nominal_actuator
-from wtftc.sim.rhs import PLANTS, Loop, output_spec, rhs_function, sensor_names
+from wtftc.sim.rhs import PLANTS, Loop, fdi_params, output_spec, rhs_function, sensor_names
 from wtftc.sim.sampled import interval_function
 
 CHUNK = 1000  # RK4 steps per compiled call
@@ -219,6 +219,8 @@ class Run:
     p_sensors: np.ndarray | None = None
     #: the seed of the sensor noise (a sampled loop): one stream per signal
     noise_seed: int = 0
+    #: the FDI's parameters (its thresholds follow the run's sensors), None: exact sensors
+    p_fdi: np.ndarray | None = None
 
 
 class ChunkHook:
@@ -343,6 +345,7 @@ def _put_static(call: Buffered, loop: Loop, runs: list[Run], dt: float) -> None:
         call.put("p_ctrl", r.p_ctrl, b, n_runs)
         if loop.fdi:
             call.put("use_fdi", [float(r.use_fdi)], b, n_runs)
+            call.put("p_fdi", fdi_params(loop) if r.p_fdi is None else r.p_fdi, b, n_runs)
         call.put("dt", [dt], b, n_runs)
 
 

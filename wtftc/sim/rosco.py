@@ -110,6 +110,9 @@ def run(loop: Loop, inputs: integrate.Run, t_final: float, dt: float, decimate: 
     if loop.plant != "nrel5mw":
         raise ConfigError("plant", loop.plant, "nrel5mw with controller = rosco (ROSCO "
                           "commands the generator torque the paper's plant does not have)")
+    if lay.values("turbine_params", loop.p_turbine)["gen_torque_law"] != 0.0:
+        raise ConfigError("turbine_params.gen_torque_law", 1.0, "0 with controller = rosco "
+                          "(ROSCO commands the generator torque itself)")
     n_sub = int(round(CONTROL_DT / dt))
     if n_sub < 1 or abs(n_sub * dt - CONTROL_DT) > 1e-12:
         raise ConfigError("dt_s", dt, f"a divisor of ROSCO's call interval {CONTROL_DT} s")
@@ -151,6 +154,15 @@ class _Discon(integrate.ChunkHook):
         self.state = None
         self.i_omega_g = lay.index(PLANTS[loop.plant]["states"], "omega_g")
         self.i_omega_r = lay.index(PLANTS[loop.plant]["states"], "omega_r")
+        # the sensors' noise on what ROSCO reads (the loop's measurements carry their
+        # faults, bias and resolution): σ per signal, one stream per signal from the run's
+        # seed, a draw per call
+        ps = lay.values("sensor_params", lay.defaults("sensor_params")
+                        if inputs.p_sensors is None else inputs.p_sensors)
+        self.sigma = {n: ps[f"sigma_{n}"] for n in ("omega_r", "omega_g_hss",
+                                                    *[f"beta_meas_{j}" for j in lay.blades()])}
+        self.noise = {n: np.random.default_rng(np.random.SeedSequence(
+            inputs.noise_seed, spawn_key=(11, k))) for k, n in enumerate(self.sigma)}
         omega_g = z0[self.i_omega_g]
         self.ci = _interface(tmp, float(np.degrees(self.pitch.mean())),
                              {"gen_speed": omega_g * n_g, "rot_speed": z0[self.i_omega_r],
@@ -164,12 +176,22 @@ class _Discon(integrate.ChunkHook):
         call.put("p_turbine", pt)
         call.put("p_ctrl", self.pitch)
 
+    def _read(self, value: float, name: str) -> float:
+        """A measurement as ROSCO reads it: ``value`` plus the sensor's noise."""
+        sigma = self.sigma[name]
+        return value + (sigma * self.noise[name].standard_normal() if sigma > 0 else 0.0)
+
     def after(self, k: int, z: np.ndarray, out: dict[str, float]) -> None:
-        beta_meas = [out[f"beta_meas_{j}"] for j in lay.blades()]
+        # the pitch as the loop measured it (with a pitch sensor's fault); the speeds at the
+        # state reached, exact but for the noise (a speed sensor's fault, bias, resolution
+        # and lag do not reach ROSCO: docs/sensors.md)
+        beta_meas = [self._read(out[f"beta_meas_{j}"], f"beta_meas_{j}") for j in lay.blades()]
         self.state = {"iStatus": 1, "t": k * self.dt, "dt": CONTROL_DT,
                       "bld_pitch": float(np.mean(beta_meas)), "gen_torque": self.tq_hss,
-                      "gen_speed": z[self.i_omega_g] * self.tp["gearbox_ratio"],
-                      "gen_eff": self.tp["gen_efficiency"], "rot_speed": z[self.i_omega_r],
+                      "gen_speed": self._read(z[self.i_omega_g] * self.tp["gearbox_ratio"],
+                                              "omega_g_hss"),
+                      "gen_eff": self.tp["gen_efficiency"],
+                      "rot_speed": self._read(z[self.i_omega_r], "omega_r"),
                       "ws": float(self.wind(k * self.dt)), "Y_MeasErr": 0.0,
                       "Yaw_fromNorth": 0.0}
         tq, _, _ = self.ci.call_controller(self.state)

@@ -11,7 +11,7 @@ import numpy as np
 from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError
 from wtftc.model.faults import nominal_actuator
-from wtftc.sim.rhs import Loop, rhs_function
+from wtftc.sim.rhs import Loop, fdi_params, rhs_function
 
 
 def _jacobian(loop: Loop, z0, wind0: float, yd, p_ctrl) -> np.ndarray:
@@ -20,7 +20,7 @@ def _jacobian(loop: Loop, z0, wind0: float, yd, p_ctrl) -> np.ndarray:
     args = {"z": z0, "wind": wind0, "actuator_faults": nominal_actuator(loop.p_turbine),
             "sensor_faults": lay.defaults("sensor_faults"),
             "ctrl_fault": lay.defaults("fault_inputs"), "yd": yd, "p_turbine": loop.p_turbine,
-            "p_ctrl": p_ctrl, "use_fdi": 0.0, "cp_scale": 1.0,
+            "p_ctrl": p_ctrl, "use_fdi": 0.0, "cp_scale": 1.0, "p_fdi": fdi_params(loop),
             "p_sensors": lay.defaults("sensor_params")}
     jac = _jacobian_function(loop)
     args["z"] = np.asarray(z0, dtype=float)[:jac.size1_in("z")]

@@ -14,13 +14,14 @@ import numpy as np
 
 from wtftc import config
 from wtftc.artefacts import layout as lay
-from wtftc.campaign.compare import CONTROLLERS, variant_config
+from wtftc.campaign.compare import CONTROLLERS, PROFILE, variant_config
 from wtftc.errors import ConfigError
 from wtftc.model import faults, wind
 from wtftc.sim import rhs
 
 TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "output_rate_hz",
-            "batch_size", "controllers", "optional_controllers", "plants", "wind", "fault"}
+            "batch_size", "controllers", "optional_controllers", "plants", "wind", "fault",
+            "profile"}
 WIND_KEYS = {"mean_mps", "turbulence_class", "seed"}
 #: one pitch actuator fault per run (model/faults.py's list), or none
 FAULT_TYPES = ("none", *faults.ACTUATOR_FAULT_TYPES)
@@ -82,6 +83,7 @@ class Sweep:
     output_rate_hz: float
     batch_size: int
     axes: list[Axis]
+    profile: str = "realistic"
 
     @property
     def sweep_id(self) -> str:
@@ -198,7 +200,16 @@ def _settings(raw: dict) -> dict:
                                        "float", lo=0, hi=1e6, lo_open=True),
         "batch_size": _check_value("batch_size", raw.get("batch_size", 8), "int", lo=1,
                                    hi=10000),
+        "profile": _profile(raw.get("profile", PROFILE)),
     }
+
+
+def _profile(name) -> str:
+    """The measurement profile of every run (docs/sensors.md), campaigns' default
+    realistic."""
+    if not isinstance(name, str) or name not in config.PROFILES:
+        raise ConfigError("profile", name, "one of " + ", ".join(config.PROFILES))
+    return name
 
 
 def _tables(raw: dict) -> tuple[dict, dict]:
@@ -299,7 +310,8 @@ def parse_sweep(raw: dict) -> Sweep:
     canonical = json.dumps({**raw, "mode": mode, "sampling_seed": settings["sampling_seed"],
                             "t_final_s": settings["t_final"], "dt_s": settings["dt"],
                             "output_rate_hz": settings["output_rate_hz"],
-                            "batch_size": settings["batch_size"]}, sort_keys=True)
+                            "batch_size": settings["batch_size"],
+                            "profile": settings["profile"]}, sort_keys=True)
     return Sweep(raw=raw, text=canonical, mode=mode, samples=samples, axes=axes, **settings)
 
 
@@ -328,7 +340,7 @@ def _point(sw: Sweep, values: dict) -> dict:
     wind_tab = {"kind": "ntm", "mean_mps": p["mean_wind_mps"],
                 "turbulence_class": p["turbulence_class"]}
     cfg = variant_config(p["controller"], fault_tabs, wind_tab, sw.t_final, sw.dt, p["seed"],
-                         "")
+                         "", profile=sw.profile)
     cfg.update(plant=p["plant"], output_rate_hz=sw.output_rate_hz)
     run_id = hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]
     cfg["label"] = f"sweep-{run_id}"
