@@ -140,7 +140,9 @@ def _fault_entry(f, first: dict, blades: dict) -> dict:
              "onset_s": f.onset_s}
     watched = ft.acts_on == "actuator" or ft.signal == "pitch"
     after = {j: t for j, t in first.items() if t is not None and t >= f.onset_s}
-    hit = min(after, key=after.get) if watched and after else None
+    # its own blade if that one alarmed after the onset, else the first that did
+    hit = (f.blade if f.blade in after else min(after, key=after.get)) \
+        if watched and after else None
     entry["detected"] = hit is not None
     entry["detection_delay_s"] = after[hit] - f.onset_s if hit is not None else None
     entry["isolated_blade"] = hit
