@@ -121,8 +121,23 @@ def _check_06(out: Path, stdout: str) -> None:
     assert np.all(np.abs(_row(stdout, "α̇   =")) > 1e-3)  # not trivially small
 
 
+def _check_07(out: Path, stdout: str) -> None:
+    lines = (out / "fdi_roc.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    rows = [dict(zip(head, r.split(","), strict=True)) for r in lines[1:]]
+    assert [float(r["target_per_h"]) for r in rows] == [1e3, 1e1, 1e-1, 1e-3, 1e-6]
+    # at the default target and below, no false alarm; the loosest target alarms most
+    assert all(float(r["false_alarms_per_h"]) == 0 for r in rows[3:])
+    fa = [float(r["false_alarms_per_h"]) for r in rows]
+    assert fa[0] == max(fa)
+    delays = [float(r["delay_median_s"]) for r in rows]
+    assert all(0 < d < 5 for d in delays) and delays[0] <= delays[-1]
+    assert (out / "fdi_roc.png").read_bytes()[:4] == b"\x89PNG"
+
+
 CHECKS = {"01_paper_cases": _check_01, "02_custom_fault": _check_02, "03_wind_file": _check_03,
-          "04_seed_batch": _check_04, "05_small_sweep": _check_05, "06_alpha_dot": _check_06}
+          "04_seed_batch": _check_04, "05_small_sweep": _check_05, "06_alpha_dot": _check_06,
+          "07_fdi_roc": _check_07}
 
 
 def test_every_example_is_checked():

@@ -337,3 +337,23 @@ def test_a_damaged_sweep_json_is_one_line_and_overwrite_recovers(tmp_path):
         (out / "sweep.json").write_text(text)
         p = wtftc("sweep", ROOT / "examples" / "sweep_small.toml", "--out", out, timeout=120)
         assert p.returncode == 2 and "damaged" in p.stderr and "Traceback" not in p.stderr
+
+
+def test_mismatch_is_an_axis_and_a_column():
+    """[mismatch] factors sweep like any other key: drawn per scenario in random mode,
+    passed to each run's configuration, and saved as mismatch_<key> columns; absent, the
+    configuration has no mismatch (run ids of earlier sweeps unchanged)."""
+    raw = {**BASE, "mode": "random", "samples": 3, "fault": {"type": "none"},
+           "mismatch": {"inertia": {"min": 0.9, "max": 1.1}, "cp_scale": [0.95, 1.05]}}
+    runs = sweep.expand(sweep.parse_sweep(raw))[0]
+    for r in runs:
+        mm = r["config"]["mismatch"]
+        assert 0.9 <= mm["inertia"] <= 1.1 and mm["cp_scale"] in (0.95, 1.05)
+        assert r["mismatch_inertia"] == mm["inertia"] and r["mismatch_shaft_stiffness"] == 1.0
+    plain = sweep.expand(sweep.parse_sweep({**BASE, "fault": {"type": "none"}}))[0]
+    assert all("mismatch" not in r["config"] for r in plain)
+    rows = sweep.run_task(runs[:1])
+    assert rows[0][0]["mismatch_inertia"] == runs[0]["mismatch_inertia"]
+    with pytest.raises(ConfigError) as exc:
+        sweep.parse_sweep({**raw, "mismatch": {"mass": 1.1}})
+    assert exc.value.field == "mismatch.mass"

@@ -21,7 +21,10 @@ from wtftc.sim import rhs
 
 TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "output_rate_hz",
             "batch_size", "controllers", "optional_controllers", "plants", "wind", "fault",
-            "profile"}
+            "profile", "mismatch"}
+#: the [mismatch] table's keys: the plant's factors against the controllers' model
+#: (config.MISMATCH), each an axis like any other (1.0: none)
+MISMATCH_KEYS = tuple(config.MISMATCH)
 WIND_KEYS = {"mean_mps", "turbulence_class", "seed"}
 #: one pitch actuator fault per run (model/faults.py's list), or none
 FAULT_TYPES = ("none", *faults.ACTUATOR_FAULT_TYPES)
@@ -216,7 +219,8 @@ def _tables(raw: dict) -> tuple[dict, dict]:
     """The [wind] and [fault] tables, of known keys (with their defaults when absent)."""
     wind_tab = raw.get("wind", {})
     fault_tab = raw.get("fault", {"type": "none"})
-    for tab, name, keys in ((wind_tab, "wind", WIND_KEYS), (fault_tab, "fault", FAULT_KEYS)):
+    for tab, name, keys in ((wind_tab, "wind", WIND_KEYS), (fault_tab, "fault", FAULT_KEYS),
+                            (raw.get("mismatch", {}), "mismatch", set(MISMATCH_KEYS))):
         if not isinstance(tab, dict):
             raise ConfigError(name, tab, "a table")
         for key in tab:
@@ -261,6 +265,8 @@ def _axes(raw: dict, wind_tab: dict, fault_tab: dict, mode: str, t_final: float)
               lo=0.0, hi=90.0),
         _axis("fault.severity", fault_tab.get("severity", 1.0), "float", mode, lo=0.0,
               hi=1.0, lo_open=True),
+        *[_axis(f"mismatch.{k}", raw.get("mismatch", {}).get(k, 1.0), "float", mode,
+                lo=0.1, hi=10.0, lo_open=False) for k in MISMATCH_KEYS],
     ]
 
 
@@ -342,6 +348,10 @@ def _point(sw: Sweep, values: dict) -> dict:
     cfg = variant_config(p["controller"], fault_tabs, wind_tab, sw.t_final, sw.dt, p["seed"],
                          "", profile=sw.profile)
     cfg.update(plant=p["plant"], output_rate_hz=sw.output_rate_hz)
+    mismatch = {k: float(values[f"mismatch.{k}"]) for k in MISMATCH_KEYS}
+    p.update({f"mismatch_{k}": v for k, v in mismatch.items()})
+    if any(v != 1.0 for v in mismatch.values()):  # (absent: the run ids of earlier sweeps)
+        cfg["mismatch"] = mismatch
     run_id = hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]
     cfg["label"] = f"sweep-{run_id}"
     return {"run_id": run_id, **p, "config": cfg}

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from wtftc.campaign.sweep.spec import Sweep
+from wtftc.campaign.sweep.spec import MISMATCH_KEYS, Sweep
 from wtftc.errors import ConfigError
 
 #: the metrics kept per run: (key of wtftc.results.metrics.metrics, unit)
@@ -59,6 +59,7 @@ def schema():
               f("diverged_at_s", pa.float64(), "s"), f("diverged_state", pa.string()),
               f("detection_delay_s", pa.float64(), "s"), f("isolation_correct", pa.bool_()),
               f("false_alarms", pa.int64())]
+    fields += [f(f"mismatch_{k}", pa.float64(), "-") for k in MISMATCH_KEYS]
     fields += [f(k, pa.float64(), u) for k, u in METRICS]
     fields += [f("config_json", pa.string())]
     return pa.schema(fields)

@@ -41,7 +41,7 @@ def summarize(out_dir: Path) -> str:
     head = [f"# Sweep {meta['sweep_id']}: {len(rows)} of {n_all} runs saved",
             "", f"Results folder `{out_dir}`; made with "
             + ", ".join(f"{k} {v}" for k, v in meta["versions"].items()) + ".", ""]
-    text = "\n".join(head + lines + _failures(rows)) + "\n"
+    text = "\n".join(head + lines + _alarm_rate(rows, meta) + _failures(rows)) + "\n"
     atomic_write_text(out_dir / "summary.md", text)
     atomic_write_text(out_dir / "summary.csv", "\n".join(csv) + "\n")
     if rows:
@@ -84,6 +84,23 @@ def _cells(c: str, f: str, rs: list[dict]) -> list:
             _quantile(delays, 50) if fdi else None, max(delays) if fdi and delays else None,
             (len(good) - len(delays)) if fdi else None,
             sum(r["false_alarms"] or 0 for r in good if uses_fdi)]
+
+
+def _alarm_rate(rows: list[dict], meta: dict) -> list[str]:
+    """The FDI's false alarms per simulated fault-free hour, per controller variant that
+    runs it (the goal of issue 15: none in 100 hours)."""
+    t_final = float(meta["sweep"].get("t_final_s", 60.0))
+    out = []
+    for c in CONTROLLERS:
+        free = [r for r in rows if r["controller"] == c and r["fault_type"] == "none"
+                and r["status"] == "ok" and CONTROLLERS[c].uses_fdi]
+        if free:
+            hours = len(free) * t_final / 3600.0
+            alarms = sum(r["false_alarms"] or 0 for r in free)
+            runs = sum(bool(r["false_alarms"]) for r in free)
+            out.append(f"- `{c}`: {alarms} false alarms in {hours:.1f} simulated fault-free "
+                       f"hours ({runs} of {len(free)} runs), {alarms / hours:.3g} per hour")
+    return ["", "## False alarms", "", *out] if out else []
 
 
 def _failures(rows: list[dict]) -> list[str]:
