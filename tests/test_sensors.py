@@ -128,6 +128,11 @@ BAD = [
     ({"control_delay": "yes", "control_interval_s": 0.01}, "control_delay"),
     ({"profile": "noisy"}, "profile"),
     ({"mismatch": {"inertia": 0.0}}, "mismatch.inertia"),
+    ({"fdi": {"test_pulse_deg": 1.0}}, "fdi.test_pulse_deg"),  # continuous time
+    ({"control_interval_s": 0.01, "fdi": {"test_pulse_deg": 1.0, "test_width_s": 4.0}},
+     "fdi.test_width_s"),
+    ({"fdi": {"target_false_alarms_per_hour": 0.0}}, "fdi.target_false_alarms_per_hour"),
+    ({"fdi": {"threshold": 1.0}}, "fdi.threshold"),
     ({"mismatch": {"mass": 1.1}}, "mismatch.mass"),
     ({"case": 2, "fault": [{"type": "pitch_sensor_wobble", "blade": 1}]}, "fault[0].type"),
     ({"case": 2, "fault": [{"type": "rotor_speed_sensor_gain", "blade": 1}]},

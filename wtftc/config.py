@@ -164,6 +164,17 @@ class RunConfig:
         return trim(self.loop, self.p_ctrl, float(self.wind(0.0)), self.omega_offset)
 
     @property
+    def test_pulse(self) -> tuple | None:
+        """The FDI's test movement of resting blades (amplitude rad, period s, width s), or
+        None ([fdi] test_pulse_deg = 0)."""
+        tab = self.raw.get("fdi", {})
+        amp = float(tab.get("test_pulse_deg", 0.0))
+        if amp == 0:
+            return None
+        return (math.radians(amp), float(tab.get("test_period_s", FDI_KEYS["test_period_s"][0])),
+                float(tab.get("test_width_s", FDI_KEYS["test_width_s"][0])))
+
+    @property
     def control_interval(self) -> float:
         """The controller's sampling interval [s] (0: continuous time)."""
         return self.loop.interval * self.dt
@@ -283,8 +294,22 @@ def make_config(cfg: dict | None = None) -> RunConfig:
 #: the [fdi] table: key → (default, low, high, what)
 FDI_KEYS = {"target_false_alarms_per_hour": (fdi.TARGET_ALARMS_PER_HOUR, 1e-12, 3600.0,
                                              "false alarms per hour the threshold allows"),
+            "test_pulse_deg": (0.0, 0.0, 5.0, "test movement of a blade resting at its "
+                                              "lower stop [deg] (0: none)"),
+            "test_period_s": (4.0, 0.1, 600.0, "period of the test movement [s]"),
+            "test_width_s": (1.0, 0.01, 600.0, "duration of each test movement [s]"),
             "model_uncertainty": (None, 0.0, 1.0, "relative error of the actuator's time "
                                                   "constant the threshold allows for")}
+
+
+def _check_pulse(vals: dict, interval: float) -> None:
+    if vals["test_pulse_deg"] > 0 and interval == 0:
+        raise ConfigError("fdi.test_pulse_deg", vals["test_pulse_deg"], "0 with "
+                          "control_interval_s = 0 (the test movement is a sampled "
+                          "controller's: e.g. profile = \"realistic\")")
+    if vals["test_width_s"] >= vals["test_period_s"]:
+        raise ConfigError("fdi.test_width_s", vals["test_width_s"],
+                          f"less than fdi.test_period_s = {vals['test_period_s']:g} s")
 
 
 def _fdi(raw: dict, loop: rhs.Loop, p_sensors: np.ndarray, interval: float) -> np.ndarray:
@@ -305,6 +330,7 @@ def _fdi(raw: dict, loop: rhs.Loop, p_sensors: np.ndarray, interval: float) -> n
     for key in table:
         if key not in FDI_KEYS:
             raise ConfigError(f"fdi.{key}", table[key], "a known key: " + ", ".join(FDI_KEYS))
+    _check_pulse(vals, interval)
     return fdi.run_params(rhs.fdi_params(loop), p_sensors, interval,
                           vals["target_false_alarms_per_hour"], vals["model_uncertainty"])
 

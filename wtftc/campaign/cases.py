@@ -107,7 +107,7 @@ def _prepare(rc: RunConfig, check: bool = True) -> tuple[integrate.Run, float | 
     return integrate.Run(sampled_state(rc.loop, z0), rc.wind, schedule, ctrl_schedule, rc.yd,
                          rc.p_ctrl, use_fdi=rc.uses_fdi, p_plant=rc.p_plant,
                          cp_scale=rc.cp_scale, p_sensors=rc.p_sensors,
-                         noise_seed=rc.seed, p_fdi=rc.p_fdi), lam
+                         noise_seed=rc.seed, p_fdi=rc.p_fdi, test_pulse=rc.test_pulse), lam
 
 
 def run_and_write(rc: RunConfig, out_dir: Path, progress: bool = True):

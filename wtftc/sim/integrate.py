@@ -221,6 +221,9 @@ class Run:
     noise_seed: int = 0
     #: the FDI's parameters (its thresholds follow the run's sensors), None: exact sensors
     p_fdi: np.ndarray | None = None
+    #: the test movement of blades resting at their stop, (amplitude rad, period s, width
+    #: s), or None (a sampled loop only: docs/fdi.md)
+    test_pulse: tuple | None = None
 
 
 class ChunkHook:
@@ -400,6 +403,18 @@ def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: 
             draws = np.zeros((len(noise[b]), n_int))
             draws[:, :used] = [g.standard_normal(used) for g in noise[b]]
             call.put("noise", draws, b, n_runs)
+            call.put("test_pulse", _pulse(r.test_pulse, tk[::loop.interval])[None, :], b,
+                     n_runs)
+
+
+def _pulse(spec: tuple | None, t: np.ndarray) -> np.ndarray:
+    """The test movement at the interval starts t: its amplitude during the first
+    ``width`` seconds of every ``period``, else 0 (0 throughout without one)."""
+    if spec is None or spec[0] == 0:
+        return np.zeros(t.size)
+    amplitude, period, width = spec
+    # a small tolerance: an interval start on the pulse's end belongs after it
+    return np.where(np.mod(t + 1e-9, period) < width, amplitude, 0.0)
 
 
 def _event_steps(runs: list[Run], dt: float, every: int) -> list[int]:

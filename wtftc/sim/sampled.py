@@ -41,8 +41,11 @@ from wtftc.sim.rhs import (
     true_signals,
 )
 
+#: a blade whose command is within this of its lower stop rests there [rad] (0.1°)
+REST_MARGIN = 0.0017453292519943296
+
 #: the inputs of a sampled interval held per interval (one column), and per plant step
-PER_INTERVAL = ("sensor_faults", "ctrl_fault", "noise")
+PER_INTERVAL = ("sensor_faults", "ctrl_fault", "noise", "test_pulse")
 PER_STEP = ("wind3", "actuator_faults")
 
 
@@ -84,6 +87,7 @@ def _sample(loop: Loop) -> ca.Function:
     n = _sizes(loop)
     sym = loop_symbols(loop, n["z"])
     z, noise, T = sym["z"], ca.SX.sym("noise", n["s"]), ca.SX.sym("T")
+    pulse = ca.SX.sym("test_pulse")  # [rad], this interval's test movement (0: none)
     xp = z[:n["p"]]
     o = n["p"] + n["c"] + n["f"]
     true = true_signals(loop, xp, sym["p_turbine"])
@@ -91,20 +95,24 @@ def _sample(loop: Loop) -> ca.Function:
 
     xc, xf = z[n["p"]:n["p"] + n["c"]], z[n["p"] + n["c"]:o]
     ctl = controller_block(loop, xc, xf, m, sym)
-    # the FDI's model follows the command the actuators get over the interval
-    v_applied = z[o + n["s"]:] if loop.delay else ctl["v"]
+    # a blade resting at its lower stop gets the test movement (docs/fdi.md, faults at
+    # rest); the FDI's model follows the command the actuators get over the interval
+    rest = loop.p_turbine[lay.index("turbine_params", "pitch_min")] + REST_MARGIN
+    v_now = ctl["v"] + pulse * (ctl["v"] <= rest)
+    v_applied = z[o + n["s"]:] if loop.delay else v_now
     xc_next = _rk4(lambda x: controller_block(loop, x, xf, m, sym)["x_ctrl_dot"], xc, T)
     held = ca.vertcat(m["meas"], ctl["u0"], ctl["v"], m["sched"], *ctl.get("fdi", []),
                       ctl["diag"])
     assert held.numel() == _held_size(loop)
     names = ["z", "noise", "sensor_faults", "ctrl_fault", "yd", "p_turbine", "p_sensors",
-             "p_ctrl", *(["use_fdi", "p_fdi"] if loop.fdi else []), "T"]
-    args = {**sym, "noise": noise, "T": T}
+             "p_ctrl", *(["use_fdi", "p_fdi"] if loop.fdi else []), "test_pulse", "T"]
+    args = {**sym, "noise": noise, "T": T, "test_pulse": pulse}
     xc_next, held = ca.cse([xc_next, held])
-    # the FDI's inputs over the interval: the command the actuators hold, the sampled pitch
+    # the command the actuators hold over the interval (and the FDI's model with them),
+    # the one held for the next (with the delay), the sampled pitch
     return ca.Function("sample", [args[k] for k in names],
-                       [xc_next, held, v_applied, m["sensors"]], names,
-                       ["xc_next", "held", "v_applied", "beta_sampled"])
+                       [xc_next, held, v_applied, v_now, m["sensors"]], names,
+                       ["xc_next", "held", "v_applied", "v_now", "beta_sampled"])
 
 
 def _rk4(f, x, h):
@@ -186,8 +194,7 @@ def interval_function(loop: Loop) -> ca.Function:
                      "T": steps * ins["dt"]})
     o = n["p"] + n["c"] + n["f"]
     xps0 = ca.vertcat(z[:n["p"]], z[o:o + n["s"]])
-    v_new = s["held"][n["s"] + 1:n["s"] + 1 + n["b"]]
-    v_apply = z[o + n["s"]:] if loop.delay else v_new
+    v_apply, v_new = s["v_applied"], s["v_now"]
 
     def rep(x):
         return ca.repmat(x, 1, steps)
