@@ -101,7 +101,7 @@ def _add_run(sub) -> None:
                "--t-final 60 --out out/ntm16. Config file keys: case, plant, controller, "
                "t_final_s, dt_s, seed, output_rate_hz, control_sign, reference_rad_s, "
                "cp_table, label, profile, control_interval_s, control_delay, [sensors], "
-               "[mismatch], [wind] (kind = constant | steps | paper_random | ntm | eog | "
+               "[mismatch], [fdi], [wind] (kind = constant | steps | paper_random | ntm | eog | "
                "file, ...), [[fault]] (blade, type, onset_s, ...), [controller_params], "
                "[turbine_params], [initial]. See docs/running.md.")
     r.add_argument("--config", type=Path, help="TOML configuration file")

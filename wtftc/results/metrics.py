@@ -33,6 +33,10 @@ def metrics(rc: RunConfig, res: integrate.Result) -> dict:
         "label": rc.label, "case": rc.case, "case_doc": CASES[rc.case], "plant": rc.plant,
         "fdi": fdi_report(rc, res),
         "controller": rc.raw["controller"], "control_sign": rc.raw["control_sign"],
+        # the measurements (docs/sensors.md): the profile and what it resolved to
+        "profile": rc.raw.get("profile", "ideal"),
+        "control_interval_s": float(rc.raw.get("control_interval_s", 0.0)),
+        "sensors": dict(rc.raw.get("sensors", {})),
         "reference_rad_s": rc.reference,
         "rms_speed_error_rad_s": float(np.sqrt(np.mean(e**2))),
         "max_abs_speed_error_rad_s": float(np.max(np.abs(e))),
