@@ -298,9 +298,16 @@ def build_sensors() -> list[ca.Function]:
              **_named(ins["sensor_faults"], SENSOR_FAULTS),
              **_named(ins["p_sensors"], SENSOR_PARAMS)}
     tr = Translator(names)
-    return [_function("sensors", ins, {"meas": ca.vertcat(*[tr(e) for e in sensors.measured()]),
+    chain = _function("sensors", ins, {"meas": ca.vertcat(*[tr(e) for e in sensors.measured()]),
                                        "x_lag_dot": ca.vertcat(*[tr(e) for e in
-                                                                 sensors.lag_rhs()])})]
+                                                                 sensors.lag_rhs()])})
+    meas, gear = _vec("meas", n), ca.SX.sym("gearbox_ratio")
+    tr = Translator({**{s.name: meas[k] for k, s in enumerate(sensors.measured_symbols)},
+                     **_named(ins["p_sensors"], SENSOR_PARAMS), "gearbox_ratio": gear})
+    fusion = _function("speed_estimate",
+                       {"meas": meas, "p_sensors": ins["p_sensors"], "gearbox_ratio": gear},
+                       {"omega_hat": tr(sensors.speed_estimate())})
+    return [chain, fusion]
 
 
 def build_fdi() -> list[ca.Function]:

@@ -115,3 +115,20 @@ def measured() -> list[sp.Expr]:
         out.append(sp.Piecewise((q * sp.floor(m / _positive_or_one(q) + sp.Rational(1, 2)),
                                  q > 0), (m, True)))
     return out
+
+
+#: the controllers' model's gearbox ratio, an input of the speed estimate
+gearbox = sp.Symbol("gearbox_ratio", positive=True)
+measured_symbols = sp.symbols(NAMES, real=True)
+
+
+def speed_estimate() -> sp.Expr:
+    """The controllers' rotor speed: the inverse-variance weighted mean of the two speed
+    sensors, ω̂ = (1 − w) ω_r,m + w ω_g,m/N, w = σ_r²/(σ_r² + (σ_g/N)²) (the
+    minimum-variance combination of two unbiased measurements of one quantity; N the
+    gearbox ratio). With σ_r = 0 (exact sensors) w = 0: the rotor speed sensor alone. The
+    shaft's torsion, ω_g − ω_r, is the price (below 0.002 rad/s on the NREL 5-MW)."""
+    m = dict(zip(NAMES, measured_symbols, strict=True))
+    s_r, s_g = _sym("sigma", "omega_r"), _sym("sigma", "omega_g_hss") / gearbox
+    w = sp.Piecewise((s_r**2 / sp.Max(s_r**2 + s_g**2, sp.Float(1e-300)), s_r > 0), (0, True))
+    return (1 - w) * m["omega_r"] + w * m["omega_g_hss"] / gearbox

@@ -35,6 +35,7 @@ extern "C" {
 #define casadi_f2 CASADI_PREFIX(f2)
 #define casadi_f3 CASADI_PREFIX(f3)
 #define casadi_f4 CASADI_PREFIX(f4)
+#define casadi_f5 CASADI_PREFIX(f5)
 #define casadi_fmax CASADI_PREFIX(fmax)
 #define casadi_fmin CASADI_PREFIX(fmin)
 #define casadi_s0 CASADI_PREFIX(s0)
@@ -1161,6 +1162,111 @@ CASADI_SYMBOL_EXPORT int sensors_work(casadi_int *sz_arg, casadi_int* sz_res, ca
 CASADI_SYMBOL_EXPORT int sensors_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
   if (sz_arg) *sz_arg = 5*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 2*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* speed_estimate:(meas[5],p_sensors[20],gearbox_ratio)->(omega_hat) */
+static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2, a3, a4, a5, a6, a7;
+  a0=arg[0]? arg[0][0] : 0;
+  a1=1.;
+  a2=0.;
+  a3=arg[1]? arg[1][0] : 0;
+  a2=(a2<a3);
+  a3=casadi_sq(a3);
+  a4=1.0000000000000000e-300;
+  a5=arg[1]? arg[1][1] : 0;
+  a5=casadi_sq(a5);
+  a6=arg[2]? arg[2][0] : 0;
+  a7=casadi_sq(a6);
+  a5=(a5/a7);
+  a5=(a3+a5);
+  a4=casadi_fmax(a4,a5);
+  a3=(a3/a4);
+  a4=(a2?a3:0);
+  a1=(a1-a4);
+  a0=(a0*a1);
+  a1=arg[0]? arg[0][1] : 0;
+  a1=(a1/a6);
+  a1=(a1*a3);
+  a2=(a2?a1:0);
+  a0=(a0+a2);
+  if (res[0]!=0) res[0][0]=a0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int speed_estimate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f5(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int speed_estimate_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void speed_estimate_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void speed_estimate_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void speed_estimate_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int speed_estimate_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int speed_estimate_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real speed_estimate_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* speed_estimate_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "meas";
+    case 1: return "p_sensors";
+    case 2: return "gearbox_ratio";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* speed_estimate_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "omega_hat";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* speed_estimate_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s6;
+    case 1: return casadi_s7;
+    case 2: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* speed_estimate_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int speed_estimate_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int speed_estimate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);
   return 0;

@@ -427,6 +427,13 @@ def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         return fdi_reference(name, args)
     if name == "sensors":
         return sensors_reference(args)
+    if name == "speed_estimate":
+        vals = {s.name: float(x) for s, x in zip(sensors.measured_symbols, _flat(args, "meas"),
+                                                  strict=True)}
+        vals.update({e.name: float(x) for e, x in zip(sensors.param_entries(),
+                                                      _flat(args, "p_sensors"), strict=True)})
+        vals["gearbox_ratio"] = float(_flat(args, "gearbox_ratio")[0])
+        return {"omega_hat": pair("omegahat", [sensors.speed_estimate()], vals)}
     if name.startswith(("ctrl_", "init_")):
         return controller_uniform_reference(name, args)
     if name == "aero_torque_sensitivity":

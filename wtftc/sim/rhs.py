@@ -281,21 +281,13 @@ def measure(loop: Loop, true: ca.SX, x_lag: ca.SX, noise: ca.SX, sym: dict) -> d
 
 
 def _speed_fused(loop: Loop, meas: ca.SX, p_sensors: ca.SX) -> ca.SX:
-    """The controllers' measurements: the rotor speed replaced by the inverse-variance
-    weighted mean of the two speed sensors, ω̂ = (1 - w) ω_r,m + w ω_g,m/N with
-    w = σ_r² / (σ_r² + (σ_g/N)²) (the minimum-variance combination of two unbiased
-    measurements of one quantity; N the gearbox ratio of the controllers' model). The
-    generator speed sensor on the fast shaft is N times less noisy on the rotor's scale
-    (the benchmark: 0.05/97 against 0.025 rad/s), so with noise ω̂ is nearly ω_g,m/N; the
-    shaft's torsion (below 0.002 rad/s) is the price. With exact sensors w = 0: the rotor
-    speed sensor alone, bit for bit as before."""
-    n = lay.index("turbine_params", "gearbox_ratio")
-    gear = loop.p_turbine[n]
-    s_r = p_sensors[lay.index("sensor_params", "sigma_omega_r")]
-    s_g = p_sensors[lay.index("sensor_params", "sigma_omega_g_hss")] / gear
-    w = ca.if_else(s_r > 0, s_r**2 / (s_r**2 + s_g**2), 0)
-    i_r, i_g = measurement_index("omega_r"), measurement_index("omega_g_hss")
-    fused = (1 - w) * meas[i_r] + w * meas[i_g] / gear
+    """The controllers' measurements: the rotor speed replaced by the estimate from both
+    speed sensors (generated ``speed_estimate``, derivation/sensors.py; with exact sensors
+    the rotor speed sensor alone, bit for bit)."""
+    gear = loop.p_turbine[lay.index("turbine_params", "gearbox_ratio")]
+    fused = load("speed_estimate", "interpreted")(meas=meas, p_sensors=p_sensors,
+                                                  gearbox_ratio=gear)["omega_hat"]
+    i_r = measurement_index("omega_r")
     return ca.vertcat(*[fused if k == i_r else meas[k] for k in range(meas.numel())])
 
 

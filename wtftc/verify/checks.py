@@ -145,6 +145,7 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
         "true_signals": meas,
         "x_lag": meas + 0.01 * rs.standard_normal(n_s),
         "noise": rs.standard_normal(n_s),
+        "gearbox_ratio": np.array([rs.uniform(50.0, 120.0)]),
         "p_sensors": _draw(lay.layout()["sensor_params"], rs)
         * (rs.uniform(size=lay.size("sensor_params")) > 0.3),
         "sched": np.array([-rng.uniform(2e6, 3e7)]),
