@@ -117,6 +117,12 @@ def measured() -> list[sp.Expr]:
     return out
 
 
+#: the speed estimate's consistency test: |ω_g/N − ω_r| within this many standard
+#: deviations of the difference, plus the shaft's torsion [rad/s] (below 0.002 rad/s on the
+#: NREL 5-MW in turbulence; 0.01 leaves room for a softer shaft)
+CONSISTENCY_SIGMAS = 4
+TORSION_ALLOWANCE = sp.Rational(1, 100)
+
 #: the controllers' model's gearbox ratio, an input of the speed estimate
 gearbox = sp.Symbol("gearbox_ratio", positive=True)
 measured_symbols = sp.symbols(NAMES, real=True)
@@ -126,9 +132,19 @@ def speed_estimate() -> sp.Expr:
     """The controllers' rotor speed: the inverse-variance weighted mean of the two speed
     sensors, ω̂ = (1 − w) ω_r,m + w ω_g,m/N, w = σ_r²/(σ_r² + (σ_g/N)²) (the
     minimum-variance combination of two unbiased measurements of one quantity; N the
-    gearbox ratio). With σ_r = 0 (exact sensors) w = 0: the rotor speed sensor alone. The
-    shaft's torsion, ω_g − ω_r, is the price (below 0.002 rad/s on the NREL 5-MW)."""
+    gearbox ratio). With σ_r = 0 (exact sensors): the rotor speed sensor alone, as before.
+    The shaft's torsion, ω_g − ω_r, is the price (below 0.002 rad/s on the NREL 5-MW)."""
     m = dict(zip(NAMES, measured_symbols, strict=True))
     s_r, s_g = _sym("sigma", "omega_r"), _sym("sigma", "omega_g_hss") / gearbox
-    w = sp.Piecewise((s_r**2 / sp.Max(s_r**2 + s_g**2, sp.Float(1e-300)), s_r > 0), (0, True))
-    return (1 - w) * m["omega_r"] + w * m["omega_g_hss"] / gearbox
+    # the two must agree within 4 standard deviations of their difference plus the
+    # shaft's torsion; when they do not (a speed sensor stuck, scaled or offset), the
+    # larger of the two is taken: the safe side, the controller then pitches for the
+    # faster rotor and a single speed sensor's fault can slow the rotor (lose power) but
+    # not run it away (ours; a max-select of redundant speed signals, as overspeed
+    # protections do)
+    w_r, w_g = m["omega_r"], m["omega_g_hss"] / gearbox
+    agree = sp.Abs(w_g - w_r) <= CONSISTENCY_SIGMAS * sp.sqrt(s_r**2 + s_g**2) \
+        + TORSION_ALLOWANCE
+    w = s_r**2 / sp.Max(s_r**2 + s_g**2, sp.Float(1e-300))
+    return sp.Piecewise((w_r, s_r <= 0), ((1 - w) * w_r + w * w_g, agree),
+                        (sp.Max(w_r, w_g), True))

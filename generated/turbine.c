@@ -36,6 +36,7 @@ extern "C" {
 #define casadi_f3 CASADI_PREFIX(f3)
 #define casadi_f4 CASADI_PREFIX(f4)
 #define casadi_f5 CASADI_PREFIX(f5)
+#define casadi_fabs CASADI_PREFIX(fabs)
 #define casadi_fmax CASADI_PREFIX(fmax)
 #define casadi_fmin CASADI_PREFIX(fmin)
 #define casadi_s0 CASADI_PREFIX(s0)
@@ -80,6 +81,15 @@ casadi_real casadi_fmin(casadi_real x, casadi_real y) {
   return x<y ? x : y;
 #else
   return fmin(x, y);
+#endif
+}
+
+casadi_real casadi_fabs(casadi_real x) {
+/* Pre-c99 compatibility */
+#if __STDC_VERSION__ < 199901L
+  return x>0 ? x : -x;
+#else
+  return fabs(x);
 #endif
 }
 
@@ -1169,31 +1179,48 @@ CASADI_SYMBOL_EXPORT int sensors_work_bytes(casadi_int *sz_arg, casadi_int* sz_r
 
 /* speed_estimate:(meas[5],p_sensors[20],gearbox_ratio)->(omega_hat) */
 static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
-  casadi_real a0, a1, a2, a3, a4, a5, a6, a7;
-  a0=arg[0]? arg[0][0] : 0;
-  a1=1.;
-  a2=0.;
-  a3=arg[1]? arg[1][0] : 0;
-  a2=(a2<a3);
-  a3=casadi_sq(a3);
-  a4=1.0000000000000000e-300;
-  a5=arg[1]? arg[1][1] : 0;
-  a5=casadi_sq(a5);
-  a6=arg[2]? arg[2][0] : 0;
-  a7=casadi_sq(a6);
-  a5=(a5/a7);
-  a5=(a3+a5);
-  a4=casadi_fmax(a4,a5);
-  a3=(a3/a4);
-  a4=(a2?a3:0);
-  a1=(a1-a4);
-  a0=(a0*a1);
-  a1=arg[0]? arg[0][1] : 0;
-  a1=(a1/a6);
-  a1=(a1*a3);
-  a2=(a2?a1:0);
-  a0=(a0+a2);
-  if (res[0]!=0) res[0][0]=a0;
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  a00=arg[1]? arg[1][0] : 0;
+  a01=0.;
+  a01=(a00<=a01);
+  a02=arg[0]? arg[0][0] : 0;
+  a03=(a01?a02:0);
+  a01=(!a01);
+  a04=arg[0]? arg[0][1] : 0;
+  a05=arg[2]? arg[2][0] : 0;
+  a06=(a04/a05);
+  a07=(a02-a06);
+  a07=casadi_fabs(a07);
+  a08=1.0000000000000000e-02;
+  a09=4.;
+  a00=casadi_sq(a00);
+  a10=arg[1]? arg[1][1] : 0;
+  a10=casadi_sq(a10);
+  a11=casadi_sq(a05);
+  a10=(a10/a11);
+  a10=(a00+a10);
+  a11=sqrt(a10);
+  a09=(a09*a11);
+  a08=(a08+a09);
+  a07=(a07<=a08);
+  a08=1.;
+  a09=1.0000000000000000e-300;
+  a09=casadi_fmax(a09,a10);
+  a10=(a00/a09);
+  a08=(a08-a10);
+  a08=(a02*a08);
+  a04=(a04*a00);
+  a04=(a04/a05);
+  a04=(a04/a09);
+  a08=(a08+a04);
+  a08=(a07?a08:0);
+  a07=(!a07);
+  a02=casadi_fmax(a02,a06);
+  a07=(a07?a02:0);
+  a08=(a08+a07);
+  a01=(a01?a08:0);
+  a03=(a03+a01);
+  if (res[0]!=0) res[0][0]=a03;
   return 0;
 }
 

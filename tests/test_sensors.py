@@ -157,3 +157,23 @@ def test_cli_refuses_an_interval_off_the_grid_in_one_line(tmp_path):
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "control_interval_s" in lines[0] and "0.0015" in lines[0]
     assert not (tmp_path / "x").exists()
+
+
+def test_a_speed_sensor_fault_cannot_run_the_rotor_away():
+    """The controllers' speed estimate leans on the generator speed sensor (less noisy);
+    when the two speed sensors disagree it takes the larger (derivation/sensors.py): a
+    generator speed sensor stuck near 0 or reading low leaves the rotor regulated (it ran
+    away to 2 × rated before the test), a rotor speed sensor reading high slows it (the
+    safe side)."""
+    def run(fault):
+        rc = config.make_config({"case": 2, "controller": "physical", "profile": "realistic",
+                                 "t_final_s": 40.0, "wind": {"kind": "ntm", "mean_mps": 18.0},
+                                 "fault": [{"onset_s": 10.0, **fault}]})
+        res = cases.run(rc, progress=False)
+        return res, res.column("omega_r")[res.t > 10.0] / rc.param("omega_g_rated")
+    for fault in ({"type": "generator_speed_sensor_stuck", "value_rad_s": 1.5},
+                  {"type": "generator_speed_sensor_gain", "gain": 0.9}):
+        res, w = run(fault)
+        assert res.diverged is None and w.max() < 1.15 and abs(w.mean() - 1) < 0.02, fault
+    res, w = run({"type": "rotor_speed_sensor_gain", "gain": 1.1})
+    assert res.diverged is None and w.max() < 1.1 and w.mean() < 0.95  # runs slow

@@ -15,7 +15,7 @@ from wtftc import config
 from wtftc.artefacts import layout as lay
 from wtftc.campaign import cases, sweep
 from wtftc.errors import ConfigError
-from wtftc.model.faults import ACTUATOR_FAULT_TYPES
+from wtftc.model.faults import ACTUATOR_FAULT_TYPES, SENSOR_FAULT_TYPES
 from wtftc.results.metrics import metrics
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -104,7 +104,7 @@ def test_the_sweeps_lists_are_the_one_lists():
     from wtftc.model import wind
     from wtftc.sim import rhs
 
-    assert sweep.FAULT_TYPES == ("none", *ACTUATOR_FAULT_TYPES)
+    assert sweep.FAULT_TYPES == ("none", *ACTUATOR_FAULT_TYPES, *SENSOR_FAULT_TYPES)
     assert sweep.PLANTS == tuple(rhs.PLANTS)
     assert sweep.TURBULENCE_CLASSES == tuple(wind.I_REF)
     with pytest.raises(ConfigError, match="one of none, lock, loss_of_effectiveness"):
@@ -255,7 +255,7 @@ def test_robustness_campaign_file_is_valid_and_large_enough():
     runs, _ = sweep.expand(sw)
     generated = [r for r in runs if r["controller"] != "rosco"]
     assert len(generated) >= 1000
-    assert {r["fault_type"] for r in runs} == set(sweep.FAULT_TYPES)
+    assert {r["fault_type"] for r in runs} == {"none", *ACTUATOR_FAULT_TYPES}
     assert {(r["fault_type"], r["blade"]) for r in runs if r["fault_type"] != "none"} == {
         (f, b) for f in ACTUATOR_FAULT_TYPES for b in (1, 2, 3)}
     assert {r["turbulence_class"] for r in runs} == {"A", "B", "C"}

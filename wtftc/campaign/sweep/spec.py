@@ -26,13 +26,21 @@ TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "ou
 #: (config.MISMATCH), each an axis like any other (1.0: none)
 MISMATCH_KEYS = tuple(config.MISMATCH)
 WIND_KEYS = {"mean_mps", "turbulence_class", "seed"}
-#: one pitch actuator fault per run (model/faults.py's list), or none
-FAULT_TYPES = ("none", *faults.ACTUATOR_FAULT_TYPES)
+#: one fault per run, an actuator's or a sensor's (model/faults.py's list), or none
+FAULT_TYPES = ("none", *faults.ACTUATOR_FAULT_TYPES, *faults.SENSOR_FAULT_TYPES)
 #: the fault table key each fault type reads its magnitude from
-MAGNITUDE = {t: faults.TYPES[t].magnitude for t in faults.ACTUATOR_FAULT_TYPES}
+MAGNITUDE = {t: faults.TYPES[t].magnitude for t in FAULT_TYPES[1:]}
 FAULT_KEYS = {"type", "blade", "onset_s", *MAGNITUDE.values()}
+#: the sensor faults' magnitude keys: (default, low, high, unit) of their axes
+SENSOR_MAGNITUDES = {"value_deg": (5.0, -90.0, 90.0, "deg"), "gain": (1.2, 0.0, 10.0, "-"),
+                     "offset_deg": (1.0, -90.0, 90.0, "deg"),
+                     "rate_deg_s": (0.01, -10.0, 10.0, "deg/s"),
+                     "factor": (3.0, 0.0, 100.0, "-"),
+                     "value_rad_s": (1.4, 0.0, 500.0, "rad/s"),
+                     "offset_rad_s": (0.1, -100.0, 100.0, "rad/s")}
 #: the dataset's column of each magnitude key
-MAGNITUDE_COLUMN = {"angle_deg": "stuck_angle_deg", "rho": "rho", "severity": "severity"}
+MAGNITUDE_COLUMN = {"angle_deg": "stuck_angle_deg", "rho": "rho", "severity": "severity",
+                    **{k: f"sensor_{k}" for k in SENSOR_MAGNITUDES}}
 TURBULENCE_CLASSES = tuple(wind.I_REF)
 PLANTS = tuple(rhs.PLANTS)
 #: the axes that random mode crosses with every scenario, rather than draws
@@ -265,6 +273,8 @@ def _axes(raw: dict, wind_tab: dict, fault_tab: dict, mode: str, t_final: float)
               lo=0.0, hi=90.0),
         _axis("fault.severity", fault_tab.get("severity", 1.0), "float", mode, lo=0.0,
               hi=1.0, lo_open=True),
+        *[_axis(f"fault.{k}", fault_tab.get(k, d), "float", mode, lo=lo, hi=hi,
+                lo_open=lo == 0.0) for k, (d, lo, hi, _) in SENSOR_MAGNITUDES.items()],
         *[_axis(f"mismatch.{k}", raw.get("mismatch", {}).get(k, 1.0), "float", mode,
                 lo=0.1, hi=10.0, lo_open=False) for k in MISMATCH_KEYS],
     ]
@@ -333,12 +343,15 @@ def _point(sw: Sweep, values: dict) -> dict:
     p = {"controller": values["controllers"], "plant": values["plants"],
          "mean_wind_mps": float(values["wind.mean_mps"]),
          "turbulence_class": values["wind.turbulence_class"], "seed": int(values["wind.seed"]),
-         "fault_type": ftype, "blade": None, "onset_s": None, "rho": None,
-         "stuck_angle_deg": None, "severity": None}
+         "fault_type": ftype, "blade": None, "onset_s": None,
+         **dict.fromkeys(MAGNITUDE_COLUMN.values())}
     fault_tabs = None
     if ftype != "none":
         p["blade"], p["onset_s"] = int(values["fault.blade"]), float(values["fault.onset_s"])
         tab = {"blade": p["blade"], "type": ftype, "onset_s": p["onset_s"]}
+        if faults.TYPES[ftype].signal not in ("", "pitch"):  # a speed sensor: no blade
+            p["blade"] = None
+            del tab["blade"]
         mag = MAGNITUDE[ftype]
         tab[mag] = values[f"fault.{mag}"]
         p[MAGNITUDE_COLUMN[mag]] = str(tab[mag]) if mag == "angle_deg" else float(tab[mag])

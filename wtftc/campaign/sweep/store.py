@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from wtftc.campaign.sweep.spec import MISMATCH_KEYS, Sweep
+from wtftc.campaign.sweep.spec import MISMATCH_KEYS, SENSOR_MAGNITUDES, Sweep
 from wtftc.errors import ConfigError
 
 #: the metrics kept per run: (key of wtftc.results.metrics.metrics, unit)
@@ -55,6 +55,8 @@ def schema():
               f("fault_type", pa.string()), f("blade", pa.int64()),
               f("onset_s", pa.float64(), "s"), f("rho", pa.float64(), "-"),
               f("stuck_angle_deg", pa.string(), "deg"), f("severity", pa.float64(), "-"),
+              *[f(f"sensor_{k}", pa.float64(), u) for k, (_, _, _, u) in SENSOR_MAGNITUDES.items()],
+              f("fault_detected", pa.bool_()), f("fault_correct", pa.bool_()),
               f("status", pa.string()), f("cause", pa.string()),
               f("diverged_at_s", pa.float64(), "s"), f("diverged_state", pa.string()),
               f("detection_delay_s", pa.float64(), "s"), f("isolation_correct", pa.bool_()),

@@ -19,7 +19,8 @@ TABLE = [("controller", "{}"), ("fault", "{}"), ("runs", "{}"), ("diverged", "{}
          ("failed", "{}"), ("RMS ω error median [rad/s]", "{:.4f}"),
          ("RMS ω error p95 [rad/s]", "{:.4f}"), ("RMS ω error max [rad/s]", "{:.4f}"),
          ("peak ω / rated max [-]", "{:.3f}"), ("detection delay median [s]", "{:.2f}"),
-         ("detection delay max [s]", "{:.2f}"), ("undetected", "{}"), ("false alarms", "{}")]
+         ("detection delay max [s]", "{:.2f}"), ("undetected", "{}"),
+         ("isolated and classified right", "{}"), ("false alarms", "{}")]
 #: the box plots: (metric, axis label, file name)
 BOXES = [("rms_speed_error_rad_s", "RMS rotor-speed error [rad/s]", "rms_speed_error"),
          ("overspeed_peak_over_rated", "peak rotor speed / rated [-]", "overspeed")]
@@ -83,6 +84,7 @@ def _cells(c: str, f: str, rs: list[dict]) -> list:
             max(rms) if rms else None, max(peak) if peak else None,
             _quantile(delays, 50) if fdi else None, max(delays) if fdi and delays else None,
             (len(good) - len(delays)) if fdi else None,
+            sum(bool(r.get("fault_correct")) for r in good) if fdi else None,
             sum(r["false_alarms"] or 0 for r in good if uses_fdi)]
 
 

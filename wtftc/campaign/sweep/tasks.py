@@ -20,7 +20,8 @@ def _row(pt: dict, status: str, m: dict | None = None, cause: str | None = None,
     row = {k: v for k, v in pt.items() if k != "config"}
     row.update({"status": status, "cause": cause, "diverged_at_s": None,
                 "diverged_state": None, "detection_delay_s": None,
-                "isolation_correct": None, "false_alarms": None,
+                "isolation_correct": None, "false_alarms": None, "fault_detected": None,
+                "fault_correct": None,
                 **{k: None for k, _ in METRICS}})
     if m is not None:
         row.update({k: m.get(k) for k, _ in METRICS})
@@ -31,6 +32,11 @@ def _row(pt: dict, status: str, m: dict | None = None, cause: str | None = None,
             row["detection_delay_s"] = min(delays) if delays else None
         row["isolation_correct"] = bool(fdi["isolation_correct"])
         row["false_alarms"] = len(fdi["false_alarms"])
+        if CONTROLLERS[pt["controller"]].uses_fdi and fdi["faults"]:
+            # the FDI's own account of the run's fault (metrics.fdi_report)
+            entry = fdi["faults"][0]
+            row["fault_detected"], row["fault_correct"] = entry["detected"], entry["correct"]
+            row["detection_delay_s"] = entry["detection_delay_s"]
     if diverged:
         row["diverged_at_s"] = float(diverged["t_s"])
         row["cause"] = diverged.get("reason")
