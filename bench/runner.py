@@ -47,6 +47,7 @@ from wtftc.campaign import cases
 from wtftc.errors import ConfigError
 from wtftc.model.faults import Schedule
 from wtftc.sim import integrate
+from wtftc.sim.sampled import sampled_state
 
 TARGET = 1e-6
 DT_LADDER = (1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2.5e-4, 1e-4)
@@ -223,6 +224,10 @@ def solve(p: Problem, method: str, rtol: float, t_final: float,
     return Solution(np.array(out), nfev, steps, t_final, False)
 
 
+#: the sampled controller's interval in the bench's row for it (the realistic profile's)
+SAMPLED_INTERVAL_S = 0.01
+
+
 def rk4_default(p: Problem, dt: float, t_final: float, fast_math: bool = False,
                 ) -> integrate.Result:
     """wtftc's default path: the compiled whole-trajectory chunks (sim.integrate.run_loops)."""
@@ -297,6 +302,7 @@ def bench_loop(name: str, quick: bool = False, cache: Path | None = None) -> Loo
     reps = 2 if quick else 5
     timings, base = _wtftc_timings(p, name, dt_star, reps, ref, quick)
     report.timings.extend(timings)
+    report.timings.extend(_sampled(p, dt_star, reps, base, ref))
     # numba: the hand-written loop
     report.timings.extend(_numba(p, name, dt_star, reps, base, ref))
     # what a user would write: lambdify, in a Python RK4 loop and under solve_ivp
@@ -390,6 +396,33 @@ def _wtftc_timings(p: Problem, name: str, dt_star: float, reps: int, ref: np.nda
                            pm.mb, warm, rel_error(om, ref[:len(om)]),
                            rel_error(om, base[:len(om)])))
     return out, base
+
+
+def _sampled(p: Problem, dt: float, reps: int, base, ref) -> list[Timing]:
+    """The same loop with the controller sampled at 100 Hz (the realistic profile's
+    timing, exact sensors; docs/sensors.md): another system, whose error against the
+    continuous reference is the sampling's, first order in the interval."""
+    interval = int(round(SAMPLED_INTERVAL_S / dt))
+    if interval < 1 or abs(interval * dt - SAMPLED_INTERVAL_S) > 1e-12:
+        return []
+    rc = p.config
+    loop = replace(rc.loop, fdi=False, interval=interval)
+    run = integrate.Run(sampled_state(loop, p.z0), rc.wind,
+                        Schedule(list(rc.faults), rc.loop.p_turbine),
+                        Schedule(list(rc.faults), rc.loop.p_turbine), p.yd, rc.p_ctrl)
+
+    def go():
+        return integrate.run_loops(loop, [run], p.t_final, dt,
+                                   decimate=int(round(OUT_DT / dt)), progress=False)[0]
+
+    with PeakMemory() as pm:
+        walls, res, warm = _timed(go, reps)
+    om = res.column("omega_r")
+    n = int(round(p.t_final / dt))
+    return [_timing(f"wtftc: sampled controller at {1 / SAMPLED_INTERVAL_S:g} Hz (compiled)",
+                    f"dt = {dt:g}", p.t_final, n, walls, None, pm.mb, warm, rel_error(om, ref),
+                    rel_error(om, base),
+                    note="another system: the error is the sampling's (docs/sensors.md)")]
 
 
 def _numba(p: Problem, name: str, dt: float, reps: int, base, ref) -> list[Timing]:
