@@ -231,13 +231,19 @@ SAMPLED_INTERVAL_S = 0.01
 def rk4_default(p: Problem, dt: float, t_final: float, fast_math: bool = False,
                 ) -> integrate.Result:
     """wtftc's default path: the compiled whole-trajectory chunks (sim.integrate.run_loops)."""
+    return _run_bench_loop(p, replace(p.config.loop, fdi=False), t_final, dt, fast_math)
+
+
+def _run_bench_loop(p: Problem, loop, t_final: float, dt: float,
+                    fast_math: bool = False) -> integrate.Result:
+    """``loop`` (the problem's, without the FDI; sampled or not) through run_loops on the
+    problem's wind and faults, eq (49) told them (case 3)."""
     rc = p.config
-    run = integrate.Run(p.z0, rc.wind, Schedule(list(rc.faults), rc.loop.p_turbine),
+    run = integrate.Run(sampled_state(loop, p.z0), rc.wind,
                         Schedule(list(rc.faults), rc.loop.p_turbine),
-                        p.yd, rc.p_ctrl)
-    return integrate.run_loops(replace(rc.loop, fdi=False), [run], t_final, dt,
-                               decimate=int(round(OUT_DT / dt)), progress=False,
-                               fast_math=fast_math)[0]
+                        Schedule(list(rc.faults), rc.loop.p_turbine), p.yd, rc.p_ctrl)
+    return integrate.run_loops(loop, [run], t_final, dt, decimate=int(round(OUT_DT / dt)),
+                               progress=False, fast_math=fast_math)[0]
 
 
 def step_inputs(p: Problem, dt: float, n: int):
@@ -405,18 +411,9 @@ def _sampled(p: Problem, dt: float, reps: int, base, ref) -> list[Timing]:
     interval = int(round(SAMPLED_INTERVAL_S / dt))
     if interval < 1 or abs(interval * dt - SAMPLED_INTERVAL_S) > 1e-12:
         return []
-    rc = p.config
-    loop = replace(rc.loop, fdi=False, interval=interval)
-    run = integrate.Run(sampled_state(loop, p.z0), rc.wind,
-                        Schedule(list(rc.faults), rc.loop.p_turbine),
-                        Schedule(list(rc.faults), rc.loop.p_turbine), p.yd, rc.p_ctrl)
-
-    def go():
-        return integrate.run_loops(loop, [run], p.t_final, dt,
-                                   decimate=int(round(OUT_DT / dt)), progress=False)[0]
-
+    loop = replace(p.config.loop, fdi=False, interval=interval)
     with PeakMemory() as pm:
-        walls, res, warm = _timed(go, reps)
+        walls, res, warm = _timed(lambda: _run_bench_loop(p, loop, p.t_final, dt), reps)
     om = res.column("omega_r")
     n = int(round(p.t_final / dt))
     return [_timing(f"wtftc: sampled controller at {1 / SAMPLED_INTERVAL_S:g} Hz (compiled)",

@@ -177,3 +177,29 @@ def test_a_speed_sensor_fault_cannot_run_the_rotor_away():
         assert res.diverged is None and w.max() < 1.15 and abs(w.mean() - 1) < 0.02, fault
     res, w = run({"type": "rotor_speed_sensor_gain", "gain": 1.1})
     assert res.diverged is None and w.max() < 1.1 and w.mean() < 0.95  # runs slow
+
+
+@pytest.mark.parametrize("key", list(config.MISMATCH))
+def test_each_mismatch_factor_changes_the_plant(key):
+    """Every [mismatch] key is used: a factor of 1.1 on it alone changes the run (the
+    actuator's under a pitch that moves, above rated with a hydraulic fault's onset)."""
+    base = {**BASE, "case": 1, "t_final_s": 4.0,
+            "wind": {"kind": "ntm", "mean_mps": 16.0}}
+    a = cases.run(config.make_config(base), progress=False)
+    b = cases.run(config.make_config({**base, "mismatch": {key: 1.1}}), progress=False)
+    cols = ("omega_r", "beta_1", "theta_s", "cp")
+    assert max(np.abs(a.column(c) - b.column(c)).max() for c in cols) > 0, key
+
+
+def test_fdi_keys_are_used():
+    """[fdi] model_uncertainty widens the threshold while the pitch moves; the target
+    false-alarm rate moves its noise part (wtftc.sim.fdi)."""
+    base = {**BASE, "case": 1, "t_final_s": 4.0, "profile": "realistic",
+            "wind": {"kind": "ntm", "mean_mps": 16.0}}
+    thr = {}
+    for name, fdi in (("default", {}), ("wide", {"model_uncertainty": 0.6}),
+                      ("loose", {"target_false_alarms_per_hour": 100.0})):
+        rc = config.make_config({**base, "fdi": fdi})
+        thr[name] = cases.run(rc, progress=False).column("fdi_threshold_1")
+    assert np.all(thr["wide"] >= thr["default"]) and np.any(thr["wide"] > thr["default"])
+    assert np.all(thr["loose"] < thr["default"])

@@ -122,6 +122,9 @@ class RunConfig:
     cp_scale: float = 1.0
     #: the FDI's parameters of this run (its thresholds from the sensors: wtftc.sim.fdi)
     p_fdi: np.ndarray = field(default_factory=lambda: lay.defaults("fdi_params"))
+    #: the FDI's test movement of resting blades (amplitude rad, period s, width s), or
+    #: None ([fdi] test_pulse_deg = 0)
+    test_pulse: tuple | None = None
 
     plant = property(lambda self: self.loop.plant)
     controller = property(lambda self: self.loop.controller)
@@ -162,17 +165,6 @@ class RunConfig:
     def initial_state(self) -> np.ndarray:
         """The trimmed initial state of the loop (wtftc.sim.trim) at the wind at t = 0."""
         return trim(self.loop, self.p_ctrl, float(self.wind(0.0)), self.omega_offset)
-
-    @property
-    def test_pulse(self) -> tuple | None:
-        """The FDI's test movement of resting blades (amplitude rad, period s, width s), or
-        None ([fdi] test_pulse_deg = 0)."""
-        tab = self.raw.get("fdi", {})
-        amp = float(tab.get("test_pulse_deg", 0.0))
-        if amp == 0:
-            return None
-        return (math.radians(amp), float(tab.get("test_period_s", FDI_KEYS["test_period_s"][0])),
-                float(tab.get("test_width_s", FDI_KEYS["test_width_s"][0])))
 
     @property
     def control_interval(self) -> float:
@@ -284,11 +276,11 @@ def make_config(cfg: dict | None = None) -> RunConfig:
                     interval=interval, delay=raw["control_delay"])
     _check_envelope(loop, ref, offset)
     p_plant, cp_scale = _mismatch(raw, p_turbine)
-    p_fdi = _fdi(raw, loop, p_sensors, interval * dt)
+    p_fdi, test_pulse = _fdi(raw, loop, p_sensors, interval * dt)
     return RunConfig(raw=raw, case=case, loop=loop, t_final=t_final, dt=dt, seed=seed,
                      decimate=decimate, reference=ref, p_ctrl=p_ctrl, wind=wind, faults=faults,
                      omega_offset=offset, p_sensors=p_sensors, p_plant=p_plant,
-                     cp_scale=cp_scale, p_fdi=p_fdi)
+                     cp_scale=cp_scale, p_fdi=p_fdi, test_pulse=test_pulse)
 
 
 #: the [fdi] table: key → (default, low, high, what)
@@ -312,9 +304,11 @@ def _check_pulse(vals: dict, interval: float) -> None:
                           f"less than fdi.test_period_s = {vals['test_period_s']:g} s")
 
 
-def _fdi(raw: dict, loop: rhs.Loop, p_sensors: np.ndarray, interval: float) -> np.ndarray:
-    """The FDI's parameters: its thresholds from the run's sensors and the ``[fdi]``
-    table's target false-alarm rate and model uncertainty (docs/fdi.md)."""
+def _fdi(raw: dict, loop: rhs.Loop, p_sensors: np.ndarray,
+         interval: float) -> tuple[np.ndarray, tuple | None]:
+    """The FDI's parameters, its thresholds from the run's sensors and the ``[fdi]``
+    table's target false-alarm rate and model uncertainty, and its test movement
+    (amplitude rad, period s, width s) or None (docs/fdi.md)."""
     table = raw.get("fdi", {})
     if not isinstance(table, dict):
         raise ConfigError("fdi", table, "a table with " + ", ".join(FDI_KEYS))
@@ -331,8 +325,11 @@ def _fdi(raw: dict, loop: rhs.Loop, p_sensors: np.ndarray, interval: float) -> n
         if key not in FDI_KEYS:
             raise ConfigError(f"fdi.{key}", table[key], "a known key: " + ", ".join(FDI_KEYS))
     _check_pulse(vals, interval)
+    pulse = (math.radians(vals["test_pulse_deg"]), vals["test_period_s"],
+             vals["test_width_s"]) if vals["test_pulse_deg"] > 0 else None
     return fdi.run_params(rhs.fdi_params(loop), p_sensors, interval,
-                          vals["target_false_alarms_per_hour"], vals["model_uncertainty"])
+                          vals["target_false_alarms_per_hour"],
+                          vals["model_uncertainty"]), pulse
 
 
 def _profile(raw: dict, given: dict) -> None:
@@ -375,7 +372,7 @@ def _control_interval(raw: dict, dt: float, t_final: float) -> int:
     if val < 0 or val > 1.0:
         raise ConfigError("control_interval_s", val, "0 (continuous) or an interval in "
                           "(0, 1] s")
-    if isinstance(raw["control_delay"], bool) is False:
+    if not isinstance(raw["control_delay"], bool):
         raise ConfigError("control_delay", raw["control_delay"], "true or false")
     if val == 0:
         if raw["control_delay"]:

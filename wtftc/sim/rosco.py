@@ -110,9 +110,6 @@ def run(loop: Loop, inputs: integrate.Run, t_final: float, dt: float, decimate: 
     if loop.plant != "nrel5mw":
         raise ConfigError("plant", loop.plant, "nrel5mw with controller = rosco (ROSCO "
                           "commands the generator torque the paper's plant does not have)")
-    if lay.values("turbine_params", loop.p_turbine)["gen_torque_law"] != 0.0:
-        raise ConfigError("turbine_params.gen_torque_law", 1.0, "0 with controller = rosco "
-                          "(ROSCO commands the generator torque itself)")
     n_sub = int(round(CONTROL_DT / dt))
     if n_sub < 1 or abs(n_sub * dt - CONTROL_DT) > 1e-12:
         raise ConfigError("dt_s", dt, f"a divisor of ROSCO's call interval {CONTROL_DT} s")
