@@ -71,8 +71,10 @@ class LambdifiedLoop:
                   *[sp.Symbol(e.name, real=True) for e in sensors.fault_entries()],
                   *[sp.Symbol(e.name, real=True) for e in sensors.param_entries()]]
         self.meas = _lambdify(m_args, self._named(sensors.measured(), m_args))
-        self.i_pitch = [sensors.NAMES.index(f"beta_meas_{j}") for j in (1, 2, 3)]
-        self.n_sens = len(sensors.NAMES)
+        # sensor m1 of each blade (the bench's runs fail none: m2 reads the same, and the
+        # virtual sensor's mean is that reading)
+        self.i_pitch = [sensors.SENSOR_NAMES.index(f"beta_meas_{j}_m1") for j in (1, 2, 3)]
+        self.n_sens = len(sensors.SENSOR_NAMES)
         self.p_sensors = np.zeros(len(sensors.param_entries()))
         self.op = _lambdify(args, self._named([turbine.tip_speed_ratio(),
                                                turbine.mean_pitch()], args))
@@ -204,7 +206,7 @@ class LambdifiedLoop:
         lam, beta_mean = self.op(base)
         cp = float(self.cp(lam, beta_mean))
         base[self.n_p + 4] = cp
-        true = [xp[0], xp[2] * self.gear, *xp[3:6]]  # in sensors.NAMES' order
+        true = [xp[0], xp[2] * self.gear, *xp[3:6]] * 2  # in sensors.SENSOR_NAMES' order
         beta_meas = self.meas([*true, *true, *np.zeros(self.n_sens), *sf, *self.p_sensors])[
             self.i_pitch]
         if self.controller == "paper":

@@ -61,11 +61,13 @@ INLINE = {**JIT, "inline": "always"}
 
 # --- the layout, read from generated/layout.json (never retyped) ---------------------------
 
-def _family(group: str, prefix: str, n: int) -> int:
-    """Index of ``prefix_1``; checks that ``prefix_1..prefix_n`` are consecutive."""
+def _family(group: str, prefix: str, n: int, suffix: str = "") -> int:
+    """Index of ``prefix_1<suffix>``; checks that ``prefix_1..prefix_n`` (each with the
+    suffix) are consecutive."""
     names = lay.names(group)
-    i0 = names.index(f"{prefix}_1")
-    assert names[i0:i0 + n] == [f"{prefix}_{k}" for k in range(1, n + 1)], (group, prefix)
+    i0 = names.index(f"{prefix}_1{suffix}")
+    assert names[i0:i0 + n] == [f"{prefix}_{k}{suffix}" for k in range(1, n + 1)], (
+        group, prefix)
     return i0
 
 
@@ -96,10 +98,10 @@ A_LOCK = _family("actuator_faults", "lock", 3)
 A_UBAR = _family("actuator_faults", "ubar", 3)
 A_WN = _family("actuator_faults", "omega_n", 3)
 A_ZETA = _family("actuator_faults", "zeta", 3)
-S_GAIN = _family("sensor_faults", "gain_beta_meas", 3)
-S_OFFSET = _family("sensor_faults", "offset_beta_meas", 3)
-S_FIXED = _family("sensor_faults", "stuck_beta_meas", 3)
-S_VALUE = _family("sensor_faults", "stuck_value_beta_meas", 3)
+S_GAIN = _family("sensor_faults", "gain_beta_meas", 3, "_m1")
+S_OFFSET = _family("sensor_faults", "offset_beta_meas", 3, "_m1")
+S_FIXED = _family("sensor_faults", "stuck_beta_meas", 3, "_m1")
+S_VALUE = _family("sensor_faults", "stuck_value_beta_meas", 3, "_m1")
 K_RHO = _family("fault_inputs", "rho", 3)
 K_LOCK = _family("fault_inputs", "lock", 3)
 K_UBAR = _family("fault_inputs", "ubar", 3)
@@ -308,7 +310,9 @@ def _nu_derivatives(z, pc, i_cen, width, nmax, ws, o):
 
 @njit(**INLINE)
 def _measure(z, sf):
-    """Pitch sensors (turbine.measured_pitch): gain fault, or stuck at a fixed value."""
+    """Pitch sensors (turbine.measured_pitch): gain fault, or stuck at a fixed value (sensor
+    m1's faults; the bench's runs have none, and the two sensors of a blade then read the
+    same: the virtual sensor's mean is that reading)."""
     b1 = ((1.0 - sf[S_FIXED]) * (sf[S_GAIN] * z[3] + sf[S_OFFSET])
           + sf[S_FIXED] * sf[S_VALUE])
     b2 = ((1.0 - sf[S_FIXED + 1]) * (sf[S_GAIN + 1] * z[4] + sf[S_OFFSET + 1])

@@ -38,26 +38,45 @@ import sympy as sp
 from derivation import nrel5mw, turbine
 from derivation.layout import Entry
 
-v, beta_m = sp.symbols("v beta_m", real=True)
+# per blade: the command, its two pitch sensors' readings and the virtual sensor's pitch
+# (derivation/sensors.py: the sensors voted, an excluded one left out)
+v, beta_m, beta_m2, beta_v = sp.symbols("v beta_m beta_m2 beta_v", real=True)
 bh, bhd, e, D, q = sp.symbols("beta_hat beta_hat_rate mean_sq latch confidence", real=True)
 S_bb, S_b, S_1, S_mb, S_m, S_mm = sp.symbols("S_bb S_b S_1 S_mb S_m S_mm", real=True)
 r_f, R_h = sp.symbols("residual_filtered rate_msq_model", real=True)
 # the model bank: the benchmark's hydraulic faults as alternative actuator models
 bp, bpd, ep, ba, bad, ea = sp.symbols(
     "beta_pd beta_pd_rate mean_sq_pd beta_air beta_air_rate mean_sq_air", real=True)
+# the pitch sensors' pair test: sensor m2's filtered residual and mean square, the mean
+# square of the two residuals' difference, and each sensor's latch (1: excluded)
+r_f2, e2, e_d, L1, L2 = sp.symbols(
+    "residual_filtered_m2 mean_sq_m2 mean_sq_pair sensor_latch_m1 sensor_latch_m2", real=True)
 STATE_SYMBOLS = [bh, bhd, e, D, q, S_bb, S_b, S_1, S_mb, S_m, S_mm, r_f, R_h,
-                 bp, bpd, ep, ba, bad, ea]
+                 bp, bpd, ep, ba, bad, ea, r_f2, e2, e_d, L1, L2]
 PER_BLADE = ["beta_hat", "beta_hat_rate", "mean_sq", "latch", "confidence", "S_bb", "S_b",
              "S_1", "S_mb", "S_m", "S_mm", "residual_filtered", "rate_msq_model",
              "beta_pd", "beta_pd_rate", "mean_sq_pd", "beta_air", "beta_air_rate",
-             "mean_sq_air"]
+             "mean_sq_air", "residual_filtered_m2", "mean_sq_m2", "mean_sq_pair",
+             "sensor_latch_m1", "sensor_latch_m2"]
 UNITS = ["rad", "rad/s", "rad^2", "-", "-", "rad^2", "rad", "-", "rad^2", "rad", "rad^2",
-         "rad", "rad^2/s^2", "rad", "rad/s", "rad^2", "rad", "rad/s", "rad^2"]
+         "rad", "rad^2/s^2", "rad", "rad/s", "rad^2", "rad", "rad/s", "rad^2", "rad", "rad^2",
+         "rad^2", "-", "-"]
+#: the speed sensors' pair tests (rotor, generator): per pair, each sensor's filtered
+#: residual against the other quantity's sensors, their mean squares, the mean square of
+#: their difference, and each sensor's latch
+SPEED_PAIRS = [("omega_r", "rad/s"), ("omega_g_hss", "rad/s")]
+PER_PAIR = ["residual_filtered_m1", "residual_filtered_m2", "mean_sq_m1", "mean_sq_m2",
+            "mean_sq_pair", "sensor_latch_m1", "sensor_latch_m2"]
 
 
 def states(n_blades: int) -> list[Entry]:
-    return [Entry(f"fdi_{n}_{j}", 0.0, u, f"FDI {n} of blade {j}")
-            for j in range(1, n_blades + 1) for n, u in zip(PER_BLADE, UNITS, strict=True)]
+    blades = [Entry(f"fdi_{n}_{j}", 0.0, u, f"FDI {n} of blade {j}")
+              for j in range(1, n_blades + 1) for n, u in zip(PER_BLADE, UNITS, strict=True)]
+    squared = {"mean_sq_m1", "mean_sq_m2", "mean_sq_pair"}
+    return blades + [Entry(f"fdi_{n}_{sig}", 0.0,
+                           f"{u}^2" if n in squared else ("-" if "latch" in n else u),
+                           f"FDI {n} of the {sig} sensors")
+                     for sig, u in SPEED_PAIRS for n in PER_PAIR]
 
 
 PARAMS = [
@@ -89,6 +108,19 @@ PARAMS = [
           "2ζ/ω_n; ±10 % on each of ω_n and ζ is ±20 %, plus a margin for the second-order "
           "response at the rate and position limits (with 0.2 a fault-free campaign with "
           "±10 % mismatch came within 7 % of alarming; docs/fdi.md)"),
+    Entry("fdi_thr2_pair", 0.0, "rad^2",
+          "the χ² threshold of a pitch sensor pair's filtered difference's mean square for "
+          "the two sensors' noise and the target false-alarm rate (per run: "
+          "wtftc.sim.fdi; 0: exact sensors, the floor 2 r_thr² then holds)"),
+    Entry("fdi_thr2_omega_r", 0.0, "rad^2/s^2",
+          "the same for the rotor speed sensors (per run)"),
+    Entry("fdi_thr2_omega_g_hss", 0.0, "rad^2/s^2",
+          "the same for the generator speed sensors (per run)"),
+    Entry("fdi_speed_floor", 0.002, "rad/s",
+          "smallest speed sensor disagreement detected, on the rotor (N times it on the "
+          "generator): the torsion rate ω_r − ω_g/N stays below it on the NREL 5-MW"),
+    Entry("fdi_gearbox_ratio", nrel5mw.GEARBOX_RATIO, "-",
+          "the gearbox ratio N relating the two speeds (set per run from the turbine)"),
     Entry("fdi_k_latch", 20.0, "1/s", "latch rise rate"),
     Entry("fdi_T_w", 2.0, "s", "least-squares window (exponential forgetting)"),
     Entry("fdi_rho_lock", 0.2, "-",
@@ -113,6 +145,9 @@ wn, zt, bmin, bmax, rmax, T_f, r_thr, k_D, T_w, rho_lock, rho_min, T_e = sp.symb
     "fdi_k_latch fdi_T_w fdi_rho_lock fdi_rho_min fdi_T_engage", real=True)
 h_noise, T_r, delta, var_n, T_s = sp.symbols(
     "fdi_thr2_noise fdi_T_r fdi_delta fdi_var_noise fdi_T_s", real=True)
+h_pair, h_rotor, h_gen, speed_floor, gear = sp.symbols(
+    "fdi_thr2_pair fdi_thr2_omega_r fdi_thr2_omega_g_hss fdi_speed_floor fdi_gearbox_ratio",
+    real=True)
 w_pd, z_pd, w_air, z_air = sp.symbols("fdi_omega_pd fdi_zeta_pd fdi_omega_air fdi_zeta_air",
                                       real=True)
 
@@ -133,20 +168,70 @@ def threshold_sq() -> sp.Expr:
     return sp.Max(r_thr**2, h_noise) + ((delta * tau_a) ** 2 + T_s**2 / 3) * R_h
 
 
+def pair_threshold_sq(h_pair: sp.Expr, floor: sp.Expr) -> sp.Expr:
+    """The detection threshold on a sensor pair's filtered difference's mean square: the
+    χ² bound of the two sensors' noise, at least the floor's square."""
+    return sp.Max(floor**2, h_pair)
+
+
+def sensor_latches(e1: sp.Expr, e2: sp.Expr, ed: sp.Expr, l1: sp.Expr, l2: sp.Expr,
+                   thr_d: sp.Expr, blocked: sp.Expr = sp.false) -> list[sp.Expr]:
+    """The two sensors' latch rates (ours; a pair of redundant sensors voted with a model,
+    the benchmark's hardware redundancy): once their difference's mean square ed exceeds
+    thr_d, the sensor farther from the reference (its residual's mean square e_k larger
+    than the other's by thr_d, so that the reference's own noise cannot decide) is
+    latched, one sensor per pair."""
+    half = sp.Rational(1, 2)
+    free = sp.And(ed >= thr_d, l1 < half, l2 < half, sp.Not(blocked))
+    return [sp.Piecewise((k_D * (1 - l), sp.Or(l >= half, sp.And(free, mine >= other + thr_d))),
+                         (0, True))
+            for l, mine, other in ((l1, e1, e2), (l2, e2, e1))]
+
+
+def actuator_alarm() -> sp.Expr:
+    """The actuator's residual test: both pitch sensors see the blade leave its model
+    (e_m1 and e_m2 above the threshold) while they agree with each other (a sensor fault
+    makes them disagree: the pair test isolates it instead); once one sensor is
+    excluded, the other's residual alone."""
+    thr, half = threshold_sq(), sp.Rational(1, 2)
+    both = sp.And(e >= thr, e2 >= thr, e_d < pair_threshold_sq(h_pair, sp.sqrt(2) * r_thr))
+    return sp.Or(sp.And(L1 >= half, e2 >= thr), sp.And(L1 < half, L2 >= half, e >= thr),
+                 sp.And(L1 < half, L2 < half, both))
+
+
 def blade_rhs() -> list[sp.Expr]:
     """Time derivatives of one blade's FDI states."""
     rate, acc = actuator_model(bh, bhd, wn, zt)
-    r = beta_m - bh
-    latch = sp.Piecewise((k_D * (1 - D), e >= threshold_sq()), (0, True))
+    latch = sp.Piecewise((k_D * (1 - D), actuator_alarm()), (0, True))
     confidence = sp.Piecewise((1 / T_e, sp.And(D >= sp.Rational(1, 2), q < 1)), (0, True))
-    stats = [bh * bh, bh, 1, beta_m * bh, beta_m, beta_m * beta_m]
+    stats = [bh * bh, bh, 1, beta_v * bh, beta_v, beta_v * beta_v]
     pd = actuator_model(bp, bpd, w_pd, z_pd)
     air = actuator_model(ba, bad, w_air, z_air)
+    thr_d = pair_threshold_sq(h_pair, sp.sqrt(2) * r_thr)
     return [rate, acc, (r_f**2 - e) / T_f, latch, confidence,
             *[(x - s) / T_w for x, s in zip(stats, [S_bb, S_b, S_1, S_mb, S_m, S_mm],
                                              strict=True)],
-            (r - r_f) / T_r, (rate**2 - R_h) / T_f,
-            *pd, ((beta_m - bp) ** 2 - ep) / T_w, *air, ((beta_m - ba) ** 2 - ea) / T_w]
+            (beta_m - bh - r_f) / T_r, (rate**2 - R_h) / T_f,
+            *pd, ((beta_v - bp) ** 2 - ep) / T_w, *air, ((beta_v - ba) ** 2 - ea) / T_w,
+            (beta_m2 - bh - r_f2) / T_r, (r_f2**2 - e2) / T_f, ((r_f - r_f2)**2 - e_d) / T_f,
+            *sensor_latches(e, e2, e_d, L1, L2, thr_d, D >= sp.Rational(1, 2))]
+
+
+#: a speed pair's symbols: its sensors' readings, the reference (the other quantity's
+#: sensors), and its states (PER_PAIR)
+x1, x2, ref = sp.symbols("speed_m1 speed_m2 speed_ref", real=True)
+PAIR_SYMBOLS = sp.symbols(" ".join(f"pair_{n}" for n in PER_PAIR), real=True)
+
+
+def speed_pair_rhs(h: sp.Expr, floor: sp.Expr) -> list[sp.Expr]:
+    """Time derivatives of one speed pair's states: each sensor's residual against the
+    reference, low-passed (T_r), its mean square over T_w (the reference is the other
+    quantity's sensors, noisier on the rotor: a longer window), the difference's mean
+    square over T_f, and the latches (sensor_latches)."""
+    f1, f2, m1, m2, md, l1, l2 = PAIR_SYMBOLS
+    return [(x1 - ref - f1) / T_r, (x2 - ref - f2) / T_r, (f1**2 - m1) / T_w,
+            (f2**2 - m2) / T_w, ((f1 - f2)**2 - md) / T_f,
+            *sensor_latches(m1, m2, md, l1, l2, pair_threshold_sq(h, floor))]
 
 
 def dynamics_estimate() -> tuple[sp.Expr, sp.Expr]:
@@ -207,4 +292,4 @@ def initial(beta_meas0) -> list[sp.Expr]:
     b0 = beta_meas0
     spread = sp.Rational(1, 10**4)
     return [b0, 0, 0, 0, 0, b0**2 + spread, b0, 1, b0**2 + spread, b0, b0**2 + spread, 0, 0,
-            b0, 0, 0, b0, 0, 0]
+            b0, 0, 0, b0, 0, 0, 0, 0, 0, 0, 0]

@@ -287,8 +287,9 @@ SENSOR_FAULTS, SENSOR_PARAMS = sensors.fault_entries(), sensors.param_entries()
 
 
 def build_sensors() -> list[ca.Function]:
-    """The measurement chain of derivation/sensors.py: lag, fault, bias, noise, resolution."""
-    n = len(sensors.NAMES)
+    """The measurement chain of derivation/sensors.py (lag, fault, bias, noise, resolution)
+    of every sensor, and the virtual sensors that vote the controllers' measurements."""
+    n = len(sensors.SENSOR_NAMES)
     ins = {"true_signals": _vec("true_signals", n), "x_lag": _vec("x_lag", n),
            "noise": _vec("noise", n), "sensor_faults": _vec("sensor_faults", len(SENSOR_FAULTS)),
            "p_sensors": _vec("p_sensors", len(SENSOR_PARAMS))}
@@ -301,52 +302,109 @@ def build_sensors() -> list[ca.Function]:
     chain = _function("sensors", ins, {"meas": ca.vertcat(*[tr(e) for e in sensors.measured()]),
                                        "x_lag_dot": ca.vertcat(*[tr(e) for e in
                                                                  sensors.lag_rhs()])})
-    meas, gear = _vec("meas", n), ca.SX.sym("gearbox_ratio")
-    tr = Translator({**{s.name: meas[k] for k, s in enumerate(sensors.measured_symbols)},
+    rd, ex, gear = _vec("readings", n), _vec("excluded", n), ca.SX.sym("gearbox_ratio")
+    tr = Translator({**{s.name: rd[k] for k, s in enumerate(sensors.readings)},
+                     **{s.name: ex[k] for k, s in enumerate(sensors.excluded)},
                      **_named(ins["p_sensors"], SENSOR_PARAMS), "gearbox_ratio": gear})
-    fusion = _function("speed_estimate",
-                       {"meas": meas, "p_sensors": ins["p_sensors"], "gearbox_ratio": gear},
-                       {"omega_hat": tr(sensors.speed_estimate())})
-    return [chain, fusion]
+    virtual = _function("virtual_sensors",
+                        {"readings": rd, "excluded": ex, "p_sensors": ins["p_sensors"],
+                         "gearbox_ratio": gear},
+                        {"meas": _virtual_meas(tr)})
+    return [chain, virtual]
+
+
+def _fdi_blades(x, v, rd, bv, params) -> dict[str, list]:
+    """Per blade: the FDI's state derivatives and outputs (derivation/fdi.py)."""
+    n, names = len(fdi.PER_BLADE), sensors.SENSOR_NAMES
+    out: dict[str, list] = {k: [] for k in ("rhs", "rho", "lock", "ubar", "rho_hat", "c_hat",
+                                            "latch", "rms", "w_hat", "z_hat", "thr", "init")}
+    for j in range(lay.N_BLADES):
+        xs = x[j * n:(j + 1) * n]
+        tr = Translator({**params, "v": v[j], "beta_v": bv[j],
+                         "beta_m": rd[names.index(f"beta_meas_{j + 1}_m1")],
+                         "beta_m2": rd[names.index(f"beta_meas_{j + 1}_m2")],
+                         **{s.name: xs[k] for k, s in enumerate(fdi.STATE_SYMBOLS)}})
+        out["rhs"] += [tr(e) for e in fdi.blade_rhs()]
+        for key, expr in zip(("rho", "lock", "ubar"), fdi.accommodation(), strict=True):
+            out[key].append(tr(expr))
+        r1, ce, r0 = fdi.estimates()
+        out["rho_hat"].append(tr(sp.Piecewise((r1, fdi.is_locked()), (r0, True))))
+        out["c_hat"].append(tr(ce))
+        out["latch"].append(xs[3])
+        out["rms"].append(ca.sqrt(ca.fmax(xs[2], 0)))
+        out["thr"].append(ca.sqrt(tr(fdi.threshold_sq())))
+        wh, zh = fdi.dynamics_estimate()
+        out["w_hat"].append(tr(wh))
+        out["z_hat"].append(tr(zh))
+    return out
+
+
+def _healthy(rd, latches: dict, name: str) -> ca.SX:
+    """The mean of a quantity's two sensors, or the one not excluded (latch ≥ 1/2)."""
+    i1, i2 = (sensors.SENSOR_NAMES.index(f"{name}_m{k}") for k in (1, 2))
+    return ca.if_else(latches[f"{name}_m1"] >= 0.5, rd[i2],
+                      ca.if_else(latches[f"{name}_m2"] >= 0.5, rd[i1], (rd[i1] + rd[i2]) / 2))
+
+
+def _fdi_speeds(xs, rd, params) -> tuple[list, dict]:
+    """The speed sensors' pair tests: state derivatives, and each sensor's latch."""
+    n = len(fdi.PER_PAIR)
+    latches = {}
+    for k, (sig, _) in enumerate(fdi.SPEED_PAIRS):
+        block = xs[k * n:(k + 1) * n]
+        latches[f"{sig}_m1"], latches[f"{sig}_m2"] = block[5], block[6]
+    gear = params["fdi_gearbox_ratio"]
+    refs = {"omega_r": _healthy(rd, latches, "omega_g_hss") / gear,
+            "omega_g_hss": _healthy(rd, latches, "omega_r") * gear}
+    h = {"omega_r": fdi.h_rotor, "omega_g_hss": fdi.h_gen}
+    floor = {"omega_r": fdi.speed_floor, "omega_g_hss": fdi.speed_floor * fdi.gear}
+    rhs = []
+    for k, (sig, _) in enumerate(fdi.SPEED_PAIRS):
+        tr = Translator({**params, "speed_ref": refs[sig],
+                         "speed_m1": rd[sensors.SENSOR_NAMES.index(f"{sig}_m1")],
+                         "speed_m2": rd[sensors.SENSOR_NAMES.index(f"{sig}_m2")],
+                         **{s.name: xs[k * n + i] for i, s in enumerate(fdi.PAIR_SYMBOLS)}})
+        rhs += [tr(e) for e in fdi.speed_pair_rhs(h[sig], floor[sig])]
+    return rhs, latches
+
+
+def _virtual_meas(tr: Translator) -> ca.SX:
+    """The virtual sensors' outputs, their intermediate voted speeds translated first."""
+    voted, outputs = sensors.virtual_sensors()
+    names = {sym.name: tr(expr) for sym, expr in voted.items()}
+    tr2 = Translator({**tr.symbols, **names})
+    return ca.vertcat(*[tr2(e) for e in outputs])
 
 
 def build_fdi() -> list[ca.Function]:
-    """Per-blade residual, detection latch and least-squares estimates (derivation/fdi.py)."""
-    n = len(fdi.PER_BLADE)
-    x = _vec("x_fdi", n * lay.N_BLADES)
+    """Per-blade residual, detection latch and least-squares estimates, the pitch sensors'
+    pair tests, and the speed sensors' (derivation/fdi.py)."""
+    n_blade = len(fdi.PER_BLADE) * lay.N_BLADES
+    x = _vec("x_fdi", len(FDI_STATES))
     v = _vec("v", lay.N_BLADES)
-    bm = _vec("beta_meas", lay.N_BLADES)
+    rd = _vec("readings", len(sensors.SENSOR_NAMES))
+    meas = _vec("meas", len(sensors.NAMES))
     p = _vec("p_fdi", len(fdi.PARAMS))
     params = _named(p, fdi.PARAMS)
-    rhs, rho, lock, ubar, rho_est, c_est, latch, rms = [], [], [], [], [], [], [], []
-    w_hat, z_hat, thr = [], [], []
-    init = []
+    b = _fdi_blades(x, v, rd, meas[2:], params)
+    speed_rhs, latches = _fdi_speeds(x[n_blade:], rd, params)
+    per = len(fdi.PER_BLADE)
     for j in range(lay.N_BLADES):
-        xs = x[j * n:(j + 1) * n]
-        tr = Translator({**params, "v": v[j], "beta_m": bm[j],
-                         **{s.name: xs[k] for k, s in enumerate(fdi.STATE_SYMBOLS)}})
-        rhs += [tr(e) for e in fdi.blade_rhs()]
-        r_, l_, u_ = fdi.accommodation()
-        rho.append(tr(r_))
-        lock.append(tr(l_))
-        ubar.append(tr(u_))
-        r1, ce, r0 = fdi.estimates()
-        rho_est.append(tr(sp.Piecewise((r1, fdi.is_locked()), (r0, True))))
-        c_est.append(tr(ce))
-        latch.append(xs[3])
-        rms.append(ca.sqrt(ca.fmax(xs[2], 0)))
-        thr.append(ca.sqrt(tr(fdi.threshold_sq())))
-        wh, zh = fdi.dynamics_estimate()
-        w_hat.append(tr(wh))
-        z_hat.append(tr(zh))
-        init += [Translator({"b": bm[j]})(e) for e in fdi.initial(sp.Symbol("b"))]
-    known = ca.vertcat(*rho, *lock, *ubar)
-    f = _function("fdi", {"x_fdi": x, "v": v, "beta_meas": bm, "p_fdi": p},
-                  {"x_fdi_dot": ca.vertcat(*rhs), "known_fault": known,
-                   "rho_hat": ca.vertcat(*rho_est), "c_hat": ca.vertcat(*c_est),
-                   "latch": ca.vertcat(*latch), "residual_rms": ca.vertcat(*rms),
-                   "omega_n_hat": ca.vertcat(*w_hat), "zeta_hat": ca.vertcat(*z_hat),
-                   "threshold": ca.vertcat(*thr)})
+        for k in (1, 2):
+            latches[f"beta_meas_{j + 1}_m{k}"] = x[j * per + fdi.PER_BLADE.index(
+                f"sensor_latch_m{k}")]
+    f = _function("fdi", {"x_fdi": x, "v": v, "readings": rd, "meas": meas, "p_fdi": p},
+                  {"x_fdi_dot": ca.vertcat(*b["rhs"], *speed_rhs),
+                   "known_fault": ca.vertcat(*b["rho"], *b["lock"], *b["ubar"]),
+                   "rho_hat": ca.vertcat(*b["rho_hat"]), "c_hat": ca.vertcat(*b["c_hat"]),
+                   "latch": ca.vertcat(*b["latch"]), "residual_rms": ca.vertcat(*b["rms"]),
+                   "omega_n_hat": ca.vertcat(*b["w_hat"]), "zeta_hat": ca.vertcat(*b["z_hat"]),
+                   "threshold": ca.vertcat(*b["thr"]),
+                   "excluded": ca.vertcat(*[latches[s] for s in sensors.SENSOR_NAMES])})
+    bm = _vec("beta_meas", lay.N_BLADES)
+    init = [Translator({"b": bm[j]})(e) for j in range(lay.N_BLADES)
+            for e in fdi.initial(sp.Symbol("b"))]
+    init += [ca.SX(0)] * (len(FDI_STATES) - n_blade)
     g = _function("init_fdi", {"beta_meas": bm}, {"x_fdi0": ca.vertcat(*init)})
     return [f, g]
 
@@ -363,7 +421,8 @@ def groups() -> list[Group]:
         Group("turbine", ["derivation/turbine.py", "derivation/plant.py",
                           "derivation/sensors.py"], build_turbine() + build_sensors()),
         Group("controllers", controllers.sources(), controllers.build(ctrl_fns[0])),
-        Group("fdi", ["derivation/fdi.py", "derivation/turbine.py"], build_fdi()),
+        Group("fdi", ["derivation/fdi.py", "derivation/turbine.py", "derivation/sensors.py"],
+              build_fdi()),
         Group("closed_loop", ["derivation/plant.py", "derivation/backstepping.py",
                               "derivation/observer.py", "derivation/fuzzy.py"], [closed]),
         Group("lyapunov", ["derivation/lyapunov.py", "derivation/backstepping.py",
@@ -430,6 +489,8 @@ def write(outdir: Path) -> dict:
     reg = controllers.as_json()
     groups_extra = {**reg.pop("groups"), "fdi_states": FDI_STATES, "fdi_params": fdi.PARAMS,
                     "sensor_faults": SENSOR_FAULTS, "sensor_params": SENSOR_PARAMS}
+    reg["sensors"] = [{"name": n, "measures": m, "unit": u}
+                      for n, m, u, _, _ in sensors.SENSORS]
     extra_groups = {g: [e.as_json() for e in entries] for g, entries in groups_extra.items()}
     layout = {"_header": HEADER.format(modules="derivation/layout.py"), **lay.as_json(),
               **extra_groups, **reg,

@@ -37,6 +37,12 @@ SIGNALS = [
     ("beta_meas_3", "rad", 0.2 * 3.141592653589793 / 180, "pitch of blade 3"),
 ]
 NAMES = [s[0] for s in SIGNALS]
+#: every quantity is measured by two sensors, m1 and m2, as in the benchmark (Odgaard,
+#: Stoustrup & Kinnaert 2013, Section 2: β_i,m1, β_i,m2, ω_r,m1, ω_r,m2, ω_g,m1, ω_g,m2);
+#: the sensors in order: every signal's m1, then every signal's m2
+SENSORS = [(f"{name}_m{k}", name, unit, sigma, what)
+           for k in (1, 2) for name, unit, sigma, what in SIGNALS]
+SENSOR_NAMES = [s[0] for s in SENSORS]
 
 #: per-signal fault inputs (time-varying, from the fault schedule): kind → (default, unit
 #: suffix or "-", sample range, doc)
@@ -64,24 +70,26 @@ def _unit(suffix, signal_unit):
 
 
 def fault_entries() -> list[Entry]:
-    return [Entry(f"{kind}_{name}", d, _unit(u, unit), f"{what} sensor {doc}", sample=s)
+    return [Entry(f"{kind}_{name}", d, _unit(u, unit), f"{what} sensor {name[-2:]} {doc}",
+                  sample=s)
             for kind, (d, u, s, doc) in FAULT_KINDS.items()
-            for name, unit, _, what in SIGNALS]
+            for name, _, unit, _, what in SENSORS]
 
 
 def param_entries() -> list[Entry]:
-    return [Entry(f"{kind}_{name}", 0.0, _unit(u, unit), f"{what} sensor {doc}", sample=s,
-                  valid=valid)
+    return [Entry(f"{kind}_{name}", 0.0, _unit(u, unit), f"{what} sensor {name[-2:]} {doc}",
+                  sample=s, valid=valid)
             for kind, (u, s, valid, doc) in PARAM_KINDS.items()
-            for name, unit, _, what in SIGNALS]
+            for name, _, unit, _, what in SENSORS]
 
 
 #: the benchmark's noise σ per signal, by parameter name (the realistic profile's defaults)
-BENCHMARK_SIGMA = {f"sigma_{name}": sigma for name, _, sigma, _ in SIGNALS}
+BENCHMARK_SIGMA = {f"sigma_{name}": sigma for name, _, _, sigma, _ in SENSORS}
 
-true = sp.symbols([f"true_{n}" for n in NAMES], real=True)
-lagged = sp.symbols([f"lagged_{n}" for n in NAMES], real=True)
-noise = sp.symbols([f"noise_{n}" for n in NAMES], real=True)
+#: per sensor: the true signal it measures, its lag state, its noise draw
+true = sp.symbols([f"true_{n}" for n in SENSOR_NAMES], real=True)
+lagged = sp.symbols([f"lagged_{n}" for n in SENSOR_NAMES], real=True)
+noise = sp.symbols([f"noise_{n}" for n in SENSOR_NAMES], real=True)
 
 
 def _sym(kind: str, name: str) -> sp.Symbol:
@@ -95,18 +103,18 @@ def _positive_or_one(x: sp.Symbol) -> sp.Expr:
 
 
 def lag_rhs() -> list[sp.Expr]:
-    """ẏ = (x - y)/T_lag per signal; 0 without a lag (T_lag = 0)."""
+    """ẏ = (x - y)/T_lag per sensor; 0 without a lag (T_lag = 0)."""
     out = []
-    for x, y, name in zip(true, lagged, NAMES, strict=True):
+    for x, y, name in zip(true, lagged, SENSOR_NAMES, strict=True):
         tau = _sym("lag", name)
         out.append(sp.Piecewise(((x - y) / _positive_or_one(tau), tau > 0), (0, True)))
     return out
 
 
 def measured() -> list[sp.Expr]:
-    """The measurement of every signal (see the module docstring)."""
+    """The reading of every sensor (see the module docstring)."""
     out = []
-    for x, y, n_k, name in zip(true, lagged, noise, NAMES, strict=True):
+    for x, y, n_k, name in zip(true, lagged, noise, SENSOR_NAMES, strict=True):
         s = {k: _sym(k, name) for k in (*FAULT_KINDS, *PARAM_KINDS)}
         seen = sp.Piecewise((y, s["lag"] > 0), (x, True))
         reading = s["gain"] * seen + s["offset"] + s["bias"] + s["noise_factor"] * s["sigma"] * n_k
@@ -122,29 +130,82 @@ def measured() -> list[sp.Expr]:
 #: NREL 5-MW in turbulence; 0.01 leaves room for a softer shaft)
 CONSISTENCY_SIGMAS = 4
 TORSION_ALLOWANCE = sp.Rational(1, 100)
+#: two sensors of one quantity agree within 4 standard deviations of their difference,
+#: their resolutions, and this floor: 0.1° on the pitch (twice an absolute encoder's
+#: accuracy), 0.01 rad/s on the rotor speed (in rotor units on the generator's)
+PITCH_AGREEMENT = sp.pi / 1800
+SPEED_AGREEMENT = sp.Rational(1, 100)
 
-#: the controllers' model's gearbox ratio, an input of the speed estimate
+#: the controllers' model's gearbox ratio, an input of the virtual sensors
 gearbox = sp.Symbol("gearbox_ratio", positive=True)
-measured_symbols = sp.symbols(NAMES, real=True)
+#: the sensors' readings, and per sensor the FDI's verdict: ≥ 1/2 excluded (its latch)
+readings = sp.symbols(SENSOR_NAMES, real=True)
+excluded = sp.symbols([f"excluded_{n}" for n in SENSOR_NAMES], real=True)
 
 
-def speed_estimate() -> sp.Expr:
-    """The controllers' rotor speed: the inverse-variance weighted mean of the two speed
-    sensors, ω̂ = (1 − w) ω_r,m + w ω_g,m/N, w = σ_r²/(σ_r² + (σ_g/N)²) (the
-    minimum-variance combination of two unbiased measurements of one quantity; N the
-    gearbox ratio). With σ_r = 0 (exact sensors): the rotor speed sensor alone, as before.
-    The shaft's torsion, ω_g − ω_r, is the price (below 0.002 rad/s on the NREL 5-MW)."""
-    m = dict(zip(NAMES, measured_symbols, strict=True))
-    s_r, s_g = _sym("sigma", "omega_r"), _sym("sigma", "omega_g_hss") / gearbox
-    # the two must agree within 4 standard deviations of their difference plus the
-    # shaft's torsion; when they do not (a speed sensor stuck, scaled or offset), the
-    # larger of the two is taken: the safe side, the controller then pitches for the
-    # faster rotor and a single speed sensor's fault can slow the rotor (lose power) but
-    # not run it away (ours; a max-select of redundant speed signals, as overspeed
-    # protections do)
-    w_r, w_g = m["omega_r"], m["omega_g_hss"] / gearbox
+def _pair(name: str, floor: sp.Expr):
+    """(m1, m2, excluded m1, excluded m2, agreement tolerance) of a quantity's two
+    sensors."""
+    r = dict(zip(SENSOR_NAMES, readings, strict=True))
+    x = dict(zip(SENSOR_NAMES, excluded, strict=True))
+    a, b = f"{name}_m1", f"{name}_m2"
+    tol = CONSISTENCY_SIGMAS * sp.sqrt(_sym("sigma", a)**2 + _sym("sigma", b)**2) \
+        + _sym("resolution", a) + _sym("resolution", b) + floor
+    return r[a], r[b], x[a], x[b], tol
+
+
+def _voted(name: str, floor: sp.Expr, ref: sp.Expr) -> sp.Expr:
+    """One quantity from its two sensors (a virtual sensor, ours): the one the FDI has not
+    excluded; else their mean when they agree; else, before the FDI has decided, the one
+    closer to ``ref`` (an estimate of the quantity from the other sensors). Two identical
+    readings give that reading, bit for bit."""
+    x1, x2, e1, e2, tol = _pair(name, floor)
+    half = sp.Rational(1, 2)
+    return sp.Piecewise((x2, e1 >= half), (x1, e2 >= half),
+                        ((x1 + x2) / 2, sp.Abs(x1 - x2) <= tol),
+                        (x1, sp.Abs(x1 - ref) <= sp.Abs(x2 - ref)), (x2, True))
+
+
+def _mean(name: str) -> sp.Expr:
+    x1, x2, *_ = _pair(name, 0)
+    return (x1 + x2) / 2
+
+
+#: the two voted speeds, intermediate symbols of virtual_sensors (SymPy would fold one
+#: Piecewise into the other's conditions)
+voted_rotor, voted_gen = sp.symbols("voted_omega_r voted_omega_g_hss", real=True)
+
+
+def virtual_sensors() -> tuple[dict[sp.Symbol, sp.Expr], list[sp.Expr]]:
+    """The controllers' measurements [ω̂_r, ω_g, β_1..3] from the ten sensors, and the
+    intermediate voted speeds they are written in.
+
+    * Each pitch: its two sensors voted (_voted), the reference the mean of the other
+      blades' sensors (collective pitch; it matters only while two sensors disagree and
+      the FDI has not yet excluded one).
+    * The generator speed: its two sensors voted, the reference the rotor's sensors × N;
+      the rotor speed's pair likewise against the generator's / N.
+    * The rotor speed the controllers get: the inverse-variance weighted mean of the two
+      voted speeds, ω̂ = (1 − w) ω_r + w ω_g/N, w = σ_r²/(σ_r² + (σ_g/N)²) (the
+      minimum-variance combination of two unbiased measurements of one quantity). With
+      σ_r = 0 (exact sensors): the rotor's speed sensors alone, as before. When the two
+      voted speeds disagree by more than 4σ + 0.01 rad/s (both sensors of one quantity
+      failed), the larger: the safe side (a max-select, as overspeed protections do).
+    """
+    n_b = len(NAMES) - 2
+    betas = [f"beta_meas_{j}" for j in range(1, n_b + 1)]
+    pitch = [_voted(b, PITCH_AGREEMENT, sum(_mean(o) for o in betas if o != b) / (n_b - 1))
+             for b in betas]
+    voted = {voted_rotor: _voted("omega_r", SPEED_AGREEMENT, _mean("omega_g_hss") / gearbox),
+             voted_gen: _voted("omega_g_hss", SPEED_AGREEMENT * gearbox,
+                               _mean("omega_r") * gearbox)}
+    w_r, g = voted_rotor, voted_gen
+    s_r = _sym("sigma", "omega_r_m1")
+    s_g = _sym("sigma", "omega_g_hss_m1") / gearbox
+    w_g = g / gearbox
     agree = sp.Abs(w_g - w_r) <= CONSISTENCY_SIGMAS * sp.sqrt(s_r**2 + s_g**2) \
         + TORSION_ALLOWANCE
     w = s_r**2 / sp.Max(s_r**2 + s_g**2, sp.Float(1e-300))
-    return sp.Piecewise((w_r, s_r <= 0), ((1 - w) * w_r + w * w_g, agree),
-                        (sp.Max(w_r, w_g), True))
+    omega = sp.Piecewise((w_r, s_r <= 0), ((1 - w) * w_r + w * w_g, agree),
+                         (sp.Max(w_r, w_g), True))
+    return voted, [omega, g, *pitch]

@@ -47,6 +47,8 @@ extern "C" {
 #define casadi_s5 CASADI_PREFIX(s5)
 #define casadi_s6 CASADI_PREFIX(s6)
 #define casadi_s7 CASADI_PREFIX(s7)
+#define casadi_s8 CASADI_PREFIX(s8)
+#define casadi_s9 CASADI_PREFIX(s9)
 #define casadi_sq CASADI_PREFIX(sq)
 
 /* Symbol visibility in DLLs */
@@ -108,8 +110,10 @@ static const casadi_int casadi_s2[3] = {1, 1, 1};
 static const casadi_int casadi_s3[3] = {15, 1, 1};
 static const casadi_int casadi_s4[3] = {25, 1, 1};
 static const casadi_int casadi_s5[3] = {9, 1, 1};
-static const casadi_int casadi_s6[3] = {5, 1, 1};
-static const casadi_int casadi_s7[3] = {20, 1, 1};
+static const casadi_int casadi_s6[3] = {10, 1, 1};
+static const casadi_int casadi_s7[3] = {50, 1, 1};
+static const casadi_int casadi_s8[3] = {40, 1, 1};
+static const casadi_int casadi_s9[3] = {5, 1, 1};
 
 /* turbine_paper:(x_plant[6],v[3],wind,cp,actuator_faults[15],p_turbine[25])->(x_plant_dot[6],T_aero,T_gen,P_gen) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
@@ -869,25 +873,27 @@ CASADI_SYMBOL_EXPORT int aero_torque_sensitivity_work_bytes(casadi_int *sz_arg, 
   return 0;
 }
 
-/* sensors:(true_signals[5],x_lag[5],noise[5],sensor_faults[25],p_sensors[20])->(meas[5],x_lag_dot[5]) */
+/* sensors:(true_signals[10],x_lag[10],noise[10],sensor_faults[50],p_sensors[40])->(meas[10],x_lag_dot[10]) */
 static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
-  casadi_real a24, a25, a26, a27, a28, a29;
+  casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
+  casadi_real a36, a37, a38, a39, a40, a41, a42, a43, a44, a45, a46, a47;
+  casadi_real a48, a49;
   a00=0.;
-  a01=arg[4]? arg[4][10] : 0;
+  a01=arg[4]? arg[4][20] : 0;
   a02=(a00<a01);
   a03=5.0000000000000000e-01;
-  a04=arg[3]? arg[3][10] : 0;
-  a05=arg[3]? arg[3][15] : 0;
+  a04=arg[3]? arg[3][20] : 0;
+  a05=arg[3]? arg[3][30] : 0;
   a05=(a04*a05);
   a06=1.;
   a04=(a06-a04);
-  a07=arg[4]? arg[4][5] : 0;
-  a08=arg[3]? arg[3][5] : 0;
+  a07=arg[4]? arg[4][10] : 0;
+  a08=arg[3]? arg[3][10] : 0;
   a07=(a07+a08);
   a08=arg[3]? arg[3][0] : 0;
-  a09=arg[4]? arg[4][15] : 0;
+  a09=arg[4]? arg[4][30] : 0;
   a10=(a00<a09);
   a11=arg[1]? arg[1][0] : 0;
   a12=(a10?a11:0);
@@ -897,7 +903,7 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a12=(a12+a13);
   a08=(a08*a12);
   a07=(a07+a08);
-  a08=arg[3]? arg[3][20] : 0;
+  a08=arg[3]? arg[3][40] : 0;
   a12=arg[2]? arg[2][0] : 0;
   a08=(a08*a12);
   a12=arg[4]? arg[4][0] : 0;
@@ -916,17 +922,17 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=(a02?a05:0);
   a01=(a01+a02);
   if (res[0]!=0) res[0][0]=a01;
-  a01=arg[4]? arg[4][11] : 0;
+  a01=arg[4]? arg[4][21] : 0;
   a02=(a00<a01);
-  a05=arg[3]? arg[3][11] : 0;
-  a07=arg[3]? arg[3][16] : 0;
+  a05=arg[3]? arg[3][21] : 0;
+  a07=arg[3]? arg[3][31] : 0;
   a07=(a05*a07);
   a05=(a06-a05);
-  a08=arg[4]? arg[4][6] : 0;
-  a12=arg[3]? arg[3][6] : 0;
+  a08=arg[4]? arg[4][11] : 0;
+  a12=arg[3]? arg[3][11] : 0;
   a08=(a08+a12);
   a12=arg[3]? arg[3][1] : 0;
-  a13=arg[4]? arg[4][16] : 0;
+  a13=arg[4]? arg[4][31] : 0;
   a15=(a00<a13);
   a16=arg[1]? arg[1][1] : 0;
   a17=(a15?a16:0);
@@ -936,7 +942,7 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a17=(a17+a18);
   a12=(a12*a17);
   a08=(a08+a12);
-  a12=arg[3]? arg[3][21] : 0;
+  a12=arg[3]? arg[3][41] : 0;
   a17=arg[2]? arg[2][1] : 0;
   a12=(a12*a17);
   a17=arg[4]? arg[4][1] : 0;
@@ -954,17 +960,17 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=(a02?a07:0);
   a01=(a01+a02);
   if (res[0]!=0) res[0][1]=a01;
-  a01=arg[4]? arg[4][12] : 0;
+  a01=arg[4]? arg[4][22] : 0;
   a02=(a00<a01);
-  a07=arg[3]? arg[3][12] : 0;
-  a05=arg[3]? arg[3][17] : 0;
+  a07=arg[3]? arg[3][22] : 0;
+  a05=arg[3]? arg[3][32] : 0;
   a05=(a07*a05);
   a07=(a06-a07);
-  a08=arg[4]? arg[4][7] : 0;
-  a12=arg[3]? arg[3][7] : 0;
+  a08=arg[4]? arg[4][12] : 0;
+  a12=arg[3]? arg[3][12] : 0;
   a08=(a08+a12);
   a12=arg[3]? arg[3][2] : 0;
-  a17=arg[4]? arg[4][17] : 0;
+  a17=arg[4]? arg[4][32] : 0;
   a18=(a00<a17);
   a20=arg[1]? arg[1][2] : 0;
   a21=(a18?a20:0);
@@ -975,7 +981,7 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a12=(a12*a21);
   a08=(a08+a12);
   a12=arg[2]? arg[2][2] : 0;
-  a21=arg[3]? arg[3][22] : 0;
+  a21=arg[3]? arg[3][42] : 0;
   a12=(a12*a21);
   a21=arg[4]? arg[4][2] : 0;
   a12=(a12*a21);
@@ -992,17 +998,17 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=(a02?a05:0);
   a01=(a01+a02);
   if (res[0]!=0) res[0][2]=a01;
-  a01=arg[4]? arg[4][13] : 0;
+  a01=arg[4]? arg[4][23] : 0;
   a02=(a00<a01);
-  a05=arg[3]? arg[3][13] : 0;
-  a07=arg[3]? arg[3][18] : 0;
+  a05=arg[3]? arg[3][23] : 0;
+  a07=arg[3]? arg[3][33] : 0;
   a07=(a05*a07);
   a05=(a06-a05);
-  a08=arg[4]? arg[4][8] : 0;
-  a12=arg[3]? arg[3][8] : 0;
+  a08=arg[4]? arg[4][13] : 0;
+  a12=arg[3]? arg[3][13] : 0;
   a08=(a08+a12);
   a12=arg[3]? arg[3][3] : 0;
-  a21=arg[4]? arg[4][18] : 0;
+  a21=arg[4]? arg[4][33] : 0;
   a22=(a00<a21);
   a24=arg[1]? arg[1][3] : 0;
   a25=(a22?a24:0);
@@ -1013,7 +1019,7 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a12=(a12*a25);
   a08=(a08+a12);
   a12=arg[2]? arg[2][3] : 0;
-  a25=arg[3]? arg[3][23] : 0;
+  a25=arg[3]? arg[3][43] : 0;
   a12=(a12*a25);
   a25=arg[4]? arg[4][3] : 0;
   a12=(a12*a25);
@@ -1030,44 +1036,234 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a02=(a02?a07:0);
   a01=(a01+a02);
   if (res[0]!=0) res[0][3]=a01;
-  a01=arg[4]? arg[4][14] : 0;
+  a01=arg[4]? arg[4][24] : 0;
   a02=(a00<a01);
-  a07=arg[3]? arg[3][14] : 0;
-  a05=arg[3]? arg[3][19] : 0;
+  a07=arg[3]? arg[3][24] : 0;
+  a05=arg[3]? arg[3][34] : 0;
   a05=(a07*a05);
-  a06=(a06-a07);
-  a07=arg[4]? arg[4][9] : 0;
-  a08=arg[3]? arg[3][9] : 0;
-  a07=(a07+a08);
-  a08=arg[3]? arg[3][4] : 0;
-  a12=arg[4]? arg[4][19] : 0;
-  a00=(a00<a12);
-  a25=arg[1]? arg[1][4] : 0;
-  a26=(a00?a25:0);
-  a28=(!a00);
-  a29=arg[0]? arg[0][4] : 0;
-  a28=(a28?a29:0);
-  a26=(a26+a28);
-  a08=(a08*a26);
-  a07=(a07+a08);
-  a08=arg[2]? arg[2][4] : 0;
-  a26=arg[3]? arg[3][24] : 0;
-  a08=(a08*a26);
-  a26=arg[4]? arg[4][4] : 0;
-  a08=(a08*a26);
-  a07=(a07+a08);
-  a06=(a06*a07);
-  a05=(a05+a06);
-  a06=casadi_fmax(a04,a01);
-  a06=(a05/a06);
-  a03=(a03+a06);
-  a03=floor(a03);
-  a01=(a01*a03);
+  a07=(a06-a07);
+  a08=arg[4]? arg[4][14] : 0;
+  a12=arg[3]? arg[3][14] : 0;
+  a08=(a08+a12);
+  a12=arg[3]? arg[3][4] : 0;
+  a25=arg[4]? arg[4][34] : 0;
+  a26=(a00<a25);
+  a28=arg[1]? arg[1][4] : 0;
+  a29=(a26?a28:0);
+  a30=(!a26);
+  a31=arg[0]? arg[0][4] : 0;
+  a30=(a30?a31:0);
+  a29=(a29+a30);
+  a12=(a12*a29);
+  a08=(a08+a12);
+  a12=arg[2]? arg[2][4] : 0;
+  a29=arg[3]? arg[3][44] : 0;
+  a12=(a12*a29);
+  a29=arg[4]? arg[4][4] : 0;
+  a12=(a12*a29);
+  a08=(a08+a12);
+  a07=(a07*a08);
+  a05=(a05+a07);
+  a07=casadi_fmax(a04,a01);
+  a07=(a05/a07);
+  a07=(a03+a07);
+  a07=floor(a07);
+  a01=(a01*a07);
   a01=(a02?a01:0);
   a02=(!a02);
   a02=(a02?a05:0);
   a01=(a01+a02);
   if (res[0]!=0) res[0][4]=a01;
+  a01=arg[4]? arg[4][25] : 0;
+  a02=(a00<a01);
+  a05=arg[3]? arg[3][25] : 0;
+  a07=arg[3]? arg[3][35] : 0;
+  a07=(a05*a07);
+  a05=(a06-a05);
+  a08=arg[4]? arg[4][15] : 0;
+  a12=arg[3]? arg[3][15] : 0;
+  a08=(a08+a12);
+  a12=arg[3]? arg[3][5] : 0;
+  a29=arg[4]? arg[4][35] : 0;
+  a30=(a00<a29);
+  a32=arg[1]? arg[1][5] : 0;
+  a33=(a30?a32:0);
+  a34=(!a30);
+  a35=arg[0]? arg[0][5] : 0;
+  a34=(a34?a35:0);
+  a33=(a33+a34);
+  a12=(a12*a33);
+  a08=(a08+a12);
+  a12=arg[3]? arg[3][45] : 0;
+  a33=arg[2]? arg[2][5] : 0;
+  a12=(a12*a33);
+  a33=arg[4]? arg[4][5] : 0;
+  a12=(a12*a33);
+  a08=(a08+a12);
+  a05=(a05*a08);
+  a07=(a07+a05);
+  a05=casadi_fmax(a04,a01);
+  a05=(a07/a05);
+  a05=(a03+a05);
+  a05=floor(a05);
+  a01=(a01*a05);
+  a01=(a02?a01:0);
+  a02=(!a02);
+  a02=(a02?a07:0);
+  a01=(a01+a02);
+  if (res[0]!=0) res[0][5]=a01;
+  a01=arg[4]? arg[4][26] : 0;
+  a02=(a00<a01);
+  a07=arg[3]? arg[3][26] : 0;
+  a05=arg[3]? arg[3][36] : 0;
+  a05=(a07*a05);
+  a07=(a06-a07);
+  a08=arg[4]? arg[4][16] : 0;
+  a12=arg[3]? arg[3][16] : 0;
+  a08=(a08+a12);
+  a12=arg[3]? arg[3][6] : 0;
+  a33=arg[4]? arg[4][36] : 0;
+  a34=(a00<a33);
+  a36=arg[1]? arg[1][6] : 0;
+  a37=(a34?a36:0);
+  a38=(!a34);
+  a39=arg[0]? arg[0][6] : 0;
+  a38=(a38?a39:0);
+  a37=(a37+a38);
+  a12=(a12*a37);
+  a08=(a08+a12);
+  a12=arg[3]? arg[3][46] : 0;
+  a37=arg[2]? arg[2][6] : 0;
+  a12=(a12*a37);
+  a37=arg[4]? arg[4][6] : 0;
+  a12=(a12*a37);
+  a08=(a08+a12);
+  a07=(a07*a08);
+  a05=(a05+a07);
+  a07=casadi_fmax(a04,a01);
+  a07=(a05/a07);
+  a07=(a03+a07);
+  a07=floor(a07);
+  a01=(a01*a07);
+  a01=(a02?a01:0);
+  a02=(!a02);
+  a02=(a02?a05:0);
+  a01=(a01+a02);
+  if (res[0]!=0) res[0][6]=a01;
+  a01=arg[4]? arg[4][27] : 0;
+  a02=(a00<a01);
+  a05=arg[3]? arg[3][27] : 0;
+  a07=arg[3]? arg[3][37] : 0;
+  a07=(a05*a07);
+  a05=(a06-a05);
+  a08=arg[4]? arg[4][17] : 0;
+  a12=arg[3]? arg[3][17] : 0;
+  a08=(a08+a12);
+  a12=arg[3]? arg[3][7] : 0;
+  a37=arg[4]? arg[4][37] : 0;
+  a38=(a00<a37);
+  a40=arg[1]? arg[1][7] : 0;
+  a41=(a38?a40:0);
+  a42=(!a38);
+  a43=arg[0]? arg[0][7] : 0;
+  a42=(a42?a43:0);
+  a41=(a41+a42);
+  a12=(a12*a41);
+  a08=(a08+a12);
+  a12=arg[2]? arg[2][7] : 0;
+  a41=arg[3]? arg[3][47] : 0;
+  a12=(a12*a41);
+  a41=arg[4]? arg[4][7] : 0;
+  a12=(a12*a41);
+  a08=(a08+a12);
+  a05=(a05*a08);
+  a07=(a07+a05);
+  a05=casadi_fmax(a04,a01);
+  a05=(a07/a05);
+  a05=(a03+a05);
+  a05=floor(a05);
+  a01=(a01*a05);
+  a01=(a02?a01:0);
+  a02=(!a02);
+  a02=(a02?a07:0);
+  a01=(a01+a02);
+  if (res[0]!=0) res[0][7]=a01;
+  a01=arg[4]? arg[4][28] : 0;
+  a02=(a00<a01);
+  a07=arg[3]? arg[3][28] : 0;
+  a05=arg[3]? arg[3][38] : 0;
+  a05=(a07*a05);
+  a07=(a06-a07);
+  a08=arg[4]? arg[4][18] : 0;
+  a12=arg[3]? arg[3][18] : 0;
+  a08=(a08+a12);
+  a12=arg[3]? arg[3][8] : 0;
+  a41=arg[4]? arg[4][38] : 0;
+  a42=(a00<a41);
+  a44=arg[1]? arg[1][8] : 0;
+  a45=(a42?a44:0);
+  a46=(!a42);
+  a47=arg[0]? arg[0][8] : 0;
+  a46=(a46?a47:0);
+  a45=(a45+a46);
+  a12=(a12*a45);
+  a08=(a08+a12);
+  a12=arg[2]? arg[2][8] : 0;
+  a45=arg[3]? arg[3][48] : 0;
+  a12=(a12*a45);
+  a45=arg[4]? arg[4][8] : 0;
+  a12=(a12*a45);
+  a08=(a08+a12);
+  a07=(a07*a08);
+  a05=(a05+a07);
+  a07=casadi_fmax(a04,a01);
+  a07=(a05/a07);
+  a07=(a03+a07);
+  a07=floor(a07);
+  a01=(a01*a07);
+  a01=(a02?a01:0);
+  a02=(!a02);
+  a02=(a02?a05:0);
+  a01=(a01+a02);
+  if (res[0]!=0) res[0][8]=a01;
+  a01=arg[4]? arg[4][29] : 0;
+  a02=(a00<a01);
+  a05=arg[3]? arg[3][29] : 0;
+  a07=arg[3]? arg[3][39] : 0;
+  a07=(a05*a07);
+  a06=(a06-a05);
+  a05=arg[4]? arg[4][19] : 0;
+  a08=arg[3]? arg[3][19] : 0;
+  a05=(a05+a08);
+  a08=arg[3]? arg[3][9] : 0;
+  a12=arg[4]? arg[4][39] : 0;
+  a00=(a00<a12);
+  a45=arg[1]? arg[1][9] : 0;
+  a46=(a00?a45:0);
+  a48=(!a00);
+  a49=arg[0]? arg[0][9] : 0;
+  a48=(a48?a49:0);
+  a46=(a46+a48);
+  a08=(a08*a46);
+  a05=(a05+a08);
+  a08=arg[2]? arg[2][9] : 0;
+  a46=arg[3]? arg[3][49] : 0;
+  a08=(a08*a46);
+  a46=arg[4]? arg[4][9] : 0;
+  a08=(a08*a46);
+  a05=(a05+a08);
+  a06=(a06*a05);
+  a07=(a07+a06);
+  a06=casadi_fmax(a04,a01);
+  a06=(a07/a06);
+  a03=(a03+a06);
+  a03=floor(a03);
+  a01=(a01*a03);
+  a01=(a02?a01:0);
+  a02=(!a02);
+  a02=(a02?a07:0);
+  a01=(a01+a02);
+  if (res[0]!=0) res[0][9]=a01;
   a14=(a14-a11);
   a09=casadi_fmax(a04,a09);
   a14=(a14/a09);
@@ -1088,11 +1284,36 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a27=(a27/a21);
   a22=(a22?a27:0);
   if (res[1]!=0) res[1][3]=a22;
-  a29=(a29-a25);
+  a31=(a31-a28);
+  a25=casadi_fmax(a04,a25);
+  a31=(a31/a25);
+  a26=(a26?a31:0);
+  if (res[1]!=0) res[1][4]=a26;
+  a35=(a35-a32);
+  a29=casadi_fmax(a04,a29);
+  a35=(a35/a29);
+  a30=(a30?a35:0);
+  if (res[1]!=0) res[1][5]=a30;
+  a39=(a39-a36);
+  a33=casadi_fmax(a04,a33);
+  a39=(a39/a33);
+  a34=(a34?a39:0);
+  if (res[1]!=0) res[1][6]=a34;
+  a43=(a43-a40);
+  a37=casadi_fmax(a04,a37);
+  a43=(a43/a37);
+  a38=(a38?a43:0);
+  if (res[1]!=0) res[1][7]=a38;
+  a47=(a47-a44);
+  a41=casadi_fmax(a04,a41);
+  a47=(a47/a41);
+  a42=(a42?a47:0);
+  if (res[1]!=0) res[1][8]=a42;
+  a49=(a49-a45);
   a04=casadi_fmax(a04,a12);
-  a29=(a29/a04);
-  a00=(a00?a29:0);
-  if (res[1]!=0) res[1][4]=a00;
+  a49=(a49/a04);
+  a00=(a00?a49:0);
+  if (res[1]!=0) res[1][9]=a00;
   return 0;
 }
 
@@ -1147,8 +1368,8 @@ CASADI_SYMBOL_EXPORT const casadi_int* sensors_sparsity_in(casadi_int i) {
     case 0: return casadi_s6;
     case 1: return casadi_s6;
     case 2: return casadi_s6;
-    case 3: return casadi_s4;
-    case 4: return casadi_s7;
+    case 3: return casadi_s7;
+    case 4: return casadi_s8;
     default: return 0;
   }
 }
@@ -1177,122 +1398,378 @@ CASADI_SYMBOL_EXPORT int sensors_work_bytes(casadi_int *sz_arg, casadi_int* sz_r
   return 0;
 }
 
-/* speed_estimate:(meas[5],p_sensors[20],gearbox_ratio)->(omega_hat) */
+/* virtual_sensors:(readings[10],excluded[10],p_sensors[40],gearbox_ratio)->(meas[5]) */
 static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
-  a00=arg[1]? arg[1][0] : 0;
+  casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21;
+  a00=arg[2]? arg[2][0] : 0;
   a01=0.;
   a01=(a00<=a01);
-  a02=arg[0]? arg[0][0] : 0;
-  a03=(a01?a02:0);
-  a01=(!a01);
-  a04=arg[0]? arg[0][1] : 0;
-  a05=arg[2]? arg[2][0] : 0;
-  a06=(a04/a05);
-  a07=(a02-a06);
-  a07=casadi_fabs(a07);
-  a08=1.0000000000000000e-02;
-  a09=4.;
+  a02=5.0000000000000000e-01;
+  a03=arg[1]? arg[1][0] : 0;
+  a03=(a02<=a03);
+  a04=arg[0]? arg[0][5] : 0;
+  a05=(a03?a04:0);
+  a03=(!a03);
+  a06=arg[1]? arg[1][5] : 0;
+  a06=(a02<=a06);
+  a07=arg[0]? arg[0][0] : 0;
+  a08=(a06?a07:0);
+  a06=(!a06);
+  a09=(a07-a04);
+  a09=casadi_fabs(a09);
+  a10=1.0000000000000000e-02;
+  a11=arg[2]? arg[2][20] : 0;
+  a11=(a10+a11);
+  a12=arg[2]? arg[2][25] : 0;
+  a11=(a11+a12);
+  a12=4.;
   a00=casadi_sq(a00);
-  a10=arg[1]? arg[1][1] : 0;
-  a10=casadi_sq(a10);
-  a11=casadi_sq(a05);
-  a10=(a10/a11);
-  a10=(a00+a10);
-  a11=sqrt(a10);
-  a09=(a09*a11);
-  a08=(a08+a09);
-  a07=(a07<=a08);
-  a08=1.;
-  a09=1.0000000000000000e-300;
-  a09=casadi_fmax(a09,a10);
-  a10=(a00/a09);
-  a08=(a08-a10);
-  a08=(a02*a08);
-  a04=(a04*a00);
-  a04=(a04/a05);
-  a04=(a04/a09);
-  a08=(a08+a04);
-  a08=(a07?a08:0);
+  a13=arg[2]? arg[2][5] : 0;
+  a13=casadi_sq(a13);
+  a13=(a00+a13);
+  a13=sqrt(a13);
+  a13=(a12*a13);
+  a11=(a11+a13);
+  a09=(a09<=a11);
+  a11=(a02*a07);
+  a13=(a02*a04);
+  a11=(a11+a13);
+  a13=(a09?a11:0);
+  a09=(!a09);
+  a14=arg[0]? arg[0][1] : 0;
+  a15=(a02*a14);
+  a16=arg[0]? arg[0][6] : 0;
+  a17=(a02*a16);
+  a15=(a15+a17);
+  a17=arg[3]? arg[3][0] : 0;
+  a18=(a15/a17);
+  a19=(a07-a18);
+  a19=casadi_fabs(a19);
+  a18=(a04-a18);
+  a18=casadi_fabs(a18);
+  a19=(a19<=a18);
+  a07=(a19?a07:0);
+  a19=(!a19);
+  a19=(a19?a04:0);
+  a07=(a07+a19);
+  a09=(a09?a07:0);
+  a13=(a13+a09);
+  a06=(a06?a13:0);
+  a08=(a08+a06);
+  a03=(a03?a08:0);
+  a05=(a05+a03);
+  a03=(a01?a05:0);
+  a01=(!a01);
+  a08=arg[1]? arg[1][1] : 0;
+  a08=(a02<=a08);
+  a06=(a08?a16:0);
+  a08=(!a08);
+  a13=arg[1]? arg[1][6] : 0;
+  a13=(a02<=a13);
+  a09=(a13?a14:0);
+  a13=(!a13);
+  a07=(a14-a16);
+  a07=casadi_fabs(a07);
+  a19=arg[2]? arg[2][21] : 0;
+  a04=arg[2]? arg[2][26] : 0;
+  a19=(a19+a04);
+  a04=arg[2]? arg[2][1] : 0;
+  a04=casadi_sq(a04);
+  a18=arg[2]? arg[2][6] : 0;
+  a18=casadi_sq(a18);
+  a18=(a04+a18);
+  a18=sqrt(a18);
+  a18=(a12*a18);
+  a19=(a19+a18);
+  a18=(a10*a17);
+  a19=(a19+a18);
+  a07=(a07<=a19);
+  a15=(a07?a15:0);
   a07=(!a07);
-  a02=casadi_fmax(a02,a06);
-  a07=(a07?a02:0);
-  a08=(a08+a07);
-  a01=(a01?a08:0);
+  a11=(a17*a11);
+  a19=(a11-a14);
+  a19=casadi_fabs(a19);
+  a11=(a11-a16);
+  a11=casadi_fabs(a11);
+  a19=(a19<=a11);
+  a14=(a19?a14:0);
+  a19=(!a19);
+  a19=(a19?a16:0);
+  a14=(a14+a19);
+  a07=(a07?a14:0);
+  a15=(a15+a07);
+  a13=(a13?a15:0);
+  a09=(a09+a13);
+  a08=(a08?a09:0);
+  a06=(a06+a08);
+  a08=(a06/a17);
+  a09=(a05-a08);
+  a09=casadi_fabs(a09);
+  a13=casadi_sq(a17);
+  a04=(a04/a13);
+  a04=(a00+a04);
+  a13=sqrt(a04);
+  a13=(a12*a13);
+  a10=(a10+a13);
+  a09=(a09<=a10);
+  a10=1.;
+  a13=1.0000000000000000e-300;
+  a13=casadi_fmax(a13,a04);
+  a04=(a00/a13);
+  a10=(a10-a04);
+  a10=(a05*a10);
+  a00=(a06*a00);
+  a00=(a00/a17);
+  a00=(a00/a13);
+  a10=(a10+a00);
+  a10=(a09?a10:0);
+  a09=(!a09);
+  a05=casadi_fmax(a05,a08);
+  a09=(a09?a05:0);
+  a10=(a10+a09);
+  a01=(a01?a10:0);
   a03=(a03+a01);
   if (res[0]!=0) res[0][0]=a03;
+  if (res[0]!=0) res[0][1]=a06;
+  a06=arg[1]? arg[1][2] : 0;
+  a06=(a02<=a06);
+  a03=arg[0]? arg[0][7] : 0;
+  a01=(a06?a03:0);
+  a06=(!a06);
+  a10=arg[1]? arg[1][7] : 0;
+  a10=(a02<=a10);
+  a09=arg[0]? arg[0][2] : 0;
+  a05=(a10?a09:0);
+  a10=(!a10);
+  a08=(a09-a03);
+  a08=casadi_fabs(a08);
+  a00=arg[2]? arg[2][22] : 0;
+  a13=arg[2]? arg[2][27] : 0;
+  a00=(a00+a13);
+  a13=arg[2]? arg[2][2] : 0;
+  a13=casadi_sq(a13);
+  a17=arg[2]? arg[2][7] : 0;
+  a17=casadi_sq(a17);
+  a13=(a13+a17);
+  a13=sqrt(a13);
+  a13=(a12*a13);
+  a00=(a00+a13);
+  a13=1.7453292519943296e-03;
+  a00=(a00+a13);
+  a08=(a08<=a00);
+  a00=(a02*a09);
+  a17=(a02*a03);
+  a00=(a00+a17);
+  a00=(a08?a00:0);
+  a08=(!a08);
+  a17=2.5000000000000000e-01;
+  a04=arg[0]? arg[0][3] : 0;
+  a15=(a17*a04);
+  a07=(a15-a09);
+  a14=arg[0]? arg[0][8] : 0;
+  a19=(a17*a14);
+  a07=(a07+a19);
+  a16=arg[0]? arg[0][4] : 0;
+  a11=(a17*a16);
+  a07=(a07+a11);
+  a18=arg[0]? arg[0][9] : 0;
+  a20=(a17*a18);
+  a07=(a07+a20);
+  a07=casadi_fabs(a07);
+  a21=(a15-a03);
+  a21=(a21+a19);
+  a21=(a21+a11);
+  a21=(a21+a20);
+  a21=casadi_fabs(a21);
+  a07=(a07<=a21);
+  a21=(a07?a09:0);
+  a07=(!a07);
+  a07=(a07?a03:0);
+  a21=(a21+a07);
+  a08=(a08?a21:0);
+  a00=(a00+a08);
+  a10=(a10?a00:0);
+  a05=(a05+a10);
+  a06=(a06?a05:0);
+  a01=(a01+a06);
+  if (res[0]!=0) res[0][2]=a01;
+  a01=arg[1]? arg[1][3] : 0;
+  a01=(a02<=a01);
+  a06=(a01?a14:0);
+  a01=(!a01);
+  a05=arg[1]? arg[1][8] : 0;
+  a05=(a02<=a05);
+  a10=(a05?a04:0);
+  a05=(!a05);
+  a00=(a04-a14);
+  a00=casadi_fabs(a00);
+  a08=arg[2]? arg[2][23] : 0;
+  a21=arg[2]? arg[2][28] : 0;
+  a08=(a08+a21);
+  a21=arg[2]? arg[2][3] : 0;
+  a21=casadi_sq(a21);
+  a07=arg[2]? arg[2][8] : 0;
+  a07=casadi_sq(a07);
+  a21=(a21+a07);
+  a21=sqrt(a21);
+  a21=(a12*a21);
+  a08=(a08+a21);
+  a08=(a08+a13);
+  a00=(a00<=a08);
+  a08=(a02*a04);
+  a21=(a02*a14);
+  a08=(a08+a21);
+  a08=(a00?a08:0);
+  a00=(!a00);
+  a09=(a17*a09);
+  a21=(a09-a04);
+  a17=(a17*a03);
+  a21=(a21+a17);
+  a21=(a21+a11);
+  a21=(a21+a20);
+  a21=casadi_fabs(a21);
+  a03=(a09-a14);
+  a03=(a03+a17);
+  a03=(a03+a11);
+  a03=(a03+a20);
+  a03=casadi_fabs(a03);
+  a21=(a21<=a03);
+  a04=(a21?a04:0);
+  a21=(!a21);
+  a21=(a21?a14:0);
+  a04=(a04+a21);
+  a00=(a00?a04:0);
+  a08=(a08+a00);
+  a05=(a05?a08:0);
+  a10=(a10+a05);
+  a01=(a01?a10:0);
+  a06=(a06+a01);
+  if (res[0]!=0) res[0][3]=a06;
+  a06=arg[1]? arg[1][4] : 0;
+  a06=(a02<=a06);
+  a01=(a06?a18:0);
+  a06=(!a06);
+  a10=arg[1]? arg[1][9] : 0;
+  a10=(a02<=a10);
+  a05=(a10?a16:0);
+  a10=(!a10);
+  a08=(a16-a18);
+  a08=casadi_fabs(a08);
+  a00=arg[2]? arg[2][24] : 0;
+  a04=arg[2]? arg[2][29] : 0;
+  a00=(a00+a04);
+  a04=arg[2]? arg[2][4] : 0;
+  a04=casadi_sq(a04);
+  a21=arg[2]? arg[2][9] : 0;
+  a21=casadi_sq(a21);
+  a04=(a04+a21);
+  a04=sqrt(a04);
+  a12=(a12*a04);
+  a00=(a00+a12);
+  a00=(a00+a13);
+  a08=(a08<=a00);
+  a00=(a02*a16);
+  a02=(a02*a18);
+  a00=(a00+a02);
+  a00=(a08?a00:0);
+  a08=(!a08);
+  a02=(a09-a16);
+  a02=(a02+a17);
+  a02=(a02+a15);
+  a02=(a02+a19);
+  a02=casadi_fabs(a02);
+  a09=(a09-a18);
+  a09=(a09+a17);
+  a09=(a09+a15);
+  a09=(a09+a19);
+  a09=casadi_fabs(a09);
+  a02=(a02<=a09);
+  a16=(a02?a16:0);
+  a02=(!a02);
+  a02=(a02?a18:0);
+  a16=(a16+a02);
+  a08=(a08?a16:0);
+  a00=(a00+a08);
+  a10=(a10?a00:0);
+  a05=(a05+a10);
+  a06=(a06?a05:0);
+  a01=(a01+a06);
+  if (res[0]!=0) res[0][4]=a01;
   return 0;
 }
 
-CASADI_SYMBOL_EXPORT int speed_estimate(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+CASADI_SYMBOL_EXPORT int virtual_sensors(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
   return casadi_f5(arg, res, iw, w, mem);
 }
 
-CASADI_SYMBOL_EXPORT int speed_estimate_checkout(void) {
+CASADI_SYMBOL_EXPORT int virtual_sensors_checkout(void) {
   return 0;
 }
 
-CASADI_SYMBOL_EXPORT void speed_estimate_release(int mem) {
+CASADI_SYMBOL_EXPORT void virtual_sensors_release(int mem) {
 }
 
-CASADI_SYMBOL_EXPORT void speed_estimate_incref(void) {
+CASADI_SYMBOL_EXPORT void virtual_sensors_incref(void) {
 }
 
-CASADI_SYMBOL_EXPORT void speed_estimate_decref(void) {
+CASADI_SYMBOL_EXPORT void virtual_sensors_decref(void) {
 }
 
-CASADI_SYMBOL_EXPORT casadi_int speed_estimate_n_in(void) { return 3;}
+CASADI_SYMBOL_EXPORT casadi_int virtual_sensors_n_in(void) { return 4;}
 
-CASADI_SYMBOL_EXPORT casadi_int speed_estimate_n_out(void) { return 1;}
+CASADI_SYMBOL_EXPORT casadi_int virtual_sensors_n_out(void) { return 1;}
 
-CASADI_SYMBOL_EXPORT casadi_real speed_estimate_default_in(casadi_int i) {
+CASADI_SYMBOL_EXPORT casadi_real virtual_sensors_default_in(casadi_int i) {
   switch (i) {
     default: return 0;
   }
 }
 
-CASADI_SYMBOL_EXPORT const char* speed_estimate_name_in(casadi_int i) {
+CASADI_SYMBOL_EXPORT const char* virtual_sensors_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "readings";
+    case 1: return "excluded";
+    case 2: return "p_sensors";
+    case 3: return "gearbox_ratio";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* virtual_sensors_name_out(casadi_int i) {
   switch (i) {
     case 0: return "meas";
-    case 1: return "p_sensors";
-    case 2: return "gearbox_ratio";
     default: return 0;
   }
 }
 
-CASADI_SYMBOL_EXPORT const char* speed_estimate_name_out(casadi_int i) {
-  switch (i) {
-    case 0: return "omega_hat";
-    default: return 0;
-  }
-}
-
-CASADI_SYMBOL_EXPORT const casadi_int* speed_estimate_sparsity_in(casadi_int i) {
+CASADI_SYMBOL_EXPORT const casadi_int* virtual_sensors_sparsity_in(casadi_int i) {
   switch (i) {
     case 0: return casadi_s6;
-    case 1: return casadi_s7;
-    case 2: return casadi_s2;
+    case 1: return casadi_s6;
+    case 2: return casadi_s8;
+    case 3: return casadi_s2;
     default: return 0;
   }
 }
 
-CASADI_SYMBOL_EXPORT const casadi_int* speed_estimate_sparsity_out(casadi_int i) {
+CASADI_SYMBOL_EXPORT const casadi_int* virtual_sensors_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s2;
+    case 0: return casadi_s9;
     default: return 0;
   }
 }
 
-CASADI_SYMBOL_EXPORT int speed_estimate_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 3;
+CASADI_SYMBOL_EXPORT int virtual_sensors_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 4;
   if (sz_res) *sz_res = 1;
   if (sz_iw) *sz_iw = 0;
   if (sz_w) *sz_w = 0;
   return 0;
 }
 
-CASADI_SYMBOL_EXPORT int speed_estimate_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
-  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+CASADI_SYMBOL_EXPORT int virtual_sensors_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 4*sizeof(const casadi_real*);
   if (sz_res) *sz_res = 1*sizeof(casadi_real*);
   if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
   if (sz_w) *sz_w = 0*sizeof(casadi_real);

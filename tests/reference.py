@@ -306,22 +306,24 @@ def controller_uniform_reference(name: str, args: dict[str, np.ndarray]) -> dict
 
 
 def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
-    bm = _flat(args, "beta_meas")
     if name == "init_fdi":
-        vals = {"b": 0.0}
         out = []
-        for b in bm:
-            vals["b"] = float(b)
-            out.append(evaluate("fdi_init", fdi.initial(sp.Symbol("b")), vals))
-        return {"x_fdi0": exact(np.concatenate(out))}
+        for b in _flat(args, "beta_meas"):
+            out.append(evaluate("fdi_init", fdi.initial(sp.Symbol("b")), {"b": float(b)}))
+        n_speed = len(fdi.states(3)) - len(out) * len(fdi.PER_BLADE)
+        return {"x_fdi0": exact(np.concatenate([*out, np.zeros(n_speed)]))}
     x, v, p = _flat(args, "x_fdi"), _flat(args, "v"), _flat(args, "p_fdi")
+    rd = dict(zip(sensors.SENSOR_NAMES, _flat(args, "readings"), strict=True))
+    meas = _flat(args, "meas")
     n = len(fdi.PER_BLADE)
     base = {e.name: float(y) for e, y in zip(fdi.PARAMS, p, strict=True)}
     rhs, known, rho, c, latch, rms, wh, zh, thr = [], [[], [], []], [], [], [], [], [], [], []
+    excluded = {}
     r1, ce, r0 = fdi.estimates()
     for j in range(3):
         xs = x[j * n:(j + 1) * n]
-        vals = {**base, "v": float(v[j]), "beta_m": float(bm[j]),
+        vals = {**base, "v": float(v[j]), "beta_m": rd[f"beta_meas_{j + 1}_m1"],
+                "beta_m2": rd[f"beta_meas_{j + 1}_m2"], "beta_v": float(meas[2 + j]),
                 **{sy.name: float(y) for sy, y in zip(fdi.STATE_SYMBOLS, xs, strict=True)}}
         rhs.append(pair("fdi_rhs", fdi.blade_rhs(), vals))
         for k, a in enumerate(fdi.accommodation()):
@@ -334,6 +336,9 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         wh.append(pair("fdi_wh", [w_hat], vals))
         zh.append(pair("fdi_zh", [z_hat], vals))
         thr.append(pair("fdi_thr", [sp.sqrt(fdi.threshold_sq())], vals))
+        for k in (1, 2):
+            excluded[f"beta_meas_{j + 1}_m{k}"] = vals[f"sensor_latch_m{k}"]
+    rhs += _speed_pairs_reference(x[3 * n:], rd, base, excluded)
 
     def cat(parts):
         return (np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]))
@@ -341,7 +346,32 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     return {"x_fdi_dot": cat(rhs), "known_fault": cat(known[0] + known[1] + known[2]),
             "rho_hat": cat(rho), "c_hat": cat(c), "latch": cat(latch),
             "residual_rms": cat(rms), "omega_n_hat": cat(wh), "zeta_hat": cat(zh),
-            "threshold": cat(thr)}
+            "threshold": cat(thr),
+            "excluded": exact([excluded[s] for s in sensors.SENSOR_NAMES])}
+
+
+def _speed_pairs_reference(xs, rd: dict, base: dict, excluded: dict) -> list[tuple]:
+    """The speed sensors' pair tests from SymPy; fills ``excluded`` with their latches."""
+    n = len(fdi.PER_PAIR)
+    for k, (sig, _) in enumerate(fdi.SPEED_PAIRS):
+        excluded[f"{sig}_m1"], excluded[f"{sig}_m2"] = xs[k * n + 5], xs[k * n + 6]
+
+    def healthy(name):
+        a, b = rd[f"{name}_m1"], rd[f"{name}_m2"]
+        return b if excluded[f"{name}_m1"] >= 0.5 else (
+            a if excluded[f"{name}_m2"] >= 0.5 else (a + b) / 2)
+
+    gear = base["fdi_gearbox_ratio"]
+    refs = {"omega_r": healthy("omega_g_hss") / gear, "omega_g_hss": healthy("omega_r") * gear}
+    h = {"omega_r": fdi.h_rotor, "omega_g_hss": fdi.h_gen}
+    floor = {"omega_r": fdi.speed_floor, "omega_g_hss": fdi.speed_floor * fdi.gear}
+    out = []
+    for k, (sig, _) in enumerate(fdi.SPEED_PAIRS):
+        vals = {**base, "speed_ref": float(refs[sig]), "speed_m1": rd[f"{sig}_m1"],
+                "speed_m2": rd[f"{sig}_m2"],
+                **{s.name: float(xs[k * n + i]) for i, s in enumerate(fdi.PAIR_SYMBOLS)}}
+        out.append(pair(f"fdi_speed_{sig}", fdi.speed_pair_rhs(h[sig], floor[sig]), vals))
+    return out
 
 
 #: controllers derived as a derivation.design.ControllerDesign, by registered name
@@ -427,13 +457,18 @@ def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         return fdi_reference(name, args)
     if name == "sensors":
         return sensors_reference(args)
-    if name == "speed_estimate":
-        vals = {s.name: float(x) for s, x in zip(sensors.measured_symbols, _flat(args, "meas"),
+    if name == "virtual_sensors":
+        vals = {s.name: float(x) for s, x in zip(sensors.readings, _flat(args, "readings"),
                                                   strict=True)}
+        vals.update({s.name: float(x) for s, x in zip(sensors.excluded,
+                                                       _flat(args, "excluded"), strict=True)})
         vals.update({e.name: float(x) for e, x in zip(sensors.param_entries(),
                                                       _flat(args, "p_sensors"), strict=True)})
         vals["gearbox_ratio"] = float(_flat(args, "gearbox_ratio")[0])
-        return {"omega_hat": pair("omegahat", [sensors.speed_estimate()], vals)}
+        voted, outputs = sensors.virtual_sensors()
+        for sym, expr in voted.items():
+            vals[sym.name] = float(evaluate(f"voted_{sym.name}", [expr], vals)[0])
+        return {"meas": pair("virtual", outputs, vals)}
     if name.startswith(("ctrl_", "init_")):
         return controller_uniform_reference(name, args)
     if name == "aero_torque_sensitivity":

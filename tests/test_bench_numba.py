@@ -100,7 +100,10 @@ def test_rhs_matches_generated(loop):
         af[np.isnan(af)] = 0.05  # a lock "wherever it is" not bound yet at this time
         sf = res.schedule.sensor([res.t[k]])[:, 0]
         if trial % 3 == 0:
-            sf[lay.index("sensor_faults", "gain_beta_meas_2")] = 1.1
+            # on both of blade 2's sensors (the numba loop models one sensor per blade:
+            # two that agree give the virtual sensor their reading)
+            for k in (1, 2):
+                sf[lay.index("sensor_faults", f"gain_beta_meas_2_m{k}")] = 1.1
         ck = af[:len(lay.names("fault_inputs"))].copy()
         z_in[:n] = z[:n]
         ref = np.array(f.call({"z": z_in, "wind": wind, "actuator_faults": af,

@@ -71,6 +71,10 @@ def test_no_false_alarm_in_ten_noisy_minutes(mean):
         assert res.column(f"fdi_latch_{j}").max() < 0.5
         ratio = res.column(f"fdi_residual_rms_{j}") / res.column(f"fdi_threshold_{j}")
         assert ratio.max() < 1.0
+    # and no sensor excluded by the pair tests
+    for s in lay.layout()["sensors"]:
+        assert res.column(f"fdi_excluded_{s['name']}").max() < 0.5, s["name"]
+    assert m["fdi"]["false_alarms"] == []
 
 
 @pytest.mark.parametrize("fault, check", [
@@ -108,26 +112,70 @@ def test_own_detection_keeps_the_aftc_near_fault_free_with_noise():
     assert m4["rms_speed_error_after_fault_rad_s"] < m2["rms_speed_error_after_fault_rad_s"]
 
 
-def test_fdi_report_per_fault_says_what_was_seen_and_what_was_not():
-    """metrics.json's FDI report, per fault: detected, delay, the blade isolated, class and
-    type identified, estimate. An actuator fault is reported right; a pitch sensor fault
-    is detected on its blade (not a false alarm) but classified as an actuator lock (this
-    FDI cannot tell them apart yet: reported, not hidden); a speed sensor fault is not
-    watched."""
+def test_fdi_report_per_fault_says_what_was_seen():
+    """metrics.json's FDI report, per fault: detected, delay, the blade and the sensor
+    isolated, class and type identified, estimate; three faults at once on three
+    quantities (an actuator, a pitch sensor of another blade, a speed sensor)."""
     faults = [{"type": "loss_of_effectiveness", "blade": 2, "rho": 0.5, "onset_s": 10.0},
-              {"type": "pitch_sensor_stuck", "blade": 3, "value_deg": 5.0, "onset_s": 10.0},
-              {"type": "rotor_speed_sensor_gain", "gain": 1.1, "onset_s": 10.0}]
+              {"type": "pitch_sensor_stuck", "blade": 3, "value_deg": 5.0, "onset_s": 10.0,
+               "sensor": 2},
+              {"type": "generator_speed_sensor_gain", "gain": 0.9, "onset_s": 10.0}]
     rc, res, m = _run(case=4, t_final_s=30.0, wind={**NTM, "mean_mps": 16.0}, fault=faults)
     loe, stuck, speed = m["fdi"]["faults"]
     assert loe["detected"] and loe["isolated_blade"] == 2 and loe["correct"]
     assert loe["identified_type"] == "loss_of_effectiveness" and loe["class"] == "actuator"
     assert loe["estimate"]["rho_hat"] == pytest.approx(0.5, abs=0.05)
     assert 0 <= loe["detection_delay_s"] < 2.0
-    assert stuck["detected"] and stuck["isolated_blade"] == 3 and stuck["class"] == "sensor"
-    assert stuck["identified_class"] == "actuator" and not stuck["correct"]
-    assert stuck["estimate"]["c_hat_deg"] == pytest.approx(5.0, abs=0.5)
-    assert not speed["detected"] and speed["blade"] is None and not speed["correct"]
+    assert stuck["detected"] and stuck["isolated_blade"] == 3 and stuck["correct"]
+    assert stuck["identified_class"] == "sensor" and stuck["isolated_sensor"] == \
+        "beta_meas_3_m2"
+    assert stuck["estimate"]["value"] == pytest.approx(np.radians(5.0), rel=1e-9)
+    assert speed["correct"] and speed["isolated_sensor"] == "omega_g_hss_m1"
+    assert speed["estimate"]["gain"] == pytest.approx(0.9, abs=0.01)
+    assert m["fdi"]["false_alarms"] == [] and m["fdi"]["isolation_correct"]
+
+
+#: each sensor fault type at one severity, on sensor m1 or m2
+SENSOR_FAULTS = [
+    {"type": "pitch_sensor_stuck", "blade": 1, "value_deg": 5.0},
+    {"type": "pitch_sensor_gain", "blade": 2, "gain": 1.2, "sensor": 2},
+    {"type": "pitch_sensor_offset", "blade": 3, "offset_deg": 1.0},
+    {"type": "pitch_sensor_drift", "blade": 1, "rate_deg_s": 0.1, "sensor": 2},
+    {"type": "pitch_sensor_precision", "blade": 2, "factor": 10.0},
+    {"type": "rotor_speed_sensor_stuck", "value_rad_s": 1.4, "sensor": 2},
+    {"type": "rotor_speed_sensor_gain", "gain": 1.1},
+    {"type": "rotor_speed_sensor_offset", "offset_rad_s": -0.1},
+    {"type": "generator_speed_sensor_stuck", "value_rad_s": 100.0, "sensor": 2},
+    {"type": "generator_speed_sensor_gain", "gain": 0.9},
+    {"type": "generator_speed_sensor_offset", "offset_rad_s": 1.0, "sensor": 2},
+]
+
+
+@pytest.mark.parametrize("fault", SENSOR_FAULTS, ids=[f["type"] for f in SENSOR_FAULTS])
+def test_sensor_fault_isolated_to_its_sensor_and_accommodated(fault):
+    """Through the benchmark's noise, above rated (NTM B, 16 m/s): the pair test excludes
+    the failed sensor, within 3 s (the drift: once it has grown past the threshold), no
+    actuator alarm, the type identified; and the AFTC's RMS speed error stays within 5 %
+    of the fault-free run's (the virtual sensor uses the healthy one). A gain and an offset
+    on the rotor speed, which hardly varies above rated, are one to the data: both are
+    reported. Precision degradation is seen from about 6 × the noise (docs/fdi.md)."""
+    wind = {**NTM, "mean_mps": 16.0}
+    m1 = _run(case=1, t_final_s=40.0, wind=wind)[2]
+    rc, res, m = _run(case=4, t_final_s=40.0, wind=wind, fault=[{"onset_s": 10.0, **fault}])
+    (e,) = m["fdi"]["faults"]
+    k = fault.get("sensor", 1)
+    assert e["detected"] and e["identified_class"] == "sensor", e
+    assert e["isolated_sensor"] == e["sensor"] and e["sensor"].endswith(f"_m{k}")
+    assert e["isolated_blade"] == fault.get("blade") and e["detection_delay_s"] < 3.0
+    assert e["correct"], e
+    if fault["type"].startswith("rotor_speed_sensor_") and "stuck" not in fault["type"]:
+        assert {e["identified_type"], *e["ambiguous_with"]} == {
+            "rotor_speed_sensor_offset", "rotor_speed_sensor_gain"}
+    else:
+        assert e["identified_type"] == fault["type"] and not e["ambiguous_with"], e
     assert m["fdi"]["false_alarms"] == []
+    assert all(res.column(f"fdi_latch_{j}").max() < 0.5 for j in lay.blades())
+    assert m["rms_speed_error_rad_s"] <= 1.05 * m1["rms_speed_error_rad_s"]
 
 
 # a steady wind below rated: the blades never leave their stop by themselves

@@ -62,29 +62,37 @@ REALISTIC = {"profile": "realistic", "wind": {"kind": "constant", "speed_mps": 1
 
 
 def _noise(res) -> np.ndarray:
-    """Measured minus true, at the sample instants (output rate = control rate):
-    ω_r, ω_g (HSS), β_1..3."""
+    """Every sensor's reading minus the truth, at the sample instants (output rate =
+    control rate), in the sensors' order: m1 then m2 of ω_r, ω_g (HSS), β_1..3."""
     gear = lay.defaults("turbine_params")[lay.index("turbine_params", "gearbox_ratio")]
-    omega_g = res.z[:, lay.index("nrel5mw_states", "omega_g")]  # the generator's truth
-    cols = [res.column("omega_r_meas") - res.column("omega_r"),
-            res.column("omega_g_hss") - gear * omega_g]
-    cols += [res.column(f"beta_meas_{j}") - res.column(f"beta_{j}") for j in lay.blades()]
+    truth = {"omega_r": res.column("omega_r"),
+             "omega_g_hss": gear * res.z[:, lay.index("nrel5mw_states", "omega_g")],
+             **{f"beta_meas_{j}": res.column(f"beta_{j}") for j in lay.blades()}}
+    cols = [res.column(f"sensor_{s['name']}") - truth[s["measures"]]
+            for s in lay.layout()["sensors"]]
     return np.column_stack(cols)[100:]
 
 
 def test_noise_has_the_benchmark_sigma_and_is_independent():
     rc, res = _run(**REALISTIC, keep_states=True)
     e = _noise(res)
-    sigma = [0.0251, 0.05] + [np.radians(0.2)] * 3
+    sigma = ([0.0251, 0.05] + [np.radians(0.2)] * 3) * 2
     # 5900 samples: σ known to about 1 %
-    for k in range(5):
+    for k in range(10):
         assert e[:, k].std() == pytest.approx(sigma[k], rel=0.05), k
         assert abs(e[:, k].mean()) < 4 * sigma[k] / np.sqrt(len(e))
     c = np.corrcoef(e.T)
-    assert np.abs(c[np.triu_indices(5, 1)]).max() < 0.06  # 4.6/sqrt(n): independent
+    assert np.abs(c[np.triu_indices(10, 1)]).max() < 0.06  # 4.6/sqrt(n): independent
     # white from one sample to the next
-    for k in (0, 2):
+    for k in (0, 2, 7):
         assert abs(np.corrcoef(e[:-1, k], e[1:, k])[0, 1]) < 0.06
+    # the controllers see each pitch as the mean of its two sensors (σ/√2) and the rotor
+    # speed mostly through the generator's sensors (σ 0.05/N/√2 ≈ 0.00036 rad/s, plus the
+    # shaft's torsion rate)
+    e_pitch = res.column("beta_meas_1")[100:] - res.column("beta_1")[100:]
+    assert e_pitch.std() == pytest.approx(np.radians(0.2) / np.sqrt(2), rel=0.05)
+    e_speed = res.column("omega_r_meas")[100:] - res.column("omega_r")[100:]
+    assert e_speed.std() < 0.002
 
 
 def test_noise_is_deterministic_from_the_seed():
@@ -98,7 +106,7 @@ def test_resolution_and_bias():
     res = _run(control_interval_s=0.01, t_final_s=2.0, output_rate_hz=100.0,
                sensors={"pitch_resolution_deg": 0.1, "rotor_speed_bias_rad_s": 0.01})[1]
     q = np.radians(0.1)
-    b = res.column("beta_meas_2")
+    b = res.column("sensor_beta_meas_2_m1")
     np.testing.assert_allclose(b / q, np.round(b / q), atol=1e-9)
     assert np.abs(b - res.column("beta_2")).max() <= q / 2 + 1e-12
     np.testing.assert_allclose(res.column("omega_r_meas") - res.column("omega_r"), 0.01,

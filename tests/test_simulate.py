@@ -210,12 +210,18 @@ def test_sensor_and_hydraulic_faults_act_from_their_onset():
               {"blade": 1, "type": "air_in_oil", "onset_s": 5.0, "ramp_s": 2.0}]
     rc, res, m = _run(case=2, fault=faults, t_final_s=10.0)
     after, before = res.t > 5.0, res.t < 5.0
-    np.testing.assert_allclose(res.column("beta_meas_3")[after],
+    # each fault acts on its sensor (m1, the default) alone
+    np.testing.assert_allclose(res.column("sensor_beta_meas_3_m1")[after],
                                1.2 * res.column("beta_3")[after], rtol=1e-12)
-    np.testing.assert_allclose(res.column("beta_meas_2")[after], np.radians(30.0), rtol=1e-12)
-    np.testing.assert_allclose(res.column("beta_meas_1"), res.column("beta_1"), rtol=1e-12)
-    np.testing.assert_allclose(res.column("beta_meas_3")[before], res.column("beta_3")[before],
+    np.testing.assert_allclose(res.column("sensor_beta_meas_2_m1")[after], np.radians(30.0),
                                rtol=1e-12)
+    for j in (1, 2, 3):
+        np.testing.assert_allclose(res.column(f"sensor_beta_meas_{j}_m2"),
+                                   res.column(f"beta_{j}"), rtol=1e-12)
+    np.testing.assert_allclose(res.column("sensor_beta_meas_1_m1"), res.column("beta_1"),
+                               rtol=1e-12)
+    np.testing.assert_allclose(res.column("sensor_beta_meas_3_m1")[before],
+                               res.column("beta_3")[before], rtol=1e-12)
     # air in oil slows blade 1's actuator (ω_n 11.11 → 3.42 rad/s): it lags the others
     lag = np.abs(res.column("beta_1") - res.column("beta_2"))
     assert lag[res.t > 7.0].max() > 10 * max(lag[before].max(), 1e-6)

@@ -53,9 +53,10 @@ PROFILES = {
 
 #: the [sensors] table: signal → (its measurements, degrees at the edge); each signal takes
 #: <signal>_noise, _bias, _resolution in its unit (deg or rad/s) and <signal>_lag_s
-SENSOR_KEYS = {"pitch": (("beta_meas_1", "beta_meas_2", "beta_meas_3"), True),
-               "rotor_speed": (("omega_r",), False),
-               "generator_speed": (("omega_g_hss",), False)}
+#: (both sensors of each quantity: m1 and m2 share their specification)
+SENSOR_KEYS = {"pitch": (tuple(f"beta_meas_{j}_m{k}" for k in (1, 2) for j in (1, 2, 3)), True),
+               "rotor_speed": (("omega_r_m1", "omega_r_m2"), False),
+               "generator_speed": (("omega_g_hss_m1", "omega_g_hss_m2"), False)}
 #: [sensors] key kind → the layout sensor_params prefix
 _SENSOR_PARAM = {"noise": "sigma", "bias": "bias", "resolution": "resolution", "lag": "lag"}
 

@@ -19,10 +19,11 @@ and sensor faults on every measured signal (derivation/sensors.py): the pitch se
 ``pitch_sensor_stuck|gain|offset|drift|precision`` (blade j), and the rotor and generator
 speed sensors' ``rotor_speed_sensor_stuck|gain|offset`` and
 ``generator_speed_sensor_stuck|gain|offset`` (no blade; the generator speed on the
-high-speed shaft). Types of the benchmark (Odgaard et al. 2013: stuck, gain) and of
-FOWLTY (Peña-Sanchez et al. 2024: offset, drift, precision degradation). The old names
-``sensor_fixed`` and ``sensor_gain`` are aliases of ``pitch_sensor_stuck`` and
-``pitch_sensor_gain``.
+high-speed shaft); ``sensor = 1`` or ``2`` names which of the quantity's two sensors (m1,
+m2, the benchmark's redundancy) fails, 1 by default. Types of the benchmark (Odgaard et
+al. 2013: stuck, gain) and of FOWLTY (Peña-Sanchez et al. 2024: offset, drift, precision
+degradation). The old names ``sensor_fixed`` and ``sensor_gain`` are aliases of
+``pitch_sensor_stuck`` and ``pitch_sensor_gain``.
 """
 
 from __future__ import annotations
@@ -105,6 +106,8 @@ class Fault:
     #: a sensor fault's magnitude in SI (stuck value, gain, offset, drift rate per s,
     #: noise factor)
     magnitude: float = 0.0
+    #: a sensor fault's sensor: 1 or 2 (every quantity has two, m1 and m2: the benchmark's)
+    sensor: int = 1
 
     def weight(self, t: np.ndarray) -> np.ndarray:
         """0 before onset, 1 while active, linear over ramp_s at both ends."""
@@ -128,6 +131,7 @@ class Fault:
         if ft.acts_on == "sensor":
             if not self.blade:
                 del d["blade"]
+            d["sensor"] = self.sensor
             key = ft.magnitude
             d[key] = float(np.degrees(self.magnitude)) if "_deg" in key else self.magnitude
         if self.type in HYDRAULIC:
@@ -170,7 +174,7 @@ def _parse_fault(tab, w: str) -> Fault:
     ft = TYPES[typ]
     per_blade = ft.acts_on == "actuator" or ft.signal == "pitch"
     allowed = {"type", "onset_s", "end_s", "ramp_s", ft.magnitude} | (
-        {"blade"} if per_blade else set())
+        {"blade"} if per_blade else set()) | ({"sensor"} if ft.acts_on == "sensor" else set())
     for key in tab:
         if key not in allowed:
             raise ConfigError(f"{w}.{key}", tab[key],
@@ -194,6 +198,10 @@ def _parse_fault(tab, w: str) -> Fault:
     elif typ in HYDRAULIC:
         f.severity = _num(tab, "severity", w, 1.0, lo=0.0, hi=1.0, lo_open=True)
     else:
+        f.sensor = tab.get("sensor", 1)
+        if f.sensor not in (1, 2) or isinstance(f.sensor, bool):
+            raise ConfigError(f"{w}.sensor", f.sensor, "1 or 2 (every quantity has two "
+                              "sensors, m1 and m2)")
         lo, hi, lo_open = ft.bounds
         val = _num(tab, ft.magnitude, w, ft.default, lo=lo, hi=hi, lo_open=lo_open)
         f.magnitude = np.radians(val) if "_deg" in ft.magnitude else val
@@ -286,7 +294,7 @@ class Schedule:
         """(n_sensor_faults, len(t)): per measured signal its gain, offset, stuck weight,
         stuck value and noise factor (layout sensor_faults, derivation/sensors.py)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        names = [e["name"] for e in lay.layout()["measurements"]]
+        names = [e["name"] for e in lay.layout()["sensors"]]
         rows = {k: {n: np.full(t.size, d) for n in names}
                 for k, d in (("gain", 1.0), ("offset", 0.0), ("stuck", 0.0),
                              ("stuck_value", 0.0), ("noise_factor", 1.0))}
@@ -295,7 +303,7 @@ class Schedule:
             if ft.acts_on != "sensor":
                 continue
             base = SENSOR_SIGNALS[ft.signal][0]
-            sig = f"{base}_{f.blade}" if ft.signal == "pitch" else base
+            sig = (f"{base}_{f.blade}" if ft.signal == "pitch" else base) + f"_m{f.sensor}"
             w = f.weight(t)
             if ft.kind == "gain":
                 rows["gain"][sig] = rows["gain"][sig] + (f.magnitude - 1) * w

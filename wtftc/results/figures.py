@@ -135,7 +135,8 @@ def fault_shape(run, out: Path, name: str = "fig06_fault") -> list[Path]:
     axes[1].set_ylabel("lock indicator σ [-]")
     axes[2].set_ylabel("actuator ω_n [rad/s]")
     axes[2].set_xlabel("time [s]")
-    stuck = s[lay.block("sensor_faults", "stuck_beta_meas")]
+    names = lay.names("sensor_faults")
+    stuck = s[[k for k, n in enumerate(names) if n.startswith("stuck_beta_meas_")]]
     if np.any(stuck > 0):
         axes[1].plot(t, stuck.max(axis=0), "k:", label="pitch sensor stuck")
     for ax in axes:
@@ -196,6 +197,11 @@ def fdi(run, out: Path, name: str = "fdi") -> list[Path]:
         axes[1].plot(res.t, res.column(f"fdi_latch_{j}"), **kw)
         axes[2].plot(res.t, res.column(f"fdi_rho_hat_{j}"), **kw)
         axes[3].plot(res.t, np.degrees(res.column(f"fdi_c_hat_{j}")), **kw)
+    # the sensors the pair tests excluded (derivation/fdi.py), if any
+    for n in res.names:
+        if n.startswith("fdi_excluded_") and np.max(res.column(n)) >= 0.5:
+            axes[1].plot(res.t, res.column(n), "k-.", lw=1,
+                         label=f"sensor {n.removeprefix('fdi_excluded_')} excluded")
     axes[1].axhline(0.5, color="k", ls=":", lw=1, label="isolation at 0.5")
     axes[0].set_ylim(bottom=1e-10)
     axes[0].set_ylabel("filtered residual RMS [deg]")

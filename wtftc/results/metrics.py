@@ -6,8 +6,9 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.config import CASES, RunConfig
-from wtftc.model.faults import HYDRAULIC, TYPES
+from wtftc.model.faults import HYDRAULIC, SENSOR_SIGNALS, TYPES
 from wtftc.sim import integrate
+from wtftc.sim.rhs import sensor_names
 
 
 def metrics(rc: RunConfig, res: integrate.Result) -> dict:
@@ -66,41 +67,64 @@ def fdi_report(rc: RunConfig, res: integrate.Result) -> dict:
     per blade, and its false alarms with their times.
 
     An actuator fault (lock, loss of effectiveness, pressure drop, air in oil) on blade j
-    should raise blade j's latch after its onset and no other; the estimates are read at
-    the end of the run. This FDI watches the pitch actuators: a pitch sensor fault raises
-    its blade's latch too but is classified ``actuator`` (it cannot tell the two apart
-    yet), and a speed sensor fault is not watched (``detected`` false). A latch that rises
-    on a blade with no actuator fault, or before the fault's onset, is a false alarm.
+    should raise blade j's actuator latch after its onset and no other; the estimates are
+    read at the end of the run. A sensor fault should exclude its sensor (the FDI's pair
+    tests, derivation/fdi.py) and raise no actuator latch. An actuator latch on a blade
+    with no fault there, or before the fault's onset, and a sensor excluded that has no
+    fault, are false alarms; an actuator latch on a blade whose pitch sensor failed is a
+    misclassification (its fault's ``correct`` is false).
     """
     t = res.t
     faults = res.schedule.faults if res.schedule is not None else rc.faults  # angles bound
-    actuator = [f for f in faults if TYPES[f.type].acts_on == "actuator"]
-    faulty = {f.blade: f for f in actuator}
-    # a pitch sensor's fault raises its blade's latch too: not a false alarm there
+    faulty = {f.blade: f for f in faults if TYPES[f.type].acts_on == "actuator"}
     sensed = {f.blade: f for f in faults if TYPES[f.type].signal == "pitch"}
     out = {"blades": {}, "false_alarms": [], "isolation_correct": True}
-    first = {}
+    first = {j: _first(t, res.column(f"fdi_latch_{j}")) for j in lay.blades()}
     for j in lay.blades():
-        latch = res.column(f"fdi_latch_{j}")
-        hit = np.nonzero(latch >= 0.5)[0]
-        t_det = float(t[hit[0]]) if len(hit) else None
-        first[j] = t_det
         b = _blade_estimates(res, j)
-        b["detected_at_s"] = t_det
+        b["detected_at_s"] = t_det = first[j]
         f = faulty.get(j)
         if f is not None:
             b.update(_against_truth(f, b, res, j))
-            if t_det is None:
-                out["isolation_correct"] = False
-            elif t_det < f.onset_s:
+            if t_det is not None and t_det < f.onset_s:
                 out["false_alarms"].append({"blade": j, "t_s": t_det,
                                             "why": "before the fault's onset"})
         elif t_det is not None and (j not in sensed or t_det < sensed[j].onset_s):
             out["false_alarms"].append({"blade": j, "t_s": t_det, "why": "no fault there"})
-            out["isolation_correct"] = False
         out["blades"][str(j)] = b
-    out["faults"] = [_fault_entry(f, first, out["blades"]) for f in faults]
+    excluded = {s: _first(t, res.column(f"fdi_excluded_{s}")) for s in sensor_names()}
+    failed = {sensor_of(f): f for f in faults if TYPES[f.type].acts_on == "sensor"}
+    for s, t_x in excluded.items():
+        f = failed.get(s) or failed.get(partner(s))
+        if t_x is not None and (f is None or t_x < f.onset_s):
+            out["false_alarms"].append({"sensor": s, "t_s": t_x, "why": "no fault there"
+                                        if f is None else "before the fault's onset"})
+    out["faults"] = [_fault_entry(f, first, excluded, out["blades"], res) for f in faults]
+    out["isolation_correct"] = not out["false_alarms"] and all(
+        e["correct"] or e["type"] in _UNSEEN for e in out["faults"])
     return out
+
+
+#: fault types the FDI cannot see by design when they are mild: none (every type counts)
+_UNSEEN: tuple[str, ...] = ()
+
+
+def _first(t: np.ndarray, latch: np.ndarray) -> float | None:
+    """When a latch first reached 1/2, or None."""
+    hit = np.nonzero(latch >= 0.5)[0]
+    return float(t[hit[0]]) if len(hit) else None
+
+
+def sensor_of(f) -> str:
+    """The name of the sensor a sensor fault acts on (derivation/sensors.py)."""
+    ft = TYPES[f.type]
+    base = SENSOR_SIGNALS[ft.signal][0]
+    return (f"{base}_{f.blade}" if ft.signal == "pitch" else base) + f"_m{f.sensor}"
+
+
+def partner(sensor: str) -> str:
+    """The other sensor of the same quantity."""
+    return sensor[:-1] + ("2" if sensor.endswith("1") else "1")
 
 
 def _blade_estimates(res: integrate.Result, j: int) -> dict:
@@ -136,25 +160,90 @@ def _identified(b: dict) -> str:
     return "loss_of_effectiveness" if b["rho_hat"] < 0.95 else "unidentified"
 
 
-def _fault_entry(f, first: dict, blades: dict) -> dict:
-    """One fault as the FDI saw it: detected, delay, the blade it isolated, the class and
-    type it identified, and its estimate."""
+def _fault_entry(f, first: dict, excluded: dict, blades: dict, res) -> dict:
+    """One fault as the FDI saw it: detected, delay, the blade (and sensor) it isolated,
+    the class and type it identified, and its estimate."""
     ft = TYPES[f.type]
     entry = {"type": f.type, "class": ft.acts_on, "blade": f.blade or None,
              "onset_s": f.onset_s}
-    watched = ft.acts_on == "actuator" or ft.signal == "pitch"
+    if ft.acts_on == "sensor":
+        entry["sensor"] = sensor_of(f)
+        return entry | _sensor_entry(f, first, excluded, res)
     after = {j: t for j, t in first.items() if t is not None and t >= f.onset_s}
     # its own blade if that one alarmed after the onset, else the first that did
-    hit = (f.blade if f.blade in after else min(after, key=after.get)) \
-        if watched and after else None
+    hit = (f.blade if f.blade in after else min(after, key=after.get)) if after else None
     entry["detected"] = hit is not None
     entry["detection_delay_s"] = after[hit] - f.onset_s if hit is not None else None
     entry["isolated_blade"] = hit
+    entry["isolated_sensor"] = None
     entry["identified_class"] = "actuator" if hit is not None else None
     entry["identified_type"] = _identified(blades[str(hit)]) if hit is not None else None
     entry["estimate"] = ({k: blades[str(hit)][k] for k in ("rho_hat", "c_hat_deg",
                                                             "omega_n_hat_rad_s", "zeta_hat")}
                          if hit is not None else None)
-    entry["correct"] = bool(hit == f.blade and entry["identified_class"] == ft.acts_on
-                            and entry["identified_type"] == f.type)
+    entry["correct"] = bool(hit == f.blade and entry["identified_type"] == f.type)
     return entry
+
+
+def _sensor_entry(f, first: dict, excluded: dict, res) -> dict:
+    """A sensor fault: the sensor the pair test excluded (its own or its partner), or the
+    blade's actuator latch (a misclassification), whichever came first after the onset."""
+    s = sensor_of(f)
+    seen = {k: excluded[k] for k in (s, partner(s))
+            if excluded[k] is not None and excluded[k] >= f.onset_s}
+    act = first.get(f.blade) if f.blade else None
+    act = act if act is not None and act >= f.onset_s else None
+    hit = min(seen, key=seen.get) if seen else None
+    t_hit = seen[hit] if hit else None
+    d = {"detected": hit is not None or act is not None, "isolated_sensor": hit,
+         "isolated_blade": f.blade or None}
+    if act is not None and (t_hit is None or act < t_hit):
+        d.update(detection_delay_s=act - f.onset_s, identified_class="actuator",
+                 identified_type=None, estimate=None, correct=False)
+        return d
+    if hit is None:
+        d.update(detection_delay_s=None, isolated_blade=None, identified_class=None,
+                 identified_type=None, estimate=None, correct=False)
+        return d
+    kinds, est = _sensor_kind(res, hit, t_hit, f.end_s)
+    types = [f.type.rsplit("_", 1)[0] + "_" + k for k in kinds]
+    d.update(detection_delay_s=t_hit - f.onset_s, identified_class="sensor",
+             identified_type=types[0] if types else None, ambiguous_with=types[1:],
+             estimate=est, correct=bool(hit == s and f.type in types))
+    return d
+
+
+def _sensor_kind(res, s: str, t0: float, t1: float) -> tuple[list[str], dict | None]:
+    """The kinds of fault a sensor's readings against its partner's point to after the
+    FDI excluded it (identified offline, by the report, over at most 30 s), best first:
+    stuck (it reads a constant); else the one-parameter models of the difference
+    d = y − y_partner, offset (d = a), gain (d = b·y_partner) and drift (d = c·(t − t0)),
+    every one whose residual sum of squares is within 25 noise variances of the best's
+    (an F-test at 5σ: a gain on a speed that hardly varies is an offset to the data);
+    precision (more noise) when none explains a fifth of d."""
+    t = res.t
+    sel = (t >= t0) & (t <= min(t1, t0 + 30.0))
+    y, y_p = res.column(f"sensor_{s}")[sel], res.column(f"sensor_{partner(s)}")[sel]
+    if y.size < 3:
+        return [], None
+    if np.ptp(y) <= 1e-9 * max(1.0, float(np.max(np.abs(y)))):
+        return ["stuck"], {"value": float(y[0])}
+    d, tt = y - y_p, t[sel] - t0
+    # the gain's regressor: the partner's reading averaged over about 1 s (its own noise
+    # is in d too: regressing on it raw takes an offset for a gain)
+    width = max(1, min(d.size, int(round(1.0 / max(t[1] - t[0], 1e-9)))))
+    ones = np.ones(width)
+    smooth = np.convolve(y_p, ones, mode="same") / np.convolve(np.ones_like(y_p), ones,
+                                                               mode="same")
+    fits = {}
+    for kind, x in (("offset", np.ones_like(d)), ("gain", smooth), ("drift", tt)):
+        k = float(x @ d / max(x @ x, 1e-300))
+        fits[kind] = (float(np.sum((d - k * x) ** 2)), k)
+    best = min(fits, key=lambda k: fits[k][0])
+    rss = fits[best][0]
+    if rss > 0.8 * float(d @ d):
+        return ["precision"], {"rms_difference": float(np.sqrt(np.mean(d**2)))}
+    close = sorted((k for k in fits if fits[k][0] - rss <= 25 * rss / d.size),
+                   key=lambda k: fits[k][0])
+    key = {"offset": "offset", "gain": "gain", "drift": "rate_per_s"}
+    return close, {key[k]: 1 + fits[k][1] if k == "gain" else fits[k][1] for k in close}

@@ -63,14 +63,26 @@ def run_params(base: np.ndarray, p_sensors: np.ndarray, interval: float,
                alarms_per_hour: float = TARGET_ALARMS_PER_HOUR,
                delta: float | None = None) -> np.ndarray:
     """The FDI's parameters of one run: ``base`` (wtftc.sim.rhs.fdi_params) with the
-    noise threshold of the run's pitch sensors (the noisiest blade's σ) and, if given, the
+    noise thresholds of the run's sensors (the pitch's: the noisiest pitch sensor's σ; each
+    pair test's: the σ of its two sensors' difference) and, if given, the
     model-uncertainty allowance δ."""
     p = np.array(base, dtype=float)
     values = lay.values("fdi_params", p)
     sens = lay.values("sensor_params", p_sensors)
-    sigma = max(sens[f"sigma_beta_meas_{j}"] for j in lay.blades())
-    p[lay.index("fdi_params", "fdi_thr2_noise")] = noise_threshold(
-        sigma, interval, values["fdi_T_r"], values["fdi_T_f"], alarms_per_hour)
+
+    def threshold(s):
+        return noise_threshold(s, interval, values["fdi_T_r"], values["fdi_T_f"],
+                               alarms_per_hour)
+
+    def pair(name):
+        return math.hypot(sens[f"sigma_{name}_m1"], sens[f"sigma_{name}_m2"])
+
+    pitches = [f"beta_meas_{j}" for j in lay.blades()]
+    sigma = max(sens[f"sigma_{b}_m{k}"] for b in pitches for k in (1, 2))
+    p[lay.index("fdi_params", "fdi_thr2_noise")] = threshold(sigma)
+    p[lay.index("fdi_params", "fdi_thr2_pair")] = threshold(max(pair(b) for b in pitches))
+    for name in ("omega_r", "omega_g_hss"):
+        p[lay.index("fdi_params", f"fdi_thr2_{name}")] = threshold(pair(name))
     p[lay.index("fdi_params", "fdi_var_noise")] = sigma**2 if interval > 0 else 0.0
     p[lay.index("fdi_params", "fdi_T_s")] = interval
     if delta is not None:

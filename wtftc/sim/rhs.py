@@ -51,8 +51,12 @@ def _per_blade(spec: list[tuple[str, str]]) -> list[tuple[str, str]]:
 def common_outputs(fdi: bool = True) -> list[tuple[str, str]]:
     """The per-step outputs every loop reports, in column order, with units."""
     out = (_PLANT_OUTPUTS + _per_blade(_BLADE_OUTPUTS) + _LOOP_OUTPUTS
-           + _per_blade(_COMMAND_OUTPUTS) + _AERO_OUTPUTS)
-    return out + _per_blade(_FDI_OUTPUTS) if fdi else out
+           + _per_blade(_COMMAND_OUTPUTS) + _AERO_OUTPUTS
+           + [(f"sensor_{s['name']}", s["unit"]) for s in lay.layout()["sensors"]])
+    if not fdi:
+        return out
+    return (out + _per_blade(_FDI_OUTPUTS)
+            + [(f"fdi_excluded_{s['name']}", "-") for s in lay.layout()["sensors"]])
 
 
 def controllers() -> dict:
@@ -131,34 +135,40 @@ class Loop:
 
 
 def sensor_names() -> list[str]:
-    """The measured signals, in the controllers' measurement order (derivation/sensors.py)."""
-    return [e["name"] for e in lay.layout()["measurements"]]
+    """The sensors, two per measured quantity (derivation/sensors.py)."""
+    return [e["name"] for e in lay.layout()["sensors"]]
 
 
-def controller_block(loop: Loop, xc, xf, m: dict, sym: dict, v_applied=None) -> dict:
-    """The controller and the FDI on the measurements ``m``: the command, the controller's
-    and the FDI's state derivatives, and their reported outputs. The FDI's model is driven
-    by ``v_applied`` (a sampled loop: the command held on the actuators), by default the
+def controller_block(loop: Loop, xc, xf, readings, sym: dict, v_applied=None) -> dict:
+    """The FDI, the virtual sensors and the controller on the sensors' ``readings``: the
+    command, the controller's and the FDI's state derivatives, the measurements the
+    controller saw (``m``) and the reported outputs. The FDI's model is driven by
+    ``v_applied`` (a sampled loop: the command held on the actuators), by default the
     controller's command."""
     reg = controllers()[loop.controller]
+    n_s = len(sensor_names())
     if loop.fdi:
-        # the FDI's outputs depend on its states and the measurements only (no algebraic
-        # loop)
+        # the FDI's outputs depend on its states only (no algebraic loop): the sensors it
+        # excludes, the fault it tells the accommodation
         p_fdi = sym["p_fdi"]
         fdi = load("fdi", "interpreted")
-        fd0 = fdi(x_fdi=xf, v=ca.DM.zeros(lay.n_blades()), beta_meas=m["sensors"], p_fdi=p_fdi)
+        fd0 = fdi(x_fdi=xf, v=ca.DM.zeros(lay.n_blades()), readings=readings,
+                  meas=ca.DM.zeros(len(lay.layout()["measurements"])), p_fdi=p_fdi)
         known = (1 - sym["use_fdi"]) * sym["ctrl_fault"] + sym["use_fdi"] * fd0["known_fault"]
+        excluded = sym["use_fdi"] * fd0["excluded"]
     else:
-        known = sym["ctrl_fault"]
+        known, excluded = sym["ctrl_fault"], ca.DM.zeros(n_s)
+    m = virtual(loop, readings, excluded, sym)
     c = load(reg["function"], "interpreted")(
-        x_ctrl=xc, meas=m["ctrl"], yd=sym["yd"], sched=m["sched"], p_ctrl=sym["p_ctrl"],
+        x_ctrl=xc, meas=m["meas"], yd=sym["yd"], sched=m["sched"], p_ctrl=sym["p_ctrl"],
         known_fault=known)
-    out = {"v": c["v"], "u0": c["u0"], "diag": c["diag"], "x_ctrl_dot": c["x_ctrl_dot"]}
+    out = {"v": c["v"], "u0": c["u0"], "diag": c["diag"], "x_ctrl_dot": c["x_ctrl_dot"],
+           "m": m}
     if loop.fdi:
-        fd = fdi(x_fdi=xf, v=c["v"] if v_applied is None else v_applied,
-                 beta_meas=m["sensors"], p_fdi=p_fdi)
+        fd = fdi(x_fdi=xf, v=c["v"] if v_applied is None else v_applied, readings=readings,
+                 meas=m["meas"], p_fdi=p_fdi)
         out["x_fdi_dot"] = fd["x_fdi_dot"]
-        out["fdi"] = [fd0[k] for k in FDI_REPORTED]
+        out["fdi"] = [fd0[k] for k in FDI_REPORTED] + [fd0["excluded"]]
     return out
 
 
@@ -183,14 +193,16 @@ def _cp_function(loop: Loop) -> ca.Function:
     return cp_loop_function(loop.table)
 
 
-def output_row(loop: Loop, xp, m: dict, ctl: dict, pl: dict, sym: dict) -> ca.SX:
-    """The reported outputs, in output_spec's order."""
-    states = PLANTS[loop.plant]["states"]
+def output_row(loop: Loop, xp, readings, ctl: dict, pl: dict, sym: dict) -> ca.SX:
+    """The reported outputs, in output_spec's order: ``ctl["m"]`` the measurements the
+    controller saw (the virtual sensors), ``readings`` every sensor's."""
+    states, m = PLANTS[loop.plant]["states"], ctl["m"]
     out = [xp[lay.index(states, "omega_r")], xp[lay.index(states, "theta_s")],
            m["meas"][measurement_index("omega_g_hss")],
            m["meas"][measurement_index("omega_r")], xp[lay.block(states, "beta")],
            m["sensors"], ctl["u0"], ctl["v"], sym["wind"], pl["tsr"], pl["cp"], pl["T_aero"],
-           pl["T_gen"], pl["P_gen"], m["sched"], sym["yd"][lay.index("reference", "yd_0")]]
+           pl["T_gen"], pl["P_gen"], m["sched"], sym["yd"][lay.index("reference", "yd_0")],
+           readings]
     return ca.vertcat(*out, *ctl.get("fdi", []), ctl["diag"])
 
 
@@ -198,9 +210,10 @@ def _closed_loop_rhs(loop: Loop) -> ca.Function:
     """ż = f(z, wind, faults, reference, parameters): z = [plant states, controller states,
     FDI states] (the continuous loop, ``loop.interval = 0``).
 
-    The controller sees only the measurements [ω_r, ω_g, β_meas,j] through the sensor
-    model (derivation/sensors.py: faults, bias, resolution; no noise or lag in continuous
-    time) and the pitch-scheduled sensitivity; the plant state never enters it.
+    The controller sees only the measurements [ω_r, ω_g, β_meas,j]: the sensors
+    (derivation/sensors.py: faults, bias, resolution; no noise or lag in continuous time)
+    voted by the virtual sensors, and the pitch-scheduled sensitivity; the plant state
+    never enters it.
     ``loop.fdi = False`` leaves the FDI out (no FDI states, no ``use_fdi`` input, no fdi_*
     outputs): the loop of cases 1-3 without the monitor, as the benchmark runs it.
     """
@@ -209,14 +222,14 @@ def _closed_loop_rhs(loop: Loop) -> ca.Function:
     z = sym["z"]
     xp, xc, xf = z[:n_p], z[n_p:n_p + n_c], z[n_p + n_c:]
     true = true_signals(loop, xp, sym["p_turbine"])
-    m = measure(loop, true, true, ca.DM.zeros(true.numel()), sym)
-    ctl = controller_block(loop, xc, xf, m, sym)
+    readings = measure(true, true, ca.DM.zeros(true.numel()), sym)
+    ctl = controller_block(loop, xc, xf, readings, sym)
     pl = plant_block(loop, xp, ctl["v"], sym)
     names = ["z", "wind", *_INPUT_GROUPS, "p_ctrl", "cp_scale"] + (
         ["use_fdi", "p_fdi"] if loop.fdi else [])
     zdot = ca.vertcat(pl["x_plant_dot"], ctl["x_ctrl_dot"], *([ctl["x_fdi_dot"]] if loop.fdi
                                                               else []))
-    out = output_row(loop, xp, m, ctl, pl, sym)
+    out = output_row(loop, xp, readings, ctl, pl, sym)
     assert out.numel() == len(output_spec(loop.controller, loop.fdi))
     # one pass of common-subexpression elimination over the assembled loop: the plant, the
     # controller and the FDI share the measured quantities and the aerodynamics
@@ -252,43 +265,43 @@ def fdi_params(loop: Loop) -> np.ndarray:
     tp = lay.values("turbine_params", loop.p_turbine)
     p[lay.index("fdi_params", "fdi_omega_n")] = tp["omega_n_nominal"]
     p[lay.index("fdi_params", "fdi_zeta")] = tp["zeta_nominal"]
+    p[lay.index("fdi_params", "fdi_gearbox_ratio")] = tp["gearbox_ratio"]
     return p
 
 
 def true_signals(loop: Loop, xp: ca.SX, pt: ca.SX) -> ca.SX:
-    """What the sensors measure, exactly, in the measurement order: ω_r, ω_g on the HSS,
+    """What each sensor measures, exactly, in the sensors' order: ω_r, ω_g on the HSS,
     β_j."""
     states = PLANTS[loop.plant]["states"]
     values = {"omega_r": xp[lay.index(states, "omega_r")],
               "omega_g_hss": xp[lay.index(states, "omega_g")]
               * pt[lay.index("turbine_params", "gearbox_ratio")],
               **{f"beta_meas_{j}": xp[lay.index(states, f"beta_{j}")] for j in lay.blades()}}
-    return ca.vertcat(*[values[n] for n in sensor_names()])
+    return ca.vertcat(*[values[s["measures"]] for s in lay.layout()["sensors"]])
 
 
-def measure(loop: Loop, true: ca.SX, x_lag: ca.SX, noise: ca.SX, sym: dict) -> dict:
-    """What the controller sees: the measurements through the sensor model (generated
-    ``sensors``), the measured pitches, and the ∂T_aero/∂β schedule at the measured mean
-    pitch (the controllers' model: the nominal turbine and table, whatever the plant)."""
-    meas = load("sensors", "interpreted")(
+def measure(true: ca.SX, x_lag: ca.SX, noise: ca.SX, sym: dict) -> ca.SX:
+    """Every sensor's reading (generated ``sensors``: lag, fault, bias, noise,
+    resolution)."""
+    return load("sensors", "interpreted")(
         true_signals=true, x_lag=x_lag, noise=noise, sensor_faults=sym["sensor_faults"],
         p_sensors=sym["p_sensors"])["meas"]
-    names = sensor_names()
-    sensors = ca.vertcat(*[meas[names.index(f"beta_meas_{j}")] for j in lay.blades()])
-    sched_fn = sched_loop_function(loop.table, np.array(loop.p_turbine))
-    return {"meas": meas, "ctrl": _speed_fused(loop, meas, sym["p_sensors"]),
-            "sensors": sensors, "sched": sched_fn(ca.sum1(sensors) / lay.n_blades())}
 
 
-def _speed_fused(loop: Loop, meas: ca.SX, p_sensors: ca.SX) -> ca.SX:
-    """The controllers' measurements: the rotor speed replaced by the estimate from both
-    speed sensors (generated ``speed_estimate``, derivation/sensors.py; with exact sensors
-    the rotor speed sensor alone, bit for bit)."""
+def virtual(loop: Loop, readings: ca.SX, excluded: ca.SX, sym: dict) -> dict:
+    """What the controller sees: the sensors voted, those the FDI excluded left out
+    (generated ``virtual_sensors``, derivation/sensors.py; with exact sensors the rotor
+    speed sensor alone and every pitch sensor's reading, bit for bit), the measured
+    pitches, and the ∂T_aero/∂β schedule at the measured mean pitch (the controllers'
+    model: the nominal turbine and table, whatever the plant)."""
     gear = loop.p_turbine[lay.index("turbine_params", "gearbox_ratio")]
-    fused = load("speed_estimate", "interpreted")(meas=meas, p_sensors=p_sensors,
-                                                  gearbox_ratio=gear)["omega_hat"]
-    i_r = measurement_index("omega_r")
-    return ca.vertcat(*[fused if k == i_r else meas[k] for k in range(meas.numel())])
+    meas = load("virtual_sensors", "interpreted")(
+        readings=readings, excluded=excluded, p_sensors=sym["p_sensors"],
+        gearbox_ratio=gear)["meas"]
+    sensors = ca.vertcat(*[meas[measurement_index(f"beta_meas_{j}")] for j in lay.blades()])
+    sched_fn = sched_loop_function(loop.table, np.array(loop.p_turbine))
+    return {"meas": meas, "sensors": sensors,
+            "sched": sched_fn(ca.sum1(sensors) / lay.n_blades())}
 
 
 def measurement_index(name: str) -> int:

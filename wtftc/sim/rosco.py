@@ -156,7 +156,7 @@ class _Discon(integrate.ChunkHook):
         # seed, a draw per call
         ps = lay.values("sensor_params", lay.defaults("sensor_params")
                         if inputs.p_sensors is None else inputs.p_sensors)
-        self.sigma = {n: ps[f"sigma_{n}"] for n in ("omega_r", "omega_g_hss",
+        self.sigma = {n: ps[f"sigma_{n}_m1"] for n in ("omega_r", "omega_g_hss",
                                                     *[f"beta_meas_{j}" for j in lay.blades()])}
         self.noise = {n: np.random.default_rng(np.random.SeedSequence(
             inputs.noise_seed, spawn_key=(11, k))) for k, n in enumerate(self.sigma)}

@@ -35,6 +35,7 @@ from wtftc.sim.rhs import (
     controller_block,
     loop_symbols,
     measure,
+    measurement_index,
     output_row,
     plant_block,
     sensor_names,
@@ -53,17 +54,20 @@ def _sizes(loop: Loop) -> dict[str, int]:
     n_p, n_c, n_f = loop.n_states
     n_s, n_b = len(sensor_names()), lay.n_blades()
     return {"p": n_p, "c": n_c, "f": n_f, "s": n_s, "b": n_b,
+            "m": len(lay.layout()["measurements"]),
             "z": n_p + n_c + n_f + n_s + (n_b if loop.delay else 0)}
 
 
 def _held_size(loop: Loop) -> int:
     n = _sizes(loop)
-    return n["s"] + 1 + n["b"] + 1 + (len(FDI_REPORTED) * n["b"] if loop.fdi else 0) + 4
+    fdi = len(FDI_REPORTED) * n["b"] + n["s"] if loop.fdi else 0
+    return n["s"] + n["m"] + 1 + n["b"] + 1 + fdi + 4
 
 
-def _unpack_held(loop: Loop, held: ca.SX) -> tuple[dict, dict]:
-    """The measurements and the controller's outputs from the held vector (_sample's
-    layout: meas, u0, v, sched, fdi outputs, diag)."""
+def _unpack_held(loop: Loop, held: ca.SX) -> tuple[ca.SX, dict]:
+    """The sensors' readings and the controller's outputs from the held vector (_sample's
+    layout: readings, the virtual sensors' measurements, u0, v, sched, fdi outputs,
+    diag)."""
     n = _sizes(loop)
     k = 0
 
@@ -72,13 +76,12 @@ def _unpack_held(loop: Loop, held: ca.SX) -> tuple[dict, dict]:
         k += size
         return held[k - size:k]
 
-    meas, u0, v, sched = take(n["s"]), take(1), take(n["b"]), take(1)
-    fdi = [take(n["b"]) for _ in FDI_REPORTED] if loop.fdi else []
+    readings, meas, u0, v, sched = take(n["s"]), take(n["m"]), take(1), take(n["b"]), take(1)
+    fdi = [take(n["b"]) for _ in FDI_REPORTED] + [take(n["s"])] if loop.fdi else []
     diag = take(4)
-    names = sensor_names()
-    sensors = ca.vertcat(*[meas[names.index(f"beta_meas_{j}")] for j in lay.blades()])
-    return ({"meas": meas, "sensors": sensors, "sched": sched},
-            {"u0": u0, "v": v, "fdi": fdi, "diag": diag})
+    sensors = ca.vertcat(*[meas[measurement_index(f"beta_meas_{j}")] for j in lay.blades()])
+    return readings, {"u0": u0, "v": v, "fdi": fdi, "diag": diag,
+                      "m": {"meas": meas, "sensors": sensors, "sched": sched}}
 
 
 def _sample(loop: Loop) -> ca.Function:
@@ -91,28 +94,30 @@ def _sample(loop: Loop) -> ca.Function:
     xp = z[:n["p"]]
     o = n["p"] + n["c"] + n["f"]
     true = true_signals(loop, xp, sym["p_turbine"])
-    m = measure(loop, true, z[o:o + n["s"]], noise, sym)
+    readings = measure(true, z[o:o + n["s"]], noise, sym)
 
     xc, xf = z[n["p"]:n["p"] + n["c"]], z[n["p"] + n["c"]:o]
-    ctl = controller_block(loop, xc, xf, m, sym)
+    ctl = controller_block(loop, xc, xf, readings, sym)
+    m = ctl["m"]
     # a blade resting at its lower stop gets the test movement (docs/fdi.md, faults at
     # rest); the FDI's model follows the command the actuators get over the interval
     rest = loop.p_turbine[lay.index("turbine_params", "pitch_min")] + REST_MARGIN
     v_now = ctl["v"] + pulse * (ctl["v"] <= rest)
     v_applied = z[o + n["s"]:] if loop.delay else v_now
-    xc_next = _rk4(lambda x: controller_block(loop, x, xf, m, sym)["x_ctrl_dot"], xc, T)
-    held = ca.vertcat(m["meas"], ctl["u0"], ctl["v"], m["sched"], *ctl.get("fdi", []),
-                      ctl["diag"])
+    xc_next = _rk4(lambda x: controller_block(loop, x, xf, readings, sym)["x_ctrl_dot"], xc,
+                   T)
+    held = ca.vertcat(readings, m["meas"], ctl["u0"], ctl["v"], m["sched"],
+                      *ctl.get("fdi", []), ctl["diag"])
     assert held.numel() == _held_size(loop)
     names = ["z", "noise", "sensor_faults", "ctrl_fault", "yd", "p_turbine", "p_sensors",
              "p_ctrl", *(["use_fdi", "p_fdi"] if loop.fdi else []), "test_pulse", "T"]
     args = {**sym, "noise": noise, "T": T, "test_pulse": pulse}
     xc_next, held = ca.cse([xc_next, held])
     # the command the actuators hold over the interval (and the FDI's model with them),
-    # the one held for the next (with the delay), the sampled pitch
+    # the one held for the next (with the delay), the sampled readings and measurements
     return ca.Function("sample", [args[k] for k in names],
-                       [xc_next, held, v_applied, v_now, m["sensors"]], names,
-                       ["xc_next", "held", "v_applied", "v_now", "beta_sampled"])
+                       [xc_next, held, v_applied, v_now, readings, m["meas"]], names,
+                       ["xc_next", "held", "v_applied", "v_now", "readings", "meas"])
 
 
 def _rk4(f, x, h):
@@ -133,15 +138,16 @@ def _fdi_step(loop: Loop) -> ca.Function:
     the pitch rate × (t − t_k), which the threshold allows for (fdi_T_s)."""
     n = _sizes(loop)
     sym = loop_symbols(loop, 0)
-    x, v, bm0, h = (ca.SX.sym("x_fdi", n["f"]), ca.SX.sym("v", n["b"]),
-                    ca.SX.sym("beta_sampled", n["b"]), ca.SX.sym("h"))
+    x, v, rd, meas, h = (ca.SX.sym("x_fdi", n["f"]), ca.SX.sym("v", n["b"]),
+                         ca.SX.sym("readings", n["s"]), ca.SX.sym("meas", n["m"]),
+                         ca.SX.sym("h"))
     fdi = load("fdi", "interpreted")
 
     def rate(y):
-        return fdi(x_fdi=y, v=v, beta_meas=bm0, p_fdi=sym["p_fdi"])["x_fdi_dot"]
+        return fdi(x_fdi=y, v=v, readings=rd, meas=meas, p_fdi=sym["p_fdi"])["x_fdi_dot"]
 
-    names = ["x_fdi", "v", "beta_sampled", "p_fdi", "h"]
-    args = {"x_fdi": x, "v": v, "beta_sampled": bm0, "h": h, **sym}
+    names = ["x_fdi", "v", "readings", "meas", "p_fdi", "h"]
+    args = {"x_fdi": x, "v": v, "readings": rd, "meas": meas, "h": h, **sym}
     return ca.Function("fdi_step", [args[k] for k in names], [_rk4(rate, x, h)], names,
                        ["x_fdi_next"])
 
@@ -168,8 +174,8 @@ def _plant_step(loop: Loop) -> ca.Function:
     k3 = f(x + dt / 2 * k2, w3[1])[0]
     k4 = f(x + dt * k3, w3[2])[0]
     x_next = x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    m, ctl = _unpack_held(loop, held)
-    out = output_row(loop, x[:n["p"]], m, ctl, pl, {**sym, "wind": w3[0]})
+    readings, ctl = _unpack_held(loop, held)
+    out = output_row(loop, x[:n["p"]], readings, ctl, pl, {**sym, "wind": w3[0]})
     x_next, out = ca.cse([x_next, out])
     names = ["x", "wind3", "actuator_faults", "p_turbine", "cp_scale", "sensor_faults",
              "p_sensors", "yd", "v", "held", "dt"]
@@ -209,7 +215,8 @@ def interval_function(loop: Loop) -> ca.Function:
     if loop.fdi:
         xf = z[n["p"] + n["c"]:o]
         ctrl_cols.append(_fdi_step(loop).mapaccum("fdi_steps", steps).call(
-            {"x_fdi": xf, "v": rep(s["v_applied"]), "beta_sampled": rep(s["beta_sampled"]),
+            {"x_fdi": xf, "v": rep(s["v_applied"]), "readings": rep(s["readings"]),
+             "meas": rep(s["meas"]),
              "p_fdi": rep(ins["p_fdi"]), "h": rep(ins["dt"])})["x_fdi_next"])
     ctrl_cols = ca.vertcat(*ctrl_cols)
     held_v = [ca.repmat(v_new, 1, steps)] if loop.delay else []
@@ -235,5 +242,5 @@ def sampled_state(loop: Loop, z0) -> np.ndarray:
             "omega_g_hss": xp[lay.index(states, "omega_g")] * gear,
             **{f"beta_meas_{j}": xp[lay.index(states, f"beta_{j}")] for j in lay.blades()}}
     held = xp[lay.block(states, "beta")] if loop.delay else []
-    return np.concatenate([z0[:n["p"] + n["c"] + n["f"]], [true[s] for s in sensor_names()],
-                           held])
+    lags = [true[s["measures"]] for s in lay.layout()["sensors"]]
+    return np.concatenate([z0[:n["p"] + n["c"] + n["f"]], lags, held])

@@ -128,10 +128,13 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
     actuator = _draw(lay.layout()["actuator_faults"], rng)
     sensor = _draw(lay.layout()["sensor_faults"], rng)
     meas = _draw(lay.layout()["measurements"], rng)
-    n_s = meas.size
     # the sensors' draws from a generator of their own, seeded by rng's state without
     # advancing it: every other function's points stay what they were
     rs = np.random.default_rng(int(rng.bit_generator.state["state"]["state"]) % 2**63)
+    names = [m["name"] for m in lay.layout()["measurements"]]
+    true = np.array([meas[names.index(s["measures"])] for s in lay.layout()["sensors"]])
+    readings = true * (1 + 0.05 * rs.standard_normal(true.size)
+                       * (rs.uniform(size=true.size) < 0.33))
     return {
         "x_plant": x_plant,
         "wind": np.array([wind]),
@@ -142,9 +145,13 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
         # the sensors' chain: signals and lag states where they live, standard-normal
         # draws, parameters in their sample ranges (some zero: the no-lag, no-resolution
         # branches)
-        "true_signals": meas,
-        "x_lag": meas + 0.01 * rs.standard_normal(n_s),
-        "noise": rs.standard_normal(n_s),
+        "true_signals": true,
+        "x_lag": true + 0.01 * rs.standard_normal(true.size),
+        "noise": rs.standard_normal(true.size),
+        # readings of two sensors per quantity: a third of the pairs disagree, a fifth of
+        # the sensors excluded (every branch of the virtual sensors)
+        "readings": readings,
+        "excluded": (rs.uniform(size=true.size) < 0.2).astype(float),
         "gearbox_ratio": np.array([rs.uniform(50.0, 120.0)]),
         "p_sensors": _draw(lay.layout()["sensor_params"], rs)
         * (rs.uniform(size=lay.size("sensor_params")) > 0.3),
@@ -154,19 +161,25 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
         "omega_dot": np.array([rng.uniform(-0.2, 0.2)]),
         "b_dot": np.array([rng.uniform(-0.05, 0.05)]),
         "d": np.array([rng.uniform(-0.05, 0.05)]),
-        "x_fdi": _fdi_states(rng),
+        "x_fdi": _fdi_states(rng, rs),
         "beta_meas": rng.uniform(-0.05, 1.65, lay.n_blades()),
         "p_fdi": lay.defaults("fdi_params") * (1 + 0.1 * rng.uniform(-1, 1, len(
             lay.names("fdi_params")))),
     }
 
 
-def _fdi_states(rng: np.random.Generator) -> np.ndarray:
-    """Plausible FDI states (derivation/fdi.py), limits and latch crossed, in the layout's
-    order: drawn blade by blade, the regression sums S consistent with a mean and variance."""
+def _fdi_states(rng: np.random.Generator, rs: np.random.Generator) -> np.ndarray:
+    """Plausible FDI states (derivation/fdi.py), limits and latches crossed, in the layout's
+    order: drawn blade by blade, the regression sums S consistent with a mean and variance;
+    the sensor pair tests' states from ``rs`` (rng's draws stay what they were)."""
     values = {}
     for j in lay.blades():
         values |= {f"fdi_{kind}_{j}": v for kind, v in _fdi_blade(rng).items()}
+    for n in lay.names("fdi_states"):
+        if n not in values:  # the pair tests': residuals, mean squares, latches
+            gen = 100.0 if "omega_g_hss" in n else 1.0  # the HSS: N times the rotor's
+            values[n] = (rs.uniform(0, 1) if "latch" in n else rs.uniform(0, 1e-5) * gen**2
+                         if "mean_sq" in n else rs.uniform(-0.01, 0.01) * gen)
     return np.array([values[n] for n in lay.names("fdi_states")])
 
 

@@ -21,7 +21,7 @@ from wtftc.sim import rhs
 
 TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "output_rate_hz",
             "batch_size", "controllers", "optional_controllers", "plants", "wind", "fault",
-            "profile", "mismatch"}
+            "profile", "mismatch", "fault_free_twins"}
 #: the [mismatch] table's keys: the plant's factors against the controllers' model
 #: (config.MISMATCH), each an axis like any other (1.0: none)
 MISMATCH_KEYS = tuple(config.MISMATCH)
@@ -30,7 +30,7 @@ WIND_KEYS = {"mean_mps", "turbulence_class", "seed"}
 FAULT_TYPES = ("none", *faults.ACTUATOR_FAULT_TYPES, *faults.SENSOR_FAULT_TYPES)
 #: the fault table key each fault type reads its magnitude from
 MAGNITUDE = {t: faults.TYPES[t].magnitude for t in FAULT_TYPES[1:]}
-FAULT_KEYS = {"type", "blade", "onset_s", *MAGNITUDE.values()}
+FAULT_KEYS = {"type", "blade", "onset_s", "sensor", *MAGNITUDE.values()}
 #: the sensor faults' magnitude keys: (default, low, high, unit) of their axes
 SENSOR_MAGNITUDES = {"value_deg": (5.0, -90.0, 90.0, "deg"), "gain": (1.2, 0.0, 10.0, "-"),
                      "offset_deg": (1.0, -90.0, 90.0, "deg"),
@@ -95,6 +95,9 @@ class Sweep:
     batch_size: int
     axes: list[Axis]
     profile: str = "realistic"
+    #: random mode: every faulty scenario also run without its fault (same wind, seed and
+    #: mismatch), so that the summary can give each fault's RMS ratio to its twin's
+    fault_free_twins: bool = False
 
     @property
     def sweep_id(self) -> str:
@@ -212,7 +215,17 @@ def _settings(raw: dict) -> dict:
         "batch_size": _check_value("batch_size", raw.get("batch_size", 8), "int", lo=1,
                                    hi=10000),
         "profile": _profile(raw.get("profile", PROFILE)),
+        "fault_free_twins": _twins(raw.get("fault_free_twins", False), raw),
     }
+
+
+def _twins(value, raw: dict) -> bool:
+    if not isinstance(value, bool):
+        raise ConfigError("fault_free_twins", value, "true or false")
+    if value and raw.get("mode", "grid") != "random":
+        raise ConfigError("fault_free_twins", value, 'only with mode = "random" (a grid '
+                          'has its twins when its fault types include "none")')
+    return value
 
 
 def _profile(name) -> str:
@@ -277,6 +290,9 @@ def _axes(raw: dict, wind_tab: dict, fault_tab: dict, mode: str, t_final: float)
                 lo_open=lo == 0.0) for k, (d, lo, hi, _) in SENSOR_MAGNITUDES.items()],
         *[_axis(f"mismatch.{k}", raw.get("mismatch", {}).get(k, 1.0), "float", mode,
                 lo=0.1, hi=10.0, lo_open=False) for k in MISMATCH_KEYS],
+        # which of a quantity's two sensors a sensor fault hits (last: a single value
+        # draws nothing, and earlier sweeps' scenarios stay what they were)
+        _axis("fault.sensor", fault_tab.get("sensor", 1), "int", mode, lo=1, hi=2),
     ]
 
 
@@ -327,7 +343,9 @@ def parse_sweep(raw: dict) -> Sweep:
                             "t_final_s": settings["t_final"], "dt_s": settings["dt"],
                             "output_rate_hz": settings["output_rate_hz"],
                             "batch_size": settings["batch_size"],
-                            "profile": settings["profile"]}, sort_keys=True)
+                            "profile": settings["profile"]}
+                           | ({"fault_free_twins": True} if settings["fault_free_twins"]
+                              else {}), sort_keys=True)
     return Sweep(raw=raw, text=canonical, mode=mode, samples=samples, axes=axes, **settings)
 
 
@@ -343,7 +361,7 @@ def _point(sw: Sweep, values: dict) -> dict:
     p = {"controller": values["controllers"], "plant": values["plants"],
          "mean_wind_mps": float(values["wind.mean_mps"]),
          "turbulence_class": values["wind.turbulence_class"], "seed": int(values["wind.seed"]),
-         "fault_type": ftype, "blade": None, "onset_s": None,
+         "fault_type": ftype, "blade": None, "onset_s": None, "fault_sensor": None,
          **dict.fromkeys(MAGNITUDE_COLUMN.values())}
     fault_tabs = None
     if ftype != "none":
@@ -352,6 +370,10 @@ def _point(sw: Sweep, values: dict) -> dict:
         if faults.TYPES[ftype].signal not in ("", "pitch"):  # a speed sensor: no blade
             p["blade"] = None
             del tab["blade"]
+        if faults.TYPES[ftype].acts_on == "sensor":
+            p["fault_sensor"] = int(values["fault.sensor"])
+            if p["fault_sensor"] != 1:  # (absent: the run ids of earlier sweeps)
+                tab["sensor"] = p["fault_sensor"]
         mag = MAGNITUDE[ftype]
         tab[mag] = values[f"fault.{mag}"]
         p[MAGNITUDE_COLUMN[mag]] = str(tab[mag]) if mag == "angle_deg" else float(tab[mag])
@@ -382,6 +404,8 @@ def _combinations(sw: Sweep):
     crossed = [sw.axis(k) for k in CROSSED]
     drawn = [a for a in sw.axes if a.key not in CROSSED]
     scenarios = [{a.key: a.draw(rng) for a in drawn} for _ in range(sw.samples)]
+    if sw.fault_free_twins:  # each scenario, then its fault-free twin
+        scenarios = [s for sc in scenarios for s in (sc, {**sc, "fault.type": "none"})]
     return ({**sc, **dict(zip(CROSSED, cp, strict=True))} for sc in scenarios
             for cp in itertools.product(*(a.grid() for a in crossed)))
 

@@ -53,6 +53,7 @@ def schema():
               f("plant", pa.string()), f("mean_wind_mps", pa.float64(), "m/s"),
               f("turbulence_class", pa.string()), f("seed", pa.int64()),
               f("fault_type", pa.string()), f("blade", pa.int64()),
+              f("fault_sensor", pa.int64()),
               f("onset_s", pa.float64(), "s"), f("rho", pa.float64(), "-"),
               f("stuck_angle_deg", pa.string(), "deg"), f("severity", pa.float64(), "-"),
               *[f(f"sensor_{k}", pa.float64(), u) for k, (_, _, _, u) in SENSOR_MAGNITUDES.items()],

@@ -20,7 +20,9 @@ TABLE = [("controller", "{}"), ("fault", "{}"), ("runs", "{}"), ("diverged", "{}
          ("RMS ω error p95 [rad/s]", "{:.4f}"), ("RMS ω error max [rad/s]", "{:.4f}"),
          ("peak ω / rated max [-]", "{:.3f}"), ("detection delay median [s]", "{:.2f}"),
          ("detection delay max [s]", "{:.2f}"), ("undetected", "{}"),
-         ("isolated and classified right", "{}"), ("false alarms", "{}")]
+         ("isolated and classified right", "{}"), ("false alarms", "{}"),
+         ("RMS ratio to fault-free median [-]", "{:.3f}"),
+         ("RMS ratio to fault-free max [-]", "{:.3f}")]
 #: the box plots: (metric, axis label, file name)
 BOXES = [("rms_speed_error_rad_s", "RMS rotor-speed error [rad/s]", "rms_speed_error"),
          ("overspeed_peak_over_rated", "peak rotor speed / rated [-]", "overspeed")]
@@ -55,11 +57,13 @@ def _table(rows: list[dict]) -> tuple[list[str], list[str]]:
     groups: dict[tuple, list] = {}
     for r in rows:
         groups.setdefault((r["controller"], r["fault_type"]), []).append(r)
+    twins = {_scenario(r): r["rms_speed_error_rad_s"] for r in rows
+             if r["fault_type"] == "none" and r["status"] != "failed"}
     lines = ["| " + " | ".join(h for h, _ in TABLE) + " |", "|" + "---|" * len(TABLE)]
     csv = [",".join(h.replace(",", ";") for h, _ in TABLE)]
     for (c, f), rs in sorted(groups.items(), key=lambda kv: (
             list(CONTROLLERS).index(kv[0][0]), FAULT_TYPES.index(kv[0][1]))):
-        vals = _cells(c, f, rs)
+        vals = _cells(c, f, rs, twins)
         cells = ["—" if v is None else fmt.format(v)
                  for v, (_, fmt) in zip(vals, TABLE, strict=True)]
         lines.append("| " + " | ".join(cells) + " |")
@@ -71,8 +75,17 @@ def _quantile(vals: list, p: float) -> float | None:
     return float(np.percentile(vals, p)) if vals else None
 
 
-def _cells(c: str, f: str, rs: list[dict]) -> list:
-    """The values of one row of the table: controller ``c`` under fault type ``f``."""
+def _scenario(r: dict) -> tuple:
+    """What a run shares with its fault-free twin: controller, plant, wind, seed,
+    mismatch (a sweep's ``fault_free_twins``)."""
+    return tuple(v for k, v in sorted(r.items())
+                 if k in ("controller", "plant", "mean_wind_mps", "turbulence_class", "seed")
+                 or k.startswith("mismatch_"))
+
+
+def _cells(c: str, f: str, rs: list[dict], twins: dict | None = None) -> list:
+    """The values of one row of the table: controller ``c`` under fault type ``f``; with
+    ``twins`` (scenario → fault-free RMS error), each run's RMS error over its twin's."""
     good = [r for r in rs if r["status"] != "failed"]
     rms = [r["rms_speed_error_rad_s"] for r in good]
     peak = [r["overspeed_peak_over_rated"] for r in good]
@@ -85,7 +98,17 @@ def _cells(c: str, f: str, rs: list[dict]) -> list:
             _quantile(delays, 50) if fdi else None, max(delays) if fdi and delays else None,
             (len(good) - len(delays)) if fdi else None,
             sum(bool(r.get("fault_correct")) for r in good) if fdi else None,
-            sum(r["false_alarms"] or 0 for r in good if uses_fdi)]
+            sum(r["false_alarms"] or 0 for r in good if uses_fdi),
+            *_ratios(good, f, twins or {})]
+
+
+def _ratios(good: list[dict], f: str, twins: dict) -> list:
+    """Median and max of each run's RMS speed error over its fault-free twin's (None
+    without twins)."""
+    ratios = [r["rms_speed_error_rad_s"] / twins[_scenario(r)] for r in good
+              if f != "none" and twins.get(_scenario(r))
+              and r["rms_speed_error_rad_s"] is not None]
+    return [_quantile(ratios, 50), max(ratios) if ratios else None]
 
 
 def _alarm_rate(rows: list[dict], meta: dict) -> list[str]:
