@@ -64,7 +64,7 @@ UNITS = ["rad", "rad/s", "rad^2", "-", "-", "rad^2", "rad", "-", "rad^2", "rad",
 #: the speed sensors' pair tests (rotor, generator): per pair, each sensor's filtered
 #: residual against the other quantity's sensors, their mean squares, the mean square of
 #: their difference, and each sensor's latch
-SPEED_PAIRS = [("omega_r", "rad/s"), ("omega_g_hss", "rad/s")]
+SPEED_PAIRS = [("omega_r", "rad/s", "rad^2/s^2"), ("omega_g_hss", "rad/s", "rad^2/s^2")]
 PER_PAIR = ["residual_filtered_m1", "residual_filtered_m2", "mean_sq_m1", "mean_sq_m2",
             "mean_sq_pair", "sensor_latch_m1", "sensor_latch_m2"]
 
@@ -74,9 +74,9 @@ def states(n_blades: int) -> list[Entry]:
               for j in range(1, n_blades + 1) for n, u in zip(PER_BLADE, UNITS, strict=True)]
     squared = {"mean_sq_m1", "mean_sq_m2", "mean_sq_pair"}
     return blades + [Entry(f"fdi_{n}_{sig}", 0.0,
-                           f"{u}^2" if n in squared else ("-" if "latch" in n else u),
+                           sq if n in squared else ("-" if "latch" in n else u),
                            f"FDI {n} of the {sig} sensors")
-                     for sig, u in SPEED_PAIRS for n in PER_PAIR]
+                     for sig, u, sq in SPEED_PAIRS for n in PER_PAIR]
 
 
 PARAMS = [

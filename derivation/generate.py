@@ -331,7 +331,9 @@ def _fdi_blades(x, v, rd, bv, params) -> dict[str, list]:
         out["rho_hat"].append(tr(sp.Piecewise((r1, fdi.is_locked()), (r0, True))))
         out["c_hat"].append(tr(ce))
         out["latch"].append(xs[3])
-        out["rms"].append(ca.sqrt(ca.fmax(xs[2], 0)))
+        # the residual RMS of the pitch sensor in use (m2's once m1 is excluded)
+        i_e2, i_l1 = (fdi.PER_BLADE.index(k) for k in ("mean_sq_m2", "sensor_latch_m1"))
+        out["rms"].append(ca.sqrt(ca.fmax(ca.if_else(xs[i_l1] >= 0.5, xs[i_e2], xs[2]), 0)))
         out["thr"].append(ca.sqrt(tr(fdi.threshold_sq())))
         wh, zh = fdi.dynamics_estimate()
         out["w_hat"].append(tr(wh))
@@ -350,7 +352,7 @@ def _fdi_speeds(xs, rd, params) -> tuple[list, dict]:
     """The speed sensors' pair tests: state derivatives, and each sensor's latch."""
     n = len(fdi.PER_PAIR)
     latches = {}
-    for k, (sig, _) in enumerate(fdi.SPEED_PAIRS):
+    for k, (sig, *_) in enumerate(fdi.SPEED_PAIRS):
         block = xs[k * n:(k + 1) * n]
         latches[f"{sig}_m1"], latches[f"{sig}_m2"] = block[5], block[6]
     gear = params["fdi_gearbox_ratio"]
@@ -359,7 +361,7 @@ def _fdi_speeds(xs, rd, params) -> tuple[list, dict]:
     h = {"omega_r": fdi.h_rotor, "omega_g_hss": fdi.h_gen}
     floor = {"omega_r": fdi.speed_floor, "omega_g_hss": fdi.speed_floor * fdi.gear}
     rhs = []
-    for k, (sig, _) in enumerate(fdi.SPEED_PAIRS):
+    for k, (sig, *_) in enumerate(fdi.SPEED_PAIRS):
         tr = Translator({**params, "speed_ref": refs[sig],
                          "speed_m1": rd[sensors.SENSOR_NAMES.index(f"{sig}_m1")],
                          "speed_m2": rd[sensors.SENSOR_NAMES.index(f"{sig}_m2")],

@@ -1,8 +1,10 @@
 """The measurement chain: what a turbine's sensors make of the true signals (ours).
 
-The controllers and the FDI see the measurements ``omega_r``, ``omega_g_hss`` and
-``beta_meas_1..3`` (derivation/controllers.py). Each goes through, in this order (the
-order of Bladed's "signal noise and discretisation", Bladed User Manual 4.x):
+Every measured quantity (``omega_r``, ``omega_g_hss``, ``beta_meas_1..3``) has two sensors,
+m1 and m2 (the benchmark's redundancy); the FDI reads all ten, and the controllers read
+the quantities voted from them (``virtual_sensors``, derivation/controllers.py's
+measurements). Each sensor's reading goes through, in this order (the order of Bladed's
+"signal noise and discretisation", Bladed User Manual 4.x):
 
 1. a first-order **lag** ẏ = (x - y)/T_lag (T_lag = 0: no lag; the state is then unused);
 2. a **sensor fault** (Odgaard et al. 2013; Peña-Sanchez et al. 2024): gain g, offset o

@@ -331,7 +331,8 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         rho.append(pair("fdi_rho", [sp.Piecewise((r1, fdi.is_locked()), (r0, True))], vals))
         c.append(pair("fdi_c", [ce], vals))
         latch.append(exact([xs[3]]))
-        rms.append(exact([np.sqrt(max(xs[2], 0.0))]))
+        e_used = vals["mean_sq_m2"] if vals["sensor_latch_m1"] >= 0.5 else xs[2]
+        rms.append(exact([np.sqrt(max(e_used, 0.0))]))
         w_hat, z_hat = fdi.dynamics_estimate()
         wh.append(pair("fdi_wh", [w_hat], vals))
         zh.append(pair("fdi_zh", [z_hat], vals))
@@ -353,7 +354,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
 def _speed_pairs_reference(xs, rd: dict, base: dict, excluded: dict) -> list[tuple]:
     """The speed sensors' pair tests from SymPy; fills ``excluded`` with their latches."""
     n = len(fdi.PER_PAIR)
-    for k, (sig, _) in enumerate(fdi.SPEED_PAIRS):
+    for k, (sig, *_) in enumerate(fdi.SPEED_PAIRS):
         excluded[f"{sig}_m1"], excluded[f"{sig}_m2"] = xs[k * n + 5], xs[k * n + 6]
 
     def healthy(name):
@@ -366,7 +367,7 @@ def _speed_pairs_reference(xs, rd: dict, base: dict, excluded: dict) -> list[tup
     h = {"omega_r": fdi.h_rotor, "omega_g_hss": fdi.h_gen}
     floor = {"omega_r": fdi.speed_floor, "omega_g_hss": fdi.speed_floor * fdi.gear}
     out = []
-    for k, (sig, _) in enumerate(fdi.SPEED_PAIRS):
+    for k, (sig, *_) in enumerate(fdi.SPEED_PAIRS):
         vals = {**base, "speed_ref": float(refs[sig]), "speed_m1": rd[f"{sig}_m1"],
                 "speed_m2": rd[f"{sig}_m2"],
                 **{s.name: float(xs[k * n + i]) for i, s in enumerate(fdi.PAIR_SYMBOLS)}}

@@ -176,6 +176,13 @@ def test_sensor_fault_isolated_to_its_sensor_and_accommodated(fault):
     assert m["fdi"]["false_alarms"] == []
     assert all(res.column(f"fdi_latch_{j}").max() < 0.5 for j in lay.blades())
     assert m["rms_speed_error_rad_s"] <= 1.05 * m1["rms_speed_error_rad_s"]
+    # the estimates: the drift's rate although it began before the exclusion
+    expected = {"pitch_sensor_drift": ("rate_per_s", np.radians(0.1), 0.1),
+                "pitch_sensor_offset": ("offset", np.radians(1.0), 0.1),
+                "generator_speed_sensor_gain": ("gain", 0.9, 0.01)}.get(fault["type"])
+    if expected:
+        key, value, rel = expected
+        assert e["estimate"][key] == pytest.approx(value, rel=rel), e["estimate"]
 
 
 # a steady wind below rated: the blades never leave their stop by themselves

@@ -143,6 +143,10 @@ BAD = [
      "fault[0].blade"),
     ({"case": 2, "fault": [{"type": "pitch_sensor_gain", "blade": 1, "gain": -1}]},
      "fault[0].gain"),
+    ({"case": 2, "fault": [{"type": "pitch_sensor_gain", "blade": 1, "sensor": 3}]},
+     "fault[0].sensor"),
+    ({"case": 2, "fault": [{"type": "lock", "blade": 1, "sensor": 2}]},  # an actuator's
+     "fault[0].sensor"),
 ]
 
 
@@ -206,3 +210,27 @@ def test_fdi_keys_are_used():
         thr[name] = cases.run(rc, progress=False).column("fdi_threshold_1")
     assert np.all(thr["wide"] >= thr["default"]) and np.any(thr["wide"] > thr["default"])
     assert np.all(thr["loose"] < thr["default"])
+
+
+@pytest.mark.parametrize("interval", [0.0, 0.01])
+def test_an_excluded_sensor_leaves_the_controllers_in_both_loops(interval):
+    """A pitch sensor offset of 0.08°, inside the voting's tolerance (0.1° with exact
+    sensors) but above the FDI's pair threshold (√2 × 0.05°): unaware (case 2) the
+    controllers read the two sensors' mean; with the FDI (case 4) they read the healthy
+    sensor alone once the failed one is excluded, in the continuous loop and the sampled
+    one, and no actuator latch rises."""
+    over = {"control_interval_s": interval, "t_final_s": 3.0,
+            "wind": {"kind": "ntm", "mean_mps": 16.0}}
+    fault = {"type": "pitch_sensor_offset", "blade": 2, "offset_deg": 0.08}
+    rc2, res2 = _run(fault, case=2, **over)
+    rc4, res4 = _run(fault, case=4, **over)
+    a, b = res2.column("sensor_beta_meas_2_m1"), res2.column("sensor_beta_meas_2_m2")
+    np.testing.assert_allclose(res2.column("beta_meas_2"), (a + b) / 2, rtol=1e-12)
+    excluded = res4.column("fdi_excluded_beta_meas_2_m1") >= 0.5
+    assert excluded.any() and not excluded[res4.t < ONSET].any()
+    # the controllers' sample is held from the last interval: compare after one more
+    after = np.nonzero(excluded)[0][0] + 2
+    np.testing.assert_array_equal(res4.column("beta_meas_2")[after:],
+                                  res4.column("sensor_beta_meas_2_m2")[after:])
+    assert all(res4.column(f"fdi_latch_{j}").max() < 0.5 for j in lay.blades())
+    assert res4.column("fdi_excluded_beta_meas_2_m2").max() < 0.5

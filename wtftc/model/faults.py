@@ -199,7 +199,7 @@ def _parse_fault(tab, w: str) -> Fault:
         f.severity = _num(tab, "severity", w, 1.0, lo=0.0, hi=1.0, lo_open=True)
     else:
         f.sensor = tab.get("sensor", 1)
-        if f.sensor not in (1, 2) or isinstance(f.sensor, bool):
+        if type(f.sensor) is not int or f.sensor not in (1, 2):
             raise ConfigError(f"{w}.sensor", f.sensor, "1 or 2 (every quantity has two "
                               "sensors, m1 and m2)")
         lo, hi, lo_open = ft.bounds

@@ -216,11 +216,12 @@ def _sensor_entry(f, first: dict, excluded: dict, res) -> dict:
 def _sensor_kind(res, s: str, t0: float, t1: float) -> tuple[list[str], dict | None]:
     """The kinds of fault a sensor's readings against its partner's point to after the
     FDI excluded it (identified offline, by the report, over at most 30 s), best first:
-    stuck (it reads a constant); else the one-parameter models of the difference
-    d = y − y_partner, offset (d = a), gain (d = b·y_partner) and drift (d = c·(t − t0)),
-    every one whose residual sum of squares is within 25 noise variances of the best's
-    (an F-test at 5σ: a gain on a speed that hardly varies is an offset to the data);
-    precision (more noise) when none explains a fifth of d."""
+    stuck (it reads a constant); else the models of the difference d = y − y_partner:
+    offset (d = a), gain (d = b·y_partner) and drift (d = a + c·(t − t0), its second
+    parameter charged 25 noise variances), every one whose residual sum of squares is
+    within 25 noise variances of the best's (an F-test at 5σ: a gain on a speed that
+    hardly varies is an offset to the data); precision (more noise) when none explains a
+    fifth of d."""
     t = res.t
     sel = (t >= t0) & (t <= min(t1, t0 + 30.0))
     y, y_p = res.column(f"sensor_{s}")[sel], res.column(f"sensor_{partner(s)}")[sel]
@@ -236,14 +237,22 @@ def _sensor_kind(res, s: str, t0: float, t1: float) -> tuple[list[str], dict | N
     smooth = np.convolve(y_p, ones, mode="same") / np.convolve(np.ones_like(y_p), ones,
                                                                mode="same")
     fits = {}
-    for kind, x in (("offset", np.ones_like(d)), ("gain", smooth), ("drift", tt)):
+    for kind, x in (("offset", np.ones_like(d)), ("gain", smooth)):
         k = float(x @ d / max(x @ x, 1e-300))
         fits[kind] = (float(np.sum((d - k * x) ** 2)), k)
-    best = min(fits, key=lambda k: fits[k][0])
-    rss = fits[best][0]
-    if rss > 0.8 * float(d @ d):
+    # a drift began before the exclusion: d = a + c·(t − t0), two parameters
+    A = np.column_stack([np.ones_like(tt), tt])
+    (a, c), *_ = np.linalg.lstsq(A, d, rcond=None)
+    fits["drift"] = (float(np.sum((d - a - c * tt) ** 2)), float(c))
+    noise = min(f[0] for f in fits.values()) / d.size  # the best fit's residual variance
+    # the drift's second parameter must earn its place: 25 noise variances (5σ)
+    score = {k: f[0] + (25 * noise if k == "drift" else 0.0) for k, f in fits.items()}
+    best = min(score, key=score.get)
+    if fits[best][0] > 0.8 * float(d @ d):
         return ["precision"], {"rms_difference": float(np.sqrt(np.mean(d**2)))}
-    close = sorted((k for k in fits if fits[k][0] - rss <= 25 * rss / d.size),
-                   key=lambda k: fits[k][0])
+    # a drift whose slope is not significant is the offset again, not another reading
+    idle = fits["offset"][0] - fits["drift"][0] < 25 * noise and best != "drift"
+    close = sorted((k for k in score if score[k] - score[best] <= 25 * noise
+                    and not (k == "drift" and idle)), key=score.get)
     key = {"offset": "offset", "gain": "gain", "drift": "rate_per_s"}
     return close, {key[k]: 1 + fits[k][1] if k == "gain" else fits[k][1] for k in close}

@@ -151,13 +151,15 @@ class _Discon(integrate.ChunkHook):
         self.state = None
         self.i_omega_g = lay.index(PLANTS[loop.plant]["states"], "omega_g")
         self.i_omega_r = lay.index(PLANTS[loop.plant]["states"], "omega_r")
-        # the sensors' noise on what ROSCO reads (the loop's measurements carry their
-        # faults, bias and resolution): σ per signal, one stream per signal from the run's
-        # seed, a draw per call
+        # the sensors' noise on what ROSCO reads (the loop's voted pitch carries the
+        # pitch sensors' faults, bias and resolution): the mean of each quantity's two
+        # sensors, σ/√2 (as the virtual sensors give the other controllers), one stream per
+        # signal from the run's seed, a draw per call
         ps = lay.values("sensor_params", lay.defaults("sensor_params")
                         if inputs.p_sensors is None else inputs.p_sensors)
-        self.sigma = {n: ps[f"sigma_{n}_m1"] for n in ("omega_r", "omega_g_hss",
-                                                    *[f"beta_meas_{j}" for j in lay.blades()])}
+        self.sigma = {n: float(np.hypot(ps[f"sigma_{n}_m1"], ps[f"sigma_{n}_m2"])) / 2
+                      for n in ("omega_r", "omega_g_hss",
+                                *[f"beta_meas_{j}" for j in lay.blades()])}
         self.noise = {n: np.random.default_rng(np.random.SeedSequence(
             inputs.noise_seed, spawn_key=(11, k))) for k, n in enumerate(self.sigma)}
         omega_g = z0[self.i_omega_g]

@@ -314,12 +314,14 @@ def _check_together(by_key: dict[str, Axis], t_final: float) -> None:
 MAX_RUNS = 1_000_000
 
 
-def _check_size(mode: str, samples: int | None, axes: list[Axis]) -> None:
+def _check_size(mode: str, samples: int | None, axes: list[Axis], twins: bool = False
+                ) -> None:
     """Refuse a sweep too large to list, before any of it is expanded (a grid of 1e10 runs
-    once used 2 GB in 40 s without a word)."""
+    once used 2 GB in 40 s without a word); fault-free twins double a random sweep."""
     crossed = [a for a in axes if a.key in CROSSED]
     grid = [a for a in axes if mode == "grid" or a.key in CROSSED]
-    n = math.prod(a.size() for a in grid) * (samples if mode == "random" else 1)
+    n = math.prod(a.size() for a in grid) * (samples * (2 if twins else 1)
+                                             if mode == "random" else 1)
     if n > MAX_RUNS:
         sizes = ", ".join(f"{a.key}: {a.size()}" for a in (grid if mode == "grid" else crossed))
         raise ConfigError("samples" if mode == "random" else "grid", f"{n:,} runs",
@@ -338,7 +340,7 @@ def parse_sweep(raw: dict) -> Sweep:
     wind_tab, fault_tab = _tables(raw)
     axes = _axes(raw, wind_tab, fault_tab, mode, settings["t_final"])
     _check_together({a.key: a for a in axes}, settings["t_final"])
-    _check_size(mode, samples, axes)
+    _check_size(mode, samples, axes, settings["fault_free_twins"])
     canonical = json.dumps({**raw, "mode": mode, "sampling_seed": settings["sampling_seed"],
                             "t_final_s": settings["t_final"], "dt_s": settings["dt"],
                             "output_rate_hz": settings["output_rate_hz"],
@@ -389,7 +391,9 @@ def _point(sw: Sweep, values: dict) -> dict:
         cfg["mismatch"] = mismatch
     run_id = hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]
     cfg["label"] = f"sweep-{run_id}"
-    return {"run_id": run_id, **p, "config": cfg}
+    twin = {"twin_onset_s": float(values["twin_onset_s"])} if values.get("twin_onset_s") \
+        is not None else {}
+    return {"run_id": run_id, **p, "config": cfg, **twin}
 
 
 def _combinations(sw: Sweep):
@@ -404,8 +408,11 @@ def _combinations(sw: Sweep):
     crossed = [sw.axis(k) for k in CROSSED]
     drawn = [a for a in sw.axes if a.key not in CROSSED]
     scenarios = [{a.key: a.draw(rng) for a in drawn} for _ in range(sw.samples)]
-    if sw.fault_free_twins:  # each scenario, then its fault-free twin
-        scenarios = [s for sc in scenarios for s in (sc, {**sc, "fault.type": "none"})]
+    if sw.fault_free_twins:  # each scenario, then its fault-free twin (scored from the
+        # faulty one's onset on: twin_onset_s)
+        scenarios = [s for sc in scenarios for s in (sc, {
+            **sc, "fault.type": "none",
+            "twin_onset_s": sc["fault.onset_s"] if sc["fault.type"] != "none" else None})]
     return ({**sc, **dict(zip(CROSSED, cp, strict=True))} for sc in scenarios
             for cp in itertools.product(*(a.grid() for a in crossed)))
 

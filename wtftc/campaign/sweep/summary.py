@@ -57,7 +57,7 @@ def _table(rows: list[dict]) -> tuple[list[str], list[str]]:
     groups: dict[tuple, list] = {}
     for r in rows:
         groups.setdefault((r["controller"], r["fault_type"]), []).append(r)
-    twins = {_scenario(r): r["rms_speed_error_rad_s"] for r in rows
+    twins = {_scenario(r): r["rms_speed_error_after_fault_rad_s"] for r in rows
              if r["fault_type"] == "none" and r["status"] != "failed"}
     lines = ["| " + " | ".join(h for h, _ in TABLE) + " |", "|" + "---|" * len(TABLE)]
     csv = [",".join(h.replace(",", ";") for h, _ in TABLE)]
@@ -103,11 +103,11 @@ def _cells(c: str, f: str, rs: list[dict], twins: dict | None = None) -> list:
 
 
 def _ratios(good: list[dict], f: str, twins: dict) -> list:
-    """Median and max of each run's RMS speed error over its fault-free twin's (None
-    without twins)."""
-    ratios = [r["rms_speed_error_rad_s"] / twins[_scenario(r)] for r in good
+    """Median and max of each run's RMS speed error after its fault's onset over its
+    fault-free twin's over the same window (None without twins)."""
+    ratios = [r["rms_speed_error_after_fault_rad_s"] / twins[_scenario(r)] for r in good
               if f != "none" and twins.get(_scenario(r))
-              and r["rms_speed_error_rad_s"] is not None]
+              and r["rms_speed_error_after_fault_rad_s"] is not None]
     return [_quantile(ratios, 50), max(ratios) if ratios else None]
 
 

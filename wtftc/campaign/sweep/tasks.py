@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+
 from wtftc import config
 from wtftc.campaign import cases
 from wtftc.campaign.compare import CONTROLLERS
@@ -17,7 +19,7 @@ def _row(pt: dict, status: str, m: dict | None = None, cause: str | None = None,
          diverged: dict | None = None) -> dict:
     """The dataset's row of run ``pt`` (store.schema): its axis values, status, metrics ``m``,
     the FDI's detection, the divergence record and its configuration."""
-    row = {k: v for k, v in pt.items() if k != "config"}
+    row = {k: v for k, v in pt.items() if k not in ("config", "twin_onset_s")}
     row.update({"status": status, "cause": cause, "diverged_at_s": None,
                 "diverged_state": None, "detection_delay_s": None,
                 "isolation_correct": None, "false_alarms": None, "fault_detected": None,
@@ -83,6 +85,11 @@ def _run_points(points: list[dict], traces: bool) -> list[tuple[dict, dict | Non
         except Exception as exc:  # noqa: BLE001
             out.append((_row(pt, "failed", cause=f"{type(exc).__name__}: {exc}"), None))
             continue
+        if pt.get("twin_onset_s") is not None:  # a fault-free twin: scored over the
+            # window its faulty twin is scored over after the fault (sweep fault_free_twins)
+            e = res.column("omega_r")[res.t >= pt["twin_onset_s"]] - rc.reference
+            m["rms_speed_error_after_fault_rad_s"] = float(np.sqrt(np.mean(e**2))) \
+                if e.size else None
         status = "diverged" if res.diverged else "ok"
         tr = None
         if traces:
