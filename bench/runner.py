@@ -705,8 +705,11 @@ def run(out: Path, loops: list[str] | None = None, quick: bool = False) -> list[
     ensure_writable_dir(out, "--out")
     build = build_times(loops)
     reports = [bench_loop(name, quick, cache=out / "cache") for name in loops]
+    from bench.discon_cost import call_costs
+
     extra = {"date": time.strftime("%Y-%m-%d %H:%M"), "machine": machine(),
-             "generated functions": len(layout_json()["functions"]), **build}
+             "generated functions": len(layout_json()["functions"]), **build,
+             **call_costs(repeats=2 if quick else 5)}
     text = markdown(reports, extra)
     atomic_write_text(out / "bench.md", text)
     atomic_write_json(out / "bench.json", {"machine": extra, "loops": [

@@ -265,6 +265,12 @@ def build_turbine() -> list[ca.Function]:
         }
         out.append(_function(name, {"x_plant": x, "v": v, "wind": wind, "cp": cp,
                                     "actuator_faults": af, "p_turbine": p_t}, outs))
+    # the generator torque law alone, on the generator speed (LSS) a controller measures:
+    # the torque demand of an exported controller library (wtftc export discon)
+    w_g = ca.SX.sym("omega_g")
+    tr = Translator({**common, "omega_g": w_g})
+    out.append(_function("generator_torque", {"omega_g": w_g, "p_turbine": p_t},
+                         {"T_gen": tr(turbine.generator_torque())}))
     # (λ, β̄) at which the runtime evaluates Cp; the same for both plants (first 6 states)
     tr = Translator({**common, **_named(x_p, lay.PLANT_STATES)})
     out.append(_function("aero_operating_point",

@@ -36,6 +36,7 @@ extern "C" {
 #define casadi_f3 CASADI_PREFIX(f3)
 #define casadi_f4 CASADI_PREFIX(f4)
 #define casadi_f5 CASADI_PREFIX(f5)
+#define casadi_f6 CASADI_PREFIX(f6)
 #define casadi_fabs CASADI_PREFIX(fabs)
 #define casadi_fmax CASADI_PREFIX(fmax)
 #define casadi_fmin CASADI_PREFIX(fmin)
@@ -662,8 +663,133 @@ CASADI_SYMBOL_EXPORT int turbine_nrel5mw_work_bytes(casadi_int *sz_arg, casadi_i
   return 0;
 }
 
-/* aero_operating_point:(x_plant[6],wind,p_turbine[25])->(tsr,beta_mean) */
+/* generator_torque:(omega_g,p_turbine[25])->(T_gen) */
 static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9;
+  a0=arg[1]? arg[1][17] : 0;
+  a1=arg[1]? arg[1][24] : 0;
+  a2=0.;
+  a3=arg[1]? arg[1][23] : 0;
+  a4=arg[0]? arg[0][0] : 0;
+  a5=(a3/a4);
+  a6=arg[1]? arg[1][20] : 0;
+  a7=casadi_sq(a4);
+  a7=(a6*a7);
+  a8=arg[1]? arg[1][19] : 0;
+  a9=casadi_sq(a8);
+  a6=(a6*a9);
+  a9=arg[1]? arg[1][18] : 0;
+  a8=(a8-a9);
+  a6=(a6/a8);
+  a9=(a4-a9);
+  a6=(a6*a9);
+  a7=casadi_fmin(a7,a6);
+  a6=arg[1]? arg[1][21] : 0;
+  a3=(a3/a6);
+  a9=1.;
+  a8=arg[1]? arg[1][22] : 0;
+  a8=(a9+a8);
+  a8=(a6/a8);
+  a6=(a6-a8);
+  a3=(a3/a6);
+  a8=(a4-a8);
+  a3=(a3*a8);
+  a7=casadi_fmax(a7,a3);
+  a5=casadi_fmin(a5,a7);
+  a2=casadi_fmax(a2,a5);
+  a1=casadi_fmin(a1,a2);
+  a1=(a0*a1);
+  a0=(a9-a0);
+  a2=arg[1]? arg[1][8] : 0;
+  a5=arg[1]? arg[1][9] : 0;
+  a9=(a9-a5);
+  a9=(a2*a9);
+  a5=(a5*a2);
+  a2=arg[1]? arg[1][10] : 0;
+  a5=(a5*a2);
+  a5=(a5/a4);
+  a9=(a9+a5);
+  a0=(a0*a9);
+  a1=(a1+a0);
+  if (res[0]!=0) res[0][0]=a1;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int generator_torque(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f2(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int generator_torque_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void generator_torque_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void generator_torque_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void generator_torque_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int generator_torque_n_in(void) { return 2;}
+
+CASADI_SYMBOL_EXPORT casadi_int generator_torque_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real generator_torque_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* generator_torque_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "omega_g";
+    case 1: return "p_turbine";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* generator_torque_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "T_gen";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* generator_torque_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    case 1: return casadi_s4;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* generator_torque_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int generator_torque_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 2;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int generator_torque_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* aero_operating_point:(x_plant[6],wind,p_turbine[25])->(tsr,beta_mean) */
+static int casadi_f3(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=arg[0]? arg[0][0] : 0;
   a1=arg[2]? arg[2][6] : 0;
@@ -685,7 +811,7 @@ static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int aero_operating_point(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f2(arg, res, iw, w, mem);
+  return casadi_f3(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int aero_operating_point_checkout(void) {
@@ -762,7 +888,7 @@ CASADI_SYMBOL_EXPORT int aero_operating_point_work_bytes(casadi_int *sz_arg, cas
 }
 
 /* aero_torque_sensitivity:(x_plant[6],wind,cp,dcp_dbeta,p_turbine[25])->(T_aero,dT_dbeta) */
-static int casadi_f3(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7;
   a0=5.0000000000000000e-01;
   a1=3.1415926535897931e+00;
@@ -793,7 +919,7 @@ static int casadi_f3(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int aero_torque_sensitivity(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f3(arg, res, iw, w, mem);
+  return casadi_f4(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int aero_torque_sensitivity_checkout(void) {
@@ -874,7 +1000,7 @@ CASADI_SYMBOL_EXPORT int aero_torque_sensitivity_work_bytes(casadi_int *sz_arg, 
 }
 
 /* sensors:(true_signals[10],x_lag[10],noise[10],sensor_faults[50],p_sensors[40])->(meas[10],x_lag_dot[10]) */
-static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
@@ -1318,7 +1444,7 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int sensors(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f4(arg, res, iw, w, mem);
+  return casadi_f5(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int sensors_checkout(void) {
@@ -1399,7 +1525,7 @@ CASADI_SYMBOL_EXPORT int sensors_work_bytes(casadi_int *sz_arg, casadi_int* sz_r
 }
 
 /* virtual_sensors:(readings[10],excluded[10],p_sensors[40],gearbox_ratio)->(meas[5]) */
-static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21;
   a00=arg[2]? arg[2][0] : 0;
@@ -1700,7 +1826,7 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int virtual_sensors(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f5(arg, res, iw, w, mem);
+  return casadi_f6(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int virtual_sensors_checkout(void) {

@@ -482,6 +482,11 @@ def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         dT = sp.diff(turbine.aero_torque(), turbine.cp) * sp.Symbol("dcp_dbeta")
         return {"T_aero": pair("taero", [turbine.aero_torque()], vals),
                 "dT_dbeta": pair("dTdb", [dT], vals)}
+    if name == "generator_torque":
+        vals = {e.name: float(x) for e, x in zip(dlay.TURBINE_PARAMS, _flat(args, "p_turbine"),
+                                                  strict=True)}
+        vals["omega_g"] = float(_flat(args, "omega_g")[0])
+        return {"T_gen": pair("tgen", [turbine.generator_torque()], vals)}
     if name.startswith("turbine_") or name == "aero_operating_point":
         return turbine_reference(name, args)
     if name == "lyapunov":

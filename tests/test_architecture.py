@@ -14,7 +14,7 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "wtftc"
 #: the rooms, top to bottom: a module may import its own room and the rooms below it
-ROOMS = ["cli", "campaign", "verify", "results", "config", "sim", "model", "artefacts",
+ROOMS = ["cli", "export", "campaign", "verify", "results", "config", "sim", "model", "artefacts",
          "errors"]
 MAX_LINES = 60
 

@@ -153,6 +153,8 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
         "readings": readings,
         "excluded": (rs.uniform(size=true.size) < 0.2).astype(float),
         "gearbox_ratio": np.array([rs.uniform(50.0, 120.0)]),
+        # the generator speed (LSS) across every region of the torque law
+        "omega_g": np.array([rs.uniform(0.5, 1.6)]),
         "p_sensors": _draw(lay.layout()["sensor_params"], rs)
         * (rs.uniform(size=lay.size("sensor_params")) > 0.3),
         "sched": np.array([-rng.uniform(2e6, 3e7)]),

@@ -1,0 +1,1 @@
+"""Exports of wtftc's controllers to where the field runs them (docs/discon.md)."""

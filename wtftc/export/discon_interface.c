@@ -1,0 +1,308 @@
+/* The Bladed-style DISCON entry point of a wtftc controller library (wtftc export discon).
+ *
+ * ServoDyn calls DISCON(avrSWAP, aviFAIL, accINFILE, avcOUTNAME, avcMSG) every DLL_DT
+ * (OpenFAST modules/servodyn/src/BladedInterface.f90; ROSCO's ReadSetParameters.f90 reads
+ * the same records). Records are 1-based in the docs, C index = record - 1:
+ *   read:  #1 iStatus (0 first, 1 running, -1 final; -8/-9 checkpoint/restart refused),
+ *          #2 time, #3 interval, #4/#33/#34 blade pitch [rad], #20 generator speed
+ *          [rad/s, HSS], #21 rotor speed [rad/s], #50 accINFILE length, #63 first logging
+ *          record;
+ *   write: #42-#44 pitch demands [rad], #45 = #42, #47 generator torque demand [N m,
+ *          HSS], #35 = 1, #36 = 0, #55 = #56 = 0, #65 = logged channels.
+ * Every error sets aviFAIL < 0 with a NUL-terminated message in avcMSG and returns; the
+ * host is never crashed and no record is written from a half-read state.
+ *
+ * The generated functions (wtftc_step, wtftc_init) and the parameter names come from
+ * wtftc_discon_gen.c and wtftc_discon_meta.h, written by the export.
+ */
+#include <ctype.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "wtftc_discon_meta.h"
+
+typedef long long casadi_int;
+typedef double casadi_real;
+int wtftc_step(const casadi_real **arg, casadi_real **res, casadi_int *iw, casadi_real *w,
+               int mem);
+int wtftc_init(const casadi_real **arg, casadi_real **res, casadi_int *iw, casadi_real *w,
+               int mem);
+int wtftc_step_work(casadi_int *sz_arg, casadi_int *sz_res, casadi_int *sz_iw,
+                    casadi_int *sz_w);
+int wtftc_init_work(casadi_int *sz_arg, casadi_int *sz_res, casadi_int *sz_iw,
+                    casadi_int *sz_w);
+
+/* avcMSG's capacity: #49 when the caller gives it (ServoDyn: its message length + 1),
+ * else this, the shorter of the usual hosts' buffers (ROSCO's interface: 1000) */
+#define MSG_DEFAULT 256
+#define MSG_MAX 1024
+static size_t msg_len = MSG_DEFAULT;
+
+typedef struct {
+    double p[WTFTC_N_PARAMS];
+    double x_ctrl[WTFTC_N_CTRL];
+    double x_fdi[WTFTC_N_FDI > 0 ? WTFTC_N_FDI : 1];
+    double *w;          /* CasADi work arrays, sized for the larger of the two functions */
+    casadi_int *iw;
+    const casadi_real **arg;
+    casadi_real **res;
+} Instance;
+
+static Instance *instance = NULL;
+
+static void fail(int *aviFAIL, char *avcMSG, const char *text)
+{
+    *aviFAIL = -1;
+    snprintf(avcMSG, msg_len, "wtftc %s: %s", WTFTC_CONTROLLER, text);
+}
+
+static void release(void)
+{
+    if (instance) {
+        free(instance->w);
+        free(instance->iw);
+        free(instance->arg);
+        free(instance->res);
+        free(instance);
+        instance = NULL;
+    }
+}
+
+/* The parameter named `name`, or -1. */
+static int param_index(const char *name)
+{
+    for (int k = 0; k < WTFTC_N_PARAMS; k++)
+        if (strcmp(name, WTFTC_PARAM_NAMES[k]) == 0) return k;
+    return -1;
+}
+
+/* Read the input file: lines "name value ! unit - source"; '!' and '#' start comments.
+ * Every parameter must be set once, and only known names with finite values. */
+static int read_input(const char *path, double *p, char *err, size_t n_err)
+{
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        snprintf(err, n_err, "cannot open the input file '%s'", path);
+        return -1;
+    }
+    int seen[WTFTC_N_PARAMS] = {0};
+    char line[512];
+    int lineno = 0, rc = 0;
+    while (rc == 0 && fgets(line, sizeof line, f)) {
+        lineno++;
+        char *c = strpbrk(line, "!#");
+        if (c) *c = '\0';
+        char name[128], rest[128];
+        double value;
+        int n = sscanf(line, "%127s %lf %127s", name, &value, rest);
+        if (n <= 0) continue; /* blank or comment */
+        if (n == 1) {
+            char word[128];
+            if (sscanf(line, "%127s %127s", name, word) == 2)
+                snprintf(err, n_err, "%s line %d: %s = '%s' is not a number", path, lineno,
+                         name, word);
+            else
+                snprintf(err, n_err, "%s line %d: %s has no value", path, lineno, name);
+            rc = -1;
+        } else if (n == 3) {
+            snprintf(err, n_err, "%s line %d: '%s' after the value of %s (a comment starts "
+                     "with '!')", path, lineno, rest, name);
+            rc = -1;
+        } else {
+            int k = param_index(name);
+            if (k < 0) {
+                snprintf(err, n_err, "%s line %d: unknown parameter '%s'", path, lineno,
+                         name);
+                rc = -1;
+            } else if (!isfinite(value)) {
+                snprintf(err, n_err, "%s line %d: %s = %g is not finite", path, lineno, name,
+                         value);
+                rc = -1;
+            } else if (seen[k]) {
+                snprintf(err, n_err, "%s line %d: %s is set twice", path, lineno, name);
+                rc = -1;
+            } else {
+                p[k] = value;
+                seen[k] = 1;
+            }
+        }
+    }
+    fclose(f);
+    for (int k = 0; rc == 0 && k < WTFTC_N_PARAMS; k++)
+        if (!seen[k]) {
+            snprintf(err, n_err, "%s: parameter '%s' is missing", path, WTFTC_PARAM_NAMES[k]);
+            rc = -1;
+        }
+    return rc;
+}
+
+/* The input file's name: accINFILE up to its length (#50) or its NUL, whichever first
+ * (ROSCO's ControllerInterface passes the length without the +1 of the NUL). */
+static void input_name(const float *avrSWAP, const char *accINFILE, char *out, size_t n)
+{
+    size_t len = (size_t)(avrSWAP[49] > 0 ? avrSWAP[49] + 0.5f : 0);
+    size_t k = 0;
+    while (k < len && k + 1 < n && accINFILE[k] != '\0') {
+        out[k] = accINFILE[k];
+        k++;
+    }
+    out[k] = '\0';
+    while (k > 0 && isspace((unsigned char)out[k - 1])) out[--k] = '\0';
+}
+
+static int allocate(void)
+{
+    casadi_int a1, r1, i1, w1, a2, r2, i2, w2;
+    wtftc_step_work(&a1, &r1, &i1, &w1);
+    wtftc_init_work(&a2, &r2, &i2, &w2);
+    instance = calloc(1, sizeof(Instance));
+    if (!instance) return -1;
+    instance->w = calloc((size_t)(w1 > w2 ? w1 : w2) + 1, sizeof(double));
+    instance->iw = calloc((size_t)(i1 > i2 ? i1 : i2) + 1, sizeof(casadi_int));
+    instance->arg = calloc((size_t)(a1 > a2 ? a1 : a2) + 1, sizeof(casadi_real *));
+    instance->res = calloc((size_t)(r1 > r2 ? r1 : r2) + 1, sizeof(casadi_real *));
+    if (!instance->w || !instance->iw || !instance->arg || !instance->res) {
+        release();
+        return -1;
+    }
+    return 0;
+}
+
+/* The readings of the ten sensors (each quantity's one measurement to both of its
+ * sensors), or -1 if one is not finite. */
+static int readings(const float *avrSWAP, double *rd, char *err, size_t n_err)
+{
+    const int records[5] = {21, 20, 4, 33, 34}; /* ω_r, ω_g (HSS), β_1, β_2, β_3 */
+    const char *names[5] = {"rotor speed (#21)", "generator speed (#20)",
+                            "blade 1 pitch (#4)", "blade 2 pitch (#33)", "blade 3 pitch (#34)"};
+    for (int k = 0; k < 5; k++) {
+        double v = avrSWAP[records[k] - 1];
+        if (!isfinite(v)) {
+            snprintf(err, n_err, "the measured %s is %g: a finite value is needed", names[k], v);
+            return -1;
+        }
+        rd[k] = rd[k + 5] = v;
+    }
+    return 0;
+}
+
+static int first_call(float *avrSWAP, const char *accINFILE, char *err, size_t n_err)
+{
+    char path[1024];
+    release();
+    if (allocate() != 0) {
+        snprintf(err, n_err, "out of memory");
+        return -1;
+    }
+    input_name(avrSWAP, accINFILE, path, sizeof path);
+    if (read_input(path, instance->p, err, n_err) != 0) return -1;
+    double dt = avrSWAP[2];
+    if (!(fabs(dt - WTFTC_DT) <= 1e-6 * WTFTC_DT)) {
+        snprintf(err, n_err, "called every %g s (#3), exported for %g s: set DLL_DT to %g "
+                 "or export again with --interval", dt, WTFTC_DT, WTFTC_DT);
+        return -1;
+    }
+    double rd[WTFTC_N_READINGS];
+    if (readings(avrSWAP, rd, err, n_err) != 0) return -1;
+    instance->arg[0] = rd;
+    instance->arg[1] = instance->p;
+    instance->res[0] = instance->x_ctrl;
+    instance->res[1] = instance->x_fdi;
+    if (wtftc_init(instance->arg, instance->res, instance->iw, instance->w, 0) != 0) {
+        snprintf(err, n_err, "the initialisation failed");
+        return -1;
+    }
+    return 0;
+}
+
+static int step(float *avrSWAP, char *err, size_t n_err)
+{
+    double rd[WTFTC_N_READINGS], pitch[3], torque, logged[WTFTC_N_LOG > 0 ? WTFTC_N_LOG : 1];
+    double dt = WTFTC_DT;
+    double xc[WTFTC_N_CTRL], xf[WTFTC_N_FDI > 0 ? WTFTC_N_FDI : 1];
+    if (readings(avrSWAP, rd, err, n_err) != 0) return -1;
+    instance->arg[0] = rd;
+    instance->arg[1] = instance->x_ctrl;
+    instance->arg[2] = instance->x_fdi;
+    instance->arg[3] = instance->p;
+    instance->arg[4] = &dt;
+    instance->res[0] = pitch;
+    instance->res[1] = xc;
+    instance->res[2] = xf;
+    instance->res[3] = &torque;
+    instance->res[4] = logged;
+    if (wtftc_step(instance->arg, instance->res, instance->iw, instance->w, 0) != 0) {
+        snprintf(err, n_err, "the controller's step failed");
+        return -1;
+    }
+    for (int k = 0; k < 3; k++)
+        if (!isfinite(pitch[k])) {
+            snprintf(err, n_err, "the pitch demand of blade %d is not finite at t = %g s",
+                     k + 1, avrSWAP[1]);
+            return -1;
+        }
+    memcpy(instance->x_ctrl, xc, sizeof xc);
+    memcpy(instance->x_fdi, xf, sizeof(double) * WTFTC_N_FDI);
+    avrSWAP[41] = (float)pitch[0];
+    avrSWAP[42] = (float)pitch[1];
+    avrSWAP[43] = (float)pitch[2];
+    avrSWAP[44] = (float)pitch[0];
+    avrSWAP[46] = (float)torque;
+    avrSWAP[34] = 1.0f; /* generator contactor: main generator */
+    avrSWAP[35] = 0.0f; /* shaft brake off */
+    avrSWAP[54] = 0.0f; /* pitch override: yes */
+    avrSWAP[55] = 0.0f; /* torque override: yes */
+    avrSWAP[64] = 0.0f;
+    int first_log = (int)(avrSWAP[62] + 0.5f); /* #63: record of the first logged value */
+    if (WTFTC_N_LOG > 0 && first_log >= 1 && first_log - 1 + WTFTC_N_LOG <= WTFTC_SWAP_MAX) {
+        for (int k = 0; k < WTFTC_N_LOG; k++) avrSWAP[first_log - 1 + k] = (float)logged[k];
+        avrSWAP[64] = (float)WTFTC_N_LOG;
+    }
+    return 0;
+}
+
+#if defined(_WIN32)
+#define WTFTC_EXPORT __declspec(dllexport)
+#else
+#define WTFTC_EXPORT __attribute__((visibility("default")))
+#endif
+
+WTFTC_EXPORT void DISCON(float *avrSWAP, int *aviFAIL, const char *accINFILE,
+                         char *avcOUTNAME, char *avcMSG)
+{
+    char err[900] = "";
+    int status = (int)lroundf(avrSWAP[0]);
+    int given = (int)lroundf(avrSWAP[48]); /* #49: avcMSG's capacity */
+    msg_len = given >= 2 && given <= MSG_MAX ? (size_t)given : MSG_DEFAULT;
+    *aviFAIL = 0;
+    avcMSG[0] = '\0';
+    (void)avcOUTNAME; /* an input (the run's root name): never written; the logged
+                         channels' names are in README.txt and docs/discon.md */
+    if (status == -8 || status == -9) {
+        fail(aviFAIL, avcMSG, status == -8 ? "checkpoints are not supported (iStatus = -8)"
+                                           : "restarts are not supported (iStatus = -9)");
+        return;
+    }
+    if (status == -1) {
+        release();
+        return;
+    }
+    if (status != 0 && status != 1) {
+        snprintf(err, sizeof err, "iStatus = %d (#1) is not one of 0, 1, -1", status);
+        fail(aviFAIL, avcMSG, err);
+        return;
+    }
+    if (status == 0 && first_call(avrSWAP, accINFILE, err, sizeof err) != 0) {
+        release();
+        fail(aviFAIL, avcMSG, err);
+        return;
+    }
+    if (!instance) {
+        fail(aviFAIL, avcMSG, "called with iStatus = 1 before a first call (iStatus = 0) "
+                              "succeeded");
+        return;
+    }
+    if (step(avrSWAP, err, sizeof err) != 0) fail(aviFAIL, avcMSG, err);
+}

@@ -1,0 +1,105 @@
+"""An exported DISCON library driving wtftc's NREL 5-MW plant (ours): the check that the
+library behaves as the controller does inside wtftc.
+
+The compiled loop runs the ``external`` controller, whose parameters are the held blade
+pitch commands, and the plant's generator torque held at the library's demand; every
+control interval the library is called through ctypes, as ServoDyn calls it, with what a
+turbine measures (the exact rotor and generator speeds and blade pitches: one reading per
+quantity), and its commands are held over the next interval (wtftc/sim/rosco.py does the
+same with ROSCO's library).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import time
+from pathlib import Path
+
+import numpy as np
+
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.campaign import cases
+from wtftc.errors import ConfigError
+from wtftc.sim import integrate
+from wtftc.sim.rhs import PLANTS
+
+SWAP = 500
+
+
+class Library:
+    """One DISCON library called through ctypes with a float32 avrSWAP of 500 records."""
+
+    def __init__(self, lib: Path, infile: Path, dt: float):
+        self.dll = ctypes.CDLL(str(lib))
+        self.dll.DISCON.restype = None
+        self.swap = np.zeros(SWAP, dtype=np.float32)
+        self.fail = ctypes.c_int(0)
+        self.infile = str(infile).encode() + b"\0"
+        self.outname = ctypes.create_string_buffer(1024)
+        self.msg = ctypes.create_string_buffer(1024)
+        self.dt = dt
+
+    def call(self, status: int, t: float, omega_r: float, omega_g_hss: float, pitch
+             ) -> tuple[np.ndarray, float]:
+        """(pitch demands [rad], generator torque demand [N m, HSS]); a failure raises
+        with the library's message."""
+        s = self.swap
+        s[0], s[1], s[2] = status, t, self.dt
+        s[3], s[32], s[33] = pitch
+        s[19], s[20] = omega_g_hss, omega_r
+        s[48] = 1024  # avcMSG's capacity
+        s[49] = len(self.infile) - 1
+        self.dll.DISCON(s.ctypes.data_as(ctypes.POINTER(ctypes.c_float)),
+                        ctypes.byref(self.fail), ctypes.c_char_p(self.infile),
+                        self.outname, self.msg)
+        if self.fail.value < 0:
+            raise ConfigError("library", "DISCON", self.msg.value.decode(errors="replace"))
+        return s[41:44].astype(float), float(s[46])
+
+
+class _Hook(integrate.ChunkHook):
+    """The library every ``steps`` plant steps; its commands held in between."""
+
+    def __init__(self, lib: Library, loop, z0: np.ndarray, steps: int):
+        self.lib, self.steps = lib, steps
+        states = PLANTS[loop.plant]["states"]
+        self.i_r, self.i_g = lay.index(states, "omega_r"), lay.index(states, "omega_g")
+        self.i_beta = lay.block(states, "beta")
+        self.p_turbine = np.array(loop.p_turbine)
+        self.gear = self.p_turbine[lay.index("turbine_params", "gearbox_ratio")]
+        self.pitch, self.torque = self._call(0, 0.0, z0)
+
+    def _call(self, status: int, t: float, z: np.ndarray):
+        return self.lib.call(status, t, z[self.i_r], z[self.i_g] * self.gear, z[self.i_beta])
+
+    def before(self, call: integrate.Buffered) -> None:
+        pt = self.p_turbine.copy()
+        pt[lay.index("turbine_params", "gen_torque_rated")] = self.torque * self.gear
+        pt[lay.index("turbine_params", "gen_constant_power")] = 0.0
+        pt[lay.index("turbine_params", "gen_torque_law")] = 0.0  # the library's torque
+        call.put("p_turbine", pt)
+        call.put("p_ctrl", self.pitch)
+
+    def after(self, k: int, z: np.ndarray, out: dict[str, float]) -> None:
+        self.pitch, self.torque = self._call(1, k * self.lib.dt / self.steps, z)
+
+
+def run(lib: Path, infile: Path, raw: dict, interval: float) -> integrate.Result:
+    """The plant of run configuration ``raw`` (its wind, faults, dt, duration; its
+    controller is replaced by the library) driven by ``lib`` every ``interval`` s."""
+    rc = config.make_config({**raw, "controller": "rosco", "case": 1 if not raw.get(
+        "fault") else 2, "control_interval_s": 0.0, "profile": "ideal", "sensors": {}})
+    steps = int(round(interval / rc.dt))
+    if steps < 1 or abs(steps * rc.dt - interval) > 1e-12:
+        raise ConfigError("dt_s", rc.dt, f"a divisor of the library's interval {interval} s")
+    inputs, _ = cases._prepare(rc, check=False)
+    t0 = time.perf_counter()
+    library = Library(lib, infile, interval)
+    hook = _Hook(library, rc.loop, inputs.z0, steps)
+    res = integrate.run_loops(rc.loop, [inputs], rc.t_final, rc.dt, rc.decimate,
+                              progress=False, hook=hook)[0]
+    library.call(-1, rc.t_final, 0.0, 0.0, [0.0, 0.0, 0.0])
+    res.schedule = inputs.schedule
+    res.wall_s = time.perf_counter() - t0
+    return res
