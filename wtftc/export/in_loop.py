@@ -40,22 +40,34 @@ class Library:
         self.msg = ctypes.create_string_buffer(1024)
         self.dt = dt
 
-    def call(self, status: int, t: float, omega_r: float, omega_g_hss: float, pitch
-             ) -> tuple[np.ndarray, float]:
-        """(pitch demands [rad], generator torque demand [N m, HSS]); a failure raises
-        with the library's message."""
+    def record(self, status: int, t: float, omega_r: float, omega_g_hss: float, pitch,
+               first_log: int = 0) -> dict:
+        """One call with these measurements (the records ServoDyn fills): what came back,
+        aviFAIL and the message included."""
         s = self.swap
         s[0], s[1], s[2] = status, t, self.dt
         s[3], s[32], s[33] = pitch
         s[19], s[20] = omega_g_hss, omega_r
         s[48] = 1024  # avcMSG's capacity
         s[49] = len(self.infile) - 1
+        s[62] = first_log
         self.dll.DISCON(s.ctypes.data_as(ctypes.POINTER(ctypes.c_float)),
                         ctypes.byref(self.fail), ctypes.c_char_p(self.infile),
                         self.outname, self.msg)
-        if self.fail.value < 0:
-            raise ConfigError("library", "DISCON", self.msg.value.decode(errors="replace"))
-        return s[41:44].astype(float), float(s[46])
+        n_log = int(s[64])
+        return {"fail": self.fail.value, "msg": self.msg.value.decode(errors="replace"),
+                "pitch": s[41:44].astype(float), "torque": float(s[46]), "n_log": n_log,
+                "log": s[first_log - 1:first_log - 1 + n_log].astype(float)
+                if first_log else np.zeros(0)}
+
+    def call(self, status: int, t: float, omega_r: float, omega_g_hss: float, pitch
+             ) -> tuple[np.ndarray, float]:
+        """(pitch demands [rad], generator torque demand [N m, HSS]); a failure raises
+        with the library's message."""
+        out = self.record(status, t, omega_r, omega_g_hss, pitch)
+        if out["fail"] < 0:
+            raise ConfigError("library", "DISCON", out["msg"])
+        return out["pitch"], out["torque"]
 
 
 class _Hook(integrate.ChunkHook):
