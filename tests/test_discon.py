@@ -234,3 +234,38 @@ def test_through_roscos_interface_and_simple_simulator_the_rotor_settles_at_rate
                     init_pitch=pitch0, make_plots=False)
     w = np.asarray(s.rot_speed) / turb.rated_rotor_speed
     assert abs(w[-1000:].mean() - 1) < 0.005 and w.max() < 1.1, (w[-1000:].mean(), w.max())
+
+
+def test_another_interval_is_exported_and_a_bad_one_refused(tmp_path):
+    """--interval 0.005: the library is built for ServoDyn's DLL_DT = 0.005 s and replays
+    the sampled loop at that interval; 0.0015 s (not a whole number of the FDI's 1-ms
+    substeps) is refused in one line naming --interval, nothing written."""
+    bad = subprocess.run([sys.executable, "-m", "wtftc.cli", "export", "discon",
+                          "--controller", "pi", "--interval", "0.0015",
+                          "--out", str(tmp_path / "bad")], capture_output=True, text=True,
+                         timeout=300)
+    assert bad.returncode == 2 and "--interval" in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "bad").exists()
+    out = discon.export("pi", tmp_path / "pi", opt="-O0", interval=0.005)
+    assert "0.005   DLL_DT" in (out / "servodyn_snippet.txt").read_text()
+    rc = config.make_config({
+        "case": 4, "controller": "pi", "profile": "realistic", "t_final_s": 2.0,
+        "control_interval_s": 0.005, "output_rate_hz": 200.0,
+        "wind": {"kind": "ntm", "mean_mps": 16.0},
+        "fault": [{"blade": 2, "type": "lock", "onset_s": 1.0}],
+        "sensors": {"pitch_noise_deg": 0.0, "rotor_speed_noise_rad_s": 0.0,
+                    "generator_speed_noise_rad_s": 0.0}})
+    res = cases.run(rc, progress=False)
+    infile = tmp_path / "replay.IN"
+    infile.write_text(discon.input_file(rc, discon.parameters(rc)))
+    host = Host(out / "libwtftc_pi.so", infile, dt=0.005)
+    for k, t in enumerate(res.t):
+        def read(n, k=k):
+            return float(res.column(f"sensor_{n}_m1")[k])
+        got = host.call(0 if k == 0 else 1, t, read("omega_r"), read("omega_g_hss"),
+                        [read(f"beta_meas_{j}") for j in (1, 2, 3)])
+        assert got["fail"] == 0, got["msg"]
+        v = np.array([res.column(f"v_{j}")[k] for j in (1, 2, 3)])
+        assert np.abs(got["pitch"] - v).max() < 1e-5
+    wrong = Host(out / "libwtftc_pi.so", infile, dt=0.01).call(0, 0.0, *RATED, [0.2] * 3)
+    assert wrong["fail"] < 0 and "exported for 0.005 s" in wrong["msg"]

@@ -225,15 +225,18 @@ def _add_export(sub) -> None:
                    help="the registered controller: physical, pi, paper or drivetrain")
     e.add_argument("--out", type=Path, required=True, help="output folder (replaced whole)")
     e.add_argument("--cc", default="gcc", help="the C compiler (default gcc)")
+    e.add_argument("--interval", type=float, default=0.01,
+                   help="the call interval DLL_DT [s] the library is built for (default "
+                        "0.01, a multiple of 0.001)")
 
 
 def _cmd_export(args) -> int:
     from wtftc.export import discon
 
-    out = discon.export(args.controller, args.out, cc=args.cc)
+    out = discon.export(args.controller, args.out, cc=args.cc, interval=args.interval)
     print(f"written under {out}/: libwtftc_{args.controller}.so, "
           f"wtftc_{args.controller}.IN, servodyn_snippet.txt, README.txt (call interval "
-          f"{discon.CONTROL_DT} s)")
+          f"{args.interval:g} s)")
     return 0
 
 

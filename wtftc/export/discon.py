@@ -66,13 +66,19 @@ def exportable() -> list[str]:
     return [c for c in controllers() if c != "external"]
 
 
-def run_config(controller: str) -> config.RunConfig:
+def run_config(controller: str, interval: float = CONTROL_DT) -> config.RunConfig:
     """The run whose sampled loop the library reproduces: case 4 (wtftc's FDI feeds the
-    accommodation), the realistic profile's interval and noise levels."""
+    accommodation), the realistic profile's noise levels, the call interval ``interval``
+    (a whole multiple of the 1-ms step the FDI substeps at: refused otherwise, naming
+    --interval)."""
     if controller not in exportable():
         raise ConfigError("--controller", controller, "one of " + ", ".join(exportable()))
+    n = round(interval / PLANT_DT) if isinstance(interval, (int, float)) else 0
+    if not (n >= 1 and abs(n * PLANT_DT - interval) <= 1e-12):
+        raise ConfigError("--interval", interval, f"a whole multiple of {PLANT_DT} s "
+                          "(the FDI's substep), e.g. 0.01 or 0.005")
     return config.make_config({"case": 4, "controller": controller, "profile": "realistic",
-                               "dt_s": PLANT_DT, "control_interval_s": CONTROL_DT,
+                               "dt_s": PLANT_DT, "control_interval_s": interval,
                                "t_final_s": 60.0})
 
 
@@ -154,7 +160,7 @@ def _meta_header(rc: config.RunConfig, params: list) -> str:
     logged = [f"fdi_{k}_{j}" for k in LOGGED for j in lay.blades()] if loop.fdi else []
     return f"""/* wtftc export discon: the sizes and parameter names of {loop.controller} */
 #define WTFTC_CONTROLLER "{loop.controller}"
-#define WTFTC_DT {CONTROL_DT!r}
+#define WTFTC_DT {rc.control_interval!r}
 #define WTFTC_N_PARAMS {len(params)}
 #define WTFTC_N_CTRL {loop.n_states[1]}
 #define WTFTC_N_FDI {loop.n_states[2]}
@@ -184,7 +190,7 @@ def input_file(rc: config.RunConfig, params: list) -> str:
     return "\n".join(lines) + "\n"
 
 
-def servodyn_snippet(controller: str) -> str:
+def servodyn_snippet(controller: str, interval: float = CONTROL_DT) -> str:
     """The ServoDyn lines a user pastes (OpenFAST ServoDyn input file, v3.x)."""
     lib, infile = f"libwtftc_{controller}.so", f"wtftc_{controller}.IN"
     return f"""! ServoDyn lines for libwtftc_{controller}.so (paste over the same keys)
@@ -196,7 +202,7 @@ def servodyn_snippet(controller: str) -> str:
 "{lib}"    DLL_FileName - Name/location of the dynamic library (.so) (quoted string)
 "{infile}"    DLL_InFile   - Name of input file sent to the DLL (-) (quoted string)
 "DISCON"      DLL_ProcName - Name of procedure in DLL to be called (-) (case sensitive)
-{CONTROL_DT!r:>11}   DLL_DT       - Communication interval for dynamic library (s): as exported
+{interval!r:>11}   DLL_DT       - Communication interval for dynamic library (s): as exported
           1   Ptch_Cntrl   - Record 28: individual pitch control {{0: collective, 1: individual}}
 """
 
@@ -240,18 +246,21 @@ def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2") ->
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{done.stderr[-2000:]}")
     (out / f"wtftc_{rc.loop.controller}.IN").write_text(input_file(rc, params))
-    (out / "servodyn_snippet.txt").write_text(servodyn_snippet(rc.loop.controller))
+    (out / "servodyn_snippet.txt").write_text(servodyn_snippet(rc.loop.controller,
+                                                               rc.control_interval))
     logged = ", ".join(f"fdi_{k}_{j}" for k in LOGGED for j in lay.blades()) \
         if rc.loop.fdi else "none"
-    (out / "README.txt").write_text(README.format(c=rc.loop.controller, dt=CONTROL_DT,
+    (out / "README.txt").write_text(README.format(c=rc.loop.controller,
+                                                  dt=rc.control_interval,
                                                   swap_max=SWAP_MAX, logged=logged))
 
 
-def export(controller: str, out_dir: Path, cc: str = "gcc", opt: str = "-O2") -> Path:
+def export(controller: str, out_dir: Path, cc: str = "gcc", opt: str = "-O2",
+           interval: float = CONTROL_DT) -> Path:
     """Build the library of ``controller`` into ``out_dir`` as a whole: in a temporary
     folder beside it, moved into place when every file is written (an existing export
     folder is replaced; a folder holding anything else is refused)."""
-    rc = run_config(controller)
+    rc = run_config(controller, interval)
     out_dir = Path(out_dir).resolve()
     if out_dir.exists() and any(out_dir.iterdir()) and not (out_dir / "README.txt").exists():
         raise ConfigError("--out", str(out_dir), "a new folder or an earlier export's")
