@@ -34,6 +34,22 @@ def lib(tmp_path_factory) -> Path:
     return out
 
 
+def _replay(host: Host, res, first_log: int = 0) -> tuple[float, dict]:
+    """Call the library at every output of ``res`` (one per control interval) with the
+    readings the loop read there: the largest difference of its pitch demands from the
+    loop's, relative to max(1, |v|), and the last call's result."""
+    worst, got = 0.0, {}
+    for k, t in enumerate(res.t):
+        def read(n, k=k):
+            return float(res.column(f"sensor_{n}_m1")[k])
+        got = host.call(0 if k == 0 else 1, t, read("omega_r"), read("omega_g_hss"),
+                        [read(f"beta_meas_{j}") for j in (1, 2, 3)], first_log=first_log)
+        assert got["fail"] == 0, got["msg"]
+        v = np.array([res.column(f"v_{j}")[k] for j in (1, 2, 3)])
+        worst = max(worst, float(np.abs(got["pitch"] - v).max() / max(1.0, np.abs(v).max())))
+    return worst, got
+
+
 def test_the_library_commands_what_the_sampled_loop_commands(lib, tmp_path):
     """Replay: wtftc's sampled loop (case 4, physical AFTC with its FDI, NTM B at 16 m/s,
     the default fault at 20 s, exact sensors so that one reading per quantity is both
@@ -190,15 +206,7 @@ def test_every_controller_exports_and_commands_what_it_does_inside_wtftc(control
     infile = tmp_path / "replay.IN"
     infile.write_text(discon.input_file(rc, discon.parameters(rc)))
     host = Host(out / f"libwtftc_{controller}.so", infile)
-    worst = 0.0
-    for k, t in enumerate(res.t):
-        def read(n, k=k):
-            return float(res.column(f"sensor_{n}_m1")[k])
-        got = host.call(0 if k == 0 else 1, t, read("omega_r"), read("omega_g_hss"),
-                        [read(f"beta_meas_{j}") for j in (1, 2, 3)])
-        assert got["fail"] == 0, got["msg"]
-        v = np.array([res.column(f"v_{j}")[k] for j in (1, 2, 3)])
-        worst = max(worst, float(np.abs(got["pitch"] - v).max() / max(1.0, np.abs(v).max())))
+    worst, _ = _replay(host, res)
     # the paper's design and the drivetrain chain, high-gain and chattering, amplify the
     # float32 rounding of the readings (relative 6e-8) into the commands: 1.9e-4 and
     # 3.1e-4 of the command measured; the others stay at float32's own level
@@ -259,13 +267,6 @@ def test_another_interval_is_exported_and_a_bad_one_refused(tmp_path):
     infile = tmp_path / "replay.IN"
     infile.write_text(discon.input_file(rc, discon.parameters(rc)))
     host = Host(out / "libwtftc_pi.so", infile, dt=0.005)
-    for k, t in enumerate(res.t):
-        def read(n, k=k):
-            return float(res.column(f"sensor_{n}_m1")[k])
-        got = host.call(0 if k == 0 else 1, t, read("omega_r"), read("omega_g_hss"),
-                        [read(f"beta_meas_{j}") for j in (1, 2, 3)])
-        assert got["fail"] == 0, got["msg"]
-        v = np.array([res.column(f"v_{j}")[k] for j in (1, 2, 3)])
-        assert np.abs(got["pitch"] - v).max() < 1e-5
+    assert _replay(host, res)[0] < 1e-5
     wrong = Host(out / "libwtftc_pi.so", infile, dt=0.01).call(0, 0.0, *RATED, [0.2] * 3)
     assert wrong["fail"] < 0 and "exported for 0.005 s" in wrong["msg"]
