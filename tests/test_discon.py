@@ -34,6 +34,23 @@ def lib(tmp_path_factory) -> Path:
     return out
 
 
+#: sensors without noise: the one reading per quantity a DISCON caller passes is then
+#: both of wtftc's sensors of it, and the library and the loop read the same
+EXACT = {"pitch_noise_deg": 0.0, "rotor_speed_noise_rad_s": 0.0,
+         "generator_speed_noise_rad_s": 0.0}
+
+
+def _reference(tmp_path: Path, **over):
+    """wtftc's own sampled run (case 4, realistic profile, exact sensors, NTM B at 16 m/s,
+    100 Hz outputs unless ``over`` says otherwise) and the .IN file of its parameters."""
+    rc = config.make_config({"case": 4, "profile": "realistic", "output_rate_hz": 100.0,
+                             "wind": {"kind": "ntm", "mean_mps": 16.0}, "sensors": EXACT,
+                             **over})
+    infile = tmp_path / "reference.IN"
+    infile.write_text(discon.input_file(rc, discon.parameters(rc)))
+    return rc, cases.run(rc, progress=False), infile
+
+
 def _replay(host: Host, res, first_log: int = 0) -> tuple[float, dict]:
     """Call the library at every output of ``res`` (one per control interval) with the
     readings the loop read there: the largest difference of its pitch demands from the
@@ -56,14 +73,7 @@ def test_the_library_commands_what_the_sampled_loop_commands(lib, tmp_path):
     sensors') read call by call into the library, its .IN file written from the same run:
     every pitch demand within 1e-5 rad and the torque demand within 1e-6 (relative) of
     the loop's, for 30 s; the library's FDI finds the fault (its logged latches)."""
-    rc = config.make_config({
-        "case": 4, "controller": "physical", "profile": "realistic", "t_final_s": 30.0,
-        "wind": {"kind": "ntm", "mean_mps": 16.0}, "output_rate_hz": 100.0,
-        "sensors": {"pitch_noise_deg": 0.0, "rotor_speed_noise_rad_s": 0.0,
-                    "generator_speed_noise_rad_s": 0.0}})
-    res = cases.run(rc, progress=False)
-    infile = tmp_path / "replay.IN"
-    infile.write_text(discon.input_file(rc, discon.parameters(rc)))
+    rc, res, infile = _reference(tmp_path, controller="physical", t_final_s=30.0)
     host = Host(lib / "libwtftc_physical.so", infile)
     gear = rc.param("gearbox_ratio")
     worst = {"pitch": 0.0, "torque": 0.0}
@@ -174,13 +184,7 @@ def test_the_library_drives_the_plant_as_the_controller_does_inside_wtftc(lib, t
            "fault": [{"blade": 1, "type": "lock", "onset_s": 20.0},
                      {"blade": 2, "type": "loss_of_effectiveness", "rho": 0.5, "onset_s": 20.0},
                      {"blade": 3, "type": "loss_of_effectiveness", "rho": 0.5, "onset_s": 20.0}]}
-    exact = {"pitch_noise_deg": 0.0, "rotor_speed_noise_rad_s": 0.0,
-             "generator_speed_noise_rad_s": 0.0}
-    rc = config.make_config({**raw, "case": 4, "controller": "physical",
-                             "profile": "realistic", "sensors": exact})
-    ref = cases.run(rc, progress=False)
-    infile = tmp_path / "loop.IN"
-    infile.write_text(discon.input_file(rc, discon.parameters(rc)))
+    rc, ref, infile = _reference(tmp_path, controller="physical", **raw)
     res = in_loop.run(lib / "libwtftc_physical.so", infile, raw, discon.CONTROL_DT)
     assert res.diverged is None
     gap = np.abs(res.column("omega_r") - ref.column("omega_r")).max()
@@ -196,15 +200,8 @@ def test_every_controller_exports_and_commands_what_it_does_inside_wtftc(control
     16 m/s, 5 s, blade 2 locked at 2 s): the same pitch demands to float32 precision
     (scaled by the design's gains), and the call sequence to the final call."""
     out = discon.export(controller, tmp_path / controller, opt="-O0")
-    rc = config.make_config({
-        "case": 4, "controller": controller, "profile": "realistic", "t_final_s": 5.0,
-        "wind": {"kind": "ntm", "mean_mps": 16.0}, "output_rate_hz": 100.0,
-        "fault": [{"blade": 2, "type": "lock", "onset_s": 2.0}],
-        "sensors": {"pitch_noise_deg": 0.0, "rotor_speed_noise_rad_s": 0.0,
-                    "generator_speed_noise_rad_s": 0.0}})
-    res = cases.run(rc, progress=False)
-    infile = tmp_path / "replay.IN"
-    infile.write_text(discon.input_file(rc, discon.parameters(rc)))
+    rc, res, infile = _reference(tmp_path, controller=controller, t_final_s=5.0,
+                                 fault=[{"blade": 2, "type": "lock", "onset_s": 2.0}])
     host = Host(out / f"libwtftc_{controller}.so", infile)
     worst, _ = _replay(host, res)
     # the paper's design and the drivetrain chain, high-gain and chattering, amplify the
@@ -256,16 +253,9 @@ def test_another_interval_is_exported_and_a_bad_one_refused(tmp_path):
     assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "bad").exists()
     out = discon.export("pi", tmp_path / "pi", opt="-O0", interval=0.005)
     assert "0.005   DLL_DT" in (out / "servodyn_snippet.txt").read_text()
-    rc = config.make_config({
-        "case": 4, "controller": "pi", "profile": "realistic", "t_final_s": 2.0,
-        "control_interval_s": 0.005, "output_rate_hz": 200.0,
-        "wind": {"kind": "ntm", "mean_mps": 16.0},
-        "fault": [{"blade": 2, "type": "lock", "onset_s": 1.0}],
-        "sensors": {"pitch_noise_deg": 0.0, "rotor_speed_noise_rad_s": 0.0,
-                    "generator_speed_noise_rad_s": 0.0}})
-    res = cases.run(rc, progress=False)
-    infile = tmp_path / "replay.IN"
-    infile.write_text(discon.input_file(rc, discon.parameters(rc)))
+    rc, res, infile = _reference(tmp_path, controller="pi", t_final_s=2.0,
+                                 control_interval_s=0.005, output_rate_hz=200.0,
+                                 fault=[{"blade": 2, "type": "lock", "onset_s": 1.0}])
     host = Host(out / "libwtftc_pi.so", infile, dt=0.005)
     assert _replay(host, res)[0] < 1e-5
     wrong = Host(out / "libwtftc_pi.so", infile, dt=0.01).call(0, 0.0, *RATED, [0.2] * 3)

@@ -53,10 +53,17 @@ PROFILES = {
 
 #: the [sensors] table: signal → (its measurements, degrees at the edge); each signal takes
 #: <signal>_noise, _bias, _resolution in its unit (deg or rad/s) and <signal>_lag_s
-#: (both sensors of each quantity: m1 and m2 share their specification)
-SENSOR_KEYS = {"pitch": (tuple(f"beta_meas_{j}_m{k}" for k in (1, 2) for j in (1, 2, 3)), True),
-               "rotor_speed": (("omega_r_m1", "omega_r_m2"), False),
-               "generator_speed": (("omega_g_hss_m1", "omega_g_hss_m2"), False)}
+#: (the quantity its sensors measure, a prefix for the pitch's three; every sensor of the
+#: layout's that measures it, m1 and m2 of each, shares the specification)
+SENSOR_KEYS = {"pitch": ("beta_meas_", True), "rotor_speed": ("omega_r", False),
+               "generator_speed": ("omega_g_hss", False)}
+
+
+def _sensors_of(signal: str) -> list[str]:
+    """The layout's sensors of a [sensors] signal (generated/layout.json "sensors")."""
+    q = SENSOR_KEYS[signal][0]
+    return [s["name"] for s in lay.layout()["sensors"]
+            if s["measures"] == q or (q.endswith("_") and s["measures"].startswith(q))]
 #: [sensors] key kind → the layout sensor_params prefix
 _SENSOR_PARAM = {"noise": "sigma", "bias": "bias", "resolution": "resolution", "lag": "lag"}
 
@@ -412,7 +419,7 @@ def _sensors(raw: dict, interval: int) -> np.ndarray:
             raise ConfigError(f"sensors.{key}", val, "0 with control_interval_s = 0: noise and "
                               "lags need a sampled controller (e.g. control_interval_s = 0.01, "
                               "or profile = \"realistic\")")
-        for m in SENSOR_KEYS[sig][0]:
+        for m in _sensors_of(sig):
             p[lay.index("sensor_params", f"{_SENSOR_PARAM[kind]}_{m}")] = (
                 np.radians(x) if unit == "_deg" else x)
     return p
