@@ -4,6 +4,8 @@ sequence, and every bad input refused with aviFAIL < 0 and a message, the proces
 
 from __future__ import annotations
 
+import ctypes
+import dataclasses
 import subprocess
 import sys
 from pathlib import Path
@@ -14,8 +16,12 @@ from discon_host import SWAP, Host
 
 from bench import rosco_sim
 from wtftc import config
+from wtftc.artefacts import layout
 from wtftc.campaign import cases
 from wtftc.export import discon
+from wtftc.model import cp_table
+from wtftc.model.aero import schedule_points
+from wtftc.model.cp_table import nrel5mw_cp_table, read_cp_table, write_cp_table
 
 RATED = (1.26711, 1.26711 * 97.0)  # rotor, generator (HSS) speed [rad/s]
 
@@ -46,8 +52,7 @@ def _reference(tmp_path: Path, **over):
     rc = config.make_config({"case": 4, "profile": "realistic", "output_rate_hz": 100.0,
                              "wind": {"kind": "ntm", "mean_mps": 16.0}, "sensors": EXACT,
                              **over})
-    infile = tmp_path / "reference.IN"
-    infile.write_text(discon.input_file(rc, discon.parameters(rc)))
+    infile = discon.write_input(rc, tmp_path / "reference.IN")
     return rc, cases.run(rc, progress=False), infile
 
 
@@ -171,21 +176,43 @@ def test_a_nan_measurement_while_running_is_refused_and_the_state_kept(lib):
     assert host.call(1, 0.02, *RATED, [0.2] * 3)["fail"] == 0
 
 
-def test_the_library_drives_the_plant_as_the_controller_does_inside_wtftc(lib, tmp_path):
-    """Issue 16's goal: the exported physical AFTC driving wtftc's NREL 5-MW plant through
-    ctypes every 10 ms (wtftc.export.in_loop) against the same controller in wtftc's own
-    sampled loop, 60 s of NTM B at 16 m/s with the default fault (case 4): the rotor speed
-    within 1e-4 rad/s all along. The differences: float32 records, and the torque demand
-    held over the interval where wtftc's plant evaluates its torque law continuously."""
+#: issue 16's closed loop: 60 s of NTM B at 16 m/s with the default fault (case 4)
+CLOSED_LOOP = {"t_final_s": 60.0, "wind": {"kind": "ntm", "mean_mps": 16.0},
+               "output_rate_hz": 100.0,
+               "fault": [{"blade": 1, "type": "lock", "onset_s": 20.0},
+                         {"blade": 2, "type": "loss_of_effectiveness", "rho": 0.5,
+                          "onset_s": 20.0},
+                         {"blade": 3, "type": "loss_of_effectiveness", "rho": 0.5,
+                          "onset_s": 20.0}]}
+
+
+@pytest.fixture(scope="module")
+def closed_loop(tmp_path_factory):
+    """wtftc's own sampled loop over CLOSED_LOOP with the physical AFTC, and its .IN."""
+    _, ref, infile = _reference(tmp_path_factory.mktemp("closed_loop"),
+                                controller="physical", **CLOSED_LOOP)
+    return ref, infile
+
+
+ROSCO_REASON = rosco_sim.available()
+
+
+@pytest.mark.parametrize("via", [
+    "ctypes", pytest.param("rosco", marks=pytest.mark.skipif(
+        ROSCO_REASON is not None, reason=ROSCO_REASON or ""))])
+def test_the_library_drives_the_plant_as_the_controller_does_inside_wtftc(lib, tmp_path,
+                                                                          closed_loop, via):
+    """Issue 16's goal: the exported physical AFTC driving wtftc's NREL 5-MW plant every
+    10 ms (wtftc.export.in_loop), called through plain ctypes or through ROSCO's own
+    ControllerInterface, against the same controller in wtftc's own sampled loop, 60 s
+    of NTM B at 16 m/s with the default fault (case 4): the rotor speed within 1e-4 rad/s
+    all along. The differences: float32 records, and the torque demand held over the
+    interval where wtftc's plant evaluates its torque law continuously."""
     from wtftc.export import in_loop
 
-    raw = {"t_final_s": 60.0, "wind": {"kind": "ntm", "mean_mps": 16.0},
-           "output_rate_hz": 100.0,
-           "fault": [{"blade": 1, "type": "lock", "onset_s": 20.0},
-                     {"blade": 2, "type": "loss_of_effectiveness", "rho": 0.5, "onset_s": 20.0},
-                     {"blade": 3, "type": "loss_of_effectiveness", "rho": 0.5, "onset_s": 20.0}]}
-    rc, ref, infile = _reference(tmp_path, controller="physical", **raw)
-    res = in_loop.run(lib / "libwtftc_physical.so", infile, raw, discon.CONTROL_DT)
+    ref, infile = closed_loop
+    res = in_loop.run(lib / "libwtftc_physical.so", infile, CLOSED_LOOP, discon.CONTROL_DT,
+                      rosco_folder=tmp_path if via == "rosco" else None)
     assert res.diverged is None
     gap = np.abs(res.column("omega_r") - ref.column("omega_r")).max()
     assert gap <= 1e-4, gap
@@ -209,9 +236,6 @@ def test_every_controller_exports_and_commands_what_it_does_inside_wtftc(control
     # 3.1e-4 of the command measured; the others stay at float32's own level
     assert worst < (1e-3 if controller in ("paper", "drivetrain") else 1e-5), worst
     assert host.call(-1, 5.0, *RATED, [0.2] * 3)["fail"] == 0
-
-
-ROSCO_REASON = rosco_sim.available()
 
 
 @pytest.mark.skipif(ROSCO_REASON is not None, reason=ROSCO_REASON or "")
@@ -260,3 +284,127 @@ def test_another_interval_is_exported_and_a_bad_one_refused(tmp_path):
     assert _replay(host, res)[0] < 1e-5
     wrong = Host(out / "libwtftc_pi.so", infile, dt=0.01).call(0, 0.0, *RATED, [0.2] * 3)
     assert wrong["fail"] < 0 and "exported for 0.005 s" in wrong["msg"]
+
+
+def _schedule_in_c(lib: Path, cp_file: Path, p: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The library's load-time schedule (discon_cp.c, wtftc_schedule_points) of a Cp file
+    and a parameter vector."""
+    dll = ctypes.CDLL(str(lib))
+    dp = ctypes.POINTER(ctypes.c_double)
+    b, g = np.zeros(discon.SCHED_MAX), np.zeros(discon.SCHED_MAX)
+    err = ctypes.create_string_buffer(1000)
+    p = np.ascontiguousarray(p, dtype=float)
+    n = dll.wtftc_schedule_points(str(cp_file).encode(), p.ctypes.data_as(dp),
+                                  b.ctypes.data_as(dp), g.ctypes.data_as(dp),
+                                  discon.SCHED_MAX, err, ctypes.c_size_t(1000))
+    assert n > 0, err.value
+    return b[:n], g[:n]
+
+
+def _scaled_table(tmp_path: Path, factor: float) -> Path:
+    table = nrel5mw_cp_table()
+    path = tmp_path / "Cp_Ct_Cq.scaled.txt"
+    write_cp_table(dataclasses.replace(table, cp=table.cp * factor), path)
+    return path
+
+
+def test_the_schedule_is_computed_from_the_cp_file_as_wtftc_computes_it(lib, tmp_path):
+    """The ∂T/∂β schedule the library computes at load time from the Cp file and the .IN's
+    turbine values equals wtftc.model.aero.schedule_points: the packaged NREL 5-MW table
+    with its parameters, and a table with Cp × 0.97 read with the air density set to
+    1.15 kg/m³: the same breakpoints, every ∂T/∂β within 1e-9 relative (measured 5e-11;
+    the spline and the bisection are re-implemented in C, discon_cp.c)."""
+    rc = discon.run_config("physical")
+    params = discon.parameters(rc)
+    p = np.array([v for _, v, *_ in params])
+    i_t = [n for n, *_ in params].index(layout.names("turbine_params")[0])
+    for table_file, rho in ((lib / cp_table.NREL5MW_FILE, None),
+                            (_scaled_table(tmp_path, 0.97), 1.15)):
+        q = p.copy()
+        if rho is not None:
+            q[i_t + layout.index("turbine_params", "air_density")] = rho
+        b, g = _schedule_in_c(lib / "libwtftc_physical.so", table_file, q)
+        b_ref, g_ref = schedule_points(read_cp_table(table_file),
+                                       q[i_t:i_t + layout.size("turbine_params")])
+        assert np.array_equal(b, b_ref)
+        assert np.abs(g / g_ref - 1).max() < 1e-9, np.abs(g / g_ref - 1).max()
+    # the last breakpoint too: the schedule's gradient grows towards feather
+    assert g[-1] < g[-2] < 0
+
+
+def test_a_users_cp_file_is_read_by_the_library(tmp_path):
+    """A run whose controllers use a user's Cp file (``cp_table``: the NREL 5-MW table ×
+    0.97): its .IN names that file, which the export copies beside it byte for byte, and
+    the library (the PI, whose gains follow the schedule directly) replays the run's
+    pitch demands to float32 precision; with the packaged table instead they differ."""
+    table = _scaled_table(tmp_path, 0.97)
+    out = discon.export("pi", tmp_path / "pi", opt="-O0")
+    (tmp_path / "run").mkdir()
+    rc, res, infile = _reference(tmp_path / "run", controller="pi", t_final_s=5.0,
+                                 cp_table=str(table),
+                                 fault=[{"blade": 2, "type": "lock", "onset_s": 2.0}])
+    assert f'"{table.name}"' in infile.read_text()
+    assert (infile.parent / table.name).read_bytes() == table.read_bytes()
+    assert _replay(Host(out / "libwtftc_pi.so", infile), res)[0] < 1e-5
+    (infile.parent / table.name).write_bytes((out / cp_table.NREL5MW_FILE).read_bytes())
+    assert _replay(Host(out / "libwtftc_pi.so", infile), res)[0] > 1e-4
+
+
+def _with_cp(tmp_path: Path, lib: Path, cp_text: str | None, key: str | None = None) -> Path:
+    """The physical library's .IN in tmp_path, its PerfFileName line replaced by ``key``
+    (default: naming bad_cp.txt, written with ``cp_text`` unless None)."""
+    if cp_text is not None:
+        (tmp_path / "bad_cp.txt").write_text(cp_text)
+    line = 'PerfFileName "bad_cp.txt"' if key is None else key
+    return _bad_file(tmp_path, lib, lambda ls: [
+        line if ln.startswith(discon.CP_KEY) else ln for ln in ls if ln or key != ""])
+
+
+def _cp_text(edit) -> str:
+    lines = (Path(cp_table.__file__).parent.parent / "data" / cp_table.NREL5MW_FILE
+             ).read_text().splitlines()
+    return "\n".join(edit(lines)) + "\n"
+
+
+def _first_number_line(lines, header):
+    return next(k for k, ln in enumerate(lines) if header in ln) + 1
+
+
+def _only_low_pitch(lines):
+    """Pitch grid -5..0 deg: no pitch above 0 for the operating curve."""
+    k = _first_number_line(lines, "Pitch angle vector")
+    lines[k - 1] = "# Pitch angle vector, 6 entries - x axis (matrix columns) (deg)"
+    lines[k] = " ".join(lines[k].split()[:6])
+    start = _first_number_line(lines, "Power coefficient") + 1
+    for j in range(start, start + 26):
+        lines[j] = " ".join(lines[j].split()[:6])
+    return [ln for ln in lines[:start + 26]]
+
+
+BAD_CP = {
+    "no line": (None, "", "PerfFileName (the Cp_Ct_Cq file of the dT/dbeta schedule) is "
+                          "missing"),
+    "no name": (None, "PerfFileName", "PerfFileName needs a file name"),
+    "missing file": (None, None, "cannot open the Cp file"),
+    "not a number": (lambda ls: ls[:4] + [ls[4].replace("-5.0", "x5", 1)] + ls[5:], None,
+                     "line 5: an entry that is not a finite number"),
+    "short row": (lambda ls: ls[:13] + [" ".join(ls[13].split()[:-1])] + ls[14:], None,
+                  "line 14: a Power coefficient row of 35 values after rows of 36"),
+    "no Cp section": (lambda ls: ls[:10], None, "no 'Power coefficient' section"),
+    "unnamed section": (lambda ls: [ln.replace("Power", "Powder") for ln in ls], None,
+                        "line 13: numbers under no section header"),
+    "pitch down": (lambda ls: ls[:4] + [ls[4].replace("-5.0", "9.0", 1)] + ls[5:], None,
+                   "'Pitch angle vector' is not strictly increasing"),
+    "no operating range": (_only_low_pitch, None, "no above-rated operating range"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_CP))
+def test_a_bad_or_missing_cp_file_is_refused_with_a_message(lib, tmp_path, case):
+    edit, key, text = BAD_CP[case]
+    cp_text = _cp_text(edit) if edit else None
+    path = _with_cp(tmp_path, lib, cp_text, key)
+    host = Host(lib / "libwtftc_physical.so", path)
+    out = host.call(0, 0.0, *RATED, [0.2] * 3)
+    assert out["fail"] < 0 and text in out["msg"], out["msg"]
+    assert host.call(1, 0.01, *RATED, [0.2] * 3)["fail"] < 0

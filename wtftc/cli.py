@@ -234,9 +234,11 @@ def _cmd_export(args) -> int:
     from wtftc.export import discon
 
     out = discon.export(args.controller, args.out, cc=args.cc, interval=args.interval)
-    print(f"written under {out}/: libwtftc_{args.controller}.so, "
-          f"wtftc_{args.controller}.IN, servodyn_snippet.txt, README.txt (call interval "
-          f"{args.interval:g} s)")
+    cp = [discon.cp_file_name(discon.run_config(args.controller).loop.table)] \
+        if discon.needs_cp(args.controller) else []
+    files = [f"libwtftc_{args.controller}.so", f"wtftc_{args.controller}.IN", *cp,
+             "servodyn_snippet.txt", "README.txt"]
+    print(f"written under {out}/: {', '.join(files)} (call interval {args.interval:g} s)")
     return 0
 
 

@@ -18,22 +18,34 @@ simulator's step the library was exported for); the generator torque demand is t
 turbine's torque law (``generator_torque``) at the measured generator speed. A DISCON
 caller measures each quantity once: the reading goes to both of its sensors (the pair
 tests then see no disagreement; a sensor fault reaches the library as a changed
-reading). The ∂T/∂β schedule is the packaged Cp table's, baked into the code at export.
+reading).
+
+The ∂T/∂β schedule of the controllers that use one (all but the paper's) is computed at
+load time from the Cp_Ct_Cq file the .IN names (``PerfFileName``, relative to the .IN's
+folder as ROSCO resolves it), by ``discon_cp.c`` (this package): the same steps as
+``wtftc.model.aero.schedule_points`` with the turbine parameters of the .IN; the export
+writes the table the run used beside the .IN. The gearbox ratio the virtual sensors use
+is the .IN's too: editing the .IN's turbine values retunes the library without a new
+export.
 """
 
 from __future__ import annotations
 
+import hashlib
+import importlib.resources
 import shutil
 import subprocess
 import tempfile
 from pathlib import Path
 
 import casadi as ca
+import numpy as np
 
 from wtftc import config
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import load
 from wtftc.errors import ConfigError
+from wtftc.model.cp_table import NREL5MW_FILE, NREL5MW_SOURCE, CpTable, write_cp_table
 from wtftc.sim import sampled
 from wtftc.sim.rhs import (
     controller_block,
@@ -51,6 +63,14 @@ GROUPS = ("controller", "fdi_params", "sensor_params", "turbine_params", "refere
 #: the FDI's outputs logged per blade (OutName channels)
 LOGGED = ("latch", "rho_hat", "c_hat")
 HERE = Path(__file__).resolve().parent
+#: the most breakpoints a schedule may have (table pitch angles ≥ 0 on the operating
+#: curve); the generated lookup sums a term per breakpoint
+SCHED_MAX = 100
+#: the schedule's runtime table: ∂T/∂β at the first breakpoint, then per segment its
+#: start [rad], width [rad] and slope [N m/rad²] (the library fills it at load time)
+SCHED_LEN = 1 + 3 * (SCHED_MAX - 1)
+#: the .IN key naming the Cp_Ct_Cq file (ROSCO's DISCON.IN key of the same file)
+CP_KEY = "PerfFileName"
 
 
 def _groups(controller: str) -> dict[str, str]:
@@ -64,6 +84,35 @@ def exportable() -> list[str]:
     """The registered controllers a library can be made of: all but ``external`` (it holds
     commands given from outside the loop: ROSCO's; there is nothing to export)."""
     return [c for c in controllers() if c != "external"]
+
+
+def needs_cp(controller: str) -> bool:
+    """Whether the controller reads the ∂T/∂β schedule (then the .IN names a Cp file)."""
+    f = load(controllers()[controller]["function"], "interpreted")
+    return any(f.which_depends("sched", [o], 1, True)[0] for o in f.name_out())
+
+
+def runtime_schedule(tab: ca.SX, beta: ca.SX) -> ca.SX:
+    """∂T/∂β at the mean pitch ``beta`` from the runtime table ``tab`` (SCHED_LEN): linear
+    between breakpoints, held beyond the ends, as the simulator's schedule
+    (wtftc.model.aero.sched_loop_function), written as a sum of clipped segments so that
+    the breakpoints are runtime values: g_0 + Σ_k s_k min(max(β - β_k, 0), h_k). Unused
+    segments have s_k = 0."""
+    n = SCHED_MAX - 1
+    start, width, slope = tab[1:1 + n], tab[1 + n:1 + 2 * n], tab[1 + 2 * n:1 + 3 * n]
+    return tab[0] + ca.dot(slope, ca.fmin(ca.fmax(beta - start, 0), width))
+
+
+def schedule_table(betas: np.ndarray, grads: np.ndarray) -> np.ndarray:
+    """The runtime table of breakpoints (betas [rad], grads [N m/rad]), as
+    discon_interface.c packs it (for tests and for a library's reference)."""
+    n = SCHED_MAX - 1
+    start = np.full(n, betas[-1])
+    width, slope = np.ones(n), np.zeros(n)
+    start[:len(betas) - 1] = betas[:-1]
+    width[:len(betas) - 1] = np.diff(betas)
+    slope[:len(betas) - 1] = np.diff(grads) / np.diff(betas)
+    return np.concatenate([[grads[0]], start, width, slope])
 
 
 def run_config(controller: str, interval: float = CONTROL_DT) -> config.RunConfig:
@@ -93,23 +142,42 @@ def parameters(rc: config.RunConfig) -> list[tuple[str, float, str, str]]:
     return out
 
 
+def _split(p: ca.SX, controller: str) -> dict[str, ca.SX]:
+    """The library's parameter vector by .IN section."""
+    parts, k = {}, 0
+    for section, group in _groups(controller).items():
+        parts[section], k = p[k:k + lay.size(group)], k + lay.size(group)
+    return parts
+
+
+def _runtime_values(parts: dict, tab: ca.SX) -> dict:
+    """The loop symbols that are the .IN's values in a library: the gearbox ratio and the
+    schedule from the runtime table (see :func:`wtftc.sim.rhs.virtual`)."""
+    return {"gearbox_ratio": parts["turbine_params"][lay.index("turbine_params",
+                                                               "gearbox_ratio")],
+            "sched_fn": lambda beta: runtime_schedule(tab, beta)}
+
+
+def _n_params(controller: str) -> int:
+    return sum(lay.size(g) for g in _groups(controller).values())
+
+
 def step_function(rc: config.RunConfig) -> ca.Function:
-    """One control interval: (readings, x_ctrl, x_fdi, p, T) → (pitch demands, x_ctrl and
-    x_fdi at the next call, generator torque demand on the HSS, logged FDI outputs)."""
+    """One control interval: (readings, x_ctrl, x_fdi, p, T, sched) → (pitch demands,
+    x_ctrl and x_fdi at the next call, generator torque demand on the HSS, logged FDI
+    outputs)."""
     loop = rc.loop
     n_sub = loop.interval
     sym = loop_symbols(loop, 0)
     n_c, n_f = loop.n_states[1], loop.n_states[2]
     rd = ca.SX.sym("readings", len(lay.layout()["sensors"]))
     xc, xf, T = ca.SX.sym("x_ctrl", n_c), ca.SX.sym("x_fdi", n_f), ca.SX.sym("T")
-    p = ca.SX.sym("p", sum(lay.size(g) for g in _groups(loop.controller).values()))
-    parts, k = {}, 0
-    for section, group in _groups(loop.controller).items():
-        parts[section], k = p[k:k + lay.size(group)], k + lay.size(group)
+    p, tab = ca.SX.sym("p", _n_params(loop.controller)), ca.SX.sym("sched", SCHED_LEN)
+    parts = _split(p, loop.controller)
     args = {**sym, "p_ctrl": parts["controller"], "p_fdi": parts["fdi_params"],
             "p_sensors": parts["sensor_params"], "yd": parts["reference"],
             "use_fdi": ca.DM(1.0 if loop.fdi else 0.0),
-            "ctrl_fault": ca.DM(lay.defaults("fault_inputs"))}
+            "ctrl_fault": ca.DM(lay.defaults("fault_inputs")), **_runtime_values(parts, tab)}
     ctl = controller_block(loop, xc, xf, rd, args)
     xc_next = sampled._rk4(lambda x: controller_block(loop, x, xf, rd, args)["x_ctrl_dot"],
                            xc, T)
@@ -126,8 +194,8 @@ def step_function(rc: config.RunConfig) -> ca.Function:
     logged = ca.vertcat(*ctl["fdi"][:len(LOGGED)]) if loop.fdi else ca.DM.zeros(0)
     outs = [ctl["v"], xc_next, xf_next, t_gen / gear, logged]
     outs = ca.cse(outs)
-    return ca.Function("wtftc_step", [rd, xc, xf, p, T], outs,
-                       ["readings", "x_ctrl", "x_fdi", "p", "T"],
+    return ca.Function("wtftc_step", [rd, xc, xf, p, T, tab], outs,
+                       ["readings", "x_ctrl", "x_fdi", "p", "T", "sched"],
                        ["pitch", "x_ctrl_next", "x_fdi_next", "torque_hss", "logged"])
 
 
@@ -137,25 +205,57 @@ def init_function(rc: config.RunConfig) -> ca.Function:
     loop = rc.loop
     reg = controllers()[loop.controller]
     rd = ca.SX.sym("readings", len(lay.layout()["sensors"]))
-    p = ca.SX.sym("p", sum(lay.size(g) for g in _groups(loop.controller).values()))
-    n_pc = lay.size(reg["params"])
-    sym = {**loop_symbols(loop, 0), "p_sensors": p[n_pc + lay.size("fdi_params"):][
-        :lay.size("sensor_params")]}
+    p, tab = ca.SX.sym("p", _n_params(loop.controller)), ca.SX.sym("sched", SCHED_LEN)
+    parts = _split(p, loop.controller)
+    sym = {**loop_symbols(loop, 0), "p_sensors": parts["sensor_params"],
+           **_runtime_values(parts, tab)}
     m = virtual(loop, rd, ca.DM.zeros(rd.numel()), sym)
     xc0 = load(reg["init"], "interpreted")(meas=m["meas"], sched=m["sched"],
-                                            p_ctrl=p[:n_pc])["x_ctrl0"]
+                                            p_ctrl=parts["controller"])["x_ctrl0"]
     xf0 = load("init_fdi", "interpreted")(beta_meas=m["sensors"])["x_fdi0"] if loop.fdi \
         else ca.DM.zeros(0)
-    return ca.Function("wtftc_init", [rd, p], [xc0, xf0], ["readings", "p"],
+    return ca.Function("wtftc_init", [rd, p, tab], [xc0, xf0], ["readings", "p", "sched"],
                        ["x_ctrl0", "x_fdi0"])
 
 
+def sched_functions(controller: str) -> list[ca.Function]:
+    """The turbine's side of the schedule computed at load time (discon_cp.c), as
+    wtftc.model.aero.schedule_points computes it: ``wtftc_sched_tsr(v, p)`` the tip-speed
+    ratio at rated speed in wind v, ``wtftc_sched_point(beta, v, cp, dcp, p)`` the
+    aerodynamic torque's excess over rated torque and ∂T_aero/∂β (generated
+    aero_torque_sensitivity at rated speed, the three blades at beta)."""
+    p, v = ca.SX.sym("p", _n_params(controller)), ca.SX.sym("v")
+    pt = _split(p, controller)["turbine_params"]
+    tp = {n: pt[lay.index("turbine_params", n)]
+          for n in ("omega_g_rated", "gen_torque_rated", "rotor_radius")}
+    tsr = ca.Function("wtftc_sched_tsr", [v, p],
+                      [tp["omega_g_rated"] * tp["rotor_radius"] / v], ["v", "p"], ["tsr"])
+    beta, cp, dcp = ca.SX.sym("beta"), ca.SX.sym("cp"), ca.SX.sym("dcp")
+    x6 = [ca.SX(float(d)) for d in lay.defaults("plant_states")]
+    names = lay.names("plant_states")
+    for n, val in (("omega_r", tp["omega_g_rated"]), ("theta_s", ca.SX(0.0)),
+                   ("omega_g", tp["omega_g_rated"])):
+        x6[names.index(n)] = val
+    for k in range(*lay.block("plant_states", "beta").indices(len(names))):
+        x6[k] = beta
+    sens = load("aero_torque_sensitivity", "interpreted")(
+        x_plant=ca.vertcat(*x6), wind=v, cp=cp, dcp_dbeta=dcp, p_turbine=pt)
+    point = ca.Function("wtftc_sched_point", [beta, v, cp, dcp, p],
+                        [sens["T_aero"] - tp["gen_torque_rated"], sens["dT_dbeta"]],
+                        ["beta", "v", "cp", "dcp", "p"], ["excess", "dT_dbeta"])
+    return [tsr, point]
+
+
+#: the hand-written C of every library (this package)
+SOURCES = ("discon_interface.c", "discon_cp.c")
 #: the avrSWAP records the library may write (the issue's bound: 500)
 SWAP_MAX = 500
 
 
 def _meta_header(rc: config.RunConfig, params: list) -> str:
     loop = rc.loop
+    fs = sched_functions(loop.controller)
+    work = {k: max(getattr(f, f"sz_{k}")() for f in fs) for k in ("arg", "res", "iw", "w")}
     names = ",\n    ".join(f'"{n}"' for n, *_ in params)
     logged = [f"fdi_{k}_{j}" for k in LOGGED for j in lay.blades()] if loop.fdi else []
     return f"""/* wtftc export discon: the sizes and parameter names of {loop.controller} */
@@ -167,18 +267,35 @@ def _meta_header(rc: config.RunConfig, params: list) -> str:
 #define WTFTC_N_READINGS {len(lay.layout()["sensors"])}
 #define WTFTC_N_LOG {len(logged)}
 #define WTFTC_SWAP_MAX {SWAP_MAX}
+#define WTFTC_NEEDS_CP {int(needs_cp(loop.controller))}
+#define WTFTC_CP_KEY "{CP_KEY}"
+#define WTFTC_SCHED_MAX {SCHED_MAX}
+#define WTFTC_SCHED_LEN {SCHED_LEN}
+#define WTFTC_SCHED_ARG {work["arg"]}
+#define WTFTC_SCHED_RES {work["res"]}
+#define WTFTC_SCHED_IW {work["iw"]}
+#define WTFTC_SCHED_W {work["w"]}
 static const char *const WTFTC_PARAM_NAMES[WTFTC_N_PARAMS] = {{
     {names}
 }};
 """
 
 
-def input_file(rc: config.RunConfig, params: list) -> str:
-    """The .IN file: every parameter by name, value, unit and source."""
+#: the Cp_Ct_Cq file an export writes beside its .IN
+CP_FILE = "Cp_Ct_Cq.wtftc.txt"
+
+
+def input_file(rc: config.RunConfig, params: list, cp_file: str = CP_FILE) -> str:
+    """The .IN file: the Cp file if the controller needs one, then every parameter by
+    name, value, unit and source."""
     lines = [f"! wtftc {rc.loop.controller}: the parameters of libwtftc_{rc.loop.controller}.so"
              f" (wtftc export discon; docs/discon.md)",
              "! name  value  ! unit - source. Every parameter must be set, once; edit the",
              "! values to tune or to describe another turbine. '!' starts a comment."]
+    if needs_cp(rc.loop.controller):
+        lines += ["", f'{CP_KEY:<28s} {chr(34) + cp_file + chr(34):>24s}  ! - the rotor '
+                  "performance table (ROSCO's Cp_Ct_Cq format) of the ∂T/∂β schedule, "
+                  "relative to this file's folder unless absolute"]
     section = None
     groups = _groups(rc.loop.controller)
     owner = {e["name"]: s for s, g in groups.items() for e in lay.layout()[g]}
@@ -220,11 +337,44 @@ written if 0 or beyond record {swap_max}). It writes #42-#44 the blade pitch dem
 read only (the run's name); avcMSG holds at most #49 characters (256 when #49 is 0).
 
 Input file: wtftc_{c}.IN, every parameter by name (value, unit, source); all must be set.
-Errors (a bad or missing input file, a wrong interval, a non-finite measurement, an
-unknown iStatus) set aviFAIL = -1 with a message in avcMSG; the host keeps running.
+{cp}Errors (a bad or missing input file or Cp file, a wrong interval, a non-finite
+measurement, an unknown iStatus) set aviFAIL = -1 with a message in avcMSG; the host keeps
+running.
 The controller's states advance at the call interval as in wtftc's sampled loop; the
 FDI runs inside and feeds the accommodation (wtftc's case 4). Details: docs/discon.md.
 """
+
+
+def _write_table(table: CpTable, path: Path) -> None:
+    """The controllers' Cp table as a file: the file it was read from, byte for byte, when
+    that is at hand (the packaged NREL 5-MW table, a user's file unchanged since it was
+    read), else written round-trip exact (wtftc.model.cp_table.write_cp_table)."""
+    if table.source == NREL5MW_SOURCE:
+        raw = (importlib.resources.files("wtftc") / "data" / NREL5MW_FILE).read_bytes()
+    else:
+        src = Path(table.source)
+        raw = src.read_bytes() if src.is_file() else b""
+    if table.sha256 is not None and hashlib.sha256(raw).hexdigest() == table.sha256:
+        path.write_bytes(raw)
+    else:
+        write_cp_table(table, path, title=table.source)
+
+
+def cp_file_name(table: CpTable) -> str:
+    """The name the Cp file of ``table`` gets beside a .IN: its own file's name."""
+    if table.source == NREL5MW_SOURCE:
+        return NREL5MW_FILE
+    return Path(table.source).name if Path(table.source).suffix else CP_FILE
+
+
+def write_input(rc: config.RunConfig, path: Path) -> Path:
+    """The .IN file of ``rc``'s parameters at ``path``, and beside it the Cp file it names
+    when the controller needs one."""
+    cp = cp_file_name(rc.loop.table)
+    path.write_text(input_file(rc, parameters(rc), cp), encoding="utf-8")
+    if needs_cp(rc.loop.controller):
+        _write_table(rc.loop.table, path.parent / cp)
+    return path
 
 
 def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2") -> None:
@@ -233,24 +383,30 @@ def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2") ->
     cg = ca.CodeGenerator("wtftc_discon_gen.c", {"with_header": False, "verbose": False})
     cg.add(step_function(rc))
     cg.add(init_function(rc))
+    for f in sched_functions(rc.loop.controller):
+        cg.add(f)
     cg.generate(str(out) + "/")
     (out / "wtftc_discon_meta.h").write_text(_meta_header(rc, params))
-    shutil.copy(HERE / "discon_interface.c", out / "discon_interface.c")
+    for name in SOURCES:
+        shutil.copy(HERE / name, out / name)
     lib = out / f"libwtftc_{rc.loop.controller}.so"
     cmd = [cc, opt, "-std=c99", "-shared", "-fPIC", "-o", str(lib),
-           str(out / "wtftc_discon_gen.c"), str(out / "discon_interface.c"), "-lm"]
+           str(out / "wtftc_discon_gen.c"), *(str(out / n) for n in SOURCES), "-lm"]
     try:
         done = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     except FileNotFoundError:
         raise ConfigError("--cc", cc, "a C compiler on the PATH (gcc, clang)") from None
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(cmd)} failed:\n{done.stderr[-2000:]}")
-    (out / f"wtftc_{rc.loop.controller}.IN").write_text(input_file(rc, params))
+    write_input(rc, out / f"wtftc_{rc.loop.controller}.IN")
     (out / "servodyn_snippet.txt").write_text(servodyn_snippet(rc.loop.controller,
                                                                rc.control_interval))
     logged = ", ".join(f"fdi_{k}_{j}" for k in LOGGED for j in lay.blades()) \
         if rc.loop.fdi else "none"
-    (out / "README.txt").write_text(README.format(c=rc.loop.controller,
+    cp = (f"Its PerfFileName names the Cp_Ct_Cq file ({cp_file_name(rc.loop.table)}, "
+          "relative to the .IN's folder)\nthe library reads at its first call to compute "
+          "the dT/dbeta schedule.\n") if needs_cp(rc.loop.controller) else ""
+    (out / "README.txt").write_text(README.format(c=rc.loop.controller, cp=cp,
                                                   dt=rc.control_interval,
                                                   swap_max=SWAP_MAX, logged=logged))
 

@@ -25,6 +25,8 @@
 
 typedef long long casadi_int;
 typedef double casadi_real;
+int wtftc_schedule_points(const char *path, const double *p, double *betas, double *grads,
+                          int n_max, char *err, size_t n_err);
 int wtftc_step(const casadi_real **arg, casadi_real **res, casadi_int *iw, casadi_real *w,
                int mem);
 int wtftc_init(const casadi_real **arg, casadi_real **res, casadi_int *iw, casadi_real *w,
@@ -44,6 +46,7 @@ typedef struct {
     double p[WTFTC_N_PARAMS];
     double x_ctrl[WTFTC_N_CTRL];
     double x_fdi[WTFTC_N_FDI > 0 ? WTFTC_N_FDI : 1];
+    double sched[WTFTC_SCHED_LEN]; /* the ∂T/∂β schedule's runtime table (discon.py) */
     double *w;          /* CasADi work arrays, sized for the larger of the two functions */
     casadi_int *iw;
     const casadi_real **arg;
@@ -78,9 +81,41 @@ static int param_index(const char *name)
     return -1;
 }
 
+/* The Cp file named on a PerfFileName line ("PerfFileName "file" ! comment"), resolved
+ * against the input file's folder unless absolute (ROSCO: PriPath // PerfFileName). */
+static int cp_name(const char *path, const char *line, int lineno, char *cp, size_t n_cp,
+                   char *err, size_t n_err)
+{
+    const char *s = line + strlen(WTFTC_CP_KEY);
+    while (isspace((unsigned char)*s)) s++;
+    char quote = (*s == '"' || *s == '\'') ? *s++ : '\0';
+    const char *end = s;
+    while (*end && (quote ? *end != quote : !isspace((unsigned char)*end) && *end != '!'))
+        end++;
+    if (end == s || (quote && *end != quote)) {
+        snprintf(err, n_err, "%s line %d: %s needs a file name (a quoted path)", path, lineno,
+                 WTFTC_CP_KEY);
+        return -1;
+    }
+    size_t dir = 0;
+    if (*s != '/' && *s != '\\' && !(isalpha((unsigned char)s[0]) && s[1] == ':'))
+        for (size_t k = 0; path[k]; k++)
+            if (path[k] == '/' || path[k] == '\\') dir = k + 1;
+    if (dir + (size_t)(end - s) + 1 > n_cp) {
+        snprintf(err, n_err, "%s line %d: the %s path is too long", path, lineno, WTFTC_CP_KEY);
+        return -1;
+    }
+    memcpy(cp, path, dir);
+    memcpy(cp + dir, s, (size_t)(end - s));
+    cp[dir + (size_t)(end - s)] = '\0';
+    return 0;
+}
+
 /* Read the input file: lines "name value ! unit - source"; '!' and '#' start comments.
- * Every parameter must be set once, and only known names with finite values. */
-static int read_input(const char *path, double *p, char *err, size_t n_err)
+ * Every parameter must be set once, and only known names with finite values; the Cp
+ * file once when the controller needs it (cp: its resolved path). */
+static int read_input(const char *path, double *p, char *cp, size_t n_cp, char *err,
+                      size_t n_err)
 {
     FILE *f = fopen(path, "r");
     if (!f) {
@@ -89,9 +124,19 @@ static int read_input(const char *path, double *p, char *err, size_t n_err)
     }
     int seen[WTFTC_N_PARAMS] = {0};
     char line[512];
-    int lineno = 0, rc = 0;
+    int lineno = 0, rc = 0, cp_seen = 0;
     while (rc == 0 && fgets(line, sizeof line, f)) {
         lineno++;
+        char key[128];
+        if (WTFTC_NEEDS_CP && sscanf(line, "%127s", key) == 1 && strcmp(key, WTFTC_CP_KEY) == 0) {
+            if (cp_seen++) {
+                snprintf(err, n_err, "%s line %d: %s is set twice", path, lineno, WTFTC_CP_KEY);
+                rc = -1;
+            } else {
+                rc = cp_name(path, strstr(line, WTFTC_CP_KEY), lineno, cp, n_cp, err, n_err);
+            }
+            continue;
+        }
         char *c = strpbrk(line, "!#");
         if (c) *c = '\0';
         char name[128], rest[128];
@@ -130,6 +175,11 @@ static int read_input(const char *path, double *p, char *err, size_t n_err)
         }
     }
     fclose(f);
+    if (rc == 0 && WTFTC_NEEDS_CP && !cp_seen) {
+        snprintf(err, n_err, "%s: %s (the Cp_Ct_Cq file of the dT/dbeta schedule) is missing",
+                 path, WTFTC_CP_KEY);
+        rc = -1;
+    }
     for (int k = 0; rc == 0 && k < WTFTC_N_PARAMS; k++)
         if (!seen[k]) {
             snprintf(err, n_err, "%s: parameter '%s' is missing", path, WTFTC_PARAM_NAMES[k]);
@@ -188,16 +238,40 @@ static int readings(const float *avrSWAP, double *rd, char *err, size_t n_err)
     return 0;
 }
 
+/* The schedule's runtime table from the Cp file (a flat one when the controller has no
+ * schedule): ∂T/∂β at the first breakpoint, then each segment's start, width and slope;
+ * unused segments have slope 0 (wtftc/export/discon.py, runtime_schedule). */
+static int schedule(const char *cp, char *err, size_t n_err)
+{
+    double betas[WTFTC_SCHED_MAX], grads[WTFTC_SCHED_MAX];
+    int n = 2, m = WTFTC_SCHED_MAX - 1;
+    betas[0] = 0.0, betas[1] = 1.0, grads[0] = grads[1] = 0.0;
+    if (WTFTC_NEEDS_CP) {
+        n = wtftc_schedule_points(cp, instance->p, betas, grads, WTFTC_SCHED_MAX, err, n_err);
+        if (n < 0) return -1;
+    }
+    double *t = instance->sched;
+    t[0] = grads[0];
+    for (int k = 0; k < m; k++) {
+        int used = k < n - 1;
+        t[1 + k] = used ? betas[k] : betas[n - 1];
+        t[1 + m + k] = used ? betas[k + 1] - betas[k] : 1.0;
+        t[1 + 2 * m + k] = used ? (grads[k + 1] - grads[k]) / (betas[k + 1] - betas[k]) : 0.0;
+    }
+    return 0;
+}
+
 static int first_call(float *avrSWAP, const char *accINFILE, char *err, size_t n_err)
 {
-    char path[1024];
+    char path[1024], cp[2048] = "";
     release();
     if (allocate() != 0) {
         snprintf(err, n_err, "out of memory");
         return -1;
     }
     input_name(avrSWAP, accINFILE, path, sizeof path);
-    if (read_input(path, instance->p, err, n_err) != 0) return -1;
+    if (read_input(path, instance->p, cp, sizeof cp, err, n_err) != 0) return -1;
+    if (schedule(cp, err, n_err) != 0) return -1;
     double dt = avrSWAP[2];
     if (!(fabs(dt - WTFTC_DT) <= 1e-6 * WTFTC_DT)) {
         snprintf(err, n_err, "called every %g s (#3), exported for %g s: set DLL_DT to %g "
@@ -208,6 +282,7 @@ static int first_call(float *avrSWAP, const char *accINFILE, char *err, size_t n
     if (readings(avrSWAP, rd, err, n_err) != 0) return -1;
     instance->arg[0] = rd;
     instance->arg[1] = instance->p;
+    instance->arg[2] = instance->sched;
     instance->res[0] = instance->x_ctrl;
     instance->res[1] = instance->x_fdi;
     if (wtftc_init(instance->arg, instance->res, instance->iw, instance->w, 0) != 0) {
@@ -228,6 +303,7 @@ static int step(float *avrSWAP, char *err, size_t n_err)
     instance->arg[2] = instance->x_fdi;
     instance->arg[3] = instance->p;
     instance->arg[4] = &dt;
+    instance->arg[5] = instance->sched;
     instance->res[0] = pitch;
     instance->res[1] = xc;
     instance->res[2] = xf;

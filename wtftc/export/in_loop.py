@@ -70,6 +70,51 @@ class Library:
         return out["pitch"], out["torque"]
 
 
+class ViaRosco:
+    """The same calls through ROSCO's own ``ControllerInterface`` (pip ``rosco``): its
+    avrSWAP of 500 float32 records, its string handling (#50 without the NUL) and its call
+    sequence. Two things are set around it, as wtftc/sim/rosco.py does for ROSCO's
+    library: the first call (made by the interface's constructor) gets the real initial
+    state, not its hard-coded 1 rad/s, and every call gets each blade's own pitch in #4,
+    #33 and #34 (``call_controller`` writes one collective pitch to all three)."""
+
+    def __init__(self, lib: Path, infile: Path, dt: float, folder: Path):
+        from wtftc.sim.rosco import _import
+
+        _, controller_interface = _import()
+        self.dt, self.lib, self.infile, self.folder = dt, lib, infile, folder
+        self.ci, self.measured = None, None
+
+        class _Blades(controller_interface):
+            def call_discon(inner):
+                m = self.measured
+                s = inner.avrSWAP
+                s[0], s[1], s[2] = m["status"], m["t"], dt
+                s[3], s[32], s[33] = m["pitch"]
+                s[19], s[20] = m["omega_g_hss"], m["omega_r"]
+                super().call_discon()
+
+        self.cls = _Blades
+
+    def call(self, status: int, t: float, omega_r: float, omega_g_hss: float, pitch
+             ) -> tuple[np.ndarray, float]:
+        self.measured = {"status": status, "t": t, "omega_r": omega_r,
+                         "omega_g_hss": omega_g_hss, "pitch": list(pitch)}
+        if status == 0:  # the constructor makes the first call
+            self.ci = self.cls(str(self.lib), param_filename=str(self.infile), DT=self.dt,
+                               pitch=float(np.degrees(np.mean(pitch))),
+                               sim_name=str(self.folder / "wtftc"), avr_size=SWAP)
+        else:
+            self.ci.call_discon()
+        if self.ci.aviFAIL.value < 0:
+            raise ConfigError("library", "DISCON", self.ci.avcMSG.value.decode(
+                errors="replace"))
+        s = self.ci.avrSWAP
+        if status == -1:
+            self.ci.kill_discon()
+        return np.array(s[41:44], dtype=float), float(s[46])
+
+
 class _Hook(integrate.ChunkHook):
     """The library every ``steps`` plant steps; its commands held in between."""
 
@@ -97,9 +142,12 @@ class _Hook(integrate.ChunkHook):
         self.pitch, self.torque = self._call(1, k * self.lib.dt / self.steps, z)
 
 
-def run(lib: Path, infile: Path, raw: dict, interval: float) -> integrate.Result:
+def run(lib: Path, infile: Path, raw: dict, interval: float,
+        rosco_folder: Path | None = None) -> integrate.Result:
     """The plant of run configuration ``raw`` (its wind, faults, dt, duration; its
-    controller is replaced by the library) driven by ``lib`` every ``interval`` s."""
+    controller is replaced by the library) driven by ``lib`` every ``interval`` s, called
+    through plain ctypes or, given ``rosco_folder`` (where ROSCO's interface may write),
+    through ROSCO's ControllerInterface."""
     rc = config.make_config({**raw, "controller": "rosco", "case": 1 if not raw.get(
         "fault") else 2, "control_interval_s": 0.0, "profile": "ideal", "sensors": {}})
     steps = int(round(interval / rc.dt))
@@ -107,7 +155,8 @@ def run(lib: Path, infile: Path, raw: dict, interval: float) -> integrate.Result
         raise ConfigError("dt_s", rc.dt, f"a divisor of the library's interval {interval} s")
     inputs, _ = cases._prepare(rc, check=False)
     t0 = time.perf_counter()
-    library = Library(lib, infile, interval)
+    library = Library(lib, infile, interval) if rosco_folder is None else \
+        ViaRosco(lib, infile, interval, rosco_folder)
     hook = _Hook(library, rc.loop, inputs.z0, steps)
     res = integrate.run_loops(rc.loop, [inputs], rc.t_final, rc.dt, rc.decimate,
                               progress=False, hook=hook)[0]

@@ -84,8 +84,7 @@ def _schedule_points(table: CpTable, p_turbine: tuple) -> tuple[np.ndarray, np.n
     """
     p_turbine = np.array(p_turbine)
     cp_fn = cp_interpolant(table)
-    lam, b = ca.SX.sym("tsr"), ca.SX.sym("beta")
-    dcp_fn = ca.Function("dcp", [lam, b], [ca.jacobian(cp_fn(lam, b), b)])
+    dcp_fn = _dcp_dbeta_on_grid(table)
     sens = load("aero_torque_sensitivity")
     tp = lay.values("turbine_params", p_turbine)
     omega, torque, R = tp["omega_g_rated"], tp["gen_torque_rated"], tp["rotor_radius"]
@@ -117,6 +116,16 @@ def _schedule_points(table: CpTable, p_turbine: tuple) -> tuple[np.ndarray, np.n
                           f"{tp['omega_g_rated']:g} rad/s, gen_torque_rated = "
                           f"{tp['gen_torque_rated']:g} N m)")
     return np.array(betas), np.array(grads)
+
+def _dcp_dbeta_on_grid(table: CpTable) -> ca.Function:
+    """∂Cp/∂β of :func:`cp_interpolant`'s spline at a table pitch (λ clipped to the grid
+    as there, β not: the derivative of the clip at the grid's last pitch is CasADi's ½ of
+    a tie, which halved the schedule's last breakpoint before 2026-11-24)."""
+    f = ca.interpolant("cp_table", "bspline", [table.tsr, table.pitch_rad],
+                       np.asarray(table.cp, dtype=float).ravel(order="F"))
+    lam, b = ca.SX.sym("tsr"), ca.SX.sym("beta")
+    lam_c = ca.fmin(ca.fmax(lam, float(table.tsr[0])), float(table.tsr[-1]))
+    return ca.Function("dcp", [lam, b], [ca.jacobian(f(ca.vertcat(lam_c, b)), b)])
 
 def _schedule_function(betas: np.ndarray, grads: np.ndarray) -> ca.Function:
     interp = ca.interpolant("dTdbeta_table", "linear", [betas], grads)

@@ -293,13 +293,17 @@ def virtual(loop: Loop, readings: ca.SX, excluded: ca.SX, sym: dict) -> dict:
     (generated ``virtual_sensors``, derivation/sensors.py; with exact sensors the rotor
     speed sensor alone and every pitch sensor's reading, bit for bit), the measured
     pitches, and the ∂T_aero/∂β schedule at the measured mean pitch (the controllers'
-    model: the nominal turbine and table, whatever the plant)."""
-    gear = loop.p_turbine[lay.index("turbine_params", "gearbox_ratio")]
+    model: the nominal turbine and table, whatever the plant). ``sym`` may give the
+    gearbox ratio (``gearbox_ratio``) and the schedule (``sched_fn``: mean pitch →
+    ∂T/∂β) as runtime values, as an exported library does (wtftc/export/discon.py)."""
+    gear = sym.get("gearbox_ratio", loop.p_turbine[lay.index("turbine_params",
+                                                              "gearbox_ratio")])
     meas = load("virtual_sensors", "interpreted")(
         readings=readings, excluded=excluded, p_sensors=sym["p_sensors"],
         gearbox_ratio=gear)["meas"]
     sensors = ca.vertcat(*[meas[measurement_index(f"beta_meas_{j}")] for j in lay.blades()])
-    sched_fn = sched_loop_function(loop.table, np.array(loop.p_turbine))
+    sched_fn = sym.get("sched_fn") or sched_loop_function(loop.table,
+                                                          np.array(loop.p_turbine))
     return {"meas": meas, "sensors": sensors,
             "sched": sched_fn(ca.sum1(sensors) / lay.n_blades())}
 
