@@ -34,7 +34,7 @@ int main(int argc, char **argv)
     swap[19] = 122.9f; swap[20] = 1.267f;                        /* speeds */
     swap[22] = 43093.0f; swap[26] = 16.0f;                        /* torque, wind */
     swap[15] = 4.0e6f; swap[49] = (float)strlen(infile); swap[50] = (float)strlen(out);
-    swap[28] = 0;
+    swap[27] = 1.0f; swap[28] = 0;                               /* #28 individual pitch */
     swap[128] = 3.0f; swap[61] = 3.0f;                            /* ROSCO: #129, #62 */
     swap[0] = 0; discon(swap, &fail, infile, out, msg);
     if (fail < 0) { fprintf(stderr, "first call: %s\n", msg); return 1; }

@@ -168,6 +168,15 @@ def test_bad_calls_are_refused_with_a_message(lib, status, rotor, dt, text):
     assert len(out["msg"]) < 1024 and host.swap.size == SWAP
 
 
+def test_collective_pitch_control_is_refused_with_a_message(lib):
+    """Ptch_Cntrl = 0 (#28): the host would apply #45 to every blade and the accommodation
+    of a faulty blade would be lost; the first call says to set Ptch_Cntrl 1."""
+    host = Host(lib / "libwtftc_physical.so", lib / "wtftc_physical.IN")
+    host.ptch_cntrl = 0
+    out = host.call(0, 0.0, *RATED, [0.2] * 3)
+    assert out["fail"] < 0 and "set Ptch_Cntrl 1" in out["msg"], out["msg"]
+
+
 def test_a_nan_measurement_while_running_is_refused_and_the_state_kept(lib):
     host = Host(lib / "libwtftc_physical.so", lib / "wtftc_physical.IN")
     assert host.call(0, 0.0, *RATED, [0.2] * 3)["fail"] == 0

@@ -329,10 +329,11 @@ README = """libwtftc_{c}.so: wtftc's `{c}` controller with wtftc's FDI, as a Bla
 Call it every {dt} s (DLL_DT; another interval is refused). It reads from avrSWAP (1-based
 records): #1 iStatus (0 first call, 1 running, -1 last; -8/-9 refused), #2 time, #3
 interval, #4/#33/#34 blade pitch [rad], #20 generator speed [rad/s, HSS], #21 rotor speed
-[rad/s], #50 and the input file name; #63 the first record for logged channels (none
-written if 0 or beyond record {swap_max}). It writes #42-#44 the blade pitch demands
-[rad], #45 = #42, #47 the generator torque demand [N m, HSS], #35 = 1, #36 = 0, #55 =
-#56 = 0, #65 the number of logged channels, written from record #63 on: {logged}
+[rad/s], #28 Ptch_Cntrl (must be 1: individual pitch), #50 and the input file name;
+#63 the first record for logged channels (none written if 0 or beyond record {swap_max}).
+It writes #42-#44 the blade pitch demands [rad], #45 = #42, #47 the generator torque
+demand [N m, HSS], #35 = 1, #36 = 0, #55 = #56 = 0, #65 the number of logged channels,
+written from record #63 on: {logged}
 (latches [-], effectiveness estimates [-], stuck-angle estimates [rad]). avcOUTNAME is
 read only (the run's name); avcMSG holds at most #49 characters (256 when #49 is 0).
 

@@ -5,8 +5,8 @@
  * the same records). Records are 1-based in the docs, C index = record - 1:
  *   read:  #1 iStatus (0 first, 1 running, -1 final; -8/-9 checkpoint/restart refused),
  *          #2 time, #3 interval, #4/#33/#34 blade pitch [rad], #20 generator speed
- *          [rad/s, HSS], #21 rotor speed [rad/s], #50 accINFILE length, #63 first logging
- *          record;
+ *          [rad/s, HSS], #21 rotor speed [rad/s], #28 Ptch_Cntrl (must be 1: individual
+ *          pitch), #50 accINFILE length, #63 first logging record;
  *   write: #42-#44 pitch demands [rad], #45 = #42, #47 generator torque demand [N m,
  *          HSS], #35 = 1, #36 = 0, #55 = #56 = 0, #65 = logged channels.
  * Every error sets aviFAIL < 0 with a NUL-terminated message in avcMSG and returns; the
@@ -276,6 +276,11 @@ static int first_call(float *avrSWAP, const char *accINFILE, char *err, size_t n
     if (!(fabs(dt - WTFTC_DT) <= 1e-6 * WTFTC_DT)) {
         snprintf(err, n_err, "called every %g s (#3), exported for %g s: set DLL_DT to %g "
                  "or export again with --interval", dt, WTFTC_DT, WTFTC_DT);
+        return -1;
+    }
+    if ((int)lroundf(avrSWAP[27]) != 1) { /* #28 Ptch_Cntrl */
+        snprintf(err, n_err, "Ptch_Cntrl = %g (#28): the accommodation commands each blade "
+                 "(#42-#44); set Ptch_Cntrl 1 (individual pitch) in ServoDyn", avrSWAP[27]);
         return -1;
     }
     double rd[WTFTC_N_READINGS];

@@ -39,6 +39,7 @@ class Library:
         self.outname = ctypes.create_string_buffer(1024)
         self.msg = ctypes.create_string_buffer(1024)
         self.dt = dt
+        self.ptch_cntrl = 1  # #28: individual pitch, as the library needs
 
     def record(self, status: int, t: float, omega_r: float, omega_g_hss: float, pitch,
                first_log: int = 0) -> dict:
@@ -48,6 +49,7 @@ class Library:
         s[0], s[1], s[2] = status, t, self.dt
         s[3], s[32], s[33] = pitch
         s[19], s[20] = omega_g_hss, omega_r
+        s[27] = self.ptch_cntrl
         s[48] = 1024  # avcMSG's capacity
         s[49] = len(self.infile) - 1
         s[62] = first_log
