@@ -25,6 +25,11 @@ $(STAMP): pyproject.toml
 	@# its ControllerInterface (docs/controllers.md)
 	$(PY) -m pip install --quiet pyzmq pyyaml ruamel.yaml
 	$(PY) -m pip install --quiet --no-deps 'rosco==2.10.6' 
+	@# OpenFAST's input-file reader for `wtftc turbine import`, without the pandas it
+	@# declares (its reader does not use it); deepdiff, because ROSCO's toolbox imports it
+	@# through openfast-io once that is installed
+	$(PY) -m pip install --quiet --no-deps 'openfast-io==5.0.0'
+	$(PY) -m pip install --quiet 'deepdiff>8.0'
 	@touch $(STAMP)
 
 setup: $(STAMP)

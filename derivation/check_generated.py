@@ -21,13 +21,15 @@ FIX = "generated/ is stale: run `make regenerate` and commit generated/"
 
 
 def stale_sources(root: Path = ROOT) -> list[str]:
-    """Derivation sources whose sha256 differs from the manifest (or that it lacks)."""
+    """Derivation sources whose sha256 differs from the manifest (or that it lacks): the
+    modules and the NREL 5-MW's turbine file (derivation.generate.source_files)."""
     manifest_path = root / "generated" / "manifest.json"
     if not manifest_path.exists():
         return [f"{manifest_path} is missing"]
     recorded = json.loads(manifest_path.read_text())["sources"]
     current = {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-               for p in sorted((root / "derivation").glob("*.py"))}
+               for p in [*sorted((root / "derivation").glob("*.py")),
+                         root / "wtftc" / "data" / "nrel5mw.toml"]}
     problems = []
     for path in sorted(set(recorded) | set(current)):
         if path not in current:

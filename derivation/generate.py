@@ -29,7 +29,7 @@ import casadi as ca
 import sympy as sp
 
 from derivation import backstepping as bs
-from derivation import controllers, fdi, lyapunov, observer, plant, sensors, turbine
+from derivation import controllers, fdi, lyapunov, nrel5mw, observer, plant, sensors, turbine
 from derivation import layout as lay
 from derivation.casadi_build import FuzzyEvaluator, Translator, joint_cse
 
@@ -444,8 +444,9 @@ def _sha256(path: Path) -> str:
 
 
 def source_files() -> list[Path]:
-    """Every derivation source that can change the artefacts."""
-    return sorted(DERIVATION_DIR.glob("*.py"))
+    """Every derivation source that can change the artefacts: the modules and the NREL
+    5-MW's turbine file, whose values are the layout's turbine defaults."""
+    return [*sorted(DERIVATION_DIR.glob("*.py")), nrel5mw.TURBINE_FILE]
 
 
 def _signature(f: ca.Function) -> dict:

@@ -85,22 +85,11 @@ CONTROLLER_STATES = [
       for i in range(1, N_CHAIN + 1) for m in range(rule_count(i))],
 ]
 
-# --- plant parameters: eq (10); NREL 5-MW values referred to the low-speed shaft ---
-PLANT_PARAMS = [
-    Entry("J_r", nrel5mw.ROTOR_INERTIA, "kg m^2",
-          "rotor inertia (Jonkman et al. 2009, NREL/TP-500-38060, Table 5-1 rotor+hub "
-          "about the LSS; the 38,677,040.6 of ROSCO's tuning file omits the hub)"),
-    Entry("J_g", nrel5mw.GEN_INERTIA_LSS, "kg m^2",
-          f"generator inertia {nrel5mw.GEN_INERTIA_HSS} kg m² on the HSS × gearbox ratio "
-          f"{nrel5mw.GEARBOX_RATIO:g}² (Jonkman 2009)"),
-    Entry("k_s", nrel5mw.SHAFT_STIFFNESS, "N m/rad",
-          "drivetrain torsional stiffness (Jonkman 2009)"),
-    Entry("d_s", nrel5mw.SHAFT_DAMPING, "N m s/rad", "drivetrain torsional damping (Jonkman 2009)"),
-    Entry("tau_b", nrel5mw.PITCH_TIME_CONSTANT, "s",
-          "pitch time constant of eq (4): 2ζ/ω_n of the benchmark actuator "
-          f"(ω_n = {nrel5mw.ACTUATOR_OMEGA_N} rad/s, ζ = {nrel5mw.ACTUATOR_ZETA}, "
-          "Odgaard et al. 2013), its first-order equivalent"),
-]
+# --- plant parameters: eq (10); the NREL 5-MW's values (referred to the low-speed shaft)
+# and sources from its turbine file, wtftc/data/nrel5mw.toml ---
+PLANT_PARAMS = [nrel5mw.entry(Entry, n, u) for n, u in (
+    ("J_r", "kg m^2"), ("J_g", "kg m^2"), ("k_s", "N m/rad"), ("d_s", "N m s/rad"),
+    ("tau_b", "s"))]
 
 # --- fault parameters of eq (19), one per blade actuator (true plant) ---
 #: (the sample ranges: where verification draws the fault estimates eq (49) is told)
@@ -151,7 +140,6 @@ CONTROLLER_PARAMS = [
 ]
 
 # --- simulator plants (derivation/turbine.py) ---
-_N = nrel5mw.GEARBOX_RATIO  # HSS/LSS
 #: (the sample ranges: verification crosses the actuator's limits, beyond 0..90°)
 NREL_STATES = [
     *[replace(e, sample=r) for e, r in zip(DRIVETRAIN_STATES, ((0.8, 1.6), (-0.01, 0.01),
@@ -161,54 +149,17 @@ NREL_STATES = [
     *[Entry(f"beta_rate_{j}", 0.0, "rad/s", f"pitch rate of blade {j}", sample=(-0.25, 0.25))
       for j in range(1, N_BLADES + 1)],
 ]
-TURBINE_PARAMS = [
-    *PLANT_PARAMS,
-    Entry("air_density", nrel5mw.AIR_DENSITY, "kg/m^3", "air density (Jonkman 2009)"),
-    Entry("rotor_radius", nrel5mw.ROTOR_RADIUS, "m", "tip radius (Jonkman 2009)"),
-    Entry("gearbox_ratio", nrel5mw.GEARBOX_RATIO, "-", "gearbox ratio (Jonkman 2009)"),
-    Entry("gen_torque_rated", nrel5mw.RATED_GEN_TORQUE_LSS, "N m",
-          "rated generator torque referred to the LSS: "
-          f"{nrel5mw.RATED_GEN_TORQUE_HSS:,} N m × {nrel5mw.GEARBOX_RATIO:g} (Jonkman 2009)"),
-    Entry("gen_constant_power", 0.0, "-",
-          "generator torque above rated: 0 constant torque, 1 constant power"),
-    Entry("omega_g_rated", nrel5mw.RATED_SPEED, "rad/s",
-          "rated generator speed referred to the LSS, "
-          f"{nrel5mw.RATED_GEN_SPEED_HSS}/{nrel5mw.GEARBOX_RATIO:g} (Jonkman 2009)"),
-    Entry("gen_efficiency", nrel5mw.GEN_EFFICIENCY, "-",
-          "generator efficiency (Jonkman 2009), outputs only"),
-    Entry("omega_n_nominal", nrel5mw.ACTUATOR_OMEGA_N, "rad/s",
-          "pitch actuator natural frequency (Odgaard 2013)"),
-    Entry("zeta_nominal", nrel5mw.ACTUATOR_ZETA, "-",
-          "pitch actuator damping ratio (Odgaard 2013)"),
-    Entry("pitch_min", nrel5mw.PITCH_MIN, "rad", "blade pitch lower limit, 0° (Jonkman 2009)"),
-    Entry("pitch_max", nrel5mw.PITCH_MAX, "rad", "blade pitch upper limit, 90°"),
-    Entry("pitch_rate_max", nrel5mw.PITCH_RATE_MAX, "rad/s",
-          "blade pitch rate limit, 8°/s (Jonkman 2009; ROSCO's default is 10°/s)"),
-    # the NREL 5-MW baseline variable-speed torque law (Jonkman et al. 2009, section 7.1 and
-    # its DISCON source), HSS values referred to the LSS with the gearbox ratio
-    Entry("gen_torque_law", 0.0, "-",
-          "generator torque: 0 rated torque (or constant power, gen_constant_power); 1 the "
-          "NREL 5-MW baseline variable-speed law, regions 1½, 2, 2½, 3 (Jonkman 2009, 7.1)"),
-    Entry("vs_cut_in_speed", nrel5mw.VS_CUT_IN_SPEED_HSS / _N, "rad/s",
-          f"VS_CtInSp: generator cut-in speed {nrel5mw.VS_CUT_IN_SPEED_HSS} rad/s "
-          f"(670 rpm, HSS) / {_N:g}"),
-    Entry("vs_region2_speed", nrel5mw.VS_REGION2_SPEED_HSS / _N, "rad/s",
-          f"VS_Rgn2Sp: start of region 2, {nrel5mw.VS_REGION2_SPEED_HSS} rad/s "
-          f"(871 rpm, HSS) / {_N:g}"),
-    Entry("vs_region2_k", nrel5mw.VS_REGION2_K_HSS * _N**3, "N m s^2/rad^2",
-          f"VS_Rgn2K: optimal-mode gain {nrel5mw.VS_REGION2_K_HSS} N m/(rad/s)^2 (HSS) "
-          f"× {_N:g}^3"),
-    Entry("vs_rated_speed", nrel5mw.VS_RATED_SPEED_HSS / _N, "rad/s",
-          "VS_RtGnSp: rated generator speed of the torque law, "
-          f"{nrel5mw.VS_RATED_SPEED_HSS} rad/s (HSS) / {_N:g}"),
-    Entry("vs_slip", nrel5mw.VS_SLIP, "-",
-          f"VS_SlPc: region 2½ generator slip, {nrel5mw.VS_SLIP * 100:g} %"),
-    Entry("vs_rated_power", nrel5mw.VS_RATED_POWER, "W",
-          f"VS_RtPwr: rated mechanical power, {nrel5mw.VS_RATED_POWER:,.0f} W"),
-    Entry("vs_max_torque", nrel5mw.VS_MAX_TORQUE_HSS * _N, "N m",
-          f"VS_MaxTq: maximum generator torque {nrel5mw.VS_MAX_TORQUE_HSS:,} N m (HSS) "
-          f"× {_N:g}"),
-]
+#: the turbine's parameters after the plant's: names and units here, the NREL 5-MW's
+#: values and sources from its turbine file (the baseline torque law: Jonkman 2009, 7.1,
+#: its DISCON's VS_* constants referred to the LSS)
+TURBINE_PARAMS = [*PLANT_PARAMS, *[nrel5mw.entry(Entry, n, u) for n, u in (
+    ("air_density", "kg/m^3"), ("rotor_radius", "m"), ("gearbox_ratio", "-"),
+    ("gen_torque_rated", "N m"), ("gen_constant_power", "-"), ("omega_g_rated", "rad/s"),
+    ("gen_efficiency", "-"), ("omega_n_nominal", "rad/s"), ("zeta_nominal", "-"),
+    ("pitch_min", "rad"), ("pitch_max", "rad"), ("pitch_rate_max", "rad/s"),
+    ("gen_torque_law", "-"), ("vs_cut_in_speed", "rad/s"), ("vs_region2_speed", "rad/s"),
+    ("vs_region2_k", "N m s^2/rad^2"), ("vs_rated_speed", "rad/s"), ("vs_slip", "-"),
+    ("vs_rated_power", "W"), ("vs_max_torque", "N m"))]]
 #: The physical range of every turbine parameter (docs/running.md, "Errors and exit codes").
 #: Positive where the derivation declares the symbol positive (a zero inertia, stiffness,
 #: time constant or slip divides by zero); upper limits only where physics sets one (air

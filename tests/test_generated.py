@@ -32,6 +32,9 @@ def test_every_generated_file_has_the_do_not_edit_header():
 def tree_copy(tmp_path):
     for d in ("derivation", "generated"):
         shutil.copytree(ROOT / d, tmp_path / d, ignore=shutil.ignore_patterns("__pycache__"))
+    # the NREL 5-MW's turbine file: the derivation's turbine defaults (docs/turbines.md)
+    (tmp_path / "wtftc" / "data").mkdir(parents=True)
+    shutil.copy(ROOT / "wtftc" / "data" / "nrel5mw.toml", tmp_path / "wtftc" / "data")
     return tmp_path
 
 

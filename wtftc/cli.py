@@ -69,6 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep(sub)
     _add_cases(sub)
     _add_export(sub)
+    _add_turbine(sub)
     return p
 
 
@@ -89,6 +90,10 @@ def _add_verify(sub) -> None:
     sub.add_parser("functions", help="list the generated functions with inputs, outputs, size")
 
 
+TURBINE_HELP = ("a built-in turbine (nrel5mw, the default; iea15mw) or a turbine file's "
+                "path (.toml; docs/turbines.md)")
+
+
 def _add_run(sub) -> None:
     r = sub.add_parser(
         "run", help="simulate one case: traces, metrics, figures and a config you can re-run",
@@ -101,7 +106,7 @@ def _add_run(sub) -> None:
         epilog="Example: wtftc run --case 3 --plant nrel5mw --wind ntm --wind-mean 16 "
                "--t-final 60 --out out/ntm16. Config file keys: case, plant, controller, "
                "t_final_s, dt_s, seed, output_rate_hz, control_sign, reference_rad_s, "
-               "cp_table, label, profile, control_interval_s, control_delay, [sensors], "
+               "turbine, cp_table, label, profile, control_interval_s, control_delay, [sensors], "
                "[mismatch], [fdi], [wind] (kind = constant | steps | paper_random | ntm | eog | "
                "file, ...), [[fault]] (blade, type, onset_s, ...), [controller_params], "
                "[turbine_params], [initial]. See docs/running.md.")
@@ -111,6 +116,7 @@ def _add_run(sub) -> None:
                         "eq (49), 4 fault detected by wtftc's FDI")
     r.add_argument("--plant", help="nrel5mw (default) or paper (eqs (1)-(4), unloaded)")
     r.add_argument("--controller", help=_controller_help())
+    r.add_argument("--turbine", help=TURBINE_HELP)
     r.add_argument("--wind", help="wind kind: constant, steps, paper_random, ntm, eog, file")
     r.add_argument("--wind-mean", type=float, help="mean/constant wind speed [m/s]")
     r.add_argument("--wind-file", type=Path, help="OpenFAST .hh/.wnd or CSV (time_s, speed_mps)")
@@ -153,6 +159,7 @@ def _add_compare(sub) -> None:
     k.add_argument("--controllers", nargs="+", help="subset of controllers")
     k.add_argument("--faults", nargs="+", help="subset of faults")
     k.add_argument("--winds", nargs="+", help="subset of winds")
+    k.add_argument("--turbine", help=TURBINE_HELP)
     k.add_argument("--t-final", type=float, default=60.0, help="simulated time per run [s]")
     k.add_argument("--seed", type=_nonnegative_int, default=0, help="random seed")
     k.add_argument("--profile", choices=("realistic", "ideal"), default="realistic",
@@ -210,7 +217,9 @@ def _add_cases(sub) -> None:
     c.add_argument("--dt", type=float, help="RK4 step [s] (default 0.001)")
     c.add_argument("--seed", type=_nonnegative_int, help="random seed (default 0)")
     c.add_argument("--plant", action="append", choices=tuple(_plants()),
-                   help="restrict to one plant (repeatable)")
+                   help="restrict to one plant (repeatable); with another --turbine than "
+                        "nrel5mw: nrel5mw only (the paper's plant is its own)")
+    c.add_argument("--turbine", help=TURBINE_HELP)
     c.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -248,7 +257,8 @@ def _run_overrides(args) -> dict:
     cfg = load_toml(args.config, "--config") if getattr(args, "config", None) else {}
     simple = {"case": "case", "plant": "plant", "controller": "controller",
               "t_final": "t_final_s", "dt": "dt_s", "seed": "seed", "sign": "control_sign",
-              "profile": "profile", "control_interval": "control_interval_s"}
+              "profile": "profile", "control_interval": "control_interval_s",
+              "turbine": "turbine"}
     for attr, key in simple.items():
         val = getattr(args, attr, None)
         if val is not None:
@@ -376,7 +386,8 @@ def _cmd_cases(args) -> int:
     from wtftc.results.tables import write_table
 
     over = _run_overrides(args)
-    plants = tuple(args.plant) if args.plant else tuple(_plants())
+    other = over.get("turbine", "nrel5mw") != "nrel5mw"
+    plants = tuple(args.plant) if args.plant else ("nrel5mw",) if other else tuple(_plants())
     config.make_config({**over, "plant": plants[0]})  # validate before any work
     ensure_writable_dir(args.out, "--out", create=False)
     rows = cases.run_cases(args.out, plants, over, progress=not args.quiet)
@@ -394,10 +405,58 @@ def _cmd_compare(args) -> int:
     ensure_writable_dir(args.out, "--out", create=False)
     rows = compare.run_compare(args.out, args.controllers, args.faults, args.winds,
                                t_final=args.t_final, seed=args.seed, progress=not args.quiet,
-                               profile=args.profile)
+                               profile=args.profile, turbine=args.turbine)
     print(compare.write_compare_table(args.out, rows))
     print(f"written under {args.out}/: compare.md, compare.csv, compare.png, "
           "<wind>/<fault>/<controller>/{config.toml,metrics.json}")
+    return 0
+
+
+def _add_turbine(sub) -> None:
+    t = sub.add_parser(
+        "turbine", help="turbine files: import one from OpenFAST and ROSCO files, show one",
+        description="A turbine file (TOML) holds every plant parameter with its unit and "
+                    "source, and names its Cp table (docs/turbines.md). Run any command on "
+                    "it with --turbine FILE.")
+    ts = t.add_subparsers(dest="turbine_command", metavar="ACTION", required=True)
+    i = ts.add_parser(
+        "import", help="a turbine file from an OpenFAST deck (and its ROSCO DISCON.IN)",
+        description="Reads the deck's ElastoDyn and blade files (with openfast-io: pip "
+                    "install 'wtftc[import]') and the DISCON.IN its ServoDyn names (or "
+                    "--rosco), and writes --out with every value's file and key, and a copy "
+                    "of the Cp table beside it.",
+        epilog="Example: wtftc turbine import --openfast IEA-15-240-RWT-Monopile.fst "
+               "--name iea15mw --out turbines/iea15mw.toml")
+    i.add_argument("--openfast", type=Path, required=True, metavar="MAIN.fst",
+                   help="the OpenFAST main input file")
+    i.add_argument("--rosco", type=Path, metavar="DISCON.IN",
+                   help="ROSCO's input file (default: the one ServoDyn's DLL_InFile names)")
+    i.add_argument("--name", required=True, help="the turbine's short name")
+    i.add_argument("--title", help="a one-line description (default: the name)")
+    i.add_argument("--out", type=Path, required=True, help="the turbine file (.toml)")
+    s = ts.add_parser("show", help="a turbine's parameters, units and sources")
+    s.add_argument("turbine", help=TURBINE_HELP)
+
+
+def _cmd_turbine(args) -> int:
+    from wtftc.model import turbine_file
+
+    if args.turbine_command == "show":
+        t = turbine_file.load(args.turbine)
+        units = {e["name"]: e["unit"] for e in turbine_file.lay.layout()["turbine_params"]}
+        print(f"{t.name}: {t.title}\nfile: {t.path}\nCp table: {t.cp_path}")
+        for n, v in t.values.items():
+            print(f"  {n:<20s} {v:>16.8g} {units[n]:<14s} {t.sources[n]}")
+        return 0
+    from wtftc.model import turbine_import
+
+    values, sources, cp = turbine_import.import_turbine(args.openfast, args.rosco)
+    header = (f"wtftc turbine file (docs/turbines.md), imported by wtftc turbine import "
+              f"from {args.openfast.name}.\nValues referred to the low-speed shaft, in "
+              "the layout's units, each with its file and key.")
+    out = turbine_import.write(args.out, args.name, args.title or args.name, values, sources,
+                               cp, header)
+    print(f"written: {out} and {out.parent / cp.name}")
     return 0
 
 
@@ -413,7 +472,7 @@ def _cmd_functions(args) -> int:
 
 COMMANDS = {"verify": _cmd_verify, "run": _cmd_run, "cases": _cmd_cases,
             "compare": _cmd_compare, "sweep": _cmd_sweep, "functions": _cmd_functions,
-            "export": _cmd_export}
+            "export": _cmd_export, "turbine": _cmd_turbine}
 
 
 #: every top-level table of layout.json the runtime reads: artefacts generated by an older

@@ -15,6 +15,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError
+from wtftc.model import tuning, turbine_file
 from wtftc.model.cp_table import nrel5mw_cp_table, read_cp_table
 from wtftc.model.faults import DEFAULT_FAULT, parse_faults
 from wtftc.model.wind import wind_from_config
@@ -31,7 +32,7 @@ FAULT_FREE_CASE, UNAWARE_CASE, ORACLE_CASE, FDI_CASE = 1, 2, 3, 4
 TOP_KEYS = {"case", "plant", "controller", "t_final_s", "dt_s", "seed", "output_rate_hz",
             "control_sign", "reference_rad_s", "cp_table", "wind", "fault", "controller_params",
             "turbine_params", "initial", "label", "profile", "control_interval_s",
-            "control_delay", "sensors", "mismatch", "fdi"}
+            "control_delay", "sensors", "mismatch", "fdi", "turbine"}
 
 DEFAULTS = {
     "case": 1, "plant": "nrel5mw", "controller": "paper", "t_final_s": 60.0, "dt_s": 1e-3,
@@ -156,7 +157,11 @@ class RunConfig:
 
     @property
     def label(self) -> str:
-        return self.raw.get("label") or f"{self.plant}_case{self.case}"
+        """The run's name: ``label``, else <plant>_case<N> (<turbine>_case<N> on a turbine
+        other than the NREL 5-MW: its built-in name or its file's stem)."""
+        turbine = self.raw.get("turbine", turbine_file.DEFAULT)
+        base = self.plant if turbine == turbine_file.DEFAULT else Path(turbine).stem
+        return self.raw.get("label") or f"{base}_case{self.case}"
 
     @property
     def yd(self) -> np.ndarray:
@@ -271,14 +276,15 @@ def make_config(cfg: dict | None = None) -> RunConfig:
         raise ConfigError("sensors", raw["sensors"], "no lag with controller = rosco (it "
                           "reads the speeds with their noise only: docs/sensors.md)")
     _control_sign(raw)
-    p_ctrl, p_turbine = _parameters(raw, controller)
+    turbine = _turbine(raw)
+    p_ctrl, p_turbine = _parameters(raw, controller, turbine)
     ref = _reference(raw, p_turbine)
     if not isinstance(raw["wind"], dict):
         raise ConfigError("wind", raw["wind"], "a table with kind = ...")
     wind = wind_from_config(raw["wind"], t_final=t_final, seed=seed)
     faults = _faults(raw, case, t_final)
     offset = _initial(raw)
-    table = _cp_table(raw)
+    table = _cp_table(raw, turbine)
     _torque_law(raw, p_turbine, wind, t_final, table[0])
     loop = rhs.Loop(raw["plant"], controller, *table, tuple(float(x) for x in p_turbine),
                     interval=interval, delay=raw["control_delay"])
@@ -557,9 +563,45 @@ def _reference(raw: dict, p_turbine) -> float:
     return raw["reference_rad_s"]
 
 
-def _parameters(raw: dict, controller: str) -> tuple[np.ndarray, np.ndarray]:
+def _turbine(raw: dict) -> turbine_file.Turbine:
+    """The run's turbine (``turbine``: a built-in name or a turbine file's path; the NREL
+    5-MW by default, and then not written into the saved configuration)."""
+    name = raw.get("turbine", turbine_file.DEFAULT)
+    if not isinstance(name, str):
+        raise ConfigError("turbine", name, "a built-in turbine (" + ", ".join(
+            turbine_file.BUILTIN) + ") or the path of a turbine file (.toml)")
+    turbine = turbine_file.load(name)
+    if turbine.name != turbine_file.DEFAULT and raw["controller"] == "rosco":
+        raise ConfigError("turbine", name, "nrel5mw with controller = rosco (wtftc runs "
+                          "ROSCO with the NREL 5-MW's DISCON.IN only, for now)")
+    if raw["plant"] == "paper" and turbine.name != turbine_file.DEFAULT:
+        raise ConfigError("turbine", name, "nrel5mw with plant = paper (the paper's plant "
+                          "is its own, eq (10)); plant = nrel5mw runs any turbine file")
+    return turbine
+
+
+def _turbine_vector(raw: dict, turbine: turbine_file.Turbine) -> np.ndarray:
+    """The turbine file's parameters with the run's overrides, checked: a value from the
+    file that is out of range is named with the file."""
+    over = _overrides(raw, "turbine_params", "turbine_params")
+    base = lay.values("turbine_params", turbine.vector())
+    p_turbine = lay.vector("turbine_params", {**base, **over})
+    try:
+        check_turbine(p_turbine, given=over)
+    except ConfigError as exc:
+        name = exc.field.split(".", 1)[1]
+        if name in over:
+            raise
+        raise ConfigError(f"params.{name}", exc.value, exc.allowed,
+                          where=turbine.path) from None
+    return p_turbine
+
+
+def _parameters(raw: dict, controller: str, turbine: turbine_file.Turbine
+                ) -> tuple[np.ndarray, np.ndarray]:
     """The controller's and the turbine's parameter vectors, defaults with overrides; the
-    turbine's checked against :data:`TURBINE_RANGES`."""
+    turbine's from its file, checked against :data:`TURBINE_RANGES`; the controller's
+    facts of the turbine (its inertia, limits, ...) from it (wtftc.model.tuning)."""
     ctrl_group = rhs.controllers()[controller]["params"]
     signed = "control_sign" in lay.names(ctrl_group)
     if not signed and raw["control_sign"] != -1:
@@ -573,7 +615,9 @@ def _parameters(raw: dict, controller: str) -> tuple[np.ndarray, np.ndarray]:
         raise ConfigError(f"controller_params.{told[0]}", raw["controller_params"][told[0]],
                           "not a parameter: eq (49) is told the fault by the case (3: the "
                           "true fault; 4: wtftc's FDI), so a value here would be ignored")
-    p_ctrl = lay.vector(ctrl_group, {**_overrides(raw, "controller_params", ctrl_group),
+    p_turbine = _turbine_vector(raw, turbine)
+    p_ctrl = lay.vector(ctrl_group, {**tuning.turbine_params_of(ctrl_group, p_turbine),
+                                     **_overrides(raw, "controller_params", ctrl_group),
                                      **({"control_sign": raw["control_sign"]} if signed else {})})
     vals = check_ranges(ctrl_group, p_ctrl, "controller_params")
     for low in (n for n in vals if n.endswith("pitch_min")):  # a controller's pitch range
@@ -581,9 +625,6 @@ def _parameters(raw: dict, controller: str) -> tuple[np.ndarray, np.ndarray]:
         if high in vals and vals[low] >= vals[high]:
             raise ConfigError(f"controller_params.{low}", vals[low],
                               f"{low} < {high} (here {high} = {vals[high]:g})")
-    over = _overrides(raw, "turbine_params", "turbine_params")
-    p_turbine = lay.vector("turbine_params", over)
-    check_turbine(p_turbine, given=over)
     return p_ctrl, p_turbine
 
 
@@ -677,11 +718,16 @@ def _faults(raw: dict, case: int, t_final: float) -> list:
     return faults
 
 
-def _cp_table(raw: dict) -> tuple:
-    """The Cp table and its key (the packaged NREL 5-MW table, or the file's sha256)."""
+def _cp_table(raw: dict, turbine: turbine_file.Turbine) -> tuple:
+    """The Cp table and its key (the packaged NREL 5-MW table, or the file's sha256): the
+    ``cp_table`` given, else the turbine's."""
     path = raw.get("cp_table")
-    if path is None or path == "":
+    if (path is None or path == "") and turbine.name == turbine_file.DEFAULT \
+            and turbine.path == str(turbine_file.path_of(turbine_file.DEFAULT)):
         return nrel5mw_cp_table(), "nrel5mw"
+    if path is None or path == "":
+        table = turbine.table
+        return table, table.sha256[:12]
     if not isinstance(path, str):
         raise ConfigError("cp_table", path, "the path of a Cp table file (a string), in the "
                           "ROSCO Cp_Ct_Cq text format")

@@ -162,27 +162,31 @@ def run_cases(out_dir: Path, plants=tuple(PLANTS), overrides: dict | None = None
     over = overrides or {}
     configs = {plant: [make_config({**over, "plant": plant, "case": case}) for case in (1, 2, 3)]
                for plant in plants}
+    # each plant's folder and labels: the plant's name, or on a turbine other than the
+    # NREL 5-MW the turbine's (RunConfig.label)
+    names = {plant: rcs[0].label.rsplit("_case", 1)[0] for plant, rcs in configs.items()}
     sign_rc = None
     if sign_as_written and configs[plants[0]][0].signed:
         sign_rc = make_config({**over, "plant": plants[0], "case": 1, "control_sign": 1,
-                               "label": f"{plants[0]}_case1_sign_as_written"})
+                               "label": f"{names[plants[0]]}_case1_sign_as_written"})
     rows = []
     for plant, rcs in configs.items():
         runs = []
         for rc in rcs:
-            print(f"{plant}, case {rc.case} ({CASES[rc.case]}): {rc.t_final:g} s at "
+            print(f"{names[plant]}, case {rc.case} ({CASES[rc.case]}): {rc.t_final:g} s at "
                   f"dt = {rc.dt:g} s", flush=True)
             res = run(rc, progress=progress, keep_states=True)
             m = metrics(rc, res)
-            write_outputs(out_dir / plant / f"case{rc.case}", rc, res, m)
+            write_outputs(out_dir / names[plant] / f"case{rc.case}", rc, res, m)
             runs.append(run_record(rc, res, m))
             rows.append(m)
-        _case_figures(runs, out_dir / plant)
+        _case_figures(runs, out_dir / names[plant])
     if sign_rc is not None:
-        print(f"{plants[0]}, case 1 with the control sign as written (s = +1)", flush=True)
+        print(f"{names[plants[0]]}, case 1 with the control sign as written (s = +1)",
+              flush=True)
         res = run(sign_rc, progress=progress)
         m = metrics(sign_rc, res)
-        write_outputs(out_dir / plants[0] / "case1_sign_as_written", sign_rc, res, m)
+        write_outputs(out_dir / names[plants[0]] / "case1_sign_as_written", sign_rc, res, m)
         rows.append(m)
     write_table(out_dir, rows)
     return rows

@@ -99,9 +99,10 @@ PROFILE = "realistic"
 
 
 def cell_config(controller: str, fault: str, wind: str, t_final: float, dt: float,
-                seed: int, profile: str = PROFILE) -> dict:
-    return variant_config(controller, FAULTS[fault], WINDS[wind], t_final, dt, seed,
-                          label=f"{wind}/{fault}/{controller}", profile=profile)
+                seed: int, profile: str = PROFILE, turbine: str | None = None) -> dict:
+    cfg = variant_config(controller, FAULTS[fault], WINDS[wind], t_final, dt, seed,
+                         label=f"{wind}/{fault}/{controller}", profile=profile)
+    return cfg | ({"turbine": turbine} if turbine else {})
 
 
 def variant_config(controller: str, faults: list | None, wind: dict, t_final: float,
@@ -138,7 +139,8 @@ def _row(controller, fault, wind, m) -> dict:
 
 
 def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_final=60.0,
-                dt=1e-3, seed=0, progress=True, profile: str = PROFILE) -> list[dict]:
+                dt=1e-3, seed=0, progress=True, profile: str = PROFILE,
+                turbine: str | None = None) -> list[dict]:
     from wtftc.sim import rosco
 
     ctrl_names = _check("controllers", controllers, CONTROLLERS)
@@ -148,13 +150,18 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
             raise ConfigError("controllers", "rosco", reason)
         print(f"note: {reason}; the matrix runs without it", flush=True)
         ctrl_names.remove("rosco")
+    if turbine and turbine != "nrel5mw" and "rosco" in ctrl_names and not controllers:
+        print(f"note: ROSCO runs with the NREL 5-MW's DISCON.IN only, for now; the matrix "
+              f"on {turbine} runs without it", flush=True)
+        ctrl_names.remove("rosco")
     fault_names = _check("faults", faults, FAULTS)
     wind_names = _check("winds", winds, WINDS)
     if t_final <= ONSET_S and any(FAULTS[f] is not None for f in fault_names):
         raise ConfigError("t-final", t_final, f"more than {ONSET_S:g} s, the faults' onset "
                           "(or --faults none)")
     # validate every cell before running any
-    configs = {(w, f, c): config.make_config(cell_config(c, f, w, t_final, dt, seed, profile))
+    configs = {(w, f, c): config.make_config(cell_config(c, f, w, t_final, dt, seed, profile,
+                                                                turbine))
                for w in wind_names for f in fault_names for c in ctrl_names}
     rows = []
     n = len(configs)

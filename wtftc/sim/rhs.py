@@ -13,6 +13,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import load
+from wtftc.model import tuning
 from wtftc.model.aero import cp_loop_function, sched_loop_function
 from wtftc.model.cp_table import CpTable, nrel5mw_cp_table
 
@@ -261,7 +262,7 @@ def fdi_params(loop: Loop) -> np.ndarray:
     """The FDI's parameters for exact sensors, its actuator model the run's turbine's
     nominal one (ω_n, ζ): the FDI is designed for the turbine it watches (its defaults are
     the NREL 5-MW's). Its noise threshold is set per run (wtftc.sim.fdi)."""
-    p = lay.defaults("fdi_params")
+    p = lay.vector("fdi_params", tuning.turbine_params_of("fdi_params", loop.p_turbine))
     tp = lay.values("turbine_params", loop.p_turbine)
     p[lay.index("fdi_params", "fdi_omega_n")] = tp["omega_n_nominal"]
     p[lay.index("fdi_params", "fdi_zeta")] = tp["zeta_nominal"]

@@ -16,12 +16,12 @@ from wtftc import config
 from wtftc.artefacts import layout as lay
 from wtftc.campaign.compare import CONTROLLERS, PROFILE, variant_config
 from wtftc.errors import ConfigError
-from wtftc.model import faults, wind
+from wtftc.model import faults, turbine_file, wind
 from wtftc.sim import rhs
 
 TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "output_rate_hz",
             "batch_size", "controllers", "optional_controllers", "plants", "wind", "fault",
-            "profile", "mismatch", "fault_free_twins"}
+            "profile", "mismatch", "fault_free_twins", "turbine"}
 #: the [mismatch] table's keys: the plant's factors against the controllers' model
 #: (config.MISMATCH), each an axis like any other (1.0: none)
 MISMATCH_KEYS = tuple(config.MISMATCH)
@@ -98,6 +98,8 @@ class Sweep:
     #: random mode: every faulty scenario also run without its fault (same wind, seed and
     #: mismatch), so that the summary can give each fault's RMS ratio to its twin's
     fault_free_twins: bool = False
+    #: every run's turbine (None: the NREL 5-MW)
+    turbine: str | None = None
 
     @property
     def sweep_id(self) -> str:
@@ -216,7 +218,18 @@ def _settings(raw: dict) -> dict:
                                    hi=10000),
         "profile": _profile(raw.get("profile", PROFILE)),
         "fault_free_twins": _twins(raw.get("fault_free_twins", False), raw),
+        "turbine": _turbine(raw.get("turbine")),
     }
+
+
+def _turbine(name) -> str | None:
+    """Every run's turbine (a built-in name or a turbine file's path; none: the NREL 5-MW,
+    and the run ids of earlier sweeps), checked before anything runs."""
+    if name is not None:
+        if not isinstance(name, str):
+            raise ConfigError("turbine", name, "a built-in turbine or a turbine file's path")
+        turbine_file.load(name)
+    return name
 
 
 def _twins(value, raw: dict) -> bool:
@@ -346,6 +359,7 @@ def parse_sweep(raw: dict) -> Sweep:
                             "output_rate_hz": settings["output_rate_hz"],
                             "batch_size": settings["batch_size"],
                             "profile": settings["profile"]}
+                           | ({"turbine": settings["turbine"]} if settings["turbine"] else {})
                            | ({"fault_free_twins": True} if settings["fault_free_twins"]
                               else {}), sort_keys=True)
     return Sweep(raw=raw, text=canonical, mode=mode, samples=samples, axes=axes, **settings)
@@ -385,6 +399,8 @@ def _point(sw: Sweep, values: dict) -> dict:
     cfg = variant_config(p["controller"], fault_tabs, wind_tab, sw.t_final, sw.dt, p["seed"],
                          "", profile=sw.profile)
     cfg.update(plant=p["plant"], output_rate_hz=sw.output_rate_hz)
+    if sw.turbine:  # (absent: the run ids of earlier sweeps)
+        cfg["turbine"] = sw.turbine
     mismatch = {k: float(values[f"mismatch.{k}"]) for k in MISMATCH_KEYS}
     p.update({f"mismatch_{k}": v for k, v in mismatch.items()})
     if any(v != 1.0 for v in mismatch.values()):  # (absent: the run ids of earlier sweeps)

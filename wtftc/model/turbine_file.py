@@ -1,0 +1,140 @@
+"""Turbine files: one TOML file per turbine with every plant parameter (ours).
+
+A turbine file holds every entry of the layout group ``turbine_params`` (the runtime
+parameters of the generated plant, torque law and controllers' models: docs/turbines.md)
+by its layout name, each with its value in the layout's unit, the unit, and its source,
+and the path of the turbine's Cp_Ct_Cq table, relative to the file::
+
+    name = "iea15mw"
+    title = "IEA Wind 15-MW reference turbine (IEA-15-240-RWT)"
+    cp_table = "Cp_Ct_Cq.IEA15MW.txt"
+
+    [params]
+    J_r = { value = 350673294.2, unit = "kg m^2", source = "ElastoDyn ..." }
+    ...
+
+The built-in turbines (``nrel5mw``, the default, and ``iea15mw``) ship in ``wtftc/data``;
+any other is named by its path. Reading checks the structure (every parameter once, in
+its unit, a finite number; the Cp table readable); the physical ranges are checked where
+the run is configured (wtftc.config), which names the file too.
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.resources
+import json
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from wtftc.artefacts import layout as lay
+from wtftc.errors import ConfigError
+from wtftc.model.cp_table import CpTable, read_cp_table
+
+#: the turbines shipped with wtftc: name → file in wtftc/data
+BUILTIN = {"nrel5mw": "nrel5mw.toml", "iea15mw": "iea15mw.toml"}
+DEFAULT = "nrel5mw"
+
+
+@dataclass(frozen=True, eq=False)
+class Turbine:
+    """A turbine file's content: ``values`` every turbine parameter by name (layout units),
+    ``sources`` where each came from, the Cp table, and where the file is."""
+
+    name: str
+    title: str
+    path: str
+    values: dict
+    sources: dict
+    cp_path: str
+
+    def vector(self) -> np.ndarray:
+        """The parameters in the layout's turbine_params order."""
+        return np.array([self.values[n] for n in lay.names("turbine_params")], dtype=float)
+
+    @functools.cached_property
+    def table(self) -> CpTable:
+        return read_cp_table(Path(self.cp_path))
+
+
+def path_of(turbine: str) -> Path:
+    """The file of a built-in turbine's name, or ``turbine`` as a path."""
+    if turbine in BUILTIN:
+        return Path(str(importlib.resources.files("wtftc") / "data" / BUILTIN[turbine]))
+    path = Path(turbine)
+    if path.suffix != ".toml" or not path.is_file():
+        raise ConfigError("turbine", turbine, "a built-in turbine (" + ", ".join(BUILTIN)
+                          + ") or the path of a turbine file (.toml; docs/turbines.md)")
+    return path
+
+
+@functools.cache
+def load(turbine: str = DEFAULT) -> Turbine:
+    """The turbine named ``turbine`` (a built-in name or a file's path), read once."""
+    return read(path_of(turbine))
+
+
+def read(path: Path) -> Turbine:
+    """A turbine file; a ConfigError naming the file and the key on any defect."""
+    where = str(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ConfigError("turbine", where, f"a readable TOML turbine file ({exc})") from None
+    for key in ("name", "title", "cp_table"):
+        if not isinstance(doc.get(key), str) or not doc[key]:
+            raise ConfigError(key, doc.get(key), "a non-empty string", where=where)
+    params = doc.get("params")
+    if not isinstance(params, dict):
+        raise ConfigError("params", params, "a [params] table of every turbine parameter",
+                          where=where)
+    units = {e["name"]: e["unit"] for e in lay.layout()["turbine_params"]}
+    unknown = sorted(set(params) - set(units))
+    if unknown:
+        raise ConfigError(f"params.{unknown[0]}", params[unknown[0]],
+                          "one of the turbine parameters: " + ", ".join(units), where=where)
+    values, sources = {}, {}
+    for name, unit in units.items():
+        values[name], sources[name] = _entry(params, name, unit, where)
+    cp = Path(doc["cp_table"])
+    cp = cp if cp.is_absolute() else path.parent / cp
+    if not cp.is_file():
+        raise ConfigError("cp_table", doc["cp_table"], f"a Cp_Ct_Cq file ({cp} does not "
+                          "exist; relative paths are from the turbine file's folder)",
+                          where=where)
+    return Turbine(doc["name"], doc["title"], where, values, sources, str(cp))
+
+
+def _entry(params: dict, name: str, unit: str, where: str) -> tuple[float, str]:
+    e = params.get(name)
+    field = f"params.{name}"
+    if e is None:
+        raise ConfigError(field, "missing", f"every turbine parameter, in {unit}",
+                          where=where)
+    if not isinstance(e, dict) or set(e) - {"value", "unit", "source"} or "value" not in e:
+        raise ConfigError(field, e, '{ value = <number>, unit = "...", source = "..." }',
+                          where=where)
+    v = e["value"]
+    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+        raise ConfigError(field, v, f"a finite number in {unit}", where=where)
+    if e.get("unit", unit) != unit:
+        raise ConfigError(f"{field}.unit", e["unit"], f"{unit!r} (the layout's unit)",
+                          where=where)
+    return float(v), str(e.get("source", ""))
+
+
+def text(name: str, title: str, cp_table: str, values: dict, sources: dict,
+         header: str = "") -> str:
+    """A turbine file's text: every turbine parameter on one line, in the layout's order."""
+    lines = [f"# {ln}".rstrip() for ln in header.splitlines()] + [
+        f"name = {json.dumps(name)}", f"title = {json.dumps(title)}",
+        f"cp_table = {json.dumps(cp_table)}", "", "[params]"]
+    for e in lay.layout()["turbine_params"]:
+        n = e["name"]
+        lines.append(f"{n} = {{ value = {float(values[n])!r}, unit = {json.dumps(e['unit'])}, "
+                     f"source = {json.dumps(sources.get(n, ''), ensure_ascii=False)} }}")
+    return "\n".join(lines) + "\n"
