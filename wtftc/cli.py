@@ -450,12 +450,12 @@ def _cmd_turbine(args) -> int:
         return 0
     from wtftc.model import turbine_import
 
-    values, sources, cp = turbine_import.import_turbine(args.openfast, args.rosco)
+    values, sources, cp, discon = turbine_import.import_turbine(args.openfast, args.rosco)
     header = (f"wtftc turbine file (docs/turbines.md), imported by wtftc turbine import "
               f"from {args.openfast.name}.\nValues referred to the low-speed shaft, in "
               "the layout's units, each with its file and key.")
     out = turbine_import.write(args.out, args.name, args.title or args.name, values, sources,
-                               cp, header)
+                               cp, header, rosco_discon=str(discon.resolve()))
     print(f"written: {out} and {out.parent / cp.name}")
     return 0
 

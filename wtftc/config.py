@@ -134,6 +134,8 @@ class RunConfig:
     #: the FDI's test movement of resting blades (amplitude rad, period s, width s), or
     #: None ([fdi] test_pulse_deg = 0)
     test_pulse: tuple | None = None
+    #: ROSCO's DISCON.IN for the run's turbine (controller = rosco; turbine files)
+    rosco_discon: str | None = None
 
     plant = property(lambda self: self.loop.plant)
     controller = property(lambda self: self.loop.controller)
@@ -294,7 +296,8 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     return RunConfig(raw=raw, case=case, loop=loop, t_final=t_final, dt=dt, seed=seed,
                      decimate=decimate, reference=ref, p_ctrl=p_ctrl, wind=wind, faults=faults,
                      omega_offset=offset, p_sensors=p_sensors, p_plant=p_plant,
-                     cp_scale=cp_scale, p_fdi=p_fdi, test_pulse=test_pulse)
+                     cp_scale=cp_scale, p_fdi=p_fdi, test_pulse=test_pulse,
+                     rosco_discon=turbine.rosco_discon)
 
 
 #: the [fdi] table: key → (default, low, high, what)
@@ -571,9 +574,9 @@ def _turbine(raw: dict) -> turbine_file.Turbine:
         raise ConfigError("turbine", name, "a built-in turbine (" + ", ".join(
             turbine_file.BUILTIN) + ") or the path of a turbine file (.toml)")
     turbine = turbine_file.load(name)
-    if turbine.name != turbine_file.DEFAULT and raw["controller"] == "rosco":
-        raise ConfigError("turbine", name, "nrel5mw with controller = rosco (wtftc runs "
-                          "ROSCO with the NREL 5-MW's DISCON.IN only, for now)")
+    if turbine.rosco_discon is None and raw["controller"] == "rosco":
+        raise ConfigError("turbine", name, "a turbine whose file names ROSCO's DISCON.IN "
+                          "for it (rosco_discon) with controller = rosco (docs/turbines.md)")
     if raw["plant"] == "paper" and turbine.name != turbine_file.DEFAULT:
         raise ConfigError("turbine", name, "nrel5mw with plant = paper (the paper's plant "
                           "is its own, eq (10)); plant = nrel5mw runs any turbine file")

@@ -18,6 +18,7 @@ from wtftc import config
 from wtftc.artefacts import layout as lay
 from wtftc.campaign import cases
 from wtftc.errors import ConfigError
+from wtftc.model import turbine_file
 from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text
 from wtftc.results.metrics import metrics
 
@@ -150,9 +151,10 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
             raise ConfigError("controllers", "rosco", reason)
         print(f"note: {reason}; the matrix runs without it", flush=True)
         ctrl_names.remove("rosco")
-    if turbine and turbine != "nrel5mw" and "rosco" in ctrl_names and not controllers:
-        print(f"note: ROSCO runs with the NREL 5-MW's DISCON.IN only, for now; the matrix "
-              f"on {turbine} runs without it", flush=True)
+    if turbine and "rosco" in ctrl_names and not controllers \
+            and turbine_file.load(turbine).rosco_discon is None:
+        print(f"note: {turbine}'s turbine file names no DISCON.IN for ROSCO (rosco_discon); "
+              "the matrix runs without it", flush=True)
         ctrl_names.remove("rosco")
     fault_names = _check("faults", faults, FAULTS)
     wind_names = _check("winds", winds, WINDS)

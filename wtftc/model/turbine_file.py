@@ -51,6 +51,9 @@ class Turbine:
     values: dict
     sources: dict
     cp_path: str
+    #: ROSCO's DISCON.IN tuned for this turbine (``controller = rosco``): a path relative
+    #: to the turbine file, or ``rosco:<path>`` inside the installed rosco package's tree
+    rosco_discon: str | None = None
 
     def vector(self) -> np.ndarray:
         """The parameters in the layout's turbine_params order."""
@@ -88,6 +91,11 @@ def read(path: Path) -> Turbine:
     for key in ("name", "title", "cp_table"):
         if not isinstance(doc.get(key), str) or not doc[key]:
             raise ConfigError(key, doc.get(key), "a non-empty string", where=where)
+    rosco = doc.get("rosco_discon")
+    if rosco is not None and (not isinstance(rosco, str) or not rosco):
+        raise ConfigError("rosco_discon", rosco, "the path of ROSCO's DISCON.IN for this "
+                          "turbine (relative to the turbine file, or rosco:<path in the "
+                          "rosco package's tree>)", where=where)
     params = doc.get("params")
     if not isinstance(params, dict):
         raise ConfigError("params", params, "a [params] table of every turbine parameter",
@@ -106,7 +114,9 @@ def read(path: Path) -> Turbine:
         raise ConfigError("cp_table", doc["cp_table"], f"a Cp_Ct_Cq file ({cp} does not "
                           "exist; relative paths are from the turbine file's folder)",
                           where=where)
-    return Turbine(doc["name"], doc["title"], where, values, sources, str(cp))
+    if rosco is not None and not rosco.startswith("rosco:") and not Path(rosco).is_absolute():
+        rosco = str(path.parent / rosco)
+    return Turbine(doc["name"], doc["title"], where, values, sources, str(cp), rosco)
 
 
 def _entry(params: dict, name: str, unit: str, where: str) -> tuple[float, str]:
@@ -128,11 +138,13 @@ def _entry(params: dict, name: str, unit: str, where: str) -> tuple[float, str]:
 
 
 def text(name: str, title: str, cp_table: str, values: dict, sources: dict,
-         header: str = "") -> str:
+         header: str = "", rosco_discon: str | None = None) -> str:
     """A turbine file's text: every turbine parameter on one line, in the layout's order."""
     lines = [f"# {ln}".rstrip() for ln in header.splitlines()] + [
         f"name = {json.dumps(name)}", f"title = {json.dumps(title)}",
-        f"cp_table = {json.dumps(cp_table)}", "", "[params]"]
+        f"cp_table = {json.dumps(cp_table)}",
+        *([f"rosco_discon = {json.dumps(rosco_discon)}"] if rosco_discon else []),
+        "", "[params]"]
     for e in lay.layout()["turbine_params"]:
         n = e["name"]
         lines.append(f"{n} = {{ value = {float(values[n])!r}, unit = {json.dumps(e['unit'])}, "

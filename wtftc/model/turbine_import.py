@@ -149,10 +149,11 @@ def servodyn_discon(fst: Path) -> Path:
     return Path(os.path.normpath(fst.parent / f.fst_vt["ServoDyn"]["DLL_InFile"]))
 
 
-def import_turbine(fst: Path, discon: Path | None = None) -> tuple[dict, dict, Path]:
+def import_turbine(fst: Path, discon: Path | None = None) -> tuple[dict, dict, Path, Path]:
     """(values, sources, Cp file) of every turbine parameter from the deck and its
-    DISCON.IN: the actuator is the benchmark's (Odgaard 2013: no deck gives one), the
-    torque law's region-2 and rated-speed corners in the NREL 5-MW's proportions."""
+    DISCON.IN (and its path): the actuator is the benchmark's (Odgaard 2013: no deck
+    gives one), the torque law's region-2 and rated-speed corners in the NREL 5-MW's
+    proportions."""
     values, sources = read_deck(fst)
     discon = discon or servodyn_discon(fst)
     v2, s2, cp, g = from_discon(discon, values["gearbox_ratio"])
@@ -187,11 +188,11 @@ def import_turbine(fst: Path, discon: Path | None = None) -> tuple[dict, dict, P
         "vs_slip": f"10 %, {nrel}",
         "vs_region2_speed": f"VS_MinOMSpd × 91.21091/70.16224, {nrel}",
         "vs_rated_speed": f"rated speed × 121.6805/122.90967, {nrel}"})
-    return values, sources, cp
+    return values, sources, cp, discon
 
 
 def write(out: Path, name: str, title: str, values: dict, sources: dict, cp: Path,
-          header: str = "") -> Path:
+          header: str = "", rosco_discon: str | None = None) -> Path:
     """The turbine file ``out`` (.toml) and beside it a copy of its Cp table, each written
     whole (a temporary file renamed into place); read back to check it."""
     from wtftc.model import turbine_file
@@ -203,7 +204,7 @@ def write(out: Path, name: str, title: str, values: dict, sources: dict, cp: Pat
     out.parent.mkdir(parents=True, exist_ok=True)
     for target, data in ((out.parent / cp.name, cp.read_bytes()),
                          (out, turbine_file.text(name, title, cp.name, values, sources,
-                                                 header).encode())):
+                                                 header, rosco_discon).encode())):
         tmp = target.with_name(f".{target.name}.tmp")
         tmp.write_bytes(data)
         os.replace(tmp, target)

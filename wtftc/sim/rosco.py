@@ -65,12 +65,24 @@ def _import():
     return rosco, ControllerInterface
 
 
-def _discon_copy(tmp: Path) -> Path:
-    """The packaged NREL 5-MW DISCON.IN with logging off and the Cp file by absolute path."""
-    rosco, _ = _import()
-    case = Path(rosco.__file__).resolve().parent.parent / "Examples" / "Test_Cases" / "NREL-5MW"
-    src = case / "DISCON.IN"
-    if not src.exists():
+#: the turbine files' default: the NREL 5-MW's DISCON.IN of ROSCO's examples
+NREL5MW_DISCON = "rosco:Examples/Test_Cases/NREL-5MW/DISCON.IN"
+
+
+def discon_path(spec: str) -> Path:
+    """A turbine file's ``rosco_discon``: ``rosco:<path>`` in the rosco package's tree (its
+    wheel's Examples), else a path."""
+    if spec.startswith("rosco:"):
+        rosco, _ = _import()
+        return Path(rosco.__file__).resolve().parent.parent / spec[len("rosco:"):]
+    return Path(spec)
+
+
+def _discon_copy(tmp: Path, spec: str = NREL5MW_DISCON) -> Path:
+    """The turbine's DISCON.IN with logging off and the Cp file by absolute path (resolved
+    against the DISCON.IN's folder when relative, as ROSCO does)."""
+    src = discon_path(spec)
+    if not src.is_file():
         raise ConfigError("controller", "rosco", f"a rosco install with {src}")
     out = []
     for line in src.read_text().splitlines():
@@ -78,7 +90,8 @@ def _discon_copy(tmp: Path) -> Path:
         if key == "LoggingLevel":
             line = "0" + line[line.index(" ") if " " in line.strip() else len(line):]
         elif key == "PerfFileName":
-            line = f'"{case / "Cp_Ct_Cq.NREL5MW.txt"}"    ! PerfFileName'
+            cp = Path(line.split("!")[0].strip().strip('"').strip("'"))
+            line = f'"{(src.parent / cp).resolve()}"    ! PerfFileName'
         out.append(line)
     path = tmp / "DISCON.IN"
     path.write_text("\n".join(out) + "\n")
@@ -101,9 +114,10 @@ def _quiet_stdout():
 
 
 def run(loop: Loop, inputs: integrate.Run, t_final: float, dt: float, decimate: int = 1,
-        progress: bool = True) -> integrate.Result:
+        progress: bool = True, discon: str | None = None) -> integrate.Result:
     """Simulate one run (its plant, wind, faults) with ROSCO in the loop: ``loop`` is the
-    ``external`` controller's, whose parameters are the held blade pitch commands."""
+    ``external`` controller's, whose parameters are the held blade pitch commands;
+    ``discon`` the turbine's DISCON.IN (a turbine file's ``rosco_discon``)."""
     reason = available()
     if reason:
         raise ConfigError("controller", "rosco", reason)
@@ -118,7 +132,7 @@ def run(loop: Loop, inputs: integrate.Run, t_final: float, dt: float, decimate: 
         cwd = os.getcwd()
         os.chdir(tmp)  # ROSCO writes next to sim_name; keep the user's folder clean
         try:
-            hook = _Discon(Path(tmp), loop, inputs, n_sub)
+            hook = _Discon(Path(tmp), loop, inputs, n_sub, discon or NREL5MW_DISCON)
             res = integrate.run_loops(loop, [inputs], t_final, dt, decimate, progress=False,
                                       hook=hook)[0]
             hook.close()
@@ -137,7 +151,8 @@ class _Discon(integrate.ChunkHook):
     blade pitch commands (the ``external`` controller's parameters) and its generator
     torque (the turbine's rated torque, constant-torque law)."""
 
-    def __init__(self, tmp: Path, loop: Loop, inputs: integrate.Run, n_sub: int):
+    def __init__(self, tmp: Path, loop: Loop, inputs: integrate.Run, n_sub: int,
+                 discon: str = NREL5MW_DISCON):
         self.steps = n_sub
         self.dt = CONTROL_DT / n_sub
         self.wind = inputs.wind
@@ -165,7 +180,8 @@ class _Discon(integrate.ChunkHook):
         omega_g = z0[self.i_omega_g]
         self.ci = _interface(tmp, float(np.degrees(self.pitch.mean())),
                              {"gen_speed": omega_g * n_g, "rot_speed": z0[self.i_omega_r],
-                              "ws": float(self.wind(0.0)), "gen_torque": self.tq_hss})
+                              "ws": float(self.wind(0.0)), "gen_torque": self.tq_hss},
+                             discon)
 
     def before(self, call: integrate.Buffered) -> None:
         pt = self.p_turbine.copy()
@@ -205,7 +221,7 @@ class _Discon(integrate.ChunkHook):
         self.ci.kill_discon()
 
 
-def _interface(tmp: Path, pitch_deg: float, init_state: dict):
+def _interface(tmp: Path, pitch_deg: float, init_state: dict, discon: str = NREL5MW_DISCON):
     """ROSCO's ControllerInterface on a private DISCON.IN, its first call given the real
     initial state (the stock one assumes 1 rad/s and 10 m/s)."""
     rosco, ControllerInterface = _import()
@@ -218,7 +234,7 @@ def _interface(tmp: Path, pitch_deg: float, init_state: dict):
                 self.avrSWAP[26], self.avrSWAP[22] = s["ws"], s["gen_torque"]
             super().call_discon()
 
-    ci = _InitState(rosco.discon_lib_path, param_filename=str(_discon_copy(tmp)),
+    ci = _InitState(rosco.discon_lib_path, param_filename=str(_discon_copy(tmp, discon)),
                     DT=CONTROL_DT, pitch=pitch_deg, sim_name=str(tmp / "wtftc"),
                     avr_size=2000)
     if ci.aviFAIL.value < 0:
