@@ -1,0 +1,287 @@
+"""``wtftc linearize``: exact linear models of the generated loop (ours; docs/turbines.md).
+
+At each wind speed the closed loop (case 1, continuous time, exact sensors, no FDI) is run
+in constant wind until it rests; at that operating point CasADi differentiates the
+generated functions exactly (automatic differentiation of the same expressions the
+simulator runs, no finite differences):
+
+* the open-loop plant ẋ_p = A_p x_p + B_p v + E_p w, with the rotor speed as output (the
+  three blade commands v, the wind w; the generator torque law inside);
+* the controller ẋ_c = A_c x_c + B_c x_p, v = C_c x_c + D_c x_p (it reads the plant
+  through exact sensors);
+* the closed loop A_cl = [[A_p + B_p D_c, B_p C_c], [B_c, A_c]], checked against the
+  Jacobian of the closed-loop right-hand side itself;
+* the pitch loop broken at the collective command: L(s) = -(mean command)/(collective
+  input), whose gain and phase margins python-control computes (negative feedback).
+
+Every model is also a python-control ``StateSpace`` (``control`` on PyPI).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import casadi as ca
+import numpy as np
+
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.campaign import cases
+from wtftc.errors import ConfigError
+from wtftc.model.faults import nominal_actuator
+from wtftc.sim.rhs import (
+    controller_block,
+    loop_symbols,
+    measure,
+    plant_block,
+    rhs_function,
+    true_signals,
+)
+
+#: how long the loop runs in constant wind to reach its operating point [s]
+SETTLE_S = 400.0
+
+
+@dataclass
+class OperatingPoint:
+    """One wind speed's linear models and what they say."""
+
+    wind: float
+    z: np.ndarray  # plant then controller states at rest
+    pitch: float  # mean blade pitch [rad]
+    A_p: np.ndarray
+    B_p: np.ndarray
+    E_p: np.ndarray
+    C_p: np.ndarray  # rotor speed from the plant state
+    A_c: np.ndarray
+    B_c: np.ndarray
+    C_c: np.ndarray
+    D_c: np.ndarray
+    A_cl: np.ndarray
+    residual: float  # |ż| at the operating point (its rest)
+
+    def eigenvalues(self) -> np.ndarray:
+        return np.linalg.eigvals(self.A_cl)
+
+    def state_spaces(self) -> dict:
+        """python-control StateSpace objects: the plant (inputs the three blade commands
+        and the wind, output ω_r), the controller (input the plant state, output the
+        three commands), the closed loop (input the wind, output ω_r) and the pitch loop
+        L(s) (collective, negative-feedback convention)."""
+        import control
+
+        n_p = self.A_p.shape[0]
+        B_w = np.vstack([self.E_p, np.zeros((self.A_c.shape[0], 1))])
+        C_w = np.hstack([self.C_p, np.zeros((1, self.A_c.shape[0]))])
+        return {"plant": control.ss(self.A_p, np.hstack([self.B_p, self.E_p]), self.C_p, 0),
+                "controller": control.ss(self.A_c, self.B_c, self.C_c, self.D_c),
+                "closed_loop": control.ss(self.A_cl, B_w, C_w, 0),
+                "pitch_loop": control.ss(*self.pitch_loop()),
+                "n_plant": n_p}
+
+    def pitch_loop(self) -> tuple:
+        """(A, B, C, D) of L(s) = -T(s), T from a collective input added to every blade's
+        command to the mean of the controller's three commands."""
+        n_p, n_c = self.A_p.shape[0], self.A_c.shape[0]
+        A = np.block([[self.A_p, np.zeros((n_p, n_c))], [self.B_c, self.A_c]])
+        B = np.vstack([self.B_p.sum(axis=1, keepdims=True), np.zeros((n_c, 1))])
+        C = -np.hstack([self.D_c, self.C_c]).mean(axis=0, keepdims=True)
+        return A, B, C, np.zeros((1, 1))
+
+
+def _symbols(loop, n_z: int) -> dict:
+    return loop_symbols(loop, n_z)
+
+
+def _block_functions(loop) -> ca.Function:
+    """(x_p, x_c, v, wind, parameters) → the plant's, the controller's and the closed
+    loop's Jacobians, by automatic differentiation of the generated blocks."""
+    n_p, n_c, _ = loop.n_states
+    sym = _symbols(loop, n_p + n_c)
+    xp, xc = ca.SX.sym("x_p", n_p), ca.SX.sym("x_c", n_c)
+    v, wind = ca.SX.sym("v", lay.n_blades()), sym["wind"]
+    readings = measure(true_signals(loop, xp, sym["p_turbine"]),
+                       true_signals(loop, xp, sym["p_turbine"]),
+                       ca.DM.zeros(len(lay.layout()["sensors"])), sym)
+    ctl = controller_block(loop, xc, ca.SX.zeros(0), readings, sym)
+    pl = plant_block(loop, xp, v, sym)
+    f_p, f_c = pl["x_plant_dot"], ctl["x_ctrl_dot"]
+    omega = xp[lay.index("nrel5mw_states", "omega_r")]
+    params = [sym[n] for n in ("actuator_faults", "sensor_faults", "ctrl_fault", "yd",
+                               "p_turbine", "p_sensors", "p_ctrl", "cp_scale")]
+    outs = [ca.jacobian(f_p, xp), ca.jacobian(f_p, v), ca.jacobian(f_p, wind),
+            ca.jacobian(omega, xp), ca.jacobian(f_c, xc), ca.jacobian(f_c, xp),
+            ca.jacobian(ctl["v"], xc), ca.jacobian(ctl["v"], xp), ctl["v"]]
+    return ca.Function("linear_blocks", [xp, xc, v, wind, *params], outs)
+
+
+def _values(rc: config.RunConfig, loop) -> list:
+    return [nominal_actuator(loop.p_turbine), lay.defaults("sensor_faults"),
+            lay.defaults("fault_inputs"), rc.yd, np.array(loop.p_turbine),
+            lay.defaults("sensor_params"), rc.p_ctrl, 1.0]
+
+
+def operating_point(raw: dict, wind: float) -> OperatingPoint:
+    """The loop of the run configuration ``raw`` at rest in constant ``wind`` [m/s], and
+    its linear models there."""
+    rc = config.make_config({**raw, "case": 1, "profile": "ideal", "fault": [],
+                             "t_final_s": SETTLE_S, "output_rate_hz": 1.0,
+                             "wind": {"kind": "constant", "speed_mps": wind}})
+    res = cases.run(rc, progress=False, keep_states=True)
+    if res.diverged is not None:
+        raise ConfigError("wind", wind, f"a wind at which the {rc.controller} loop rests "
+                          f"(it diverged at {res.diverged})")
+    loop = replace(rc.loop, fdi=False)
+    n_p, n_c, _ = loop.n_states
+    z = np.asarray(res.z_final, dtype=float)[:n_p + n_c]
+    xp, xc = z[:n_p], z[n_p:]
+    vals = _values(rc, loop)
+    blocks = _block_functions(loop)
+    v0 = np.array(blocks(xp, xc, np.zeros(lay.n_blades()), wind, *vals)[8]).ravel()
+    mats = [np.array(m) for m in blocks(xp, xc, v0, wind, *vals)[:8]]
+    A_p, B_p, E_p, C_p, A_c, B_c, C_c, D_c = mats
+    A_cl = np.block([[A_p + B_p @ D_c, B_p @ C_c], [B_c, A_c]])
+    rhs = rhs_function(loop)
+    args = dict(zip(["actuator_faults", "sensor_faults", "ctrl_fault", "yd", "p_turbine",
+                     "p_sensors", "p_ctrl", "cp_scale"], vals, strict=True))
+    zdot = np.array(rhs.call({"z": z, "wind": wind, **args})["z_dot"]).ravel()
+    beta = z[lay.block("nrel5mw_states", "beta")]
+    return OperatingPoint(wind, z, float(np.mean(beta)), A_p, B_p, E_p, C_p, A_c, B_c, C_c,
+                          D_c, A_cl, float(np.abs(zdot).max()))
+
+
+def closed_loop_jacobian(raw: dict, op: OperatingPoint) -> np.ndarray:
+    """∂ż/∂z of the closed-loop right-hand side itself at ``op`` (the check of A_cl)."""
+    rc = config.make_config({**raw, "case": 1, "profile": "ideal", "fault": []})
+    loop = replace(rc.loop, fdi=False)
+    rhs = rhs_function(loop)
+    ins = {n: ca.SX.sym(n, rhs.sparsity_in(n)) for n in rhs.name_in()}
+    jac = ca.Function("j", list(ins.values()),
+                      [ca.jacobian(rhs.call(ins)["z_dot"], ins["z"])], list(ins), ["J"])
+    vals = dict(zip(["actuator_faults", "sensor_faults", "ctrl_fault", "yd", "p_turbine",
+                     "p_sensors", "p_ctrl", "cp_scale"], _values(rc, loop), strict=True))
+    return np.array(jac.call({"z": op.z, "wind": op.wind, **vals})["J"])
+
+
+def modes(op: OperatingPoint) -> list[dict]:
+    """Each closed-loop mode (one of a complex pair): eigenvalue, natural frequency
+    [rad/s], damping ratio [-], slowest first."""
+    out = []
+    for lam in sorted(op.eigenvalues(), key=lambda x: abs(x)):
+        if lam.imag < -1e-12:
+            continue
+        wn = abs(lam)
+        out.append({"real": lam.real, "imag": lam.imag, "omega_n_rad_s": wn,
+                    "damping": -lam.real / wn if wn > 0 else 1.0})
+    return out
+
+
+def margins(op: OperatingPoint) -> dict:
+    """Gain margin [dB], phase margin [deg] and their crossover frequencies [rad/s] of the
+    pitch loop L(s) (python-control's stability_margins; inf where there is none)."""
+    import control
+
+    A, *_ = loop = op.pitch_loop()
+    gm, pm, _, wg, wp, _ = control.stability_margins(control.ss(*loop))
+    # a phase crossover far beyond the model's fastest mode is the round-off of a loop
+    # whose phase only tends to -180° (measured: 2e8 rad/s): no gain margin there
+    fastest = float(np.abs(np.linalg.eigvals(A)).max())
+    if not np.isfinite(wg) or wg > 10 * fastest:
+        gm, wg = float("inf"), float("nan")
+    gm_db = 20 * np.log10(gm) if np.isfinite(gm) and gm > 0 else float("inf")
+    return {"gain_margin_dB": float(gm_db), "phase_margin_deg": float(pm),
+            "phase_crossover_rad_s": float(wg), "gain_crossover_rad_s": float(wp)}
+
+
+#: the winds of `wtftc linearize` by default [m/s]: above rated, to cut-out
+WINDS = (12.0, 14.0, 16.0, 18.0, 20.0, 22.0, 24.0)
+#: modes slower than this are the adaptive laws' σ-modification (1/σ), not the pitch
+#: loop's: left out of the summary's dominant mode [rad/s]
+SLOW_ADAPTATION = 0.05
+
+
+def summary_row(op: OperatingPoint) -> dict:
+    """The table row of one wind: pitch, the dominant (slowest, beyond the adaptive
+    laws') and the least-damped modes, the margins."""
+    ms = [m for m in modes(op) if m["omega_n_rad_s"] > SLOW_ADAPTATION]
+    dom, weak = ms[0], min(ms, key=lambda m: m["damping"])
+    return {"wind_mps": op.wind, "pitch_deg": float(np.degrees(op.pitch)),
+            "dominant_omega_n_rad_s": dom["omega_n_rad_s"], "dominant_damping": dom["damping"],
+            "least_damped_omega_n_rad_s": weak["omega_n_rad_s"],
+            "least_damped_damping": weak["damping"], **margins(op),
+            "rest_residual": op.residual}
+
+
+UNITS = {"wind_mps": "wind [m/s]", "pitch_deg": "pitch [deg]",
+         "dominant_omega_n_rad_s": "dominant mode ω_n [rad/s]",
+         "dominant_damping": "dominant mode ζ [-]",
+         "least_damped_omega_n_rad_s": "least-damped mode ω_n [rad/s]",
+         "least_damped_damping": "least-damped mode ζ [-]",
+         "gain_margin_dB": "gain margin [dB]", "phase_margin_deg": "phase margin [deg]",
+         "phase_crossover_rad_s": "phase crossover [rad/s]",
+         "gain_crossover_rad_s": "gain crossover [rad/s]",
+         "rest_residual": "max abs(ż) at rest [SI]"}
+
+
+def run_linearize(raw: dict, winds, out_dir, progress: bool = True) -> list[dict]:
+    """Every wind's operating point, its matrices (``linear_<wind>mps.npz``), the modes
+    (``modes.csv``), the summary (``linearize.md``, ``.csv``) and a figure, in out_dir."""
+    from pathlib import Path
+
+    from wtftc.results.io import atomic_savez, atomic_write_text
+
+    out = Path(out_dir)
+    rows, mode_lines = [], ["wind_mps,real_1_per_s,imag_rad_s,omega_n_rad_s,damping"]
+    for w in winds:
+        op = operating_point(raw, float(w))
+        rows.append(summary_row(op))
+        mode_lines += [f"{w:g},{m['real']!r},{m['imag']!r},{m['omega_n_rad_s']!r},"
+                       f"{m['damping']!r}" for m in modes(op)]
+        atomic_savez(out / f"linear_{w:g}mps.npz", **{
+            k: getattr(op, k) for k in ("A_p", "B_p", "E_p", "C_p", "A_c", "B_c", "C_c",
+                                        "D_c", "A_cl", "z")}, wind_mps=op.wind)
+        if progress:
+            r = rows[-1]
+            print(f"  {w:g} m/s: pitch {r['pitch_deg']:.2f}°, dominant mode "
+                  f"{r['dominant_omega_n_rad_s']:.3f} rad/s ζ {r['dominant_damping']:.2f}, "
+                  f"GM {r['gain_margin_dB']:.1f} dB, PM {r['phase_margin_deg']:.1f}°",
+                  flush=True)
+    atomic_write_text(out / "modes.csv", "\n".join(mode_lines) + "\n")
+    keys = list(UNITS)
+    atomic_write_text(out / "linearize.csv", ",".join(keys) + "\n" + "".join(
+        ",".join(repr(float(r[k])) for k in keys) + "\n" for r in rows))
+    md = ["| " + " | ".join(UNITS[k] for k in keys) + " |", "|" + "---|" * len(keys)]
+    md += ["| " + " | ".join(f"{r[k]:.4g}" for k in keys) + " |" for r in rows]
+    atomic_write_text(out / "linearize.md", "\n".join(md) + "\n")
+    _figure(out, rows)
+    return rows
+
+
+def _figure(out, rows: list[dict]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from wtftc.results.io import atomic_savefig
+
+    w = [r["wind_mps"] for r in rows]
+    fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
+    ax[0].plot(w, [r["dominant_omega_n_rad_s"] for r in rows], "o-", label="dominant")
+    ax[0].plot(w, [r["least_damped_omega_n_rad_s"] for r in rows], "s--", label="least damped")
+    ax[0].set(xlabel="wind [m/s]", ylabel="mode ω_n [rad/s]", yscale="log")
+    ax[1].plot(w, [r["dominant_damping"] for r in rows], "o-", label="dominant")
+    ax[1].plot(w, [r["least_damped_damping"] for r in rows], "s--", label="least damped")
+    ax[1].set(xlabel="wind [m/s]", ylabel="damping ratio ζ [-]")
+    ax[2].plot(w, [min(r["gain_margin_dB"], 60.0) for r in rows], "o-",
+               label="gain margin [dB] (60: none)")
+    ax[2].plot(w, [r["phase_margin_deg"] for r in rows], "s-", label="phase margin [deg]")
+    ax[2].set(xlabel="wind [m/s]", ylabel="margin")
+    for a in ax:
+        a.grid(True, alpha=0.3)
+        a.legend(fontsize=8)
+    fig.suptitle("Closed loop linearised at rest in constant wind (exact Jacobians)")
+    fig.tight_layout()
+    for ext in ("png", "pdf"):
+        atomic_savefig(fig, out / f"linearize.{ext}")
+    plt.close(fig)
