@@ -232,3 +232,20 @@ def test_rosco_is_refused_on_a_turbine_without_its_discon(tmp_path):
         ln for ln in t.splitlines() if not ln.startswith("rosco_discon")))
     with pytest.raises(ConfigError, match="rosco_discon"):
         config.make_config({"controller": "rosco", "turbine": str(path)})
+
+
+def test_a_sweep_file_names_its_turbine():
+    """examples/false_alarms_iea15mw.toml: every run of the sweep is on the IEA 15-MW;
+    the NREL 5-MW's sweep files keep their run ids (no turbine key in their runs)."""
+    from wtftc.campaign.sweep import spec
+
+    root = Path(__file__).resolve().parent.parent / "examples"
+    runs, _ = spec.expand(spec.load_sweep(root / "false_alarms_iea15mw.toml"))
+    assert runs and all(r["config"]["turbine"] == "iea15mw" for r in runs)
+    rc = config.make_config(runs[0]["config"])
+    assert rc.param("rotor_radius") == pytest.approx(120.97)
+    nrel, _ = spec.expand(spec.load_sweep(root / "false_alarms.toml"))
+    assert all("turbine" not in r["config"] for r in nrel)
+    bad = {**config.load_toml(root / "false_alarms.toml", "x"), "turbine": "nope"}
+    with pytest.raises(ConfigError, match="turbine"):
+        spec.parse_sweep(bad)

@@ -437,11 +437,33 @@ def _add_turbine(sub) -> None:
     i.add_argument("--out", type=Path, required=True, help="the turbine file (.toml)")
     s = ts.add_parser("show", help="a turbine's parameters, units and sources")
     s.add_argument("turbine", help=TURBINE_HELP)
+    u = ts.add_parser(
+        "tune", help="a controller's gains from a desired closed-loop mode (ω_n, ζ)",
+        description="Chooses the gains so that the speed loop's dominant mode on the exact "
+                    "linear model (wtftc linearize) at --wind has natural frequency "
+                    "--omega-n and damping --zeta: the PI by its pole placement, the "
+                    "physical AFTC by solving for c1 (c2 = 3 c1) and γ. Prints the gains, "
+                    "the turbine's facts and the achieved mode and margins; --out writes a "
+                    "run configuration (wtftc run --config). docs/turbines.md, 'Tuning'.",
+        epilog="Example: wtftc turbine tune --turbine iea15mw --controller physical "
+               "--omega-n 1.0 --zeta 0.8 --out iea_physical.toml")
+    u.add_argument("--turbine", help=TURBINE_HELP)
+    u.add_argument("--controller", default="physical", help="physical (default) or pi")
+    u.add_argument("--omega-n", type=float, default=0.6,
+                   help="natural frequency of the dominant mode [rad/s] (default 0.6, "
+                        "ROSCO's NREL 5-MW PC_omega)")
+    u.add_argument("--zeta", type=float, default=0.7,
+                   help="its damping ratio [-] (default 0.7, ROSCO's NREL 5-MW PC_zeta)")
+    u.add_argument("--wind", type=float, default=16.0,
+                   help="the design wind [m/s] (default 16)")
+    u.add_argument("--out", type=Path, help="write the run configuration (TOML) here")
 
 
 def _cmd_turbine(args) -> int:
     from wtftc.model import turbine_file
 
+    if args.turbine_command == "tune":
+        return _turbine_tune(args)
     if args.turbine_command == "show":
         t = turbine_file.load(args.turbine)
         units = {e["name"]: e["unit"] for e in turbine_file.lay.layout()["turbine_params"]}
@@ -458,6 +480,38 @@ def _cmd_turbine(args) -> int:
     out = turbine_import.write(args.out, args.name, args.title or args.name, values, sources,
                                cp, header, rosco_discon=str(discon.resolve()))
     print(f"written: {out} and {out.parent / cp.name}")
+    return 0
+
+
+def _turbine_tune(args) -> int:
+    try:
+        import control  # noqa: F401
+    except ImportError:
+        raise ConfigError("tune", "python-control", "installed: pip install "
+                          "'wtftc[linear]' (the control package)") from None
+    from wtftc import config
+    from wtftc.campaign import tune
+    from wtftc.results.io import atomic_write_text
+
+    r = tune.tune(args.controller, args.turbine, args.omega_n, args.zeta, args.wind)
+    a = r["achieved"]
+    print(f"{args.controller} on {args.turbine or 'nrel5mw'}: gains for a dominant mode of "
+          f"{args.omega_n:g} rad/s, ζ {args.zeta:g} at {args.wind:g} m/s")
+    for k, v in r["gains"].items():
+        print(f"  {k:<18s} {v:.6g}")
+    print("facts of the turbine (from its file):")
+    for k, v in r["facts"].items():
+        print(f"  {k:<18s} {v:.6g}")
+    print(f"achieved on the exact linear model: ω_n {a['dominant_omega_n_rad_s']:.4g} rad/s, "
+          f"ζ {a['dominant_damping']:.3g}; gain margin {a['gain_margin_dB']:.3g} dB, phase "
+          f"margin {a['phase_margin_deg']:.3g}° at {a['gain_crossover_rad_s']:.3g} rad/s; "
+          f"least-damped mode {a['least_damped_omega_n_rad_s']:.4g} rad/s, "
+          f"ζ {a['least_damped_damping']:.3g}")
+    if args.out:
+        atomic_write_text(args.out, f"# wtftc turbine tune --controller {args.controller} "
+                          f"--omega-n {args.omega_n:g} --zeta {args.zeta:g} --wind "
+                          f"{args.wind:g}\n" + config.to_toml(r["raw"]))
+        print(f"written: {args.out} (wtftc run --config {args.out})")
     return 0
 
 

@@ -20,6 +20,7 @@ Every model is also a python-control ``StateSpace`` (``control`` on PyPI).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import cache
 
 import casadi as ca
 import numpy as np
@@ -93,6 +94,7 @@ def _symbols(loop, n_z: int) -> dict:
     return loop_symbols(loop, n_z)
 
 
+@cache
 def _block_functions(loop) -> ca.Function:
     """(x_p, x_c, v, wind, parameters) → the plant's, the controller's and the closed
     loop's Jacobians, by automatic differentiation of the generated blocks."""
@@ -121,9 +123,8 @@ def _values(rc: config.RunConfig, loop) -> list:
             lay.defaults("sensor_params"), rc.p_ctrl, 1.0]
 
 
-def operating_point(raw: dict, wind: float) -> OperatingPoint:
-    """The loop of the run configuration ``raw`` at rest in constant ``wind`` [m/s], and
-    its linear models there."""
+def settle(raw: dict, wind: float) -> np.ndarray:
+    """The loop's state (plant, controller) after SETTLE_S in constant ``wind``."""
     rc = config.make_config({**raw, "case": 1, "profile": "ideal", "fault": [],
                              "t_final_s": SETTLE_S, "output_rate_hz": 1.0,
                              "wind": {"kind": "constant", "speed_mps": wind}})
@@ -131,9 +132,34 @@ def operating_point(raw: dict, wind: float) -> OperatingPoint:
     if res.diverged is not None:
         raise ConfigError("wind", wind, f"a wind at which the {rc.controller} loop rests "
                           f"(it diverged at {res.diverged})")
+    n_p, n_c, _ = rc.loop.n_states
+    return np.asarray(res.z_final, dtype=float)[:n_p + n_c]
+
+
+def rest(raw: dict, wind: float, z: np.ndarray, steps: int = 30) -> np.ndarray:
+    """The operating point from near it: Newton's method on ż = 0 with the exact
+    Jacobian (the state the settling run nears, to machine precision; the adaptive laws'
+    σ-modification makes that approach slow)."""
+    rc = config.make_config({**raw, "case": 1, "profile": "ideal", "fault": []})
     loop = replace(rc.loop, fdi=False)
-    n_p, n_c, _ = loop.n_states
-    z = np.asarray(res.z_final, dtype=float)[:n_p + n_c]
+    rhs, jac = rhs_function(loop), _jacobian_function(loop)
+    vals = dict(zip(_PARAMS, _values(rc, loop), strict=True))
+    for _ in range(steps):
+        f = np.array(rhs.call({"z": z, "wind": wind, **vals})["z_dot"]).ravel()
+        if np.abs(f).max() < 1e-13:
+            break
+        J = np.array(jac.call({"z": z, "wind": wind, **vals})["J"])
+        z = z - np.linalg.lstsq(J, f, rcond=None)[0]
+    return z
+
+
+def operating_point(raw: dict, wind: float, z: np.ndarray | None = None) -> OperatingPoint:
+    """The loop of the run configuration ``raw`` at rest in constant ``wind`` [m/s] (from
+    ``z`` if given, else after a settling run), and its linear models there."""
+    z = rest(raw, wind, settle(raw, wind) if z is None else z)
+    rc = config.make_config({**raw, "case": 1, "profile": "ideal", "fault": []})
+    loop = replace(rc.loop, fdi=False)
+    n_p = loop.n_states[0]
     xp, xc = z[:n_p], z[n_p:]
     vals = _values(rc, loop)
     blocks = _block_functions(loop)
@@ -142,25 +168,32 @@ def operating_point(raw: dict, wind: float) -> OperatingPoint:
     A_p, B_p, E_p, C_p, A_c, B_c, C_c, D_c = mats
     A_cl = np.block([[A_p + B_p @ D_c, B_p @ C_c], [B_c, A_c]])
     rhs = rhs_function(loop)
-    args = dict(zip(["actuator_faults", "sensor_faults", "ctrl_fault", "yd", "p_turbine",
-                     "p_sensors", "p_ctrl", "cp_scale"], vals, strict=True))
-    zdot = np.array(rhs.call({"z": z, "wind": wind, **args})["z_dot"]).ravel()
+    zdot = np.array(rhs.call({"z": z, "wind": wind, **dict(zip(_PARAMS, vals, strict=True))})[
+        "z_dot"]).ravel()
     beta = z[lay.block("nrel5mw_states", "beta")]
     return OperatingPoint(wind, z, float(np.mean(beta)), A_p, B_p, E_p, C_p, A_c, B_c, C_c,
                           D_c, A_cl, float(np.abs(zdot).max()))
+
+
+#: the loop's parameter inputs, in _values' order
+_PARAMS = ("actuator_faults", "sensor_faults", "ctrl_fault", "yd", "p_turbine", "p_sensors",
+           "p_ctrl", "cp_scale")
+
+
+@cache
+def _jacobian_function(loop) -> ca.Function:
+    rhs = rhs_function(loop)
+    ins = {n: ca.SX.sym(n, rhs.sparsity_in(n)) for n in rhs.name_in()}
+    return ca.Function("j", list(ins.values()),
+                       [ca.jacobian(rhs.call(ins)["z_dot"], ins["z"])], list(ins), ["J"])
 
 
 def closed_loop_jacobian(raw: dict, op: OperatingPoint) -> np.ndarray:
     """∂ż/∂z of the closed-loop right-hand side itself at ``op`` (the check of A_cl)."""
     rc = config.make_config({**raw, "case": 1, "profile": "ideal", "fault": []})
     loop = replace(rc.loop, fdi=False)
-    rhs = rhs_function(loop)
-    ins = {n: ca.SX.sym(n, rhs.sparsity_in(n)) for n in rhs.name_in()}
-    jac = ca.Function("j", list(ins.values()),
-                      [ca.jacobian(rhs.call(ins)["z_dot"], ins["z"])], list(ins), ["J"])
-    vals = dict(zip(["actuator_faults", "sensor_faults", "ctrl_fault", "yd", "p_turbine",
-                     "p_sensors", "p_ctrl", "cp_scale"], _values(rc, loop), strict=True))
-    return np.array(jac.call({"z": op.z, "wind": op.wind, **vals})["J"])
+    vals = dict(zip(_PARAMS, _values(rc, loop), strict=True))
+    return np.array(_jacobian_function(loop).call({"z": op.z, "wind": op.wind, **vals})["J"])
 
 
 def modes(op: OperatingPoint) -> list[dict]:

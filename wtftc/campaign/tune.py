@@ -1,0 +1,98 @@
+"""``wtftc turbine tune``: a controller's gains from a desired closed-loop mode (ours;
+docs/turbines.md, "Tuning").
+
+As ROSCO tunes its pitch PI, the designer chooses the natural frequency ω_n and damping ζ
+of the speed loop's dominant mode, at a design wind above rated; the gains follow from the
+turbine:
+
+* **PI**: its law is this pole placement on a rigid rotor (K_p = 2ζω_n J/|∂T/∂β|,
+  K_i = ω_n² J/|∂T/∂β|, scheduled), so ``pi_omega_n`` and ``pi_zeta`` are the targets;
+* **physical AFTC**: its dominant mode is set by the backstepping gain c1 and the adaptive
+  law's rate γ together (the adaptive law integrates the speed error: docs/turbines.md,
+  "What it shows"); c2 = 3 c1 keeps the pitch loop three times faster than the speed
+  loop. (c1, γ) are solved by Newton's method so that the dominant mode of the exact
+  linear closed loop (wtftc.campaign.linearize) at the design wind has the target ω_n
+  and ζ;
+* the facts of the turbine (inertia, limits, actuator, the FDI's model) come from the
+  turbine file for every controller (wtftc.model.tuning).
+
+Each result is checked on the exact linear model: the achieved mode and the margins.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.campaign import linearize as lin
+from wtftc.errors import ConfigError
+from wtftc.model import tuning
+from wtftc.sim.rhs import controllers
+
+TUNABLE = ("physical", "pi")
+#: c2 / c1 of the physical AFTC: the pitch loop faster than the speed loop
+C2_OVER_C1 = 3.0
+
+
+def _dominant(raw: dict, wind: float, z: np.ndarray) -> tuple[float, float, np.ndarray]:
+    op = lin.operating_point(raw, wind, z)
+    row = lin.summary_row(op)
+    return row["dominant_omega_n_rad_s"], row["dominant_damping"], op.z
+
+
+def _physical_raw(base: dict, c1: float, gamma: float) -> dict:
+    return {**base, "controller_params": {**base.get("controller_params", {}),
+                                          "phys_c1": c1, "phys_c2": C2_OVER_C1 * c1,
+                                          "phys_gamma": gamma}}
+
+
+def _solve_physical(base: dict, wind: float, omega_n: float, zeta: float) -> dict:
+    """(c1, γ) by damped Newton on log-gains, the mode's sensitivities by differences."""
+    x = np.log([2.0, 2.0])  # from the NREL 5-MW's hand choice
+    z = lin.settle(_physical_raw(base, *np.exp(x)), wind)
+    target = np.array([omega_n, zeta])
+    for _ in range(25):
+        wn, ze, z = _dominant(_physical_raw(base, *np.exp(x)), wind, z)
+        r = np.array([wn, ze]) - target
+        if np.abs(r / target).max() < 1e-4:
+            break
+        J = np.empty((2, 2))
+        for k in range(2):
+            dx = np.zeros(2)
+            dx[k] = 1e-4
+            wn2, ze2, _ = _dominant(_physical_raw(base, *np.exp(x + dx)), wind, z)
+            J[:, k] = (np.array([wn2, ze2]) - np.array([wn, ze])) / 1e-4
+        step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        x = x + np.clip(step, -0.5, 0.5)
+    else:
+        raise ConfigError("--omega-n/--zeta", (omega_n, zeta), "a mode the physical AFTC "
+                          f"reaches with c2 = {C2_OVER_C1:g} c1 (closest found: ω_n = "
+                          f"{wn:.3g} rad/s, ζ = {ze:.3g})")
+    c1, gamma = np.exp(x)
+    return {"phys_c1": float(c1), "phys_c2": float(C2_OVER_C1 * c1), "phys_gamma": float(gamma)}
+
+
+def tune(controller: str, turbine: str | None, omega_n: float, zeta: float,
+         wind: float) -> dict:
+    """The gains (``controller_params``), the turbine facts used, and the achieved mode
+    and margins at ``wind`` on the exact linear model."""
+    if controller not in TUNABLE:
+        raise ConfigError("--controller", controller, "one of " + ", ".join(TUNABLE))
+    for name, val, lo, hi in (("--omega-n", omega_n, 0.01, 10.0), ("--zeta", zeta, 0.1, 2.0),
+                              ("--wind", wind, 3.0, 40.0)):
+        if not (lo <= val <= hi):
+            raise ConfigError(name, val, f"a number in [{lo:g}, {hi:g}]")
+    base = {"controller": controller, **({"turbine": turbine} if turbine else {})}
+    rc = config.make_config(base)
+    if controller == "pi":
+        gains = {"pi_omega_n": omega_n, "pi_zeta": zeta}
+    else:
+        gains = _solve_physical(base, wind, omega_n, zeta)
+    raw = {**base, "controller_params": gains}
+    op = lin.operating_point(raw, wind)
+    group = controllers()[controller]["params"]
+    values = lay.values(group, rc.p_ctrl)
+    facts = tuning.turbine_params_of(group, rc.p_turbine)
+    return {"gains": gains, "facts": {k: values[k] for k in facts},
+            "achieved": lin.summary_row(op), "raw": raw}
