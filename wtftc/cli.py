@@ -428,8 +428,9 @@ def _add_turbine(sub) -> None:
                     "of the Cp table beside it.",
         epilog="Example: wtftc turbine import --openfast IEA-15-240-RWT-Monopile.fst "
                "--name iea15mw --out turbines/iea15mw.toml")
-    i.add_argument("--openfast", type=Path, required=True, metavar="MAIN.fst",
-                   help="the OpenFAST main input file")
+    i.add_argument("--openfast", type=Path, metavar="MAIN.fst",
+                   help="the OpenFAST main input file (needed: ElastoDyn holds the "
+                        "inertias and the drivetrain)")
     i.add_argument("--rosco", type=Path, metavar="DISCON.IN",
                    help="ROSCO's input file (default: the one ServoDyn's DLL_InFile names)")
     i.add_argument("--name", required=True, help="the turbine's short name")
@@ -473,6 +474,11 @@ def _cmd_turbine(args) -> int:
         return 0
     from wtftc.model import turbine_import
 
+    if args.openfast is None:
+        if args.rosco is None:
+            raise ConfigError("--openfast", None, "the OpenFAST deck's main file (and "
+                              "optionally --rosco DISCON.IN)")
+        turbine_import.discon_only(args.rosco)
     values, sources, cp, discon = turbine_import.import_turbine(args.openfast, args.rosco)
     header = (f"wtftc turbine file (docs/turbines.md), imported by wtftc turbine import "
               f"from {args.openfast.name}.\nValues referred to the low-speed shaft, in "

@@ -149,6 +149,17 @@ def servodyn_discon(fst: Path) -> Path:
     return Path(os.path.normpath(fst.parent / f.fst_vt["ServoDyn"]["DLL_InFile"]))
 
 
+def discon_only(discon: Path) -> None:
+    """A DISCON.IN alone cannot describe the plant: refused naming what it lacks (its
+    values are read first, so that a bad file is named for what is wrong with it)."""
+    d = read_discon(discon)
+    from_discon(discon, _number(d, "WE_GearboxRatio", discon))
+    raise ConfigError("params.J_r, J_g, k_s, d_s", "missing", f"{discon.name} gives the "
+                      "total inertia WE_Jtot only and no drivetrain stiffness or damping: "
+                      "give the OpenFAST deck with --openfast (ElastoDyn has them)",
+                      where=str(discon))
+
+
 def import_turbine(fst: Path, discon: Path | None = None) -> tuple[dict, dict, Path, Path]:
     """(values, sources, Cp file) of every turbine parameter from the deck and its
     DISCON.IN (and its path): the actuator is the benchmark's (Odgaard 2013: no deck
