@@ -158,12 +158,17 @@ class RunConfig:
         return self.case == FDI_CASE
 
     @property
-    def label(self) -> str:
-        """The run's name: ``label``, else <plant>_case<N> (<turbine>_case<N> on a turbine
-        other than the NREL 5-MW: its built-in name or its file's stem)."""
+    def model_name(self) -> str:
+        """The plant's name, or on a turbine other than the NREL 5-MW the turbine's (its
+        built-in name or its file's stem): what tables and figure titles call the run's
+        turbine."""
         turbine = self.raw.get("turbine", turbine_file.DEFAULT)
-        base = self.plant if turbine == turbine_file.DEFAULT else Path(turbine).stem
-        return self.raw.get("label") or f"{base}_case{self.case}"
+        return self.plant if turbine == turbine_file.DEFAULT else Path(turbine).stem
+
+    @property
+    def label(self) -> str:
+        """The run's name: ``label``, else <model_name>_case<N>."""
+        return self.raw.get("label") or f"{self.model_name}_case{self.case}"
 
     @property
     def yd(self) -> np.ndarray:

@@ -130,6 +130,7 @@ def run_and_write(rc: RunConfig, out_dir: Path, progress: bool = True):
 def run_record(rc: RunConfig, res: Result, m: dict) -> dict:
     """What the figures of one run need, in one dict (wtftc.results.figures)."""
     return {"result": res, "metrics": m, "case": rc.case, "plant": rc.plant,
+            "model": rc.model_name,
             "case_doc": CASES[rc.case], "schedule": res.schedule, "rc": rc,
             "onset": rc.onset, "gearbox_ratio": rc.param("gearbox_ratio"),
             "pitch_limits_deg": tuple(np.degrees([rc.param("pitch_min"),
@@ -165,7 +166,7 @@ def run_cases(out_dir: Path, plants=tuple(PLANTS), overrides: dict | None = None
                for plant in plants}
     # each plant's folder and labels: the plant's name, or on a turbine other than the
     # NREL 5-MW the turbine's (RunConfig.label)
-    names = {plant: rcs[0].label.rsplit("_case", 1)[0] for plant, rcs in configs.items()}
+    names = {plant: rcs[0].model_name for plant, rcs in configs.items()}
     sign_rc = None
     if sign_as_written and configs[plants[0]][0].signed:
         sign_rc = make_config({**over, "plant": plants[0], "case": 1, "control_sign": 1,

@@ -39,7 +39,7 @@ def _onset_line(ax, onset):
 def _title(run, text):
     diverged = run["metrics"]["diverged"]
     extra = f" — DIVERGED at t = {diverged['t_s']:.2f} s" if diverged else ""
-    return f"{text} ({run['plant']}, case {run['case']}){extra}"
+    return f"{text} ({run.get('model', run['plant'])}, case {run['case']}){extra}"
 
 
 def rotor_speed(run, out: Path, name: str, paper_fig: str) -> list[Path]:
