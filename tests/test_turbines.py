@@ -308,3 +308,16 @@ def test_a_discon_in_alone_is_refused_naming_what_it_lacks(tmp_path):
                            str(discon), "--name", "x", "--out", str(tmp_path / "x.toml")],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 2 and "WE_Jtot = 'missing'" in done.stderr, done.stderr
+
+
+def test_the_compare_gust_comes_at_the_turbines_rated_wind():
+    """wtftc compare's eog_rated: the NREL 5-MW's 11.4 m/s (Jonkman 2009) by default, the
+    IEA 15-MW's own rated wind (10.58 m/s from its Cp table) on the IEA 15-MW."""
+    from wtftc.campaign.compare import cell_config
+
+    nrel = cell_config("pi", "none", "eog_rated", 60.0, 1e-3, 0)
+    iea = cell_config("pi", "none", "eog_rated", 60.0, 1e-3, 0, turbine="iea15mw")
+    assert nrel["wind"]["mean_mps"] == 11.4 and "turbine" not in nrel
+    assert iea["wind"]["mean_mps"] == pytest.approx(10.58, abs=0.005)
+    assert cell_config("pi", "none", "ntm_B_16", 60.0, 1e-3, 0,
+                       turbine="iea15mw")["wind"]["mean_mps"] == 16.0

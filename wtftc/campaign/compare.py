@@ -101,7 +101,14 @@ PROFILE = "realistic"
 
 def cell_config(controller: str, fault: str, wind: str, t_final: float, dt: float,
                 seed: int, profile: str = PROFILE, turbine: str | None = None) -> dict:
-    cfg = variant_config(controller, FAULTS[fault], WINDS[wind], t_final, dt, seed,
+    """One cell's run configuration. On a turbine other than the NREL 5-MW the gust of
+    ``eog_rated`` comes at that turbine's rated wind (config.rated_wind_speed, to 0.01
+    m/s; the NREL 5-MW keeps Jonkman's 11.4 m/s)."""
+    tab = WINDS[wind]
+    if turbine and turbine != turbine_file.DEFAULT and wind == "eog_rated":
+        t = turbine_file.load(turbine)
+        tab = {**tab, "mean_mps": round(config.rated_wind_speed(t.vector(), t.table), 2)}
+    cfg = variant_config(controller, FAULTS[fault], tab, t_final, dt, seed,
                          label=f"{wind}/{fault}/{controller}", profile=profile)
     return cfg | ({"turbine": turbine} if turbine else {})
 
