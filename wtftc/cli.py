@@ -461,13 +461,14 @@ def _add_turbine(sub) -> None:
 
 
 def _cmd_turbine(args) -> int:
+    from wtftc.artefacts import layout
     from wtftc.model import turbine_file
 
     if args.turbine_command == "tune":
         return _turbine_tune(args)
     if args.turbine_command == "show":
         t = turbine_file.load(args.turbine)
-        units = {e["name"]: e["unit"] for e in turbine_file.lay.layout()["turbine_params"]}
+        units = {e["name"]: e["unit"] for e in layout.layout()["turbine_params"]}
         print(f"{t.name}: {t.title}\nfile: {t.path}\nCp table: {t.cp_path}")
         for n, v in t.values.items():
             print(f"  {n:<20s} {v:>16.8g} {units[n]:<14s} {t.sources[n]}")

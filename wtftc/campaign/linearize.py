@@ -38,6 +38,7 @@ from wtftc.sim.rhs import (
     rhs_function,
     true_signals,
 )
+from wtftc.sim.stability import _jacobian_function
 
 #: how long the loop runs in constant wind to reach its operating point [s]
 SETTLE_S = 400.0
@@ -90,21 +91,16 @@ class OperatingPoint:
         return A, B, C, np.zeros((1, 1))
 
 
-def _symbols(loop, n_z: int) -> dict:
-    return loop_symbols(loop, n_z)
-
-
 @cache
 def _block_functions(loop) -> ca.Function:
     """(x_p, x_c, v, wind, parameters) → the plant's, the controller's and the closed
     loop's Jacobians, by automatic differentiation of the generated blocks."""
     n_p, n_c, _ = loop.n_states
-    sym = _symbols(loop, n_p + n_c)
+    sym = loop_symbols(loop, n_p + n_c)
     xp, xc = ca.SX.sym("x_p", n_p), ca.SX.sym("x_c", n_c)
     v, wind = ca.SX.sym("v", lay.n_blades()), sym["wind"]
-    readings = measure(true_signals(loop, xp, sym["p_turbine"]),
-                       true_signals(loop, xp, sym["p_turbine"]),
-                       ca.DM.zeros(len(lay.layout()["sensors"])), sym)
+    true = true_signals(loop, xp, sym["p_turbine"])  # exact sensors: no lag, no noise
+    readings = measure(true, true, ca.DM.zeros(len(lay.layout()["sensors"])), sym)
     ctl = controller_block(loop, xc, ca.SX.zeros(0), readings, sym)
     pl = plant_block(loop, xp, v, sym)
     f_p, f_c = pl["x_plant_dot"], ctl["x_ctrl_dot"]
@@ -148,7 +144,7 @@ def rest(raw: dict, wind: float, z: np.ndarray, steps: int = 30) -> np.ndarray:
         f = np.array(rhs.call({"z": z, "wind": wind, **vals})["z_dot"]).ravel()
         if np.abs(f).max() < 1e-13:
             break
-        J = np.array(jac.call({"z": z, "wind": wind, **vals})["J"])
+        J = np.array(jac.call({"z": z, "wind": wind, **vals})["dz_dot_dz"])
         z = z - np.linalg.lstsq(J, f, rcond=None)[0]
     return z
 
@@ -180,20 +176,13 @@ _PARAMS = ("actuator_faults", "sensor_faults", "ctrl_fault", "yd", "p_turbine", 
            "p_ctrl", "cp_scale")
 
 
-@cache
-def _jacobian_function(loop) -> ca.Function:
-    rhs = rhs_function(loop)
-    ins = {n: ca.SX.sym(n, rhs.sparsity_in(n)) for n in rhs.name_in()}
-    return ca.Function("j", list(ins.values()),
-                       [ca.jacobian(rhs.call(ins)["z_dot"], ins["z"])], list(ins), ["J"])
-
-
 def closed_loop_jacobian(raw: dict, op: OperatingPoint) -> np.ndarray:
     """∂ż/∂z of the closed-loop right-hand side itself at ``op`` (the check of A_cl)."""
     rc = config.make_config({**raw, "case": 1, "profile": "ideal", "fault": []})
     loop = replace(rc.loop, fdi=False)
     vals = dict(zip(_PARAMS, _values(rc, loop), strict=True))
-    return np.array(_jacobian_function(loop).call({"z": op.z, "wind": op.wind, **vals})["J"])
+    return np.array(_jacobian_function(loop).call({"z": op.z, "wind": op.wind, **vals})[
+        "dz_dot_dz"])
 
 
 def modes(op: OperatingPoint) -> list[dict]:

@@ -110,8 +110,9 @@ def _number(d: dict, key: str, path: Path) -> float:
         raise ConfigError(key, d[key], "a number", where=str(path)) from None
 
 
-def from_discon(path: Path, gear: float) -> tuple[dict, dict, Path]:
-    """(values, sources, Cp file) from a DISCON.IN, referred to the LSS by ``gear``."""
+def from_discon(path: Path, gear: float) -> tuple[dict, dict, Path, dict]:
+    """(values, sources, Cp file, the raw numbers read) from a DISCON.IN, referred to the
+    LSS by ``gear``."""
     d = read_discon(path)
     g = {k: _number(d, k, path) for k in (
         "PC_RefSpd", "VS_RtTq", "VS_RtPwr", "VS_GenEff", "PC_MinPit", "PC_MaxPit",
