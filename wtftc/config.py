@@ -313,7 +313,9 @@ FDI_KEYS = {"target_false_alarms_per_hour": (fdi.TARGET_ALARMS_PER_HOUR, 1e-12, 
             "test_period_s": (4.0, 0.1, 600.0, "period of the test movement [s]"),
             "test_width_s": (1.0, 0.01, 600.0, "duration of each test movement [s]"),
             "model_uncertainty": (None, 0.0, 1.0, "relative error of the actuator's time "
-                                                  "constant the threshold allows for")}
+                                                  "constant the threshold allows for"),
+            "rate_limited_uncertainty": (None, 0.0, 10.0, "offset allowed for while the "
+                                         "blade is at its rate limit, in actuator lags")}
 
 
 def _check_pulse(vals: dict, interval: float) -> None:
@@ -350,8 +352,8 @@ def _fdi(raw: dict, loop: rhs.Loop, p_sensors: np.ndarray,
     pulse = (math.radians(vals["test_pulse_deg"]), vals["test_period_s"],
              vals["test_width_s"]) if vals["test_pulse_deg"] > 0 else None
     return fdi.run_params(rhs.fdi_params(loop), p_sensors, interval,
-                          vals["target_false_alarms_per_hour"],
-                          vals["model_uncertainty"]), pulse
+                          vals["target_false_alarms_per_hour"], vals["model_uncertainty"],
+                          vals["rate_limited_uncertainty"]), pulse
 
 
 def _profile(raw: dict, given: dict) -> None:

@@ -20,9 +20,10 @@ The FDI (derivation/fdi.py) tests the mean square e of its filtered residual r_f
   tails errs high, on the safe side (tests/test_fdi_noise.py). SciPy is not a dependency
   of the package for one quantile.
 
-The model-uncertainty allowance (δ on the actuator's time constant) is added by the FDI
-itself, since it grows with the model's pitch rate. The target is checked, not assumed:
-docs/fdi.md reports the alarms measured over 100 simulated fault-free hours.
+The model-uncertainty allowance (δ on the actuator's time constant, δ_sat at the rate
+limit) is added by the FDI itself, since it grows with the model's pitch rate. The target
+is checked, not assumed: docs/fdi.md reports the alarms measured over 100 simulated
+fault-free hours.
 """
 
 from __future__ import annotations
@@ -61,11 +62,11 @@ def noise_threshold(sigma: float, interval: float, T_r: float, T_f: float,
 
 def run_params(base: np.ndarray, p_sensors: np.ndarray, interval: float,
                alarms_per_hour: float = TARGET_ALARMS_PER_HOUR,
-               delta: float | None = None) -> np.ndarray:
+               delta: float | None = None, delta_sat: float | None = None) -> np.ndarray:
     """The FDI's parameters of one run: ``base`` (wtftc.sim.rhs.fdi_params) with the
     noise thresholds of the run's sensors (the pitch's: the noisiest pitch sensor's σ; each
     pair test's: the σ of its two sensors' difference) and, if given, the
-    model-uncertainty allowance δ."""
+    model-uncertainty allowances δ and δ_sat (at the rate limit)."""
     p = np.array(base, dtype=float)
     values = lay.values("fdi_params", p)
     sens = lay.values("sensor_params", p_sensors)
@@ -85,6 +86,7 @@ def run_params(base: np.ndarray, p_sensors: np.ndarray, interval: float,
         p[lay.index("fdi_params", f"fdi_thr2_{name}")] = threshold(pair(name))
     p[lay.index("fdi_params", "fdi_var_noise")] = sigma**2 if interval > 0 else 0.0
     p[lay.index("fdi_params", "fdi_T_s")] = interval
-    if delta is not None:
-        p[lay.index("fdi_params", "fdi_delta")] = delta
+    for name, value in (("fdi_delta", delta), ("fdi_delta_rate_limited", delta_sat)):
+        if value is not None:
+            p[lay.index("fdi_params", name)] = value
     return p

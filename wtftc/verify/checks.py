@@ -165,9 +165,20 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
         "d": np.array([rng.uniform(-0.05, 0.05)]),
         "x_fdi": _fdi_states(rng, rs),
         "beta_meas": rng.uniform(-0.05, 1.65, lay.n_blades()),
-        "p_fdi": lay.defaults("fdi_params") * (1 + 0.1 * rng.uniform(-1, 1, len(
-            lay.names("fdi_params")))),
+        "p_fdi": lay.defaults("fdi_params") * (1 + 0.1 * _fdi_param_draws(rng, rs)),
     }
+
+
+#: FDI parameters added after the points were fixed: drawn from rs, the others from rng,
+#: so that every function's points stay what they were (the same rule as the sensors')
+FDI_PARAMS_ADDED = ("fdi_delta_rate_limited",)  # issue 17
+
+
+def _fdi_param_draws(rng: np.random.Generator, rs: np.random.Generator) -> np.ndarray:
+    names = lay.names("fdi_params")
+    old = iter(rng.uniform(-1, 1, len(names) - len(FDI_PARAMS_ADDED)))
+    return np.array([rs.uniform(-1, 1) if n in FDI_PARAMS_ADDED else next(old)
+                     for n in names])
 
 
 def _fdi_states(rng: np.random.Generator, rs: np.random.Generator) -> np.ndarray:
@@ -177,6 +188,9 @@ def _fdi_states(rng: np.random.Generator, rs: np.random.Generator) -> np.ndarray
     values = {}
     for j in lay.blades():
         values |= {f"fdi_{kind}_{j}": v for kind, v in _fdi_blade(rng).items()}
+        # the time at the rate limit, a fraction like the latch: its draw, so that the
+        # draws of the states after it stay what they were before it was added (issue 17)
+        values[f"fdi_rate_limited_fraction_{j}"] = values[f"fdi_latch_{j}"]
     for n in lay.names("fdi_states"):
         if n not in values:  # the pair tests': residuals, mean squares, latches
             gen = 100.0 if "omega_g_hss" in n else 1.0  # the HSS: N times the rotor's
