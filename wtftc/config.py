@@ -32,7 +32,7 @@ FAULT_FREE_CASE, UNAWARE_CASE, ORACLE_CASE, FDI_CASE = 1, 2, 3, 4
 TOP_KEYS = {"case", "plant", "controller", "t_final_s", "dt_s", "seed", "output_rate_hz",
             "control_sign", "reference_rad_s", "cp_table", "wind", "fault", "controller_params",
             "turbine_params", "initial", "label", "profile", "control_interval_s",
-            "control_delay", "sensors", "mismatch", "fdi", "turbine"}
+            "control_delay", "sensors", "mismatch", "fdi", "turbine", "loads"}
 
 DEFAULTS = {
     "case": 1, "plant": "nrel5mw", "controller": "paper", "t_final_s": 60.0, "dt_s": 1e-3,
@@ -283,6 +283,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
         raise ConfigError("sensors", raw["sensors"], "no lag with controller = rosco (it "
                           "reads the speeds with their noise only: docs/sensors.md)")
     _control_sign(raw)
+    loads_options(raw)  # refused here, used by the metrics
     turbine = _turbine(raw)
     p_ctrl, p_turbine = _parameters(raw, controller, turbine)
     ref = _reference(raw, p_turbine)
@@ -303,6 +304,30 @@ def make_config(cfg: dict | None = None) -> RunConfig:
                      omega_offset=offset, p_sensors=p_sensors, p_plant=p_plant,
                      cp_scale=cp_scale, p_fdi=p_fdi, test_pulse=test_pulse,
                      rosco_discon=turbine.rosco_discon)
+
+
+#: the [loads] table (docs/loads.md): key → (default, low, high, what)
+LOADS_KEYS = {"shaft_wohler_exponent": (4.0, 1.0, 20.0, "the shaft's Wöhler exponent m of its "
+                                                        "damage-equivalent load"),
+              "reversal_hysteresis_deg": (0.1, 0.0, 10.0, "the turn-back a pitch reversal "
+                                                          "needs [deg]")}
+
+
+def loads_options(raw: dict) -> dict:
+    """The ``[loads]`` table's values, defaults filled in (docs/loads.md)."""
+    table = raw.get("loads", {})
+    if not isinstance(table, dict):
+        raise ConfigError("loads", table, "a table with " + ", ".join(LOADS_KEYS))
+    for key in table:
+        if key not in LOADS_KEYS:
+            raise ConfigError(f"loads.{key}", table[key], "a known key: " + ", ".join(LOADS_KEYS))
+    out = {}
+    for key, (default, lo, hi, what) in LOADS_KEYS.items():
+        x = _finite(table.get(key, default), f"loads.{key}")
+        if not lo <= x <= hi:
+            raise ConfigError(f"loads.{key}", table[key], f"{what}: a number in [{lo:g}, {hi:g}]")
+        out[key] = x
+    return out
 
 
 #: the [fdi] table: key → (default, low, high, what)

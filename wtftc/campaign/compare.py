@@ -81,9 +81,21 @@ COLUMNS = [
     ("pitch_rate_rms_deg_s", "pitch-rate RMS [deg/s]", "{:.2f}"),
     ("actuator_travel_deg", "travel [deg]", "{:.0f}"),
     ("mean_electrical_power_W", "mean power [MW]", "{:.3f}"),
+    # what the regulation cost (issue 18, docs/loads.md)
+    ("shaft_torque_del_1hz_Nm", "shaft DEL 1 Hz [MN m]", "{:.3f}"),
+    ("pitch_adc", "pitch ADC [-]", "{:.3f}"),
+    ("pitch_reversals", "pitch reversals [-]", "{:.0f}"),
+    ("rms_speed_error_own_above_rated_rad_s", "RMS ω error, own ref., above rated [rad/s]",
+     "{:.4f}"),
+    ("rms_speed_error_own_below_rated_rad_s", "RMS ω error, own ref., below rated [rad/s]",
+     "{:.4f}"),
     ("detection_delay_s", "detection delay [s]", "{:.2f}"),
     ("diverged_at_s", "diverged at [s]", "{:.2f}"),
 ]
+
+
+#: the columns taken from metrics.json as they are (the rest are computed per row)
+N_METRIC_COLUMNS = 11
 
 
 def _check(kind: str, names, allowed: dict) -> list[str]:
@@ -137,12 +149,11 @@ def _row(controller, fault, wind, m) -> dict:
     delays = [b.get("detection_delay_s") for b in m["fdi"]["blades"].values()
               if b.get("detection_delay_s") is not None]
     row = {"controller": controller, "fault": fault, "wind": wind,
-           **{k: m.get(k) for k, _, _ in COLUMNS[:6]},
+           **{k: m.get(k) for k, _, _ in COLUMNS[:N_METRIC_COLUMNS]},
            "detection_delay_s": min(delays) if delays and CONTROLLERS[controller].uses_fdi
            else None,
            "diverged_at_s": m["diverged"]["t_s"] if m["diverged"] else None,
            "false_alarms": len(m["fdi"]["false_alarms"])}
-    row["mean_electrical_power_W"] = (row["mean_electrical_power_W"] or 0.0) / 1e6
     return row
 
 
@@ -188,8 +199,12 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
     return rows
 
 
-def _fmt(v, fmt):
-    return "—" if v is None else fmt.format(v)
+#: the columns shown in the Markdown table in MW and MN m (the CSV keeps W and N m)
+MEGA = {"mean_electrical_power_W", "shaft_torque_del_1hz_Nm"}
+
+
+def _fmt(v, fmt, key=""):
+    return "—" if v is None else fmt.format(v / 1e6 if key in MEGA else v)
 
 
 def write_compare_table(out_dir: Path, rows: list[dict]) -> str:
@@ -197,7 +212,7 @@ def write_compare_table(out_dir: Path, rows: list[dict]) -> str:
     md = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         md.append("| " + " | ".join([r["wind"], r["fault"], r["controller"]]
-                                    + [_fmt(r[k], f) for k, _, f in COLUMNS]
+                                    + [_fmt(r[k], f, k) for k, _, f in COLUMNS]
                                     + [str(r["false_alarms"])]) + " |")
     csv = [",".join(["wind", "fault", "controller"] + [k for k, _, _ in COLUMNS]
                     + ["false_alarms"])]

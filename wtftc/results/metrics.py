@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 
 from wtftc.artefacts import layout as lay
-from wtftc.config import CASES, RunConfig
+from wtftc.config import CASES, RunConfig, loads_options, rated_wind_speed
 from wtftc.model.faults import HYDRAULIC, SENSOR_SIGNALS, TYPES
+from wtftc.results import loads
 from wtftc.sim import integrate
 from wtftc.sim.rhs import sensor_names
 
@@ -60,7 +61,63 @@ def metrics(rc: RunConfig, res: integrate.Result) -> dict:
         "seed": rc.seed,
         "config": res.config,
     }
-    return m
+    return m | cost(rc, res, beta, dt_out)
+
+
+def cost(rc: RunConfig, res: integrate.Result, beta: np.ndarray, dt_out: float) -> dict:
+    """What the regulation cost (docs/loads.md): the shaft torque's fatigue, the pitch
+    actuator's duty, and the speed against the controller's own reference."""
+    opts = loads_options(rc.raw)
+    tp = lay.values("turbine_params", rc.p_plant if rc.p_plant is not None else rc.p_turbine)
+    w_r = res.column("omega_r")
+    shaft = (tp["k_s"] * res.column("theta_s")
+             + tp["d_s"] * (w_r - res.column("omega_g_hss") / tp["gearbox_ratio"]))
+    duration = max(float(res.t[-1] - res.t[0]), dt_out)
+    m = opts["shaft_wohler_exponent"]
+    fat = loads.fatigue(shaft, duration, m)
+    rate_max = rc.p_turbine[lay.index("turbine_params", "pitch_rate_max")]
+    duty = loads.pitch_duty(beta, dt_out, rate_max,
+                            np.radians(opts["reversal_hysteresis_deg"]))
+    above, below = own_speed_errors(rc, res)
+    rated = rc.p_turbine[lay.index("turbine_params", "omega_g_rated")]
+    return {
+        "shaft_torque_del_1hz_Nm": fat["del_1hz"],
+        "shaft_torque_damage_per_10min": fat["damage_per_10min"],
+        "shaft_torque_max_abs_Nm": fat["max_abs"],
+        "shaft_wohler_exponent": m,
+        "pitch_adc": duty["adc"],
+        "pitch_travel_per_blade_deg": duty["travel_deg"],
+        "pitch_reversals": duty["reversals"],
+        "rms_speed_error_own_above_rated_rad_s": above,
+        "rms_speed_error_own_below_rated_rad_s": below,
+        "time_above_1p1_rated_s": float(np.count_nonzero(w_r > 1.1 * rated) * dt_out),
+    }
+
+
+def own_reference(rc: RunConfig, wind: np.ndarray) -> np.ndarray:
+    """The speed the controller pursues (docs/loads.md): below rated, with a
+    variable-speed torque law, the optimal tip-speed ratio's, min(ω_rated, λ_opt v / R);
+    with the fixed rated torque or on the paper's plant, rated speed throughout."""
+    tp = lay.values("turbine_params", rc.p_turbine)
+    rated = np.full_like(wind, rc.reference)
+    torque_law = rc.uses_rosco or tp["gen_torque_law"] > 0.5
+    if rc.plant == "paper" or not torque_law:
+        return rated
+    _, tsr_opt, _ = rc.table.cp_max()
+    return np.minimum(rated, tsr_opt * wind / tp["rotor_radius"])
+
+
+def own_speed_errors(rc: RunConfig, res: integrate.Result) -> tuple:
+    """The RMS error against the own reference while the wind is at or above the
+    turbine's rated wind, and below it (None where no sample falls)."""
+    wind = res.column("wind")
+    e = res.column("omega_r") - own_reference(rc, wind)
+    above = wind >= rated_wind_speed(rc.p_turbine, rc.table)
+
+    def rms(sel):
+        return float(np.sqrt(np.mean(e[sel] ** 2))) if sel.any() else None
+
+    return rms(above), rms(~above)
 
 def fdi_report(rc: RunConfig, res: integrate.Result) -> dict:
     """Detection, isolation, classification and estimation of wtftc's FDI, per fault and

@@ -13,6 +13,8 @@ TABLE_COLUMNS = [
     ("pitch_min_deg", "pitch min [deg]", "{:.1f}"), ("pitch_max_deg", "pitch max [deg]", "{:.1f}"),
     ("pitch_rate_rms_deg_s", "pitch rate RMS [deg/s]", "{:.2f}"),
     ("actuator_travel_deg", "travel [deg]", "{:.0f}"),
+    ("pitch_adc", "pitch ADC [-]", "{:.3f}"),
+    ("shaft_torque_del_1hz_Nm", "shaft DEL 1 Hz [MN m]", None),
     ("mean_electrical_power_W", "mean electrical power [MW]", None),
     ("diverged", "diverged at [s]", None), ("realtime_factor", "× real time", "{:.0f}"),
 ]
@@ -21,6 +23,8 @@ def _cell(m: dict, key: str, fmt: str | None) -> str:
     v = m.get(key)
     if key == "mean_electrical_power_W":
         return f"{v / 1e6:.2f}"
+    if key == "shaft_torque_del_1hz_Nm":
+        return f"{v / 1e6:.3f}"
     if key == "diverged":
         return f"{v['t_s']:.2f}" if v else "no"
     if v is None:

@@ -20,7 +20,12 @@ METRICS = [("rms_speed_error_rad_s", "rad/s"), ("max_abs_speed_error_rad_s", "ra
            ("rms_speed_error_after_fault_rad_s", "rad/s"), ("overspeed_peak_rad_s", "rad/s"),
            ("overspeed_peak_over_rated", "-"), ("pitch_rate_rms_deg_s", "deg/s"),
            ("actuator_travel_deg", "deg"), ("mean_electrical_power_W", "W"),
-           ("wall_s", "s")]
+           ("wall_s", "s"),
+           # what the regulation cost (issue 18, docs/loads.md)
+           ("shaft_torque_del_1hz_Nm", "N m"), ("shaft_torque_damage_per_10min", "(N m)^m"),
+           ("shaft_torque_max_abs_Nm", "N m"), ("pitch_adc", "-"), ("pitch_reversals", "-"),
+           ("rms_speed_error_own_above_rated_rad_s", "rad/s"),
+           ("rms_speed_error_own_below_rated_rad_s", "rad/s"), ("time_above_1p1_rated_s", "s")]
 STATUS = ("ok", "diverged", "failed")
 
 

@@ -23,6 +23,18 @@ TABLE = [("controller", "{}"), ("fault", "{}"), ("runs", "{}"), ("diverged", "{}
          ("isolated and classified right", "{}"), ("false alarms", "{}"),
          ("RMS ratio to fault-free median [-]", "{:.3f}"),
          ("RMS ratio to fault-free max [-]", "{:.3f}")]
+#: the cost table (issue 18, docs/loads.md): (header, run key, statistic, scale, format)
+COST = [("shaft DEL 1 Hz median [MN m]", "shaft_torque_del_1hz_Nm", 50, 1e-6, "{:.3f}"),
+        ("shaft DEL 1 Hz p95 [MN m]", "shaft_torque_del_1hz_Nm", 95, 1e-6, "{:.3f}"),
+        ("shaft torque max [MN m]", "shaft_torque_max_abs_Nm", 100, 1e-6, "{:.3f}"),
+        ("pitch ADC median [-]", "pitch_adc", 50, 1.0, "{:.3f}"),
+        ("pitch reversals median [-]", "pitch_reversals", 50, 1.0, "{:.0f}"),
+        ("RMS ω error, own reference, above rated, median [rad/s]",
+         "rms_speed_error_own_above_rated_rad_s", 50, 1.0, "{:.4f}"),
+        ("RMS ω error, own reference, below rated, median [rad/s]",
+         "rms_speed_error_own_below_rated_rad_s", 50, 1.0, "{:.4f}"),
+        ("time above 1.1 × rated max [s]", "time_above_1p1_rated_s", 100, 1.0, "{:.1f}"),
+        ("mean power median [MW]", "mean_electrical_power_W", 50, 1e-6, "{:.3f}")]
 #: the box plots: (metric, axis label, file name)
 BOXES = [("rms_speed_error_rad_s", "RMS rotor-speed error [rad/s]", "rms_speed_error"),
          ("overspeed_peak_over_rated", "peak rotor speed / rated [-]", "overspeed")]
@@ -41,12 +53,14 @@ def summarize(out_dir: Path) -> str:
     rows = read_results(out_dir).to_pylist()
     n_all = len(expand(parse_sweep(meta["sweep"]))[0])
     lines, csv = _table(rows)
+    cost, cost_csv = _cost_table(rows)
     head = [f"# Sweep {meta['sweep_id']}: {len(rows)} of {n_all} runs saved",
             "", f"Results folder `{out_dir}`; made with "
             + ", ".join(f"{k} {v}" for k, v in meta["versions"].items()) + ".", ""]
-    text = "\n".join(head + lines + _alarm_rate(rows, meta) + _failures(rows)) + "\n"
+    text = "\n".join(head + lines + cost + _alarm_rate(rows, meta) + _failures(rows)) + "\n"
     atomic_write_text(out_dir / "summary.md", text)
     atomic_write_text(out_dir / "summary.csv", "\n".join(csv) + "\n")
+    atomic_write_text(out_dir / "summary_cost.csv", "\n".join(cost_csv) + "\n")
     if rows:
         _figures(out_dir, rows)
     return text
@@ -68,6 +82,30 @@ def _table(rows: list[dict]) -> tuple[list[str], list[str]]:
                  for v, (_, fmt) in zip(vals, TABLE, strict=True)]
         lines.append("| " + " | ".join(cells) + " |")
         csv.append(",".join("" if v is None else str(v) for v in vals))
+    return lines, csv
+
+
+def _cost_table(rows: list[dict]) -> tuple[list[str], list[str]]:
+    """What the regulation cost, per controller and fault type (docs/loads.md): the
+    shaft's fatigue, the pitch's duty, the speed against each controller's own
+    reference; Markdown lines under a heading, and CSV lines (SI units)."""
+    groups: dict[tuple, list] = {}
+    for r in rows:
+        if r["status"] == "ok":
+            groups.setdefault((r["controller"], r["fault_type"]), []).append(r)
+    head = ["controller", "fault", "runs"] + [h for h, *_ in COST]
+    lines = ["", "## Cost (docs/loads.md)", "", "| " + " | ".join(head) + " |",
+             "|" + "---|" * len(head)]
+    csv = [",".join(["controller", "fault", "runs"]
+                    + [f"{k} p{q}" for _, k, q, _, _ in COST])]
+    for (c, f), rs in sorted(groups.items(), key=lambda kv: (
+            list(CONTROLLERS).index(kv[0][0]), FAULT_TYPES.index(kv[0][1]))):
+        vals = [_quantile([r[k] for r in rs if r.get(k) is not None], q)
+                for _, k, q, _, _ in COST]
+        lines.append("| " + " | ".join([c, f, str(len(rs))] + [
+            "—" if v is None else fmt.format(v * scale)
+            for v, (_, _, _, scale, fmt) in zip(vals, COST, strict=True)]) + " |")
+        csv.append(",".join([c, f, str(len(rs))] + ["" if v is None else str(v) for v in vals]))
     return lines, csv
 
 
