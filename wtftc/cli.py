@@ -319,7 +319,9 @@ def _cmd_sweep(args) -> int:
 
     if args.summary is not None:
         print(sweep.summarize(args.summary))
-        print(f"written: {args.summary}/summary.md, summary.csv, figures/")
+        extra = ", summary_dlc.csv" if (Path(args.summary) / "summary_dlc.csv").exists() else ""
+        print(f"written: {args.summary}/summary.md, summary.csv, summary_cost.csv{extra}, "
+              "figures/")
         return 0
     if args.show is not None:
         if args.out is None:

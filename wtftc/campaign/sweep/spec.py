@@ -15,13 +15,14 @@ import numpy as np
 from wtftc import config
 from wtftc.artefacts import layout as lay
 from wtftc.campaign.compare import CONTROLLERS, PROFILE, variant_config
+from wtftc.campaign.sweep.dlc import parse_dlc
 from wtftc.errors import ConfigError
 from wtftc.model import faults, turbine_file, wind
 from wtftc.sim import rhs
 
 TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "output_rate_hz",
             "batch_size", "controllers", "optional_controllers", "plants", "wind", "fault",
-            "profile", "mismatch", "fault_free_twins", "turbine"}
+            "profile", "mismatch", "fault_free_twins", "turbine", "dlc"}
 #: the [mismatch] table's keys: the plant's factors against the controllers' model
 #: (config.MISMATCH), each an axis like any other (1.0: none)
 MISMATCH_KEYS = tuple(config.MISMATCH)
@@ -346,6 +347,8 @@ def _check_size(mode: str, samples: int | None, axes: list[Axis], twins: bool = 
 def parse_sweep(raw: dict) -> Sweep:
     """Validate a sweep file's content before anything runs: each error names the key."""
     mode, samples = _check_top(raw)
+    if "dlc" in raw:  # the summary's lifetime weighting (wtftc.campaign.sweep.dlc)
+        parse_dlc(raw["dlc"])
     settings = _settings(raw)
     if "controllers" not in raw:
         raise ConfigError("controllers", None, "a list of controller variants: "

@@ -10,6 +10,7 @@ import numpy as np
 
 from wtftc import config
 from wtftc.campaign.compare import CONTROLLERS
+from wtftc.campaign.sweep import dlc
 from wtftc.campaign.sweep.spec import FAULT_TYPES, expand, parse_sweep
 from wtftc.campaign.sweep.store import read_results
 from wtftc.errors import ConfigError
@@ -54,15 +55,22 @@ def summarize(out_dir: Path) -> str:
     n_all = len(expand(parse_sweep(meta["sweep"]))[0])
     lines, csv = _table(rows)
     cost, cost_csv = _cost_table(rows)
+    dlc_table = meta["sweep"].get("dlc")
+    dlc_lines, dlc_csv = dlc.section(rows, dlc_table) if dlc_table is not None else ([], [])
     head = [f"# Sweep {meta['sweep_id']}: {len(rows)} of {n_all} runs saved",
             "", f"Results folder `{out_dir}`; made with "
             + ", ".join(f"{k} {v}" for k, v in meta["versions"].items()) + ".", ""]
-    text = "\n".join(head + lines + cost + _alarm_rate(rows, meta) + _failures(rows)) + "\n"
+    text = "\n".join(head + lines + cost + dlc_lines + _alarm_rate(rows, meta)
+                     + _failures(rows)) + "\n"
     atomic_write_text(out_dir / "summary.md", text)
     atomic_write_text(out_dir / "summary.csv", "\n".join(csv) + "\n")
     atomic_write_text(out_dir / "summary_cost.csv", "\n".join(cost_csv) + "\n")
+    if dlc_csv:
+        atomic_write_text(out_dir / "summary_dlc.csv", "\n".join(dlc_csv) + "\n")
     if rows:
         _figures(out_dir, rows)
+        if dlc_table is not None:
+            _save(dlc.figure(rows), out_dir, "dlc_bins")
     return text
 
 

@@ -1,0 +1,86 @@
+"""IEC design-load-case summaries of a sweep (wtftc/campaign/sweep/dlc.py): the Rayleigh
+weighting, the lifetime DEL and AEP against hand computation, and a small DLC sweep end to
+end."""
+
+from __future__ import annotations
+
+import csv
+import math
+
+import numpy as np
+import pytest
+
+from wtftc.campaign import sweep
+from wtftc.campaign.sweep import dlc
+from wtftc.errors import ConfigError
+
+
+def test_the_rayleigh_bins_cover_the_year_and_have_its_mean():
+    """Bins of 0.1 m/s from 0 to 60 m/s: the probabilities sum to 1 and their mean wind is
+    the annual mean (IEC class I: 10 m/s), to the bins' resolution."""
+    v = np.arange(0.05, 60.0, 0.1)
+    p = dlc.bin_probability(v, 0.1, 10.0)
+    assert p.sum() == pytest.approx(1.0, abs=1e-12)
+    assert p @ v == pytest.approx(10.0, rel=1e-4)
+    # the 2 m/s bin at 10 m/s, by hand: exp(-π/4 (9/10)²) − exp(-π/4 (11/10)²)
+    hand = math.exp(-math.pi / 4 * 0.81) - math.exp(-math.pi / 4 * 1.21)
+    assert dlc.bin_probability(10.0, 2.0, 10.0) == pytest.approx(hand, rel=1e-12)
+
+
+def test_the_lifetime_figures_of_two_bins_by_hand():
+    bins = {8.0: {"shaft_torque_damage_per_10min": 6.0e26, "mean_electrical_power_W": 2.0e6,
+                  "pitch_adc": 0.1, "shaft_torque_del_1hz_Nm": 1.0},
+            16.0: {"shaft_torque_damage_per_10min": 2.4e27, "mean_electrical_power_W": 5.0e6,
+                   "pitch_adc": 0.4, "shaft_torque_del_1hz_Nm": 1.0}}
+    table = dlc.parse_dlc({"annual_mean_mps": 10.0, "bin_width_mps": 2.0})
+    p8, p16 = (float(dlc.bin_probability(v, 2.0, 10.0)) for v in (8.0, 16.0))
+    life = dlc.lifetime(bins, table, 4.0)
+    share = p8 + p16
+    assert life["share_of_year"] == pytest.approx(share, rel=1e-12)
+    assert life["lifetime_shaft_del_1hz_Nm"] == pytest.approx(
+        ((p8 * 6.0e26 + p16 * 2.4e27) / 600.0 / share) ** 0.25, rel=1e-12)
+    assert life["aep_Wh"] == pytest.approx(8766.0 * (p8 * 2.0e6 + p16 * 5.0e6), rel=1e-12)
+    assert life["weighted_pitch_adc"] == pytest.approx((p8 * 0.1 + p16 * 0.4) / share)
+
+
+@pytest.mark.parametrize("table, field", [
+    ({"case": "2.1"}, "dlc.case"), ({"annual_mean_mps": 0.0}, "dlc.annual_mean_mps"),
+    ({"bins": 2}, "dlc.bins"), ("1.2", "dlc"),
+])
+def test_a_bad_dlc_table_is_refused_naming_the_key(table, field):
+    with pytest.raises(ConfigError) as err:
+        sweep.parse_sweep({"controllers": ["pi"], "dlc": table})
+    assert err.value.field == field
+
+
+def test_a_small_dlc_sweep_is_summarized_per_bin_and_over_the_lifetime(tmp_path):
+    """Two bins, one seed, 30-s runs of the PI: the summary's DLC section and its CSV give
+    each bin's probability and the lifetime figures computed from the saved runs."""
+    path = tmp_path / "dlc.toml"
+    path.write_text('''
+controllers = ["pi"]
+t_final_s = 30.0
+output_rate_hz = 20.0
+[wind]
+mean_mps = [8.0, 16.0]
+seed = [3]
+[fault]
+type = "none"
+[dlc]
+annual_mean_mps = 8.5
+''')
+    out = tmp_path / "dlc"
+    sweep.run_sweep(path, out, workers=1, quiet=True)
+    text = sweep.summarize(out)
+    assert "## DLC 1.2: lifetime-weighted (Rayleigh, annual mean 8.5 m/s" in text
+    rows = list(csv.DictReader((out / "summary_dlc.csv").open()))
+    assert [float(r["mean_wind_mps"]) for r in rows] == [8.0, 16.0]
+    for r in rows:
+        assert float(r["bin_probability"]) == pytest.approx(
+            float(dlc.bin_probability(float(r["mean_wind_mps"]), 2.0, 8.5)), rel=1e-12)
+    runs = sweep.read_results(out).to_pylist()
+    life = dlc.lifetime(dlc.per_bin(runs)["pi"], dlc.parse_dlc({"annual_mean_mps": 8.5}), 4.0)
+    line = next(s for s in text.splitlines() if s.startswith("| pi | 2 of 2 | 2 |"))
+    assert f"{life['aep_Wh'] / 1e9:.2f}" in line
+    assert f"{life['lifetime_shaft_del_1hz_Nm'] / 1e6:.3f}" in line
+    assert (out / "figures" / "dlc_bins.png").exists()

@@ -1,0 +1,159 @@
+"""IEC 61400-1 design load case summaries of a sweep (issue 18, docs/loads.md): the
+runs of each mean-wind bin weighted by the wind's Rayleigh distribution into a lifetime
+damage-equivalent load and an annual energy production.
+
+A sweep file's ``[dlc]`` table asks for it:
+
+    [dlc]
+    case = "1.2"               # power production in normal turbulence (fatigue, energy)
+    annual_mean_mps = 10.0     # the Rayleigh distribution's mean: IEC class I 10, II 8.5,
+                               # III 7.5 m/s (IEC 61400-1 ed. 3, table 1)
+    bin_width_mps = 2.0        # each mean wind stands for [v − w/2, v + w/2)
+
+The probability of bin b is p_b = F(v_b + w/2) − F(v_b − w/2), F(v) = 1 − exp(−π/4
+(v / V_ave)²) (IEC 61400-1, 6.3.1.1). Then, per controller, with D_b the mean over the
+bin's seeds of the shaft's damage per 10 minutes and P_b their mean electrical power:
+
+    lifetime DEL at 1 Hz = (Σ_b p_b D_b / 600 s)^(1/m) / (Σ_b p_b)^(1/m)
+    AEP = 8766 h × Σ_b p_b P_b
+
+The DEL is the damage rate of the time the turbine produces power, at an equivalent
+frequency of 1 Hz (normalized by Σ_b p_b, the share of the year the bins cover); the AEP
+counts the bins only (no energy outside them).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from wtftc.campaign.compare import CONTROLLERS
+from wtftc.errors import ConfigError
+
+DLC_KEYS = {"case": ("1.2",), "annual_mean_mps": (1.0, 30.0), "bin_width_mps": (0.1, 10.0)}
+DEFAULTS = {"case": "1.2", "annual_mean_mps": 10.0, "bin_width_mps": 2.0}
+HOURS_PER_YEAR = 8766.0
+
+
+def parse_dlc(table) -> dict:
+    """The ``[dlc]`` table, checked, defaults filled in."""
+    if not isinstance(table, dict):
+        raise ConfigError("dlc", table, "a table with " + ", ".join(DLC_KEYS))
+    for key in table:
+        if key not in DLC_KEYS:
+            raise ConfigError(f"dlc.{key}", table[key], "a known key: " + ", ".join(DLC_KEYS))
+    out = {**DEFAULTS, **table}
+    if out["case"] not in DLC_KEYS["case"]:
+        raise ConfigError("dlc.case", out["case"], '"1.2" (power production, normal '
+                          "turbulence)")
+    for key in ("annual_mean_mps", "bin_width_mps"):
+        lo, hi = DLC_KEYS[key]
+        v = out[key]
+        if isinstance(v, bool) or not isinstance(v, int | float) or not lo <= v <= hi:
+            raise ConfigError(f"dlc.{key}", v, f"a number in [{lo:g}, {hi:g}] [m/s]")
+        out[key] = float(v)
+    return out
+
+
+def rayleigh_cdf(v, annual_mean: float):
+    """F(v) = 1 − exp(−π/4 (v / V_ave)²) (IEC 61400-1, 6.3.1.1)."""
+    v = np.maximum(np.asarray(v, dtype=float), 0.0)
+    return 1.0 - np.exp(-math.pi / 4.0 * (v / annual_mean) ** 2)
+
+
+def bin_probability(v, width: float, annual_mean: float):
+    """The share of the year the mean wind is within [v − w/2, v + w/2)."""
+    v = np.asarray(v, dtype=float)
+    return rayleigh_cdf(v + width / 2, annual_mean) - rayleigh_cdf(v - width / 2, annual_mean)
+
+
+def per_bin(rows: list[dict]) -> dict:
+    """controller → mean wind → the bin's means over its runs: damage per 10 minutes,
+    electrical power, pitch ADC, shaft DEL; and the number of runs."""
+    out: dict[str, dict[float, dict]] = {}
+    for r in rows:
+        if r["status"] != "ok" or r["fault_type"] != "none":
+            continue
+        out.setdefault(r["controller"], {}).setdefault(round(r["mean_wind_mps"], 6),
+                                                       []).append(r)
+    keys = ("shaft_torque_damage_per_10min", "mean_electrical_power_W", "pitch_adc",
+            "shaft_torque_del_1hz_Nm")
+    order = [c for c in CONTROLLERS if c in out]
+    return {c: {v: {"runs": len(rs), **{k: float(np.mean([r[k] for r in rs])) for k in keys}}
+                for v, rs in sorted(out[c].items())} for c in order}
+
+
+def lifetime(bins: dict, dlc: dict, m: float) -> dict:
+    """One controller's lifetime figures from its bins (per_bin's), module docstring."""
+    winds = np.array(list(bins))
+    p = bin_probability(winds, dlc["bin_width_mps"], dlc["annual_mean_mps"])
+    damage = np.array([b["shaft_torque_damage_per_10min"] for b in bins.values()])
+    power = np.array([b["mean_electrical_power_W"] for b in bins.values()])
+    adc = np.array([b["pitch_adc"] for b in bins.values()])
+    share = float(p.sum())
+    return {"bins": len(winds), "share_of_year": share,
+            "lifetime_shaft_del_1hz_Nm": float((p @ damage / 600.0 / share) ** (1.0 / m)),
+            "aep_Wh": float(HOURS_PER_YEAR * (p @ power)),
+            "weighted_pitch_adc": float(p @ adc / share)}
+
+
+def section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
+    """The summary's DLC section: per controller the lifetime figures, then per bin the
+    shaft DEL, the pitch ADC and the power; Markdown lines and CSV lines (SI units)."""
+    dlc = parse_dlc(table)
+    ms = {r["shaft_wohler_exponent"] for r in rows if r.get("shaft_wohler_exponent")}
+    m = ms.pop() if len(ms) == 1 else 4.0
+    bins = per_bin(rows)
+    lines = ["", f"## DLC {dlc['case']}: lifetime-weighted (Rayleigh, annual mean "
+             f"{dlc['annual_mean_mps']:g} m/s, bins of {dlc['bin_width_mps']:g} m/s; "
+             "docs/loads.md)", "",
+             "| controller | runs used (of fault-free) | bins | share of the year [-] | "
+             f"lifetime shaft DEL 1 Hz, m = {m:g} [MN m] | AEP [GWh] | weighted pitch ADC [-] |",
+             "|---|---|---|---|---|---|---|"]
+    csv = ["controller,mean_wind_mps,runs,bin_probability,shaft_torque_del_1hz_Nm,"
+           "shaft_torque_damage_per_10min,pitch_adc,mean_electrical_power_W"]
+    for c, cb in bins.items():
+        life = lifetime(cb, dlc, m)
+        used = sum(b["runs"] for b in cb.values())
+        free = sum(r["controller"] == c and r["fault_type"] == "none" for r in rows)
+        lines.append(f"| {c} | {used} of {free} | {life['bins']} | {life['share_of_year']:.3f} | "
+                     f"{life['lifetime_shaft_del_1hz_Nm'] / 1e6:.3f} | "
+                     f"{life['aep_Wh'] / 1e9:.2f} | {life['weighted_pitch_adc']:.3f} |")
+        for v, b in cb.items():
+            p = float(bin_probability(v, dlc["bin_width_mps"], dlc["annual_mean_mps"]))
+            csv.append(f"{c},{v},{b['runs']},{p},{b['shaft_torque_del_1hz_Nm']},"
+                       f"{b['shaft_torque_damage_per_10min']},{b['pitch_adc']},"
+                       f"{b['mean_electrical_power_W']}")
+    lines += ["", "Per wind bin (`summary_dlc.csv`; figure `figures/dlc_bins.png`): shaft "
+              "DEL [MN m] / pitch ADC [-], the mean over the bin's seeds.", ""]
+    winds = sorted({v for cb in bins.values() for v in cb})
+    lines += ["| controller | " + " | ".join(f"{v:g} m/s" for v in winds) + " |",
+              "|---|" + "---|" * len(winds)]
+    for c, cb in bins.items():
+        lines.append(f"| {c} | " + " | ".join(
+            f"{cb[v]['shaft_torque_del_1hz_Nm'] / 1e6:.3f} / {cb[v]['pitch_adc']:.3f}"
+            if v in cb else "—" for v in winds) + " |")
+    return lines, csv
+
+
+def figure(rows: list[dict]):
+    """Shaft DEL and pitch ADC per wind bin, one line per controller (the caller saves)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    bins = per_bin(rows)
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
+    for c, cb in bins.items():
+        v = list(cb)
+        a1.plot(v, [b["shaft_torque_del_1hz_Nm"] / 1e6 for b in cb.values()], "o-", label=c)
+        a2.plot(v, [b["pitch_adc"] for b in cb.values()], "o-", label=c)
+    a1.set_xlabel("mean wind [m/s]")
+    a1.set_ylabel("shaft torque DEL at 1 Hz [MN m]")
+    a2.set_xlabel("mean wind [m/s]")
+    a2.set_ylabel("pitch actuator duty cycle [-]")
+    a1.legend(fontsize=8)
+    fig.suptitle("Per wind bin, mean over seeds (fault-free runs)", fontsize=9)
+    return fig
