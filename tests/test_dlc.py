@@ -84,3 +84,20 @@ annual_mean_mps = 8.5
     assert f"{life['aep_Wh'] / 1e9:.2f}" in line
     assert f"{life['lifetime_shaft_del_1hz_Nm'] / 1e6:.3f}" in line
     assert (out / "figures" / "dlc_bins.png").exists()
+
+
+@pytest.mark.parametrize("value", [[40.0, 63.0], -1.0, "63"])
+def test_the_sweeps_rotor_radius_is_one_number(value):
+    with pytest.raises(ConfigError) as err:
+        sweep.parse_sweep({"controllers": ["pi"], "wind": {"rotor_radius_m": value}})
+    assert err.value.field == "wind.rotor_radius_m"
+
+
+def test_the_sweeps_rotor_radius_reaches_every_runs_wind_and_only_then():
+    base = {"controllers": ["pi"], "wind": {"mean_mps": [8.0, 12.0]}}
+    plain, _ = sweep.expand(sweep.parse_sweep(base))
+    rotor, _ = sweep.expand(sweep.parse_sweep(
+        {**base, "wind": {**base["wind"], "rotor_radius_m": 63.0}}))
+    assert all("rotor_radius_m" not in r["config"]["wind"] for r in plain)
+    assert all(r["config"]["wind"]["rotor_radius_m"] == 63.0 for r in rotor)
+    assert {r["run_id"] for r in plain}.isdisjoint(r["run_id"] for r in rotor)

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from wtftc.errors import ConfigError
+from wtftc.model import wind
 from wtftc.model.wind import KINDS, Wind, wind_from_config
 
 IREF = {"A+": 0.18, "A": 0.16, "B": 0.14, "C": 0.12}
@@ -440,3 +441,54 @@ def test_a_wind_file_of_too_many_rows_is_refused_before_parsing(tmp_path):
     f.write_text("time_s,speed_mps\n" + "0 12\n" * MAX_FILE_LINES)
     with pytest.raises(ConfigError, match="at most 1,000,000 lines"):
         wind_from_config({"kind": "file", "path": str(f)}, t_final=10.0)
+
+
+# --- the rotor-effective wind (issue 18) -----------------------------------------------
+
+
+def test_the_disk_distance_density_is_a_density_with_the_known_mean():
+    """Two uniform points on a disk of radius R: the density integrates to 1 and the mean
+    distance is 128 R / (45 π) (disk line picking)."""
+    radius = 63.0
+    r = np.linspace(0.0, 2 * radius, 200001)
+    p = wind.disk_distance_pdf(r, radius)
+    assert np.trapezoid(p, r) == pytest.approx(1.0, abs=1e-9)
+    assert np.trapezoid(p * r, r) == pytest.approx(128 * radius / (45 * np.pi), rel=1e-9)
+
+
+def test_the_rotor_average_gain_falls_with_frequency_and_rotor_size():
+    """|H(f)|² is the IEC coherence averaged over the disk: below 1 even at f = 0 (the
+    0.12 r/L_c term), falling with frequency and with the rotor's size; a rotor of
+    1 mm averages nothing."""
+    f = np.array([0.0, 0.01, 0.05, 0.2])
+    big, small = wind.rotor_average_gain(f, 8.0, 63.0), wind.rotor_average_gain(f, 8.0, 20.0)
+    assert np.all(np.diff(big) < 0) and np.all(big < small) and big[0] < 1.0
+    assert wind.rotor_average_gain(f, 8.0, 1e-3) == pytest.approx(np.ones(4), abs=1e-3)
+
+
+def test_the_rotor_effective_ntm_is_the_point_series_filtered():
+    """Same seed: the point series is unchanged by the new field's default; the rotor
+    average over 63 m keeps the mean and has the variance of the filtered spectrum
+    (0.65 σ1 at 8 m/s class B, within 5 % of the spectral prediction); at 4 m/s every
+    seed of the DLC campaign stays positive where the point series does not."""
+    t = np.arange(0.0, 600.0, 0.05)
+    point = wind.wind_from_config({"kind": "ntm", "mean_mps": 8.0}, 600.0, 3)
+    zero = wind.wind_from_config({"kind": "ntm", "mean_mps": 8.0, "rotor_radius_m": 0.0},
+                                 600.0, 3)
+    rotor = wind.wind_from_config({"kind": "ntm", "mean_mps": 8.0, "rotor_radius_m": 63.0},
+                                  600.0, 3)
+    assert np.array_equal(point(t), zero(t))
+    assert "rotor_radius_m" not in point.describe()["parameters"]
+    assert rotor.describe()["parameters"]["rotor_radius_m"] == 63.0
+    assert rotor(t).mean() == pytest.approx(8.0, abs=0.3)
+    fk = np.arange(1, 6000) / 1200.0
+    s = wind.kaimal_psd(fk, 8.0, 1.0, 8.1 * 42.0)
+    predicted = np.sqrt(np.sum(s * wind.rotor_average_gain(fk, 8.0, 63.0)) / np.sum(s))
+    assert rotor(t).std() / point(t).std() == pytest.approx(predicted, rel=0.05)
+    assert 0.5 < predicted < 0.8
+    for seed in range(6):
+        w = wind.wind_from_config({"kind": "ntm", "mean_mps": 4.0, "rotor_radius_m": 63.0},
+                                  600.0, seed)
+        assert w(t).min() > 0
+    with pytest.raises(ConfigError):
+        wind.wind_from_config({"kind": "ntm", "mean_mps": 4.0}, 600.0, 0)

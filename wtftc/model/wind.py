@@ -81,7 +81,7 @@ _FIELDS = {
     "constant": {"speed_mps": 12.0},
     "steps": {"speed_mps": 12.0, "steps": None},
     "paper_random": {"mean_mps": 12.0, "std_mps": 1.0, "cutoff_hz": 0.1},
-    "ntm": {"mean_mps": 12.0, "turbulence_class": "B", "dt_s": 0.05},
+    "ntm": {"mean_mps": 12.0, "turbulence_class": "B", "dt_s": 0.05, "rotor_radius_m": 0.0},
     "eog": {"mean_mps": 11.4, "start_s": 20.0, "turbine_class": "I", "turbulence_class": "B",
             "rotor_diameter_m": 126.0},
     "file": {"path": None},
@@ -97,6 +97,31 @@ def kaimal_psd(f, mean_mps: float, sigma: float, length_m: float = 8.1 * 42.0) -
     """One-sided Kaimal PSD S_u(f) = 4σ²(L/V)/(1 + 6fL/V)^(5/3) [m²/s² per Hz] (IEC Annex B)."""
     tl = length_m / mean_mps
     return 4.0 * sigma**2 * tl / (1.0 + 6.0 * np.asarray(f, dtype=float) * tl) ** (5.0 / 3.0)
+
+
+#: the coherence scale L_c = 8.1 Λ1 of IEC 61400-1 ed. 3, Annex B (eq. B.4)
+COHERENCE_LC_M = 8.1 * LAMBDA1_M
+
+
+def disk_distance_pdf(r, radius: float) -> np.ndarray:
+    """The density of the distance between two points drawn uniformly on a disk of radius
+    R ("disk line picking"): 4r/(πR²) [acos(r/2R) − (r/2R) √(1 − (r/2R)²)] on [0, 2R]."""
+    x = np.clip(np.asarray(r, dtype=float) / (2.0 * radius), 0.0, 1.0)
+    return 4.0 * np.asarray(r) / (math.pi * radius**2) * (np.arccos(x) - x * np.sqrt(1 - x * x))
+
+
+def rotor_average_gain(f, mean_mps: float, radius: float, n: int = 400) -> np.ndarray:
+    """|H(f)|², the ratio of the disk-averaged wind's spectrum to the point spectrum under
+    the IEC exponential coherence Coh(r, f) = exp(−12 √((f r / V)² + (0.12 r / L_c)²))
+    (IEC 61400-1 ed. 3, Annex B, eq. B.4): the coherence averaged over the distance r
+    between two points of the rotor disk, ∫ Coh(r, f) p(r) dr (disk_distance_pdf),
+    by the midpoint rule on n intervals of [0, 2R]."""
+    dr = 2.0 * radius / n
+    r = (np.arange(n) + 0.5) * dr
+    w = disk_distance_pdf(r, radius) * dr
+    f = np.asarray(f, dtype=float)[:, None]
+    coh = np.exp(-12.0 * np.sqrt((f * r / mean_mps) ** 2 + (0.12 * r / COHERENCE_LC_M) ** 2))
+    return coh @ w / w.sum()
 
 
 def eog_gust_mps(mean_mps: float, turbine_class: str, turbulence_class: str,
@@ -336,6 +361,8 @@ def _ntm(p, f, t_final, seed) -> SampledWind:
     mean = _speed(p["mean_mps"], f["mean_mps"])
     tc = _choice(p["turbulence_class"], f["turbulence_class"], tuple(I_REF))
     dt = _number(p["dt_s"], f["dt_s"], lo=0.0, hi=1.0, unit=" [s]")
+    radius = _number(p["rotor_radius_m"], f["rotor_radius_m"], lo=0.0, hi=200.0, lo_open=False,
+                     unit=" [m] (0: the hub-height point)")
     sig = sigma1(mean, tc)
     lu = KAIMAL_LU_OVER_LAMBDA1 * LAMBDA1_M
     n = _grid(max(NTM_MIN_PERIOD_S, t_final + SYNTH_MARGIN_S), dt, f["dt_s"])
@@ -347,13 +374,17 @@ def _ntm(p, f, t_final, seed) -> SampledWind:
     coef = np.zeros(n // 2 + 1, dtype=complex)
     coef[1:n // 2] = 0.5 * n * amp * np.exp(1j * phase)
     x = np.fft.irfft(coef, n=n)
-    scale = sig / x.std()
+    scale = sig / x.std()  # the point series has σ1; the rotor average, less
+    if radius > 0:
+        coef[1:n // 2] *= np.sqrt(rotor_average_gain(fk, mean, radius))
+        x = np.fft.irfft(coef, n=n)
     v = mean + (x - x.mean()) * scale
     t = np.arange(n) * dt
     _check_positive(t, v, f["mean_mps"], mean, "raise mean_mps or use a lower turbulence class")
     run = t <= t_final
     return SampledWind("ntm", t, v, seed=seed,
-                       parameters={"mean_mps": mean, "turbulence_class": tc, "dt_s": dt},
+                       parameters={"mean_mps": mean, "turbulence_class": tc, "dt_s": dt}
+                       | ({"rotor_radius_m": radius} if radius > 0 else {}),
                        derived={"standard": "IEC 61400-1 ed. 3, 6.3.1.3 NTM; Annex B Kaimal",
                                 "I_ref": I_REF[tc], "sigma1_mps": sig, "Lambda1_m": LAMBDA1_M,
                                 "L_u_m": lu, "synthesis_period_s": period,

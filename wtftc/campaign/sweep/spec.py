@@ -26,7 +26,7 @@ TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "ou
 #: the [mismatch] table's keys: the plant's factors against the controllers' model
 #: (config.MISMATCH), each an axis like any other (1.0: none)
 MISMATCH_KEYS = tuple(config.MISMATCH)
-WIND_KEYS = {"mean_mps", "turbulence_class", "seed"}
+WIND_KEYS = {"mean_mps", "turbulence_class", "seed", "rotor_radius_m"}
 #: one fault per run, an actuator's or a sensor's (model/faults.py's list), or none
 FAULT_TYPES = ("none", *faults.ACTUATOR_FAULT_TYPES, *faults.SENSOR_FAULT_TYPES)
 #: the fault table key each fault type reads its magnitude from
@@ -344,11 +344,25 @@ def _check_size(mode: str, samples: int | None, axes: list[Axis], twins: bool = 
                           + "): split it into several sweeps")
 
 
+def _rotor_radius(raw: dict) -> float | None:
+    """[wind] rotor_radius_m: every run's NTM averaged over a rotor disk of that radius
+    (wtftc.model.wind.rotor_average_gain), one value for the sweep, not an axis."""
+    tab = raw.get("wind", {})
+    value = tab.get("rotor_radius_m") if isinstance(tab, dict) else None
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= 200:
+        raise ConfigError("wind.rotor_radius_m", value, "one number in [0, 200] [m] for every "
+                          "run (0: the hub-height point), not an axis")
+    return float(value)
+
+
 def parse_sweep(raw: dict) -> Sweep:
     """Validate a sweep file's content before anything runs: each error names the key."""
     mode, samples = _check_top(raw)
     if "dlc" in raw:  # the summary's lifetime weighting (wtftc.campaign.sweep.dlc)
         parse_dlc(raw["dlc"])
+    _rotor_radius(raw)
     settings = _settings(raw)
     if "controllers" not in raw:
         raise ConfigError("controllers", None, "a list of controller variants: "
@@ -399,6 +413,9 @@ def _point(sw: Sweep, values: dict) -> dict:
         fault_tabs = [tab]
     wind_tab = {"kind": "ntm", "mean_mps": p["mean_wind_mps"],
                 "turbulence_class": p["turbulence_class"]}
+    radius = _rotor_radius(sw.raw)
+    if radius:  # (absent: the run ids of earlier sweeps)
+        wind_tab["rotor_radius_m"] = radius
     cfg = variant_config(p["controller"], fault_tabs, wind_tab, sw.t_final, sw.dt, p["seed"],
                          "", profile=sw.profile)
     cfg.update(plant=p["plant"], output_rate_hz=sw.output_rate_hz)
