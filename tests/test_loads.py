@@ -129,3 +129,21 @@ def test_a_bad_loads_table_is_refused_naming_the_key(loads_table, field):
     with pytest.raises(ConfigError) as err:
         config.make_config({**RUN, "loads": loads_table})
     assert err.value.field == field
+
+
+def test_the_reversal_hysteresis_key_is_used():
+    """A wider hysteresis counts fewer reversals of the same run."""
+    _, _, fine = _metrics()
+    _, _, coarse = _metrics(loads={"reversal_hysteresis_deg": 1.0})
+    assert coarse["pitch_reversals"] < fine["pitch_reversals"]
+
+
+@pytest.mark.parametrize("over, field", [
+    ({"fdi": {"rate_limited_uncertainty": 11.0}}, "fdi.rate_limited_uncertainty"),
+    ({"wind": {"kind": "ntm", "mean_mps": 12.0, "rotor_radius_m": -3.0}},
+     "wind.rotor_radius_m"),
+])
+def test_the_new_fdi_and_wind_keys_refuse_a_value_out_of_range(over, field):
+    with pytest.raises(ConfigError) as err:
+        config.make_config({**RUN, **over})
+    assert err.value.field == field

@@ -306,7 +306,8 @@ def make_config(cfg: dict | None = None) -> RunConfig:
                      rosco_discon=turbine.rosco_discon)
 
 
-#: the [loads] table (docs/loads.md): key → (default, low, high, what)
+#: the [loads] table (docs/loads.md): key → (default, low, high, what); m = 4 is the value
+#: used for low-speed shafts and gearboxes (10 for composite blades)
 LOADS_KEYS = {"shaft_wohler_exponent": (4.0, 1.0, 20.0, "the shaft's Wöhler exponent m of its "
                                                         "damage-equivalent load"),
               "reversal_hysteresis_deg": (0.1, 0.0, 10.0, "the turn-back a pitch reversal "

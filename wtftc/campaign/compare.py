@@ -94,8 +94,8 @@ COLUMNS = [
 ]
 
 
-#: the columns taken from metrics.json as they are (the rest are computed per row)
-N_METRIC_COLUMNS = 11
+#: the columns computed per row; the others are metrics.json's as they are
+COMPUTED = ("detection_delay_s", "diverged_at_s")
 
 
 def _check(kind: str, names, allowed: dict) -> list[str]:
@@ -149,7 +149,7 @@ def _row(controller, fault, wind, m) -> dict:
     delays = [b.get("detection_delay_s") for b in m["fdi"]["blades"].values()
               if b.get("detection_delay_s") is not None]
     row = {"controller": controller, "fault": fault, "wind": wind,
-           **{k: m.get(k) for k, _, _ in COLUMNS[:N_METRIC_COLUMNS]},
+           **{k: m.get(k) for k, _, _ in COLUMNS if k not in COMPUTED},
            "detection_delay_s": min(delays) if delays and CONTROLLERS[controller].uses_fdi
            else None,
            "diverged_at_s": m["diverged"]["t_s"] if m["diverged"] else None,

@@ -19,9 +19,6 @@ from __future__ import annotations
 import numpy as np
 import rainflow
 
-#: the Wöhler exponent of the drivetrain's steel (issue 18; 4 is the value used for
-#: low-speed shafts and gearboxes, 10 for composite blades)
-SHAFT_WOHLER = 4.0
 #: the seconds of the reference period of a fatigue figure (IEC 61400-1 DLC 1.2 runs)
 TEN_MINUTES_S = 600.0
 #: a pitch reversal is counted when the blade turns back by more than this [rad]: 0.1°,
@@ -82,8 +79,8 @@ def pitch_duty(beta: np.ndarray, dt: float, rate_max: float,
     b = np.atleast_2d(np.asarray(beta, dtype=float))
     if b.shape[0] < 2:
         return {"adc": 0.0, "travel_deg": 0.0, "reversals": 0.0}
-    rate = np.abs(np.diff(b, axis=0)) / dt
-    return {"adc": float(np.mean(rate) / rate_max),
-            "travel_deg": float(np.degrees(np.mean(np.sum(np.abs(np.diff(b, axis=0)), axis=0)))),
+    steps = np.abs(np.diff(b, axis=0))
+    return {"adc": float(np.mean(steps) / dt / rate_max),
+            "travel_deg": float(np.degrees(np.mean(np.sum(steps, axis=0)))),
             "reversals": float(np.mean([reversals(b[:, j], hysteresis)
                                         for j in range(b.shape[1])]))}

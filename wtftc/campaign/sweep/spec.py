@@ -101,6 +101,8 @@ class Sweep:
     fault_free_twins: bool = False
     #: every run's turbine (None: the NREL 5-MW)
     turbine: str | None = None
+    #: every run's NTM averaged over a rotor disk of this radius [m] (None: the point)
+    rotor_radius: float | None = None
 
     @property
     def sweep_id(self) -> str:
@@ -220,6 +222,7 @@ def _settings(raw: dict) -> dict:
         "profile": _profile(raw.get("profile", PROFILE)),
         "fault_free_twins": _twins(raw.get("fault_free_twins", False), raw),
         "turbine": _turbine(raw.get("turbine")),
+        "rotor_radius": _rotor_radius(raw),
     }
 
 
@@ -362,7 +365,6 @@ def parse_sweep(raw: dict) -> Sweep:
     mode, samples = _check_top(raw)
     if "dlc" in raw:  # the summary's lifetime weighting (wtftc.campaign.sweep.dlc)
         parse_dlc(raw["dlc"])
-    _rotor_radius(raw)
     settings = _settings(raw)
     if "controllers" not in raw:
         raise ConfigError("controllers", None, "a list of controller variants: "
@@ -413,9 +415,8 @@ def _point(sw: Sweep, values: dict) -> dict:
         fault_tabs = [tab]
     wind_tab = {"kind": "ntm", "mean_mps": p["mean_wind_mps"],
                 "turbulence_class": p["turbulence_class"]}
-    radius = _rotor_radius(sw.raw)
-    if radius:  # (absent: the run ids of earlier sweeps)
-        wind_tab["rotor_radius_m"] = radius
+    if sw.rotor_radius:  # (absent: the run ids of earlier sweeps)
+        wind_tab["rotor_radius_m"] = sw.rotor_radius
     cfg = variant_config(p["controller"], fault_tabs, wind_tab, sw.t_final, sw.dt, p["seed"],
                          "", profile=sw.profile)
     cfg.update(plant=p["plant"], output_rate_hz=sw.output_rate_hz)
