@@ -265,6 +265,7 @@ def build_turbine() -> list[ca.Function]:
         }
         out.append(_function(name, {"x_plant": x, "v": v, "wind": wind, "cp": cp,
                                     "actuator_faults": af, "p_turbine": p_t}, outs))
+    out += _build_tower(common, p_t, v, wind, cp, af)
     # the generator torque law alone, on the generator speed (LSS) a controller measures:
     # the torque demand of an exported controller library (wtftc export discon)
     w_g = ca.SX.sym("omega_g")
@@ -286,6 +287,24 @@ def build_turbine() -> list[ca.Function]:
                           "p_turbine": p_t},
                          {"T_aero": tr(turbine.aero_torque()), "dT_dbeta": tr(dT)}))
     return out
+
+
+def _build_tower(common: dict, p_t, v, wind, cp, af) -> list[ca.Function]:
+    """The tower plant (derivation/turbine.py ``tower_rhs``), Ct an input as Cp is, and
+    the relative wind v_rel at which the runtime evaluates both tables."""
+    x_t = _vec("x_plant", len(lay.TOWER_STATES))
+    ct = ca.SX.sym("ct")
+    tr = Translator({**common, **_named(x_t, lay.TOWER_STATES), "ct": ct})
+    w_rel = turbine.relative_wind()
+    t_gen = tr(turbine.generator_torque())
+    plant = _function("turbine_tower", {"x_plant": x_t, "v": v, "wind": wind, "cp": cp,
+                                        "ct": ct, "actuator_faults": af, "p_turbine": p_t}, {
+        "x_plant_dot": ca.vertcat(*[tr(e) for e in turbine.tower_rhs()]),
+        "T_aero": tr(turbine.aero_torque(w_rel)), "T_gen": t_gen, "P_gen": t_gen * x_t[2],
+        "thrust": tr(turbine.thrust(w_rel)), "M_tower": tr(turbine.tower_base_moment())})
+    inflow = _function("rotor_inflow", {"x_plant": x_t, "wind": wind},
+                       {"wind_rel": tr(w_rel)})
+    return [plant, inflow]
 
 
 FDI_STATES = fdi.states(lay.N_BLADES)

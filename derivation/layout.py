@@ -149,6 +149,14 @@ NREL_STATES = [
     *[Entry(f"beta_rate_{j}", 0.0, "rad/s", f"pitch rate of blade {j}", sample=(-0.25, 0.25))
       for j in range(1, N_BLADES + 1)],
 ]
+#: the tower plant's: the nrel5mw plant's, then the tower's first fore-aft mode
+TOWER_STATES = [
+    *NREL_STATES,
+    Entry("tower_x", 0.0, "m", "tower-top fore-aft displacement (first mode)",
+          sample=(-0.2, 0.8)),
+    Entry("tower_v", 0.0, "m/s", "tower-top fore-aft velocity (first mode)",
+          sample=(-1.0, 1.0)),
+]
 #: the turbine's parameters after the plant's: names and units here, the NREL 5-MW's
 #: values and sources from its turbine file (the baseline torque law: Jonkman 2009, 7.1,
 #: its DISCON's VS_* constants referred to the LSS)
@@ -159,7 +167,9 @@ TURBINE_PARAMS = [*PLANT_PARAMS, *[nrel5mw.entry(Entry, n, u) for n, u in (
     ("pitch_min", "rad"), ("pitch_max", "rad"), ("pitch_rate_max", "rad/s"),
     ("gen_torque_law", "-"), ("vs_cut_in_speed", "rad/s"), ("vs_region2_speed", "rad/s"),
     ("vs_region2_k", "N m s^2/rad^2"), ("vs_rated_speed", "rad/s"), ("vs_slip", "-"),
-    ("vs_rated_power", "W"), ("vs_max_torque", "N m"))]]
+    ("vs_rated_power", "W"), ("vs_max_torque", "N m"),
+    ("tower_modal_mass", "kg"), ("tower_stiffness", "N/m"), ("tower_damping_ratio", "-"),
+    ("tower_moment_arm", "m"))]]
 #: The physical range of every turbine parameter (docs/running.md, "Errors and exit codes").
 #: Positive where the derivation declares the symbol positive (a zero inertia, stiffness,
 #: time constant or slip divides by zero); upper limits only where physics sets one (air
@@ -169,7 +179,9 @@ TURBINE_VALID = {
     **dict.fromkeys(("J_r", "J_g", "k_s", "d_s", "tau_b", "gearbox_ratio", "gen_torque_rated",
                      "omega_g_rated", "omega_n_nominal", "zeta_nominal", "pitch_rate_max",
                      "vs_cut_in_speed", "vs_region2_speed", "vs_region2_k", "vs_rated_speed",
-                     "vs_rated_power", "vs_max_torque"), _POSITIVE),
+                     "vs_rated_power", "vs_max_torque", "tower_modal_mass", "tower_stiffness",
+                     "tower_moment_arm"), _POSITIVE),
+    "tower_damping_ratio": (0.0, 1.0, True, False),  # structural: about 1 %
     "air_density": (0.0, 2.0, True, False),  # 1.225 at 15 °C, about 1.5 at -40 °C
     "rotor_radius": (0.0, 250.0, True, False),  # the largest rotors: about 155 m
     "gen_efficiency": (0.0, 1.0, True, False),
@@ -272,6 +284,7 @@ def as_json() -> dict:
         "reference": REFERENCE,
         "theta_star": THETA_STAR,
         "nrel5mw_states": NREL_STATES,
+        "tower_states": TOWER_STATES,
         "turbine_params": TURBINE_PARAMS,
         "actuator_faults": ACTUATOR_FAULTS,
     }

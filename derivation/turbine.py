@@ -10,6 +10,10 @@ coefficient cp evaluated by the runtime's Cp(λ, β) interpolant, per-blade faul
               generator torque -T_g/J_g that eq (3) lacks), generator torque above rated
               (constant torque or constant power), and three second-order blade pitch
               actuators (Odgaard et al. 2013 benchmark) with position and rate limits.
+* ``tower``   the ``nrel5mw`` plant on a flexible tower: its first fore-aft bending mode
+              (one modal mass, stiffness and damping at the tower top), driven by the
+              rotor thrust ½ ρ π R² v_rel² Ct(λ, β̄), the rotor seeing the wind relative
+              to the moving tower top, v_rel = v - ẋ_t (issue 18; docs/loads.md).
 
 The aerodynamic torque T_aero = ½ ρ π R² v³ Cp(λ, β̄) / ω_r with λ = ω_r R / v and
 β̄ the mean blade pitch (rigid rotor, uniform inflow); Cp comes in as the input ``cp``.
@@ -27,6 +31,7 @@ J = range(1, N_BLADES + 1)
 # --- inputs common to both plants ---
 wind = sp.Symbol("wind", positive=True)  # hub-height wind speed [m/s]
 cp = sp.Symbol("cp", real=True)  # power coefficient at (λ, β̄), from the interpolant
+ct = sp.Symbol("ct", real=True)  # thrust coefficient at (λ, β̄), from the interpolant
 v = plant.v  # blade pitch commands [rad]
 # per-blade actuator faults (time-varying inputs of the step)
 rho, lock, ubar = plant.rho, plant.lock, plant.ubar  # eq (19)
@@ -56,18 +61,50 @@ vs_slip = sp.Symbol("vs_slip", positive=True)  # [-]
 vs_rated_power = sp.Symbol("vs_rated_power", positive=True)  # [W]
 vs_max_torque = sp.Symbol("vs_max_torque", positive=True)  # LSS [N m]
 
+# the tower's first fore-aft mode (values and sources: the turbine files, docs/loads.md)
+tower_modal_mass = sp.Symbol("tower_modal_mass", positive=True)  # [kg]
+tower_stiffness = sp.Symbol("tower_stiffness", positive=True)  # modal [N/m]
+tower_damping_ratio = sp.Symbol("tower_damping_ratio", positive=True)  # [-]
+tower_moment_arm = sp.Symbol("tower_moment_arm", positive=True)  # rotor over base [m]
+
 # --- states ---
 beta = plant.beta
 beta_rate = sp.symbols("beta_rate_1:4", real=True)  # blade pitch rates [rad/s]
 omega_r, theta_s, omega_g = plant.omega_r, plant.theta_s, plant.omega_g
 
+tower_x = sp.Symbol("tower_x", real=True)  # tower-top fore-aft displacement [m]
+tower_v = sp.Symbol("tower_v", real=True)  # tower-top fore-aft velocity [m/s]
+
 PAPER_STATES = [omega_r, theta_s, omega_g, *beta]
 NREL_STATES = [omega_r, theta_s, omega_g, *beta, *beta_rate]
+TOWER_STATES = [*NREL_STATES, tower_x, tower_v]
 
 
-def tip_speed_ratio() -> sp.Expr:
-    """λ = ω_r R / v."""
-    return omega_r * rotor_radius / wind
+def tip_speed_ratio(w: sp.Expr = wind) -> sp.Expr:
+    """λ = ω_r R / v (on the tower plant v is the relative wind v_rel)."""
+    return omega_r * rotor_radius / w
+
+
+def relative_wind() -> sp.Expr:
+    """v_rel = v - ẋ_t: the wind the rotor sees from the moving tower top (a rigid rotor
+    at the tower top, the shaft's tilt and overhang neglected)."""
+    return wind - tower_v
+
+
+def thrust(w: sp.Expr = wind) -> sp.Expr:
+    """F_T = ½ ρ π R² v² Ct(λ, β̄) (Ct from the turbine's Cp_Ct_Cq table)."""
+    return air_density * sp.pi * rotor_radius**2 * w**2 * ct / 2
+
+
+def tower_damping() -> sp.Expr:
+    """The modal damping c_t = 2 ζ_t √(k_t m_t) [N s/m]."""
+    return 2 * tower_damping_ratio * sp.sqrt(tower_stiffness * tower_modal_mass)
+
+
+def tower_base_moment() -> sp.Expr:
+    """The tower-base fore-aft bending moment, quasi-static: the tower's elastic force at
+    the top k_t x_t times the height of the rotor over the tower base (docs/loads.md)."""
+    return tower_stiffness * tower_x * tower_moment_arm
 
 
 def mean_pitch() -> sp.Expr:
@@ -75,9 +112,9 @@ def mean_pitch() -> sp.Expr:
     return sum(beta) / N_BLADES
 
 
-def aero_torque() -> sp.Expr:
+def aero_torque(w: sp.Expr = wind) -> sp.Expr:
     """T_aero = P_aero / ω_r = ½ ρ π R² v³ Cp / ω_r."""
-    return air_density * sp.pi * rotor_radius**2 * wind**3 * cp / (2 * omega_r)
+    return air_density * sp.pi * rotor_radius**2 * w**3 * cp / (2 * omega_r)
 
 
 def baseline_torque_law() -> sp.Expr:
@@ -144,7 +181,7 @@ def limited_actuator(b, w, u, wn, zt, b_min, b_max, r_max) -> list[sp.Expr]:
     return [rate, acc]
 
 
-def nrel5mw_rhs() -> list[sp.Expr]:
+def nrel5mw_rhs(w: sp.Expr = wind) -> list[sp.Expr]:
     """Two-mass drivetrain on the LSS with generator torque, and 2nd-order actuators.
 
     J_r ω̇_r = T_aero - k_s θ_s - d_s (ω_r - ω_g)          (eq (1), F ω_r = T_aero/J_r)
@@ -158,7 +195,7 @@ def nrel5mw_rhs() -> list[sp.Expr]:
     """
     J_r, J_g, k_s, d_s = plant.J_r, plant.J_g, plant.k_s, plant.d_s
     out = [
-        (aero_torque() - k_s * theta_s - d_s * (omega_r - omega_g)) / J_r,
+        (aero_torque(w) - k_s * theta_s - d_s * (omega_r - omega_g)) / J_r,
         omega_r - omega_g,
         (k_s * theta_s + d_s * (omega_r - omega_g) - generator_torque()) / J_g,
     ]
@@ -169,6 +206,18 @@ def nrel5mw_rhs() -> list[sp.Expr]:
         rates.append(rate)
         accels.append(acc)
     return out + rates + accels
+
+
+def tower_rhs() -> list[sp.Expr]:
+    """The ``nrel5mw`` plant in the relative wind v_rel, and the tower's first fore-aft
+    mode (one degree of freedom at the tower top, Jonkman 2009 section 6 for the mode):
+
+    ẋ_t = v_t
+    m_t v̇_t = F_T(v_rel) - c_t v_t - k_t x_t
+    """
+    w = relative_wind()
+    force = thrust(w) - tower_damping() * tower_v - tower_stiffness * tower_x
+    return nrel5mw_rhs(w) + [tower_v, force / tower_modal_mass]
 
 
 def generator_power() -> sp.Expr:

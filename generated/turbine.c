@@ -37,11 +37,14 @@ extern "C" {
 #define casadi_f4 CASADI_PREFIX(f4)
 #define casadi_f5 CASADI_PREFIX(f5)
 #define casadi_f6 CASADI_PREFIX(f6)
+#define casadi_f7 CASADI_PREFIX(f7)
+#define casadi_f8 CASADI_PREFIX(f8)
 #define casadi_fabs CASADI_PREFIX(fabs)
 #define casadi_fmax CASADI_PREFIX(fmax)
 #define casadi_fmin CASADI_PREFIX(fmin)
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
+#define casadi_s10 CASADI_PREFIX(s10)
 #define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_s3 CASADI_PREFIX(s3)
 #define casadi_s4 CASADI_PREFIX(s4)
@@ -109,14 +112,15 @@ static const casadi_int casadi_s0[3] = {6, 1, 1};
 static const casadi_int casadi_s1[3] = {3, 1, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
 static const casadi_int casadi_s3[3] = {15, 1, 1};
-static const casadi_int casadi_s4[3] = {25, 1, 1};
+static const casadi_int casadi_s4[3] = {29, 1, 1};
 static const casadi_int casadi_s5[3] = {9, 1, 1};
-static const casadi_int casadi_s6[3] = {10, 1, 1};
-static const casadi_int casadi_s7[3] = {50, 1, 1};
-static const casadi_int casadi_s8[3] = {40, 1, 1};
-static const casadi_int casadi_s9[3] = {5, 1, 1};
+static const casadi_int casadi_s6[3] = {11, 1, 1};
+static const casadi_int casadi_s7[3] = {10, 1, 1};
+static const casadi_int casadi_s8[3] = {50, 1, 1};
+static const casadi_int casadi_s9[3] = {40, 1, 1};
+static const casadi_int casadi_s10[3] = {5, 1, 1};
 
-/* turbine_paper:(x_plant[6],v[3],wind,cp,actuator_faults[15],p_turbine[25])->(x_plant_dot[6],T_aero,T_gen,P_gen) */
+/* turbine_paper:(x_plant[6],v[3],wind,cp,actuator_faults[15],p_turbine[29])->(x_plant_dot[6],T_aero,T_gen,P_gen) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13;
@@ -323,7 +327,7 @@ CASADI_SYMBOL_EXPORT int turbine_paper_work_bytes(casadi_int *sz_arg, casadi_int
   return 0;
 }
 
-/* turbine_nrel5mw:(x_plant[9],v[3],wind,cp,actuator_faults[15],p_turbine[25])->(x_plant_dot[9],T_aero,T_gen,P_gen) */
+/* turbine_nrel5mw:(x_plant[9],v[3],wind,cp,actuator_faults[15],p_turbine[29])->(x_plant_dot[9],T_aero,T_gen,P_gen) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
@@ -663,8 +667,467 @@ CASADI_SYMBOL_EXPORT int turbine_nrel5mw_work_bytes(casadi_int *sz_arg, casadi_i
   return 0;
 }
 
-/* generator_torque:(omega_g,p_turbine[25])->(T_gen) */
+/* turbine_tower:(x_plant[11],v[3],wind,cp,ct,actuator_faults[15],p_turbine[29])->(x_plant_dot[11],T_aero,T_gen,P_gen,thrust,M_tower) */
 static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
+  casadi_real a24, a25, a26, a27, a28, a29;
+  a00=5.0000000000000000e-01;
+  a01=3.1415926535897931e+00;
+  a02=arg[3]? arg[3][0] : 0;
+  a02=(a01*a02);
+  a03=arg[6]? arg[6][5] : 0;
+  a02=(a02*a03);
+  a04=arg[0]? arg[0][0] : 0;
+  a02=(a02/a04);
+  a05=arg[6]? arg[6][6] : 0;
+  a05=casadi_sq(a05);
+  a02=(a02*a05);
+  a06=arg[2]? arg[2][0] : 0;
+  a07=arg[0]? arg[0][10] : 0;
+  a06=(a06-a07);
+  a08=casadi_sq(a06);
+  a06=(a06*a08);
+  a02=(a02*a06);
+  a02=(a00*a02);
+  a06=arg[0]? arg[0][1] : 0;
+  a09=arg[6]? arg[6][2] : 0;
+  a06=(a06*a09);
+  a09=arg[6]? arg[6][3] : 0;
+  a10=arg[0]? arg[0][2] : 0;
+  a04=(a04-a10);
+  a09=(a09*a04);
+  a06=(a06+a09);
+  a09=(a02-a06);
+  a11=arg[6]? arg[6][0] : 0;
+  a09=(a09/a11);
+  if (res[0]!=0) res[0][0]=a09;
+  if (res[0]!=0) res[0][1]=a04;
+  a04=arg[6]? arg[6][17] : 0;
+  a09=arg[6]? arg[6][24] : 0;
+  a11=0.;
+  a12=arg[6]? arg[6][23] : 0;
+  a13=(a12/a10);
+  a14=arg[6]? arg[6][20] : 0;
+  a15=casadi_sq(a10);
+  a15=(a14*a15);
+  a16=arg[6]? arg[6][19] : 0;
+  a17=casadi_sq(a16);
+  a14=(a14*a17);
+  a17=arg[6]? arg[6][18] : 0;
+  a16=(a16-a17);
+  a14=(a14/a16);
+  a17=(a10-a17);
+  a14=(a14*a17);
+  a15=casadi_fmin(a15,a14);
+  a14=arg[6]? arg[6][21] : 0;
+  a12=(a12/a14);
+  a17=1.;
+  a16=arg[6]? arg[6][22] : 0;
+  a16=(a17+a16);
+  a16=(a14/a16);
+  a14=(a14-a16);
+  a12=(a12/a14);
+  a16=(a10-a16);
+  a12=(a12*a16);
+  a15=casadi_fmax(a15,a12);
+  a13=casadi_fmin(a13,a15);
+  a13=casadi_fmax(a11,a13);
+  a09=casadi_fmin(a09,a13);
+  a09=(a04*a09);
+  a06=(a06-a09);
+  a04=(a17-a04);
+  a13=arg[6]? arg[6][8] : 0;
+  a15=arg[6]? arg[6][9] : 0;
+  a17=(a17-a15);
+  a17=(a13*a17);
+  a15=(a15*a13);
+  a13=arg[6]? arg[6][10] : 0;
+  a15=(a15*a13);
+  a15=(a15/a10);
+  a17=(a17+a15);
+  a04=(a04*a17);
+  a06=(a06-a04);
+  a17=arg[6]? arg[6][1] : 0;
+  a06=(a06/a17);
+  if (res[0]!=0) res[0][2]=a06;
+  a06=arg[6]? arg[6][15] : 0;
+  a17=arg[0]? arg[0][3] : 0;
+  a15=(a06<=a17);
+  a13=arg[6]? arg[6][14] : 0;
+  a12=(a17<=a13);
+  a16=(a15||a12);
+  a14=arg[6]? arg[6][16] : 0;
+  a18=arg[0]? arg[0][6] : 0;
+  a19=(-a14);
+  a20=casadi_fmax(a18,a19);
+  a20=casadi_fmin(a14,a20);
+  a21=(a20<a11);
+  a15=(a15||a21);
+  a16=(a16&&a15);
+  a15=(a11<a20);
+  a12=(a12||a15);
+  a16=(a16&&a12);
+  a15=(a15||a21);
+  a16=(a16&&a15);
+  a16=(!a16);
+  a16=(a16?a20:0);
+  if (res[0]!=0) res[0][3]=a16;
+  a16=arg[0]? arg[0][4] : 0;
+  a20=(a06<=a16);
+  a15=(a16<=a13);
+  a21=(a20||a15);
+  a12=arg[0]? arg[0][7] : 0;
+  a22=casadi_fmax(a12,a19);
+  a22=casadi_fmin(a14,a22);
+  a23=(a22<a11);
+  a20=(a20||a23);
+  a21=(a21&&a20);
+  a20=(a11<a22);
+  a15=(a15||a20);
+  a21=(a21&&a15);
+  a20=(a20||a23);
+  a21=(a21&&a20);
+  a21=(!a21);
+  a21=(a21?a22:0);
+  if (res[0]!=0) res[0][4]=a21;
+  a21=arg[0]? arg[0][5] : 0;
+  a22=(a06<=a21);
+  a20=(a21<=a13);
+  a23=(a22||a20);
+  a15=arg[0]? arg[0][8] : 0;
+  a24=casadi_fmax(a15,a19);
+  a24=casadi_fmin(a14,a24);
+  a25=(a24<a11);
+  a22=(a22||a25);
+  a23=(a23&&a22);
+  a22=(a11<a24);
+  a20=(a20||a22);
+  a23=(a23&&a20);
+  a22=(a22||a25);
+  a23=(a23&&a22);
+  a23=(!a23);
+  a23=(a23?a24:0);
+  if (res[0]!=0) res[0][5]=a23;
+  a23=(a14<=a18);
+  a24=(a18<=a19);
+  a22=(a23||a24);
+  a25=arg[5]? arg[5][9] : 0;
+  a18=(a18*a25);
+  a20=arg[5]? arg[5][12] : 0;
+  a18=(a18*a20);
+  a20=(2.*a18);
+  a25=casadi_sq(a25);
+  a26=arg[5]? arg[5][3] : 0;
+  a27=arg[5]? arg[5][6] : 0;
+  a28=arg[5]? arg[5][0] : 0;
+  a29=arg[1]? arg[1][0] : 0;
+  a28=(a28*a29);
+  a27=(a27-a28);
+  a26=(a26*a27);
+  a26=(a26+a28);
+  a26=casadi_fmax(a13,a26);
+  a26=casadi_fmin(a06,a26);
+  a26=(a26-a17);
+  a25=(a25*a26);
+  a20=(a20-a25);
+  a26=(a11<a20);
+  a23=(a23||a26);
+  a22=(a22&&a23);
+  a20=(a20<a11);
+  a24=(a24||a20);
+  a22=(a22&&a24);
+  a26=(a26||a20);
+  a22=(a22&&a26);
+  a22=(!a22);
+  a26=-2.;
+  a18=(a26*a18);
+  a25=(a25+a18);
+  a22=(a22?a25:0);
+  if (res[0]!=0) res[0][6]=a22;
+  a22=(a14<=a12);
+  a25=(a12<=a19);
+  a18=(a22||a25);
+  a20=arg[5]? arg[5][10] : 0;
+  a12=(a12*a20);
+  a24=arg[5]? arg[5][13] : 0;
+  a12=(a12*a24);
+  a24=(2.*a12);
+  a20=casadi_sq(a20);
+  a23=arg[5]? arg[5][4] : 0;
+  a17=arg[5]? arg[5][7] : 0;
+  a28=arg[5]? arg[5][1] : 0;
+  a27=arg[1]? arg[1][1] : 0;
+  a28=(a28*a27);
+  a17=(a17-a28);
+  a23=(a23*a17);
+  a23=(a23+a28);
+  a23=casadi_fmax(a13,a23);
+  a23=casadi_fmin(a06,a23);
+  a23=(a23-a16);
+  a20=(a20*a23);
+  a24=(a24-a20);
+  a23=(a11<a24);
+  a22=(a22||a23);
+  a18=(a18&&a22);
+  a24=(a24<a11);
+  a25=(a25||a24);
+  a18=(a18&&a25);
+  a23=(a23||a24);
+  a18=(a18&&a23);
+  a18=(!a18);
+  a12=(a26*a12);
+  a20=(a20+a12);
+  a18=(a18?a20:0);
+  if (res[0]!=0) res[0][7]=a18;
+  a14=(a14<=a15);
+  a19=(a15<=a19);
+  a18=(a14||a19);
+  a20=arg[5]? arg[5][11] : 0;
+  a15=(a15*a20);
+  a12=arg[5]? arg[5][14] : 0;
+  a15=(a15*a12);
+  a12=(2.*a15);
+  a20=casadi_sq(a20);
+  a23=arg[5]? arg[5][5] : 0;
+  a24=arg[5]? arg[5][8] : 0;
+  a25=arg[5]? arg[5][2] : 0;
+  a22=arg[1]? arg[1][2] : 0;
+  a25=(a25*a22);
+  a24=(a24-a25);
+  a23=(a23*a24);
+  a23=(a23+a25);
+  a13=casadi_fmax(a13,a23);
+  a06=casadi_fmin(a06,a13);
+  a06=(a06-a21);
+  a20=(a20*a06);
+  a12=(a12-a20);
+  a06=(a11<a12);
+  a14=(a14||a06);
+  a18=(a18&&a14);
+  a12=(a12<a11);
+  a19=(a19||a12);
+  a18=(a18&&a19);
+  a06=(a06||a12);
+  a18=(a18&&a06);
+  a18=(!a18);
+  a15=(a26*a15);
+  a20=(a20+a15);
+  a18=(a18?a20:0);
+  if (res[0]!=0) res[0][8]=a18;
+  if (res[0]!=0) res[0][9]=a07;
+  a18=arg[6]? arg[6][27] : 0;
+  a07=(a07*a18);
+  a18=arg[6]? arg[6][25] : 0;
+  a20=sqrt(a18);
+  a07=(a07*a20);
+  a20=arg[6]? arg[6][26] : 0;
+  a15=sqrt(a20);
+  a07=(a07*a15);
+  a26=(a26*a07);
+  a07=arg[0]? arg[0][9] : 0;
+  a15=(a07*a20);
+  a26=(a26-a15);
+  a15=arg[4]? arg[4][0] : 0;
+  a01=(a01*a15);
+  a01=(a01*a03);
+  a01=(a01*a05);
+  a01=(a01*a08);
+  a00=(a00*a01);
+  a26=(a26+a00);
+  a26=(a26/a18);
+  if (res[0]!=0) res[0][10]=a26;
+  if (res[1]!=0) res[1][0]=a02;
+  a09=(a09+a04);
+  if (res[2]!=0) res[2][0]=a09;
+  a09=(a09*a10);
+  if (res[3]!=0) res[3][0]=a09;
+  if (res[4]!=0) res[4][0]=a00;
+  a00=arg[6]? arg[6][28] : 0;
+  a07=(a07*a00);
+  a07=(a07*a20);
+  if (res[5]!=0) res[5][0]=a07;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int turbine_tower(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f2(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int turbine_tower_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void turbine_tower_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void turbine_tower_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void turbine_tower_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int turbine_tower_n_in(void) { return 7;}
+
+CASADI_SYMBOL_EXPORT casadi_int turbine_tower_n_out(void) { return 6;}
+
+CASADI_SYMBOL_EXPORT casadi_real turbine_tower_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* turbine_tower_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x_plant";
+    case 1: return "v";
+    case 2: return "wind";
+    case 3: return "cp";
+    case 4: return "ct";
+    case 5: return "actuator_faults";
+    case 6: return "p_turbine";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* turbine_tower_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "x_plant_dot";
+    case 1: return "T_aero";
+    case 2: return "T_gen";
+    case 3: return "P_gen";
+    case 4: return "thrust";
+    case 5: return "M_tower";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* turbine_tower_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s6;
+    case 1: return casadi_s1;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s2;
+    case 5: return casadi_s3;
+    case 6: return casadi_s4;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* turbine_tower_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s6;
+    case 1: return casadi_s2;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s2;
+    case 5: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int turbine_tower_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 7;
+  if (sz_res) *sz_res = 6;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int turbine_tower_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 7*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 6*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* rotor_inflow:(x_plant[11],wind)->(wind_rel) */
+static int casadi_f3(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1;
+  a0=arg[1]? arg[1][0] : 0;
+  a1=arg[0]? arg[0][10] : 0;
+  a0=(a0-a1);
+  if (res[0]!=0) res[0][0]=a0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int rotor_inflow(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f3(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int rotor_inflow_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void rotor_inflow_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void rotor_inflow_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void rotor_inflow_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int rotor_inflow_n_in(void) { return 2;}
+
+CASADI_SYMBOL_EXPORT casadi_int rotor_inflow_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real rotor_inflow_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* rotor_inflow_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x_plant";
+    case 1: return "wind";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* rotor_inflow_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "wind_rel";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* rotor_inflow_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s6;
+    case 1: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* rotor_inflow_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int rotor_inflow_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 2;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int rotor_inflow_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 2*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* generator_torque:(omega_g,p_turbine[29])->(T_gen) */
+static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9;
   a0=arg[1]? arg[1][17] : 0;
   a1=arg[1]? arg[1][24] : 0;
@@ -716,7 +1179,7 @@ static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int generator_torque(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f2(arg, res, iw, w, mem);
+  return casadi_f4(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int generator_torque_checkout(void) {
@@ -788,8 +1251,8 @@ CASADI_SYMBOL_EXPORT int generator_torque_work_bytes(casadi_int *sz_arg, casadi_
   return 0;
 }
 
-/* aero_operating_point:(x_plant[6],wind,p_turbine[25])->(tsr,beta_mean) */
-static int casadi_f3(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* aero_operating_point:(x_plant[6],wind,p_turbine[29])->(tsr,beta_mean) */
+static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=arg[0]? arg[0][0] : 0;
   a1=arg[2]? arg[2][6] : 0;
@@ -811,7 +1274,7 @@ static int casadi_f3(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int aero_operating_point(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f3(arg, res, iw, w, mem);
+  return casadi_f5(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int aero_operating_point_checkout(void) {
@@ -887,8 +1350,8 @@ CASADI_SYMBOL_EXPORT int aero_operating_point_work_bytes(casadi_int *sz_arg, cas
   return 0;
 }
 
-/* aero_torque_sensitivity:(x_plant[6],wind,cp,dcp_dbeta,p_turbine[25])->(T_aero,dT_dbeta) */
-static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* aero_torque_sensitivity:(x_plant[6],wind,cp,dcp_dbeta,p_turbine[29])->(T_aero,dT_dbeta) */
+static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7;
   a0=5.0000000000000000e-01;
   a1=3.1415926535897931e+00;
@@ -919,7 +1382,7 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int aero_torque_sensitivity(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f4(arg, res, iw, w, mem);
+  return casadi_f6(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int aero_torque_sensitivity_checkout(void) {
@@ -1000,7 +1463,7 @@ CASADI_SYMBOL_EXPORT int aero_torque_sensitivity_work_bytes(casadi_int *sz_arg, 
 }
 
 /* sensors:(true_signals[10],x_lag[10],noise[10],sensor_faults[50],p_sensors[40])->(meas[10],x_lag_dot[10]) */
-static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
@@ -1444,7 +1907,7 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int sensors(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f5(arg, res, iw, w, mem);
+  return casadi_f7(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int sensors_checkout(void) {
@@ -1491,19 +1954,19 @@ CASADI_SYMBOL_EXPORT const char* sensors_name_out(casadi_int i) {
 
 CASADI_SYMBOL_EXPORT const casadi_int* sensors_sparsity_in(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s6;
-    case 1: return casadi_s6;
-    case 2: return casadi_s6;
-    case 3: return casadi_s7;
-    case 4: return casadi_s8;
+    case 0: return casadi_s7;
+    case 1: return casadi_s7;
+    case 2: return casadi_s7;
+    case 3: return casadi_s8;
+    case 4: return casadi_s9;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* sensors_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s6;
-    case 1: return casadi_s6;
+    case 0: return casadi_s7;
+    case 1: return casadi_s7;
     default: return 0;
   }
 }
@@ -1525,7 +1988,7 @@ CASADI_SYMBOL_EXPORT int sensors_work_bytes(casadi_int *sz_arg, casadi_int* sz_r
 }
 
 /* virtual_sensors:(readings[10],excluded[10],p_sensors[40],gearbox_ratio)->(meas[5]) */
-static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21;
   a00=arg[2]? arg[2][0] : 0;
@@ -1826,7 +2289,7 @@ static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int virtual_sensors(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f6(arg, res, iw, w, mem);
+  return casadi_f8(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int virtual_sensors_checkout(void) {
@@ -1871,9 +2334,9 @@ CASADI_SYMBOL_EXPORT const char* virtual_sensors_name_out(casadi_int i) {
 
 CASADI_SYMBOL_EXPORT const casadi_int* virtual_sensors_sparsity_in(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s6;
-    case 1: return casadi_s6;
-    case 2: return casadi_s8;
+    case 0: return casadi_s7;
+    case 1: return casadi_s7;
+    case 2: return casadi_s9;
     case 3: return casadi_s2;
     default: return 0;
   }
@@ -1881,7 +2344,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* virtual_sensors_sparsity_in(casadi_int i)
 
 CASADI_SYMBOL_EXPORT const casadi_int* virtual_sensors_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s9;
+    case 0: return casadi_s10;
     default: return 0;
   }
 }

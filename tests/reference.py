@@ -238,8 +238,10 @@ def observer_lyapunov_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]
 
 
 def turbine_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
-    entries = {"x_plant": dlay.NREL_STATES if name == "turbine_nrel5mw" else dlay.PLANT_STATES,
-               "p_turbine": dlay.TURBINE_PARAMS, "actuator_faults": dlay.ACTUATOR_FAULTS}
+    states = {"turbine_nrel5mw": dlay.NREL_STATES, "turbine_tower": dlay.TOWER_STATES,
+              "rotor_inflow": dlay.TOWER_STATES}.get(name, dlay.PLANT_STATES)
+    entries = {"x_plant": states, "p_turbine": dlay.TURBINE_PARAMS,
+               "actuator_faults": dlay.ACTUATOR_FAULTS}
     vals: dict[str, float] = {}
     for key, val in args.items():
         flat = np.asarray(val, dtype=float).reshape(-1, order="F")
@@ -252,6 +254,17 @@ def turbine_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple
     if name == "aero_operating_point":
         return {"tsr": pair("tsr", [turbine.tip_speed_ratio()], vals),
                 "beta_mean": pair("bmean", [turbine.mean_pitch()], vals)}
+    if name == "rotor_inflow":
+        return {"wind_rel": pair("wrel", [turbine.relative_wind()], vals)}
+    if name == "turbine_tower":
+        w = turbine.relative_wind()
+        t_gen = turbine.generator_torque()
+        return {"x_plant_dot": pair(name, turbine.tower_rhs(), vals),
+                "T_aero": pair("taero_t", [turbine.aero_torque(w)], vals),
+                "T_gen": pair("tgen_t", [t_gen], vals),
+                "P_gen": pair("pgen_t", [t_gen * turbine.omega_g], vals),
+                "thrust": pair("thrust", [turbine.thrust(w)], vals),
+                "M_tower": pair("mtower", [turbine.tower_base_moment()], vals)}
     loaded = name == "turbine_nrel5mw"
     rhs = turbine.nrel5mw_rhs() if loaded else turbine.paper_rhs()
     t_gen = turbine.generator_torque() if loaded else sp.S.Zero
@@ -487,7 +500,7 @@ def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
                                                   strict=True)}
         vals["omega_g"] = float(_flat(args, "omega_g")[0])
         return {"T_gen": pair("tgen", [turbine.generator_torque()], vals)}
-    if name.startswith("turbine_") or name == "aero_operating_point":
+    if name.startswith("turbine_") or name in ("aero_operating_point", "rotor_inflow"):
         return turbine_reference(name, args)
     if name == "lyapunov":
         return lyapunov_reference(args)

@@ -41,6 +41,13 @@ def test_the_lifetime_figures_of_two_bins_by_hand():
         ((p8 * 6.0e26 + p16 * 2.4e27) / 600.0 / share) ** 0.25, rel=1e-12)
     assert life["aep_Wh"] == pytest.approx(8766.0 * (p8 * 2.0e6 + p16 * 5.0e6), rel=1e-12)
     assert life["weighted_pitch_adc"] == pytest.approx((p8 * 0.1 + p16 * 0.4) / share)
+    # without a tower (the nrel5mw plant) there is no tower figure; with one, its own m
+    assert life["lifetime_tower_del_1hz_Nm"] is None
+    bins[8.0]["tower_base_damage_per_10min"] = 3.0e24
+    bins[16.0]["tower_base_damage_per_10min"] = 9.0e24
+    tower = dlc.lifetime(bins, table, 4.0, 3.0)["lifetime_tower_del_1hz_Nm"]
+    assert tower == pytest.approx(((p8 * 3.0e24 + p16 * 9.0e24) / 600.0 / share) ** (1 / 3),
+                                  rel=1e-12)
 
 
 @pytest.mark.parametrize("table, field", [

@@ -36,6 +36,9 @@ SCENARIOS = {
     "low": {"controller": "physical", "t_final_s": 8.0,
             "wind": {"kind": "constant", "speed_mps": 4.5},
             "turbine_params": {"gen_torque_law": 1.0}},
+    # the tower plant's first fore-aft mode (its base moment among the traces)
+    "tower": {"plant": "tower", "controller": "physical", "t_final_s": 8.0,
+              "wind": {"kind": "ntm", "mean_mps": 16.0}},
     # eq (4)'s first-order pitch: only the paper's plant has it
     "paper_plant": {"plant": "paper", "controller": "paper", "t_final_s": 5.0},
 }
@@ -53,13 +56,16 @@ TURBINE = {
     "vs_region2_k": ("below", None), "vs_rated_speed": ("below", None),
     "vs_slip": ("below", None), "vs_rated_power": ("below", None),
     "vs_max_torque": ("above_law", 3.5e6),
+    "tower_modal_mass": ("tower", None), "tower_stiffness": ("tower", None),
+    "tower_damping_ratio": ("tower", 0.05), "tower_moment_arm": ("tower", None),
 }
 
 
 def _outcome(raw: dict) -> tuple[np.ndarray, float]:
     rc = make_config(raw)
     res = run(rc, progress=False)
-    return (np.column_stack([res.column(c) for c in COLUMNS]),
+    columns = COLUMNS + (("M_tower",) if rc.plant == "tower" else ())
+    return (np.column_stack([res.column(c) for c in columns]),
             metrics(rc, res)["mean_electrical_power_W"])
 
 

@@ -115,7 +115,9 @@ def _add_run(sub) -> None:
     r.add_argument("--case", type=int, choices=(1, 2, 3, 4),
                    help="1 no fault, 2 fault with the controller unaware, 3 fault known to "
                         "eq (49), 4 fault detected by wtftc's FDI")
-    r.add_argument("--plant", help="nrel5mw (default) or paper (eqs (1)-(4), unloaded)")
+    r.add_argument("--plant", help="nrel5mw (default; two-mass drivetrain), tower (nrel5mw "
+                   "on a flexible tower: thrust, tower-base moment) or paper (eqs (1)-(4), "
+                   "unloaded)")
     r.add_argument("--controller", help=_controller_help())
     r.add_argument("--turbine", help=TURBINE_HELP)
     r.add_argument("--wind", help="wind kind: constant, steps, paper_random, ntm, eog, file")
@@ -218,8 +220,9 @@ def _add_cases(sub) -> None:
     c.add_argument("--dt", type=float, help="RK4 step [s] (default 0.001)")
     c.add_argument("--seed", type=_nonnegative_int, help="random seed (default 0)")
     c.add_argument("--plant", action="append", choices=tuple(_plants()),
-                   help="restrict to one plant (repeatable); with another --turbine than "
-                        "nrel5mw: nrel5mw only (the paper's plant is its own)")
+                   help="the plants (repeatable; default nrel5mw and paper, the paper's "
+                        "cases); with another --turbine than nrel5mw: nrel5mw only (the "
+                        "paper's plant is its own)")
     c.add_argument("--turbine", help=TURBINE_HELP)
     c.add_argument("--quiet", action="store_true", help="no progress bar")
 
@@ -390,7 +393,8 @@ def _cmd_cases(args) -> int:
 
     over = _run_overrides(args)
     other = over.get("turbine", "nrel5mw") != "nrel5mw"
-    plants = tuple(args.plant) if args.plant else ("nrel5mw",) if other else tuple(_plants())
+    plants = tuple(args.plant) if args.plant else ("nrel5mw",) if other else ("nrel5mw",
+                                                                             "paper")
     config.make_config({**over, "plant": plants[0]})  # validate before any work
     ensure_writable_dir(args.out, "--out", create=False)
     rows = cases.run_cases(args.out, plants, over, progress=not args.quiet)

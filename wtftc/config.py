@@ -311,7 +311,9 @@ def make_config(cfg: dict | None = None) -> RunConfig:
 LOADS_KEYS = {"shaft_wohler_exponent": (4.0, 1.0, 20.0, "the shaft's Wöhler exponent m of its "
                                                         "damage-equivalent load"),
               "reversal_hysteresis_deg": (0.1, 0.0, 10.0, "the turn-back a pitch reversal "
-                                                          "needs [deg]")}
+                                                          "needs [deg]"),
+              "tower_wohler_exponent": (4.0, 1.0, 20.0, "the tower base's Wöhler exponent m "
+                                                        "of its damage-equivalent load")}
 
 
 def loads_options(raw: dict) -> dict:
@@ -478,7 +480,7 @@ def _torque_law(raw: dict, p_turbine: np.ndarray, wind, t_final: float, table) -
                                                            "gen_torque_law")] != 0.0:
         raise ConfigError("turbine_params.gen_torque_law", tp.get("gen_torque_law"),
                           "0 with controller = rosco (ROSCO commands the generator torque)")
-    if (raw["plant"] != "nrel5mw" or "gen_torque_law" in tp or raw["controller"] == "rosco"
+    if (raw["plant"] == "paper" or "gen_torque_law" in tp or raw["controller"] == "rosco"
             or raw["wind"].get("kind") == "paper_random"):
         return
     if float(np.min(wind(np.linspace(0.0, t_final, int(t_final / 0.1) + 2)))) \
@@ -612,7 +614,7 @@ def _turbine(raw: dict) -> turbine_file.Turbine:
                           "for it (rosco_discon) with controller = rosco (docs/turbines.md)")
     if raw["plant"] == "paper" and turbine.name != turbine_file.DEFAULT:
         raise ConfigError("turbine", name, "nrel5mw with plant = paper (the paper's plant "
-                          "is its own, eq (10)); plant = nrel5mw runs any turbine file")
+                          "is its own, eq (10)); plant = nrel5mw or tower runs any turbine file")
     return turbine
 
 

@@ -83,6 +83,7 @@ COLUMNS = [
     ("mean_electrical_power_W", "mean power [MW]", "{:.3f}"),
     # what the regulation cost (issue 18, docs/loads.md)
     ("shaft_torque_del_1hz_Nm", "shaft DEL 1 Hz [MN m]", "{:.3f}"),
+    ("tower_base_del_1hz_Nm", "tower-base DEL 1 Hz [MN m]", "{:.2f}"),
     ("pitch_adc", "pitch ADC [-]", "{:.3f}"),
     ("pitch_reversals", "pitch reversals [-]", "{:.0f}"),
     ("rms_speed_error_own_above_rated_rad_s", "RMS ω error, own ref., above rated [rad/s]",
@@ -200,7 +201,7 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
 
 
 #: the columns shown in the Markdown table in MW and MN m (the CSV keeps W and N m)
-MEGA = {"mean_electrical_power_W", "shaft_torque_del_1hz_Nm"}
+MEGA = {"mean_electrical_power_W", "shaft_torque_del_1hz_Nm", "tower_base_del_1hz_Nm"}
 
 
 def _fmt(v, fmt, key=""):

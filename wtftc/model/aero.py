@@ -16,23 +16,31 @@ from wtftc.model.cp_table import CpTable, aero_torque, bisect
 
 
 @cache
-def cp_interpolant(table: CpTable) -> ca.Function:
-    """Cubic B-spline Cp(λ, β) on the table grid; inputs clipped to the grid (no extrapolation)."""
-    f = ca.interpolant("cp_table", "bspline", [table.tsr, table.pitch_rad],
-                       np.asarray(table.cp, dtype=float).ravel(order="F"))
+def cp_interpolant(table: CpTable, quantity: str = "cp") -> ca.Function:
+    """Cubic B-spline Cp(λ, β) (or ``quantity = "ct"``: Ct) on the table grid; inputs
+    clipped to the grid (no extrapolation)."""
+    values = getattr(table, quantity)
+    if values is None:
+        raise ConfigError("cp_table", table.source, f"a table with the {quantity.upper()} "
+                          "block (the tower plant needs the thrust coefficient)")
+    f = ca.interpolant(f"{quantity}_table", "bspline", [table.tsr, table.pitch_rad],
+                       np.asarray(values, dtype=float).ravel(order="F"))
     lam, b = ca.SX.sym("tsr"), ca.SX.sym("beta")
     lam_c = ca.fmin(ca.fmax(lam, float(table.tsr[0])), float(table.tsr[-1]))
     b_c = ca.fmin(ca.fmax(b, float(table.pitch_rad[0])), float(table.pitch_rad[-1]))
-    return ca.Function("cp", [lam, b], [f(ca.vertcat(lam_c, b_c))], ["tsr", "beta"], ["cp"])
+    return ca.Function(quantity, [lam, b], [f(ca.vertcat(lam_c, b_c))], ["tsr", "beta"],
+                       [quantity])
 
-def cp_loop_function(table: CpTable) -> ca.Function:
-    """Cp(λ, β) for the closed loop: :func:`cp_interpolant`'s spline, evaluated by
+
+def cp_loop_function(table: CpTable, quantity: str = "cp") -> ca.Function:
+    """Cp(λ, β) (or Ct) for the closed loop: :func:`cp_interpolant`'s spline, evaluated by
     uniform-grid lookup (wtftc.model.spline, about 6× cheaper in the compiled step; same values to
     rounding) when the table grid is uniform, as CasADi's interpolant otherwise."""
-    ref = cp_interpolant(table)
+    ref = cp_interpolant(table, quantity)
     if spline.is_uniform(table.tsr) and spline.is_uniform(table.pitch_rad):
-        return spline.fast_cp(ref, table.tsr, table.pitch_rad)
+        return spline.fast_cp(ref, table.tsr, table.pitch_rad, quantity)
     return ref
+
 
 def steady_pitch(cp_fn: ca.Function, omega_r: float, torque: float, wind: float,
                  air_density: float, rotor_radius: float,

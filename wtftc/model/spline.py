@@ -115,7 +115,8 @@ def cell_coefficients(kx, ky, coef, x, y) -> np.ndarray:
     return out
 
 
-def fast_cp(interpolant: ca.Function, x: np.ndarray, y: np.ndarray) -> ca.Function:
+def fast_cp(interpolant: ca.Function, x: np.ndarray, y: np.ndarray,
+            name: str = "cp") -> ca.Function:
     """cp(tsr, beta) as :func:`wtftc.model.aero.cp_interpolant` (inputs clipped to the grid),
     evaluated as the bicubic polynomial of the cell holding (tsr, beta); x, y the uniform
     table grids. Never inlined: its lookups have no SX form, so an SX caller keeps a call."""
@@ -138,7 +139,7 @@ def fast_cp(interpolant: ca.Function, x: np.ndarray, y: np.ndarray) -> ca.Functi
         for m in (3, 2, 1, 0):
             row = row * sig + cm.get_nz(False, base + (4 * k + m))
         out = out * tau + row
-    return ca.Function("cp", [lam, beta], [out], ["tsr", "beta"], ["cp"],
+    return ca.Function(name, [lam, beta], [out], ["tsr", "beta"], [name],
                        {"never_inline": True})
 
 

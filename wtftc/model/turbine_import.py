@@ -8,7 +8,8 @@ line (``value ! Key - comment``, ROSCO's format): ROSCO's own reader
 
 From the deck (ElastoDyn): the gearbox ratio ``GBRatio``, the generator's inertia
 ``GenIner`` (HSS, referred to the LSS by GBRatio²), the drivetrain's ``DTTorSpr`` and
-``DTTorDmp``, the tip radius ``TipRad``, and the rotor inertia: the blades' mass
+``DTTorDmp``, the tip radius ``TipRad``, the tower's first fore-aft mode (its tower
+file: :func:`tower_mode`), and the rotor inertia: the blades' mass
 distribution (``BMassDen`` × ``AdjBlMs`` along ``BlFract`` from ``HubRad`` to ``TipRad``,
 about the rotor axis with the precone) times ``NumBl``, plus ``HubIner``; ElastoDyn
 computes it so (its .sum file's rotor inertia). From DISCON.IN: the rated speed
@@ -58,6 +59,9 @@ def read_deck(fst: Path) -> tuple[dict, dict]:
     f.read_ElastoDynBlade(str(blade_file), 0)
     bl = f.fst_vt["ElastoDynBlade"][0]
     j_rotor = rotor_inertia(ed, bl)
+    tower_file = ed_file.parent / ed["TwrFile"]
+    f.read_ElastoDynTower(str(tower_file))
+    tower, tower_sources = tower_mode(ed, bl, f.fst_vt["ElastoDynTower"], tower_file.name)
     n = float(ed["GBRatio"])
     src = ed_file.name
     values = {"J_r": j_rotor, "J_g": float(ed["GenIner"]) * n**2, "k_s": float(ed["DTTorSpr"]),
@@ -70,6 +74,48 @@ def read_deck(fst: Path) -> tuple[dict, dict]:
         "J_g": f"{src}: GenIner {ed['GenIner']} kg m² (HSS) × GBRatio²",
         "k_s": f"{src}: DTTorSpr", "d_s": f"{src}: DTTorDmp", "gearbox_ratio": f"{src}: GBRatio",
         "rotor_radius": f"{src}: TipRad"}
+    values.update(tower)
+    sources.update({k: f"{src}, {v}" for k, v in tower_sources.items()})
+    return values, sources
+
+
+def tower_mode(ed: dict, blade: dict, tower: dict, name: str) -> tuple[dict, dict]:
+    """The tower's first fore-aft mode from ElastoDyn [SI]: the mode shape φ(h) =
+    Σ TwFAM1Sh(k) h^k (k = 2..6, h the height fraction over the flexible tower, φ(1) = 1),
+    modal mass m_t = m_RNA + ∫ μ φ² dz (the rotor-nacelle assembly at the top: hub,
+    nacelle, yaw bearing and blades), modal stiffness k_t = ∫ EI (φ'')² dz (Rayleigh's
+    quotient: an assumed shape overestimates the frequency; the tower-top inertia is
+    left out), damping ratio TwrFADmp(1), and the moment arm of the rotor over the tower
+    base, TowerHt + Twr2Shft - TowerBsHt."""
+    height = float(ed["TowerHt"]) - float(ed["TowerBsHt"])
+    frac = np.asarray(tower["HtFract"], float)
+    h = np.linspace(0.0, 1.0, 20001)
+    mu = np.interp(h, frac, np.asarray(tower["TMassDen"], float)) * float(tower["AdjTwMa"])
+    ei = np.interp(h, frac, np.asarray(tower["TwFAStif"], float)) * float(tower["AdjFASt"])
+    c = [float(x) for x in tower["TwFAM1Sh"]]
+    phi = sum(ck * h ** (k + 2) for k, ck in enumerate(c))
+    curv = sum(ck * (k + 2) * (k + 1) * h**k for k, ck in enumerate(c)) / height**2
+    r = float(ed["HubRad"]) + np.asarray(blade["BlFract"], float) * (
+        float(ed["TipRad"]) - float(ed["HubRad"]))
+    m_blade = float(np.trapezoid(np.asarray(blade["BMassDen"], float), r)) * float(
+        blade.get("AdjBlMs", 1.0))
+    rna = (float(ed["HubMass"]) + float(ed["NacMass"]) + float(ed.get("YawBrMass", 0.0))
+           + float(ed["NumBl"]) * m_blade)
+    mass = rna + height * float(np.trapezoid(mu * phi**2, h))
+    values = {"tower_modal_mass": mass,
+              "tower_stiffness": height * float(np.trapezoid(ei * curv**2, h)),
+              "tower_damping_ratio": float(tower["TwrFADmp1"]) / 100.0,
+              "tower_moment_arm": float(ed["TowerHt"]) + float(ed["Twr2Shft"])
+              - float(ed["TowerBsHt"])}
+    f1 = math.sqrt(values["tower_stiffness"] / mass) / (2 * math.pi)
+    sources = {
+        "tower_modal_mass": f"{name}: rotor-nacelle assembly {rna:.6g} kg (HubMass, NacMass, "
+                            "YawBrMass, NumBl × blade mass) + ∫ TMassDen × AdjTwMa × φ² dz, "
+                            "φ the TwFAM1Sh mode shape",
+        "tower_stiffness": f"{name}: ∫ TwFAStif × AdjFASt × φ''² dz (Rayleigh's quotient: "
+                           f"first fore-aft frequency {f1:.4f} Hz, an upper bound)",
+        "tower_damping_ratio": f"{name}: TwrFADmp(1) / 100",
+        "tower_moment_arm": "TowerHt + Twr2Shft - TowerBsHt"}
     return values, sources
 
 

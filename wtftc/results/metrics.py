@@ -80,7 +80,7 @@ def cost(rc: RunConfig, res: integrate.Result, beta: np.ndarray, dt_out: float) 
                             np.radians(opts["reversal_hysteresis_deg"]))
     above, below = own_speed_errors(rc, res)
     rated = rc.p_turbine[lay.index("turbine_params", "omega_g_rated")]
-    return {
+    return tower_cost(res, duration, opts["tower_wohler_exponent"]) | {
         "shaft_torque_del_1hz_Nm": fat["del_1hz"],
         "shaft_torque_damage_per_10min": fat["damage_per_10min"],
         "shaft_torque_max_abs_Nm": fat["max_abs"],
@@ -92,6 +92,17 @@ def cost(rc: RunConfig, res: integrate.Result, beta: np.ndarray, dt_out: float) 
         "rms_speed_error_own_below_rated_rad_s": below,
         "time_above_1p1_rated_s": float(np.count_nonzero(w_r > 1.1 * rated) * dt_out),
     }
+
+
+def tower_cost(res: integrate.Result, duration: float, m: float) -> dict:
+    """The tower-base fore-aft bending moment's fatigue and extreme on the tower plant
+    (None on a plant without a tower)."""
+    keys = ("tower_base_del_1hz_Nm", "tower_base_damage_per_10min", "tower_base_max_abs_Nm")
+    if "M_tower" not in res.names:
+        return dict.fromkeys(keys) | {"tower_wohler_exponent": m}
+    fat = loads.fatigue(res.column("M_tower"), duration, m)
+    return dict(zip(keys, (fat["del_1hz"], fat["damage_per_10min"], fat["max_abs"]),
+                    strict=True)) | {"tower_wohler_exponent": m}
 
 
 def own_reference(rc: RunConfig, wind: np.ndarray) -> np.ndarray:

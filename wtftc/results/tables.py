@@ -15,6 +15,7 @@ TABLE_COLUMNS = [
     ("actuator_travel_deg", "travel [deg]", "{:.0f}"),
     ("pitch_adc", "pitch ADC [-]", "{:.3f}"),
     ("shaft_torque_del_1hz_Nm", "shaft DEL 1 Hz [MN m]", None),
+    ("tower_base_del_1hz_Nm", "tower-base DEL 1 Hz [MN m]", None),
     ("mean_electrical_power_W", "mean electrical power [MW]", None),
     ("diverged", "diverged at [s]", None), ("realtime_factor", "× real time", "{:.0f}"),
 ]
@@ -25,6 +26,8 @@ def _cell(m: dict, key: str, fmt: str | None) -> str:
         return f"{v / 1e6:.2f}"
     if key == "shaft_torque_del_1hz_Nm":
         return f"{v / 1e6:.3f}"
+    if key == "tower_base_del_1hz_Nm":
+        return "—" if v is None else f"{v / 1e6:.2f}"
     if key == "diverged":
         return f"{v['t_s']:.2f}" if v else "no"
     if v is None:

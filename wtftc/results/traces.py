@@ -16,7 +16,7 @@ def write_outputs(out_dir: Path, rc: RunConfig, res: integrate.Result, m: dict) 
     from wtftc.results.io import atomic_write_json, atomic_write_text, write_parquet
 
     out_dir = Path(out_dir)
-    spec = rhs.output_spec(rc.controller)
+    spec = rhs.output_spec(rc.controller, rc.loop.fdi, rc.plant)
     header = ["time_s"] + [n for n, _ in spec]
     units = ["s"] + [u for _, u in spec]
     data = np.column_stack([res.t, res.outputs])

@@ -455,7 +455,7 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     n_c = f.size2_out("out")  # steps per chunk
     every = loop.interval if loop.sampled else 1
     batch = _Batch(runs, loop.state_names(),
-                   [n for n, _ in output_spec(loop.controller, loop.fdi)],
+                   [n for n, _ in output_spec(loop.controller, loop.fdi, loop.plant)],
                    np.column_stack([np.asarray(r.z0, dtype=float) for r in runs]),
                    keep_states, decimate, Envelope.of(loop))
     events = _event_steps(runs, dt, every)

@@ -23,6 +23,10 @@ PLANTS = {
     "nrel5mw": {"function": "turbine_nrel5mw", "states": "nrel5mw_states", "loaded": True,
                 "doc": "NREL 5-MW: two-mass drivetrain, generator torque, 2nd-order "
                        "limited actuators (default)"},
+    "tower": {"function": "turbine_tower", "states": "tower_states", "loaded": True,
+              "tower": True,
+              "doc": "the nrel5mw plant on a flexible tower: first fore-aft mode, rotor "
+                     "thrust from Ct, the rotor in the wind relative to the tower top"},
     "paper": {"function": "turbine_paper", "states": "plant_states", "loaded": False,
               "doc": "eqs (1)-(4) as printed: UNLOADED, no generator torque "
                      "(paper-notes defect 3)"},
@@ -41,6 +45,9 @@ _AERO_OUTPUTS = [("wind", "m/s"), ("tsr", "-"), ("cp", "-"), ("T_aero", "N m"),
 _FDI_OUTPUTS = [("fdi_latch", "-"), ("fdi_rho_hat", "-"), ("fdi_c_hat", "rad"),
                 ("fdi_residual_rms", "rad"), ("fdi_omega_n_hat", "rad/s"),
                 ("fdi_zeta_hat", "-"), ("fdi_threshold", "rad")]
+#: the tower plant's, after every other common output
+_TOWER_OUTPUTS = [("tower_x", "m"), ("tower_v", "m/s"), ("thrust", "N"), ("M_tower", "N m"),
+                  ("ct", "-")]
 #: the FDI function's outputs reported per blade, in _FDI_OUTPUTS' order
 FDI_REPORTED = tuple(n.removeprefix("fdi_") for n, _ in _FDI_OUTPUTS)
 
@@ -49,15 +56,15 @@ def _per_blade(spec: list[tuple[str, str]]) -> list[tuple[str, str]]:
     return [(f"{n}_{j}", u) for n, u in spec for j in lay.blades()]
 
 
-def common_outputs(fdi: bool = True) -> list[tuple[str, str]]:
-    """The per-step outputs every loop reports, in column order, with units."""
+def common_outputs(fdi: bool = True, plant: str = "nrel5mw") -> list[tuple[str, str]]:
+    """The per-step outputs every loop on ``plant`` reports, in column order, with units."""
     out = (_PLANT_OUTPUTS + _per_blade(_BLADE_OUTPUTS) + _LOOP_OUTPUTS
            + _per_blade(_COMMAND_OUTPUTS) + _AERO_OUTPUTS
            + [(f"sensor_{s['name']}", s["unit"]) for s in lay.layout()["sensors"]])
-    if not fdi:
-        return out
-    return (out + _per_blade(_FDI_OUTPUTS)
-            + [(f"fdi_excluded_{s['name']}", "-") for s in lay.layout()["sensors"]])
+    if fdi:
+        out += (_per_blade(_FDI_OUTPUTS)
+                + [(f"fdi_excluded_{s['name']}", "-") for s in lay.layout()["sensors"]])
+    return out + (_TOWER_OUTPUTS if PLANTS[plant].get("tower") else [])
 
 
 def controllers() -> dict:
@@ -65,9 +72,10 @@ def controllers() -> dict:
     return lay.layout()["controllers"]
 
 
-def output_spec(controller: str, fdi: bool = True) -> list[tuple[str, str]]:
+def output_spec(controller: str, fdi: bool = True,
+                plant: str = "nrel5mw") -> list[tuple[str, str]]:
     reg = controllers()[controller]
-    return common_outputs(fdi) + list(zip(reg["diag"], reg["diag_units"], strict=True))
+    return common_outputs(fdi, plant) + list(zip(reg["diag"], reg["diag_units"], strict=True))
 
 
 def state_names(plant: str, controller: str = "paper") -> list[str]:
@@ -174,24 +182,37 @@ def controller_block(loop: Loop, xc, xf, readings, sym: dict, v_applied=None) ->
 
 
 def plant_block(loop: Loop, xp, v, sym: dict) -> dict:
-    """The plant driven by the commands v: its state derivative and its true outputs."""
-    pf = load(PLANTS[loop.plant]["function"], "interpreted")
+    """The plant driven by the commands v: its state derivative and its true outputs. The
+    tables are read at the rotor's (λ, β̄): on the tower plant in the wind relative to the
+    tower top (generated ``rotor_inflow``)."""
+    spec = PLANTS[loop.plant]
+    pf = load(spec["function"], "interpreted")
     pt, wind = sym["p_turbine"], sym["wind"]
+    w_rotor = (load("rotor_inflow", "interpreted")(x_plant=xp, wind=wind)["wind_rel"]
+               if spec.get("tower") else wind)
     op = load("aero_operating_point", "interpreted")(
-        x_plant=xp[lay.prefix("plant_states", of=PLANTS[loop.plant]["states"])], wind=wind,
+        x_plant=xp[lay.prefix("plant_states", of=spec["states"])], wind=w_rotor,
         p_turbine=pt)
     # the plant's Cp: the table's, scaled by the model mismatch (1: none)
     cp = sym["cp_scale"] * _cp_function(loop)(op["tsr"], op["beta_mean"])
-    p = pf(x_plant=xp, v=v, wind=wind, cp=cp, actuator_faults=sym["actuator_faults"],
-           p_turbine=pt)
-    return {"x_plant_dot": p["x_plant_dot"], "tsr": op["tsr"], "cp": cp,
-            "T_aero": p["T_aero"], "T_gen": p["T_gen"], "P_gen": p["P_gen"]}
+    args = {"x_plant": xp, "v": v, "wind": wind, "cp": cp,
+            "actuator_faults": sym["actuator_faults"], "p_turbine": pt}
+    out = {"tsr": op["tsr"], "cp": cp}
+    if spec.get("tower"):
+        args["ct"] = out["ct"] = _cp_function(loop, "ct")(op["tsr"], op["beta_mean"])
+    p = pf(**args)
+    out |= {k: p[k] for k in ("x_plant_dot", "T_aero", "T_gen", "P_gen")}
+    if spec.get("tower"):
+        out["tower"] = [xp[lay.index(spec["states"], "tower_x")],
+                        xp[lay.index(spec["states"], "tower_v")], p["thrust"], p["M_tower"],
+                        out["ct"]]
+    return out
 
 
 @cache
-def _cp_function(loop: Loop) -> ca.Function:
-    """The Cp interpolant of the loop's table (built once per loop)."""
-    return cp_loop_function(loop.table)
+def _cp_function(loop: Loop, quantity: str = "cp") -> ca.Function:
+    """The Cp (or Ct) interpolant of the loop's table (built once per loop)."""
+    return cp_loop_function(loop.table, quantity)
 
 
 def output_row(loop: Loop, xp, readings, ctl: dict, pl: dict, sym: dict) -> ca.SX:
@@ -204,7 +225,7 @@ def output_row(loop: Loop, xp, readings, ctl: dict, pl: dict, sym: dict) -> ca.S
            m["sensors"], ctl["u0"], ctl["v"], sym["wind"], pl["tsr"], pl["cp"], pl["T_aero"],
            pl["T_gen"], pl["P_gen"], m["sched"], sym["yd"][lay.index("reference", "yd_0")],
            readings]
-    return ca.vertcat(*out, *ctl.get("fdi", []), ctl["diag"])
+    return ca.vertcat(*out, *ctl.get("fdi", []), *pl.get("tower", []), ctl["diag"])
 
 
 def _closed_loop_rhs(loop: Loop) -> ca.Function:
@@ -231,7 +252,7 @@ def _closed_loop_rhs(loop: Loop) -> ca.Function:
     zdot = ca.vertcat(pl["x_plant_dot"], ctl["x_ctrl_dot"], *([ctl["x_fdi_dot"]] if loop.fdi
                                                               else []))
     out = output_row(loop, xp, readings, ctl, pl, sym)
-    assert out.numel() == len(output_spec(loop.controller, loop.fdi))
+    assert out.numel() == len(output_spec(loop.controller, loop.fdi, loop.plant))
     # one pass of common-subexpression elimination over the assembled loop: the plant, the
     # controller and the FDI share the measured quantities and the aerodynamics
     zdot, out = ca.cse([zdot, out])

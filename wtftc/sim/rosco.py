@@ -121,9 +121,10 @@ def run(loop: Loop, inputs: integrate.Run, t_final: float, dt: float, decimate: 
     reason = available()
     if reason:
         raise ConfigError("controller", "rosco", reason)
-    if loop.plant != "nrel5mw":
-        raise ConfigError("plant", loop.plant, "nrel5mw with controller = rosco (ROSCO "
-                          "commands the generator torque the paper's plant does not have)")
+    if not PLANTS[loop.plant]["loaded"]:
+        raise ConfigError("plant", loop.plant, "nrel5mw or tower with controller = rosco "
+                          "(ROSCO commands the generator torque the paper's plant does not "
+                          "have)")
     n_sub = int(round(CONTROL_DT / dt))
     if n_sub < 1 or abs(n_sub * dt - CONTROL_DT) > 1e-12:
         raise ConfigError("dt_s", dt, f"a divisor of ROSCO's call interval {CONTROL_DT} s")

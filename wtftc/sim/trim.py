@@ -12,7 +12,8 @@ from wtftc.sim.rhs import PLANTS, Loop, controllers
 
 def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0) -> np.ndarray:
     """Initial state: rated speed (plus offset), drivetrain at rest under rated torque,
-    blades at the pitch that balances it at the initial wind ``wind0`` [m/s]; the
+    blades at the pitch that balances it at the initial wind ``wind0`` [m/s], a tower
+    bent by the thrust there (derivation/turbine.py ``thrust``); the
     controller and the FDI at rest on what they measure there.
 
     The paper plant has no generator torque: its balance is T_aero = 0 (paper-notes defect 3).
@@ -26,6 +27,11 @@ def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0
     plant = dict.fromkeys(lay.names(PLANTS[loop.plant]["states"]), 0.0)
     plant.update(omega_r=omega, theta_s=torque / tp["k_s"], omega_g=omega,
                  **{f"beta_{j}": beta0 for j in lay.blades()})
+    if PLANTS[loop.plant].get("tower"):  # the tower bent by the steady thrust, at rest
+        ct = float(aero.cp_interpolant(loop.table, "ct")(omega * tp["rotor_radius"] / wind0,
+                                                         beta0))
+        thrust = 0.5 * tp["air_density"] * np.pi * tp["rotor_radius"] ** 2 * wind0**2 * ct
+        plant["tower_x"] = thrust / tp["tower_stiffness"]
     # the controller and the FDI start from what they measure (init_<name>, generated)
     meas = {"omega_r": omega, "omega_g_hss": omega * tp["gearbox_ratio"],
             **{f"beta_meas_{j}": beta0 for j in lay.blades()}}

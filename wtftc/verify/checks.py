@@ -52,8 +52,9 @@ def random_inputs(name: str, rng: np.random.Generator,
         size = int(np.prod(shape))
         if n in special and special[n].size == size:
             val = special[n]
-        elif n == "z" and name in _models():
-            # a derived design's model: [model states, controller states], in their ranges
+        elif n == "x_plant" and size == lay.size("tower_states"):
+            val = special["x_plant_tower"]
+        elif n == "z" and name in _models():  # a design's model: model and controller states
             reg = _models()[name]
             val = np.concatenate([_draw(reg["model"]["states"], rng),
                                   _draw(lay.layout()[reg["states"]], rng)])
@@ -62,7 +63,10 @@ def random_inputs(name: str, rng: np.random.Generator,
             base = lay.defaults(group)
             val = (base * (1 + 0.1 * rng.uniform(-1, 1, base.size)) if n == "p_ctrl"
                    else _draw(lay.layout()[group], rng))
-        elif n in ("p_plant", "p_ctrl", "fault", "p_turbine"):
+        elif n == "p_turbine":
+            val = lay.defaults("turbine_params") * (1 + 0.1 * _added_last(
+                rng, special["tower_rng"], lay.size("turbine_params"), TURBINE_PARAMS_ADDED))
+        elif n in ("p_plant", "p_ctrl", "fault"):
             base = lay.defaults(_GROUP_OF_INPUT[n])
             val = base * (1 + 0.1 * rng.uniform(-1, 1, base.size))
         elif n in _GROUP_OF_INPUT or n == "z":
@@ -135,7 +139,14 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
     true = np.array([meas[names.index(s["measures"])] for s in lay.layout()["sensors"]])
     readings = true * (1 + 0.05 * rs.standard_normal(true.size)
                        * (rs.uniform(size=true.size) < 0.33))
+    # the tower plant's draws (issue 18), from a third stream: the others stay what they were
+    rt = np.random.default_rng(int(rng.bit_generator.state["state"]["state"]) % 2**61 + 1)
+    tower_states = [e for e in lay.layout()["tower_states"]
+                    if e["name"] not in lay.names("nrel5mw_states")]
     return {
+        "x_plant_tower": np.concatenate([x_plant, _draw(tower_states, rt)]),
+        "ct": np.array([rt.uniform(-0.1, 1.2)]),
+        "tower_rng": rt,
         "x_plant": x_plant,
         "wind": np.array([wind]),
         "cp": np.array([cp]),
@@ -167,6 +178,18 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
         "beta_meas": rng.uniform(-0.05, 1.65, lay.n_blades()),
         "p_fdi": lay.defaults("fdi_params") * (1 + 0.1 * _fdi_param_draws(rng, rs)),
     }
+
+
+#: turbine parameters added after the points were fixed (the tower's, issue 18, last in
+#: the layout): drawn from a stream of their own, the others from rng
+TURBINE_PARAMS_ADDED = 4
+
+
+def _added_last(rng: np.random.Generator, other: np.random.Generator, size: int,
+                added: int) -> np.ndarray:
+    """U(-1, 1) draws of ``size`` values, the last ``added`` from ``other``: rng advances
+    as it did before they were added, so every function's points stay what they were."""
+    return np.concatenate([rng.uniform(-1, 1, size - added), other.uniform(-1, 1, added)])
 
 
 #: FDI parameters added after the points were fixed: drawn from rs, the others from rng,

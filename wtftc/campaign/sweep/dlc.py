@@ -78,53 +78,70 @@ def per_bin(rows: list[dict]) -> dict:
         out.setdefault(r["controller"], {}).setdefault(round(r["mean_wind_mps"], 6),
                                                        []).append(r)
     keys = ("shaft_torque_damage_per_10min", "mean_electrical_power_W", "pitch_adc",
-            "shaft_torque_del_1hz_Nm")
+            "shaft_torque_del_1hz_Nm", "tower_base_damage_per_10min", "tower_base_del_1hz_Nm")
     order = [c for c in CONTROLLERS if c in out]
-    return {c: {v: {"runs": len(rs), **{k: float(np.mean([r[k] for r in rs])) for k in keys}}
+    return {c: {v: {"runs": len(rs), **{k: _mean([r.get(k) for r in rs]) for k in keys}}
                 for v, rs in sorted(out[c].items())} for c in order}
 
 
-def lifetime(bins: dict, dlc: dict, m: float) -> dict:
-    """One controller's lifetime figures from its bins (per_bin's), module docstring."""
+def _mean(values: list) -> float | None:
+    """The mean, or None where a run has no value (the tower's on a plant without one)."""
+    return None if any(v is None for v in values) else float(np.mean(values))
+
+
+def lifetime(bins: dict, dlc: dict, m: float, m_tower: float = 4.0) -> dict:
+    """One controller's lifetime figures from its bins (per_bin's), module docstring; the
+    tower base's where every bin has it (the tower plant)."""
     winds = np.array(list(bins))
     p = bin_probability(winds, dlc["bin_width_mps"], dlc["annual_mean_mps"])
-    damage = np.array([b["shaft_torque_damage_per_10min"] for b in bins.values()])
-    power = np.array([b["mean_electrical_power_W"] for b in bins.values()])
-    adc = np.array([b["pitch_adc"] for b in bins.values()])
     share = float(p.sum())
+
+    def col(key):
+        return np.array([b[key] for b in bins.values()], dtype=float)
+
+    def life_del(key, mm):
+        if any(b.get(key) is None for b in bins.values()):
+            return None
+        return float((p @ col(key) / 600.0 / share) ** (1.0 / mm))
+
     return {"bins": len(winds), "share_of_year": share,
-            "lifetime_shaft_del_1hz_Nm": float((p @ damage / 600.0 / share) ** (1.0 / m)),
-            "aep_Wh": float(HOURS_PER_YEAR * (p @ power)),
-            "weighted_pitch_adc": float(p @ adc / share)}
+            "lifetime_shaft_del_1hz_Nm": life_del("shaft_torque_damage_per_10min", m),
+            "lifetime_tower_del_1hz_Nm": life_del("tower_base_damage_per_10min", m_tower),
+            "aep_Wh": float(HOURS_PER_YEAR * (p @ col("mean_electrical_power_W"))),
+            "weighted_pitch_adc": float(p @ col("pitch_adc") / share)}
 
 
 def section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
     """The summary's DLC section: per controller the lifetime figures, then per bin the
     shaft DEL, the pitch ADC and the power; Markdown lines and CSV lines (SI units)."""
     dlc = parse_dlc(table)
-    ms = {r["shaft_wohler_exponent"] for r in rows if r.get("shaft_wohler_exponent")}
-    m = ms.pop() if len(ms) == 1 else 4.0
+    m, m_tower = (_exponent(rows, k) for k in ("shaft_wohler_exponent",
+                                                "tower_wohler_exponent"))
     bins = per_bin(rows)
     lines = ["", f"## DLC {dlc['case']}: lifetime-weighted (Rayleigh, annual mean "
              f"{dlc['annual_mean_mps']:g} m/s, bins of {dlc['bin_width_mps']:g} m/s; "
              "docs/loads.md)", "",
              "| controller | runs used (of fault-free) | bins | share of the year [-] | "
-             f"lifetime shaft DEL 1 Hz, m = {m:g} [MN m] | AEP [GWh] | weighted pitch ADC [-] |",
-             "|---|---|---|---|---|---|---|"]
-    csv = ["controller,mean_wind_mps,runs,bin_probability,shaft_torque_del_1hz_Nm,"
-           "shaft_torque_damage_per_10min,pitch_adc,mean_electrical_power_W"]
+             f"lifetime shaft DEL 1 Hz, m = {m:g} [MN m] | lifetime tower-base DEL 1 Hz, "
+             f"m = {m_tower:g} [MN m] | AEP [GWh] | weighted pitch ADC [-] |",
+             "|---|---|---|---|---|---|---|---|"]
+    keys = ("shaft_torque_del_1hz_Nm", "shaft_torque_damage_per_10min",
+            "tower_base_del_1hz_Nm", "tower_base_damage_per_10min", "pitch_adc",
+            "mean_electrical_power_W")
+    csv = ["controller,mean_wind_mps,runs,bin_probability," + ",".join(keys)]
     for c, cb in bins.items():
-        life = lifetime(cb, dlc, m)
+        life = lifetime(cb, dlc, m, m_tower)
         used = sum(b["runs"] for b in cb.values())
         free = sum(r["controller"] == c and r["fault_type"] == "none" for r in rows)
+        tower = life["lifetime_tower_del_1hz_Nm"]
         lines.append(f"| {c} | {used} of {free} | {life['bins']} | {life['share_of_year']:.3f} | "
                      f"{life['lifetime_shaft_del_1hz_Nm'] / 1e6:.3f} | "
+                     f"{'—' if tower is None else f'{tower / 1e6:.2f}'} | "
                      f"{life['aep_Wh'] / 1e9:.2f} | {life['weighted_pitch_adc']:.3f} |")
         for v, b in cb.items():
             p = float(bin_probability(v, dlc["bin_width_mps"], dlc["annual_mean_mps"]))
-            csv.append(f"{c},{v},{b['runs']},{p},{b['shaft_torque_del_1hz_Nm']},"
-                       f"{b['shaft_torque_damage_per_10min']},{b['pitch_adc']},"
-                       f"{b['mean_electrical_power_W']}")
+            csv.append(f"{c},{v},{b['runs']},{p}," + ",".join(
+                "" if b[k] is None else str(b[k]) for k in keys))
     lines += ["", "Per wind bin (`summary_dlc.csv`; figure `figures/dlc_bins.png`): shaft "
               "DEL [MN m] / pitch ADC [-], the mean over the bin's seeds.", ""]
     winds = sorted({v for cb in bins.values() for v in cb})
@@ -137,6 +154,12 @@ def section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
     return lines, csv
 
 
+def _exponent(rows: list[dict], key: str) -> float:
+    """The runs' Wöhler exponent ``key`` (4 when they disagree or give none)."""
+    ms = {r[key] for r in rows if r.get(key)}
+    return ms.pop() if len(ms) == 1 else 4.0
+
+
 def figure(rows: list[dict]):
     """Shaft DEL and pitch ADC per wind bin, one line per controller (the caller saves)."""
     import matplotlib
@@ -145,15 +168,19 @@ def figure(rows: list[dict]):
     import matplotlib.pyplot as plt
 
     bins = per_bin(rows)
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
-    for c, cb in bins.items():
-        v = list(cb)
-        a1.plot(v, [b["shaft_torque_del_1hz_Nm"] / 1e6 for b in cb.values()], "o-", label=c)
-        a2.plot(v, [b["pitch_adc"] for b in cb.values()], "o-", label=c)
-    a1.set_xlabel("mean wind [m/s]")
-    a1.set_ylabel("shaft torque DEL at 1 Hz [MN m]")
-    a2.set_xlabel("mean wind [m/s]")
-    a2.set_ylabel("pitch actuator duty cycle [-]")
-    a1.legend(fontsize=8)
+    tower = any(b["tower_base_del_1hz_Nm"] is not None for cb in bins.values()
+                for b in cb.values())
+    fig, axes = plt.subplots(1, 3 if tower else 2, figsize=(14 if tower else 10, 4))
+    panels = [("shaft_torque_del_1hz_Nm", 1e-6, "shaft torque DEL at 1 Hz [MN m]"),
+              ("pitch_adc", 1.0, "pitch actuator duty cycle [-]"),
+              ("tower_base_del_1hz_Nm", 1e-6, "tower-base fore-aft DEL at 1 Hz [MN m]")]
+    for ax, (key, scale, label) in zip(axes, panels, strict=False):
+        for c, cb in bins.items():
+            pts = [(v, b[key] * scale) for v, b in cb.items() if b[key] is not None]
+            if pts:
+                ax.plot(*zip(*pts, strict=True), "o-", label=c)
+        ax.set_xlabel("mean wind [m/s]")
+        ax.set_ylabel(label)
+    axes[0].legend(fontsize=8)
     fig.suptitle("Per wind bin, mean over seeds (fault-free runs)", fontsize=9)
     return fig

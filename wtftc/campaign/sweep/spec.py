@@ -322,7 +322,7 @@ def _check_together(by_key: dict[str, Axis], t_final: float) -> None:
                           f"onsets before t_final_s = {t_final:g} s")
     if "rosco" in (by_key["controllers"].values or ()) and "paper" in (
             by_key["plants"].values or ()):
-        raise ConfigError("plants", "paper", "nrel5mw only when controllers include rosco "
+        raise ConfigError("plants", "paper", "nrel5mw or tower when controllers include rosco "
                           "(ROSCO's DISCON.IN is tuned for the NREL 5-MW)")
 
 

@@ -25,7 +25,10 @@ METRICS = [("rms_speed_error_rad_s", "rad/s"), ("max_abs_speed_error_rad_s", "ra
            ("shaft_torque_del_1hz_Nm", "N m"), ("shaft_torque_damage_per_10min", "(N m)^m"),
            ("shaft_torque_max_abs_Nm", "N m"), ("pitch_adc", "-"), ("pitch_reversals", "-"),
            ("rms_speed_error_own_above_rated_rad_s", "rad/s"),
-           ("rms_speed_error_own_below_rated_rad_s", "rad/s"), ("time_above_1p1_rated_s", "s")]
+           ("rms_speed_error_own_below_rated_rad_s", "rad/s"), ("time_above_1p1_rated_s", "s"),
+           # on the tower plant (None on the others)
+           ("tower_base_del_1hz_Nm", "N m"), ("tower_base_damage_per_10min", "(N m)^m"),
+           ("tower_base_max_abs_Nm", "N m")]
 STATUS = ("ok", "diverged", "failed")
 
 

@@ -28,6 +28,8 @@ TABLE = [("controller", "{}"), ("fault", "{}"), ("runs", "{}"), ("diverged", "{}
 COST = [("shaft DEL 1 Hz median [MN m]", "shaft_torque_del_1hz_Nm", 50, 1e-6, "{:.3f}"),
         ("shaft DEL 1 Hz p95 [MN m]", "shaft_torque_del_1hz_Nm", 95, 1e-6, "{:.3f}"),
         ("shaft torque max [MN m]", "shaft_torque_max_abs_Nm", 100, 1e-6, "{:.3f}"),
+        ("tower-base DEL 1 Hz median [MN m]", "tower_base_del_1hz_Nm", 50, 1e-6, "{:.2f}"),
+        ("tower-base moment max [MN m]", "tower_base_max_abs_Nm", 100, 1e-6, "{:.1f}"),
         ("pitch ADC median [-]", "pitch_adc", 50, 1.0, "{:.3f}"),
         ("pitch reversals median [-]", "pitch_reversals", 50, 1.0, "{:.0f}"),
         ("RMS ω error, own reference, above rated, median [rad/s]",

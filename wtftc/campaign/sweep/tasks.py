@@ -93,7 +93,7 @@ def _run_points(points: list[dict], traces: bool) -> list[tuple[dict, dict | Non
         status = "diverged" if res.diverged else "ok"
         tr = None
         if traces:
-            spec = rhs.output_spec(rc.controller)
+            spec = rhs.output_spec(rc.controller, rc.loop.fdi, rc.plant)
             tr = {"time_s": (res.t, "s"), **{n: (res.column(n), u) for n, u in spec}}
         out.append((_row(pt, status, m, diverged=res.diverged), tr))
     return out

@@ -1,0 +1,175 @@
+"""The tower plant (derivation/turbine.py ``tower_rhs``; docs/loads.md): the first
+fore-aft mode's frequency and damping, the aerodynamic damping the thrust adds through the
+relative wind, the static deflection, the rigid-tower limit, and the tower-base moment's
+fatigue in metrics.json."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import load
+from wtftc.campaign import cases
+from wtftc.model import turbine_file
+from wtftc.results import loads
+from wtftc.results.metrics import metrics
+
+TOWER = ("tower_x", "tower_v")
+
+
+def _frequency_hz(turbine: str) -> float:
+    v = turbine_file.load(turbine).values
+    return math.sqrt(v["tower_stiffness"] / v["tower_modal_mass"]) / (2 * math.pi)
+
+
+def test_the_nrel_5mw_tower_has_its_published_first_fore_aft_frequency():
+    """0.324 Hz (Jonkman 2009, Table 9-1), with 1 % damping and the rotor 89.56 m over
+    the base; the IEA 15-MW's tower alone, clamped at 15 m, 0.261 Hz (Rayleigh)."""
+    assert _frequency_hz("nrel5mw") == pytest.approx(0.324, abs=5e-4)
+    assert _frequency_hz("iea15mw") == pytest.approx(0.261, abs=5e-4)
+    v = turbine_file.load("nrel5mw").values
+    assert v["tower_damping_ratio"] == 0.01
+    assert v["tower_moment_arm"] == pytest.approx(87.6 + 1.96256)
+
+
+def test_import_reads_the_tower_from_the_elastodyn_tower_file():
+    """``turbine import`` computes the modal mass and stiffness from ElastoDyn's tower file
+    (mode shape, mass and stiffness distributions): on the IEA 15-MW deck, the values the
+    shipped file holds, and on the NREL 5-MW deck the same modal mass as its file (whose
+    stiffness is set from the published frequency instead: Rayleigh's 0.3465 Hz is an
+    upper bound)."""
+    pytest.importorskip("openfast_io", reason="the import extra (make setup installs it)")
+    from wtftc.model.turbine_import import read_deck
+    from wtftc.sim.rosco import discon_path
+
+    base = discon_path("rosco:Examples/Test_Cases")
+    iea, _ = read_deck(base / "IEA-15-240-RWT" / "IEA-15-240-RWT-Monopile"
+                       / "IEA-15-240-RWT-Monopile.fst")
+    nrel, src = read_deck(base / "NREL-5MW" / "NREL-5MW.fst")
+    shipped = turbine_file.load("iea15mw").values
+    for key in ("tower_modal_mass", "tower_stiffness", "tower_damping_ratio",
+                "tower_moment_arm"):
+        assert iea[key] == pytest.approx(shipped[key], rel=1e-9), key
+    assert nrel["tower_modal_mass"] == pytest.approx(
+        turbine_file.load("nrel5mw").values["tower_modal_mass"], rel=1e-9)
+    f_rayleigh = math.sqrt(nrel["tower_stiffness"] / nrel["tower_modal_mass"]) / (2 * math.pi)
+    assert f_rayleigh == pytest.approx(0.3465, abs=5e-4)
+    assert "0.3465 Hz" in src["tower_stiffness"]
+
+
+def _tower_jacobian(wind: float, ct: float) -> tuple[np.ndarray, dict]:
+    """∂(ẋ_t, v̇_t)/∂(x_t, v_t) of the generated plant at a point, Ct held."""
+    f = load("turbine_tower", "interpreted")
+    states = lay.names("tower_states")
+    x = ca.SX.sym("x", len(states))
+    pt = lay.defaults("turbine_params")
+    out = f(x_plant=x, v=ca.DM.zeros(3), wind=wind, cp=0.45, ct=ct,
+            actuator_faults=lay.defaults("actuator_faults"), p_turbine=pt)["x_plant_dot"]
+    idx = [states.index(n) for n in TOWER]
+    jac = ca.Function("j", [x], [ca.jacobian(out[idx], x[idx])])
+    x0 = lay.defaults("tower_states")
+    x0[states.index("omega_r")] = x0[states.index("omega_g")] = 1.2
+    return np.array(jac(x0)), lay.values("turbine_params", pt)
+
+
+def test_the_free_tower_rings_at_its_frequency_with_its_damping():
+    """With no thrust (Ct = 0) the tower is the modal oscillator: eigenvalues
+    −ζω ± iω√(1 − ζ²) with ω = √(k/m)."""
+    jac, tp = _tower_jacobian(12.0, 0.0)
+    lam = np.linalg.eigvals(jac)
+    w = math.sqrt(tp["tower_stiffness"] / tp["tower_modal_mass"])
+    z = tp["tower_damping_ratio"]
+    assert sorted(lam.imag) == pytest.approx([-w * math.sqrt(1 - z * z),
+                                              w * math.sqrt(1 - z * z)], rel=1e-12)
+    assert lam.real == pytest.approx([-z * w, -z * w], rel=1e-12)
+
+
+@pytest.mark.parametrize("wind, ct", [(8.0, 0.8), (16.0, 0.2)])
+def test_the_thrust_damps_the_tower_through_the_relative_wind(wind, ct):
+    """The rotor sees v − ẋ_t: a tower moving upwind meets more thrust, so the thrust
+    adds the aerodynamic damping ∂F/∂ẋ_t = ρ π R² v Ct (Ct held) to the structure's
+    2ζ√(km): at 8 m/s (Ct 0.8) about 6 times the structural damping, a damping ratio
+    of 5.9 % against 1 %."""
+    jac, tp = _tower_jacobian(wind, ct)
+    m = tp["tower_modal_mass"]
+    c_struct = 2 * tp["tower_damping_ratio"] * math.sqrt(tp["tower_stiffness"] * m)
+    c_aero = tp["air_density"] * math.pi * tp["rotor_radius"] ** 2 * wind * ct
+    assert -jac[1, 1] * m == pytest.approx(c_struct + c_aero, rel=1e-12)
+    assert jac[1, 0] * m == pytest.approx(-tp["tower_stiffness"], rel=1e-12)
+    if wind == 8.0:
+        assert c_aero / (2 * math.sqrt(tp["tower_stiffness"] * m)) == pytest.approx(0.059,
+                                                                                   abs=1e-3)
+
+
+RUN = {"plant": "tower", "controller": "pi", "t_final_s": 30.0, "output_rate_hz": 100.0,
+       "wind": {"kind": "constant", "speed_mps": 16.0}}
+
+
+def test_a_trimmed_tower_stays_bent_by_the_thrust():
+    """In a steady wind the trim bends the tower by F_T / k_t and it stays there: the
+    tower-top moves less than 1 mm, the base moment is k_t x_t H, 30 MN m at 16 m/s."""
+    rc = config.make_config(RUN)
+    res = cases.run(rc, progress=False)
+    tp = lay.values("turbine_params", rc.p_turbine)
+    x, thrust = res.column("tower_x"), res.column("thrust")
+    assert np.ptp(x) < 1e-3
+    assert x[-1] == pytest.approx(thrust[-1] / tp["tower_stiffness"], rel=1e-3)
+    assert res.column("M_tower") == pytest.approx(
+        tp["tower_stiffness"] * tp["tower_moment_arm"] * x, rel=1e-12)
+    assert 2.0e7 < res.column("M_tower")[-1] < 4.5e7
+
+
+def test_a_stiff_tower_is_the_two_mass_plant():
+    """With the tower 10⁴ times stiffer (its top moves micrometres) the rotor speed under
+    turbulence is the nrel5mw plant's within 1e-5 rad/s."""
+    over = {"wind": {"kind": "ntm", "mean_mps": 16.0, "turbulence_class": "B"},
+            "t_final_s": 20.0}
+    stiff = dict(config.make_config({**RUN, **over}).raw.get("turbine_params", {}))
+    k = turbine_file.load("nrel5mw").values["tower_stiffness"] * 1e4
+    tower = cases.run(config.make_config({**RUN, **over, "turbine_params": {
+        **stiff, "tower_stiffness": k}}), progress=False)
+    rigid = cases.run(config.make_config({**RUN, **over, "plant": "nrel5mw"}),
+                      progress=False)
+    assert np.max(np.abs(tower.column("omega_r") - rigid.column("omega_r"))) < 1e-5
+    assert np.max(np.abs(tower.column("tower_v"))) < 1e-3
+
+
+def test_metrics_count_the_tower_base_moment():
+    """metrics.json's tower-base DEL is the rainflow DEL of the M_tower trace with the
+    [loads] tower exponent; a plant without a tower has none."""
+    rc = config.make_config({**RUN, "wind": {"kind": "ntm", "mean_mps": 16.0},
+                             "loads": {"tower_wohler_exponent": 3.0}})
+    res = cases.run(rc, progress=False)
+    m = metrics(rc, res)
+    moment = res.column("M_tower")
+    assert m["tower_wohler_exponent"] == 3.0
+    assert m["tower_base_del_1hz_Nm"] == pytest.approx(
+        loads.del_1hz(moment, res.t[-1] - res.t[0], 3.0), rel=1e-12)
+    assert m["tower_base_max_abs_Nm"] == pytest.approx(np.max(np.abs(moment)), rel=1e-12)
+    assert 0 < m["tower_base_del_1hz_Nm"] < m["tower_base_max_abs_Nm"]
+    rigid = config.make_config({**RUN, "plant": "nrel5mw", "t_final_s": 2.0})
+    m2 = metrics(rigid, cases.run(rigid, progress=False))
+    assert m2["tower_base_del_1hz_Nm"] is None and m2["tower_base_max_abs_Nm"] is None
+
+
+def test_a_table_without_ct_is_refused_on_the_tower_plant(tmp_path):
+    """The tower plant needs the thrust coefficient: a Cp-only table is refused naming it."""
+    from wtftc.errors import ConfigError
+    from wtftc.model.aero import cp_interpolant
+    from wtftc.model.cp_table import read_cp_table
+
+    src = Path(turbine_file.load("nrel5mw").cp_path).read_text().splitlines()
+    cut = next(i for i, ln in enumerate(src) if "Thrust" in ln)
+    end = next(i for i, ln in enumerate(src) if "Torque" in ln)
+    path = tmp_path / "cp_only.txt"
+    path.write_text("\n".join(src[:cut] + src[end:]) + "\n")
+    table = read_cp_table(path)
+    assert table.ct is None
+    with pytest.raises(ConfigError, match="CT block"):
+        cp_interpolant(table, "ct")
