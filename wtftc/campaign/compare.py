@@ -66,7 +66,8 @@ CONTROLLERS |= {f"{c}_fdi": Variant(c, FDI_CASE, reg["doc"] + ", with wtftc's ow
 #: one list; tests/test_compare.py checks that none is missing), in the table's order, with
 #: its blade and magnitude (the hydraulic faults at full severity, their default)
 _FAULT_ON = {"loss_of_effectiveness": (2, {"rho": 0.5}), "lock": (1, {"angle_deg": "current"}),
-             "pressure_drop": (2, {}), "air_in_oil": (2, {})}
+             "pressure_drop": (2, {}), "air_in_oil": (2, {}),
+             "runaway": (1, {"target_deg": 0.0})}
 FAULTS = {"none": None} | {typ: [{"blade": blade, "type": typ, **magnitude, "onset_s": ONSET_S}]
                            for typ, (blade, magnitude) in _FAULT_ON.items()}
 WINDS = {

@@ -8,13 +8,17 @@ A fault configuration is a list of tables, each:
     end_s = 1e9          # optional: the fault disappears at end_s
     ramp_s = 0.0         # 0: abrupt; > 0: linear transition over ramp_s at onset and end
     # type-specific: rho (loss_of_effectiveness), angle_deg or "current" (lock),
-    #                severity (pressure_drop, air_in_oil); sensor faults: see SENSOR_TYPES
+    #                severity (pressure_drop, air_in_oil), target_deg (runaway);
+    #                sensor faults: see SENSOR_TYPES
 
 Types: eq (19) ``lock`` (lock-in-place at a given angle, or ``angle_deg = "current"``:
 wherever the blade is at onset) and ``loss_of_effectiveness`` (ρ); the benchmark's
 ``pressure_drop`` (ω_n 5.73 rad/s, ζ 0.45) and ``air_in_oil`` (ω_n 3.42 rad/s, ζ 0.9), at
 full severity (1, the default) or part of the way from the nominal actuator (severity s in
-(0, 1]: ω_n = ω_n0 + s (ω_n,fault − ω_n0), the same for ζ);
+(0, 1]: ω_n = ω_n0 + s (ω_n,fault − ω_n0), the same for ζ); a ``runaway`` (IEC 61400-1
+DLC 2.1/2.2's control fault: the blade's actuator driven toward ``target_deg``, 0° fine
+pitch by default or 90° feather, whatever the controller commands: eq (19)'s lock at the
+target, the blade moving there at its actuator's speed, held to the rate limit);
 and sensor faults on every measured signal (derivation/sensors.py): the pitch sensors'
 ``pitch_sensor_stuck|gain|offset|drift|precision`` (blade j), and the rotor and generator
 speed sensors' ``rotor_speed_sensor_stuck|gain|offset`` and
@@ -84,6 +88,8 @@ TYPES = {
     "loss_of_effectiveness": FaultType("actuator", "rho"),  # eq (19)
     "pressure_drop": FaultType("actuator", "severity"),  # Odgaard et al. 2013
     "air_in_oil": FaultType("actuator", "severity"),  # Odgaard et al. 2013
+    # IEC 61400-1 DLC 2.x: a pitch runaway toward fine pitch (0°, default) or feather
+    "runaway": FaultType("actuator", "target_deg", default=0.0, bounds=(0.0, 90.0, False)),
     **_sensor_types(),
 }
 #: old names of sensor fault types, still read
@@ -127,6 +133,8 @@ class Fault:
             d["rho"] = self.rho
         if self.type == "lock":
             d["angle_deg"] = "current" if self.angle is None else float(np.degrees(self.angle))
+        if self.type == "runaway":
+            d["target_deg"] = float(np.degrees(self.angle))
         ft = TYPES[self.type]
         if ft.acts_on == "sensor":
             if not self.blade:
@@ -195,6 +203,8 @@ def _parse_fault(tab, w: str) -> Fault:
         ang = tab.get("angle_deg", "current")
         if ang != "current":
             f.angle = np.radians(_num(tab, "angle_deg", w, lo=0.0, hi=90.0))
+    elif typ == "runaway":
+        f.angle = np.radians(_num(tab, "target_deg", w, ft.default, lo=0.0, hi=90.0))
     elif typ in HYDRAULIC:
         f.severity = _num(tab, "severity", w, 1.0, lo=0.0, hi=1.0, lo_open=True)
     else:
@@ -279,7 +289,7 @@ class Schedule:
             j, w = f.blade - 1, f.weight(t)
             if f.type == "loss_of_effectiveness":
                 rho[j] = rho[j] * (1 - w) + f.rho * w
-            elif f.type == "lock":
+            elif f.type in ("lock", "runaway"):  # a runaway: locked onto its target
                 lock[j] = np.maximum(lock[j], w)
                 ubar[j] = np.where(w > 0, f.angle if f.angle is not None else np.nan, ubar[j])
             elif f.type in HYDRAULIC:

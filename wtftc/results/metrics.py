@@ -209,7 +209,7 @@ def _against_truth(f, b: dict, res: integrate.Result, j: int) -> dict:
     d = {"fault": f.type, "detection_delay_s": None if t_det is None else t_det - f.onset_s}
     if f.type == "loss_of_effectiveness":
         d["rho_error"] = b["rho_hat"] - f.rho
-    if f.type == "lock" and f.angle is not None:
+    if f.type in ("lock", "runaway") and f.angle is not None:
         d["stuck_angle_error_deg"] = b["c_hat_deg"] - float(np.degrees(f.angle))
     if f.type in HYDRAULIC:
         d["dynamics_identified"] = bool(np.isclose(b["omega_n_hat_rad_s"], HYDRAULIC[f.type][0]))
@@ -249,7 +249,9 @@ def _fault_entry(f, first: dict, excluded: dict, blades: dict, res) -> dict:
     entry["estimate"] = ({k: blades[str(hit)][k] for k in ("rho_hat", "c_hat_deg",
                                                             "omega_n_hat_rad_s", "zeta_hat")}
                          if hit is not None else None)
-    entry["correct"] = bool(hit == f.blade and entry["identified_type"] == f.type)
+    # a runaway is a lock at its target to the FDI (eq (19)): told as one
+    expected = "lock" if f.type == "runaway" else f.type
+    entry["correct"] = bool(hit == f.blade and entry["identified_type"] == expected)
     return entry
 
 

@@ -41,6 +41,7 @@ SENSOR_MAGNITUDES = {"value_deg": (5.0, -90.0, 90.0, "deg"), "gain": (1.2, 0.0, 
                      "offset_rad_s": (0.1, -100.0, 100.0, "rad/s")}
 #: the dataset's column of each magnitude key
 MAGNITUDE_COLUMN = {"angle_deg": "stuck_angle_deg", "rho": "rho", "severity": "severity",
+                    "target_deg": "runaway_target_deg",
                     **{k: f"sensor_{k}" for k in SENSOR_MAGNITUDES}}
 TURBULENCE_CLASSES = tuple(wind.I_REF)
 PLANTS = tuple(rhs.PLANTS)
@@ -310,6 +311,9 @@ def _axes(raw: dict, wind_tab: dict, fault_tab: dict, mode: str, t_final: float)
         # which of a quantity's two sensors a sensor fault hits (last: a single value
         # draws nothing, and earlier sweeps' scenarios stay what they were)
         _axis("fault.sensor", fault_tab.get("sensor", 1), "int", mode, lo=1, hi=2),
+        # a runaway's target (last, as the sensor: earlier sweeps' scenarios unchanged)
+        _axis("fault.target_deg", fault_tab.get("target_deg", 0.0), "float", mode, lo=0.0,
+              hi=90.0, lo_open=False),
     ]
 
 

@@ -65,6 +65,7 @@ def schema():
               f("onset_s", pa.float64(), "s"), f("rho", pa.float64(), "-"),
               f("stuck_angle_deg", pa.string(), "deg"), f("severity", pa.float64(), "-"),
               *[f(f"sensor_{k}", pa.float64(), u) for k, (_, _, _, u) in SENSOR_MAGNITUDES.items()],
+              f("runaway_target_deg", pa.float64(), "deg"),
               f("fault_detected", pa.bool_()), f("fault_correct", pa.bool_()),
               f("status", pa.string()), f("cause", pa.string()),
               f("diverged_at_s", pa.float64(), "s"), f("diverged_state", pa.string()),
