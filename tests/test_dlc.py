@@ -51,7 +51,8 @@ def test_the_lifetime_figures_of_two_bins_by_hand():
 
 
 @pytest.mark.parametrize("table, field", [
-    ({"case": "2.1"}, "dlc.case"), ({"annual_mean_mps": 0.0}, "dlc.annual_mean_mps"),
+    ({"case": "2.2"}, "dlc.case"), ({"annual_mean_mps": 0.0}, "dlc.annual_mean_mps"),
+    ({"case": "2.1", "overspeed_trip": 3.0}, "dlc.overspeed_trip"),
     ({"bins": 2}, "dlc.bins"), ("1.2", "dlc"),
 ])
 def test_a_bad_dlc_table_is_refused_naming_the_key(table, field):

@@ -322,7 +322,8 @@ def _cmd_sweep(args) -> int:
 
     if args.summary is not None:
         print(sweep.summarize(args.summary))
-        extra = ", summary_dlc.csv" if (Path(args.summary) / "summary_dlc.csv").exists() else ""
+        extra = "".join(f", {n}" for n in ("summary_dlc.csv", "summary_tuning.csv")
+                        if (Path(args.summary) / n).exists())
         print(f"written: {args.summary}/summary.md, summary.csv, summary_cost.csv{extra}, "
               "figures/")
         return 0
@@ -370,10 +371,10 @@ def _cmd_verify(args) -> int:
 
 def _cmd_run(args) -> int:
     from wtftc import config
-    from wtftc.campaign import cases
+    from wtftc.campaign import cases, tune
     from wtftc.results.io import ensure_writable_dir
 
-    rc = config.make_config(_run_overrides(args))
+    rc = config.make_config(tune.resolve(_run_overrides(args)))
     ensure_writable_dir(args.out, "--out", create=False)
     print(f"{rc.label}: case {rc.case} ({config.CASES[rc.case]}) on {rc.plant}, "
           f"{rc.t_final:g} s at dt = {rc.dt:g} s")

@@ -32,7 +32,8 @@ FAULT_FREE_CASE, UNAWARE_CASE, ORACLE_CASE, FDI_CASE = 1, 2, 3, 4
 TOP_KEYS = {"case", "plant", "controller", "t_final_s", "dt_s", "seed", "output_rate_hz",
             "control_sign", "reference_rad_s", "cp_table", "wind", "fault", "controller_params",
             "turbine_params", "initial", "label", "profile", "control_interval_s",
-            "control_delay", "sensors", "mismatch", "fdi", "turbine", "loads"}
+            "control_delay", "sensors", "mismatch", "fdi", "turbine", "loads", "rosco",
+            "tuning"}
 
 DEFAULTS = {
     "case": 1, "plant": "nrel5mw", "controller": "paper", "t_final_s": 60.0, "dt_s": 1e-3,
@@ -136,6 +137,8 @@ class RunConfig:
     test_pulse: tuple | None = None
     #: ROSCO's DISCON.IN for the run's turbine (controller = rosco; turbine files)
     rosco_discon: str | None = None
+    #: its pitch gains retuned: (ω_pc, ζ_pc, the DISCON.IN's ω_pc, ζ_pc), or None
+    rosco_retune: tuple | None = None
 
     plant = property(lambda self: self.loop.plant)
     controller = property(lambda self: self.loop.controller)
@@ -285,6 +288,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     _control_sign(raw)
     loads_options(raw)  # refused here, used by the metrics
     turbine = _turbine(raw)
+    retune = _rosco(raw, turbine)
     p_ctrl, p_turbine = _parameters(raw, controller, turbine)
     ref = _reference(raw, p_turbine)
     if not isinstance(raw["wind"], dict):
@@ -303,7 +307,37 @@ def make_config(cfg: dict | None = None) -> RunConfig:
                      decimate=decimate, reference=ref, p_ctrl=p_ctrl, wind=wind, faults=faults,
                      omega_offset=offset, p_sensors=p_sensors, p_plant=p_plant,
                      cp_scale=cp_scale, p_fdi=p_fdi, test_pulse=test_pulse,
-                     rosco_discon=turbine.rosco_discon)
+                     rosco_discon=turbine.rosco_discon, rosco_retune=retune)
+
+
+#: the [rosco] table: ROSCO's pitch PI retuned to this closed-loop target (docs/compare.md)
+ROSCO_KEYS = {"omega_pc_rad_s": (0.01, 5.0), "zeta_pc": (0.1, 3.0)}
+
+
+def _rosco(raw: dict, turbine) -> tuple | None:
+    """The [rosco] table's target as (ω_pc, ζ_pc, ω_pc0, ζ_pc0), None without one; a
+    [tuning] table left unresolved is refused (wtftc.campaign.tune.resolve turns it into
+    each controller's own gains, as `wtftc run` and `wtftc sweep` do)."""
+    if "tuning" in raw:
+        raise ConfigError("tuning", raw["tuning"], "resolved before the run: "
+                          "wtftc.campaign.tune.resolve(cfg) (wtftc run and sweep do it)")
+    tab = raw.get("rosco")
+    if tab is None:
+        return None
+    if not isinstance(tab, dict) or set(tab) - set(ROSCO_KEYS) or not tab:
+        raise ConfigError("rosco", tab, "a table with " + ", ".join(ROSCO_KEYS))
+    if raw["controller"] != "rosco":
+        raise ConfigError("rosco", tab, "only with controller = rosco")
+    if turbine.rosco_tuning is None:
+        raise ConfigError("rosco", tab, "a turbine file with rosco_tuning (the target its "
+                          "DISCON.IN was tuned for: docs/turbines.md)")
+    out = []
+    for (key, (lo, hi)), base in zip(ROSCO_KEYS.items(), turbine.rosco_tuning, strict=True):
+        v = tab.get(key, base)
+        if isinstance(v, bool) or not isinstance(v, int | float) or not lo <= v <= hi:
+            raise ConfigError(f"rosco.{key}", v, f"a number in [{lo:g}, {hi:g}]")
+        out.append(float(v))
+    return (*out, *turbine.rosco_tuning)
 
 
 #: the [loads] table (docs/loads.md): key → (default, low, high, what); m = 4 is the value

@@ -37,7 +37,7 @@ def run(rc: RunConfig, progress: bool = True, keep_states: bool = False) -> Resu
                           "fault accommodation)")
     inputs, _ = _prepare(rc, check=False)
     res = rosco.run(rc.loop, inputs, rc.t_final, rc.dt, rc.decimate, progress=progress,
-                    discon=rc.rosco_discon)
+                    discon=rc.rosco_discon, retune=rc.rosco_retune)
     res.config = {**rc.raw, "wind_resolved": rc.wind.describe(),
                   "fault_resolved": res.schedule.describe() if res.schedule else [],
                   "rosco": {"version": rosco.ROSCO_VERSION, "control_dt_s": rosco.CONTROL_DT}}

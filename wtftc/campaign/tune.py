@@ -21,6 +21,8 @@ Each result is checked on the exact linear model: the achieved mode and the marg
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from wtftc import config
@@ -96,3 +98,50 @@ def tune(controller: str, turbine: str | None, omega_n: float, zeta: float,
     facts = tuning.turbine_params_of(group, rc.p_turbine)
     return {"gains": gains, "facts": {k: values[k] for k in facts},
             "achieved": lin.summary_row(op), "raw": raw}
+
+
+#: the [tuning] table: the pitch loop's target mode, for every tunable controller alike
+#: (docs/compare.md, "Tuned families"): key → (default, low, high)
+TUNING_KEYS = {"omega_n_rad_s": (None, 0.01, 10.0), "zeta": (None, 0.1, 2.0),
+               "design_wind_mps": (16.0, 3.0, 40.0)}
+#: the controllers a [tuning] table retunes: ROSCO by its DISCON.IN's gain schedule, the
+#: PI by its targets, the physical AFTC by (c1, γ) solved on the exact linear loop
+RETUNABLE = ("rosco", "pi", "physical")
+
+
+def resolve(cfg: dict) -> dict:
+    """``cfg`` with its [tuning] table turned into the controller's own settings: ROSCO's
+    [rosco] target, the PI's ``pi_omega_n``/``pi_zeta``, the physical AFTC's (c1, c2, γ)
+    (:func:`_solve_physical` at the design wind, on the run's turbine; solved once per
+    process and target). Without [tuning], ``cfg`` as it is."""
+    if "tuning" not in cfg:
+        return cfg
+    tab, out = cfg["tuning"], {k: v for k, v in cfg.items() if k != "tuning"}
+    if not isinstance(tab, dict) or set(tab) - set(TUNING_KEYS):
+        raise ConfigError("tuning", tab, "a table with " + ", ".join(TUNING_KEYS))
+    vals = {}
+    for key, (default, lo, hi) in TUNING_KEYS.items():
+        v = tab.get(key, default)
+        if isinstance(v, bool) or not isinstance(v, int | float) or not lo <= v <= hi:
+            raise ConfigError(f"tuning.{key}", v, f"a number in [{lo:g}, {hi:g}]")
+        vals[key] = float(v)
+    controller = cfg.get("controller", config.DEFAULTS["controller"])
+    if controller not in RETUNABLE:
+        raise ConfigError("tuning", tab, "controller = " + ", ".join(RETUNABLE) + " (the "
+                          "designs tuned from a target mode)")
+    w, z = vals["omega_n_rad_s"], vals["zeta"]
+    if controller == "rosco":
+        return out | {"rosco": {"omega_pc_rad_s": w, "zeta_pc": z}}
+    gains = ({"pi_omega_n": w, "pi_zeta": z} if controller == "pi" else
+             _physical_gains(cfg.get("turbine"), w, z, vals["design_wind_mps"]))
+    return out | {"controller_params": {**cfg.get("controller_params", {}), **gains}}
+
+
+@functools.cache
+def _physical_gains(turbine: str | None, omega_n: float, zeta: float, wind: float) -> dict:
+    base = {"controller": "physical", **({"turbine": turbine} if turbine else {})}
+    try:
+        return _solve_physical(base, wind, omega_n, zeta)
+    except ConfigError as exc:
+        raise ConfigError("tuning", {"omega_n_rad_s": omega_n, "zeta": zeta},
+                          exc.allowed) from None

@@ -54,6 +54,10 @@ class Turbine:
     #: ROSCO's DISCON.IN tuned for this turbine (``controller = rosco``): a path relative
     #: to the turbine file, or ``rosco:<path>`` inside the installed rosco package's tree
     rosco_discon: str | None = None
+    #: the pitch loop's closed-loop target (ω_pc [rad/s], ζ_pc) that DISCON.IN's gain
+    #: schedule was tuned for (its tuning YAML's ``omega_pc``, ``zeta_pc``): what lets a
+    #: run retune it (``[rosco]``, wtftc.sim.rosco.retuned_gains)
+    rosco_tuning: tuple | None = None
 
     def vector(self) -> np.ndarray:
         """The parameters in the layout's turbine_params order."""
@@ -116,7 +120,22 @@ def read(path: Path) -> Turbine:
                           where=where)
     if rosco is not None and not rosco.startswith("rosco:") and not Path(rosco).is_absolute():
         rosco = str(path.parent / rosco)
-    return Turbine(doc["name"], doc["title"], where, values, sources, str(cp), rosco)
+    return Turbine(doc["name"], doc["title"], where, values, sources, str(cp), rosco,
+                   _rosco_tuning(doc.get("rosco_tuning"), where))
+
+
+def _rosco_tuning(tab, where: str) -> tuple | None:
+    """``rosco_tuning = { omega_pc_rad_s = 0.6, zeta_pc = 0.7 }``, or None."""
+    if tab is None:
+        return None
+    want = "{ omega_pc_rad_s = <rad/s>, zeta_pc = <-> }, both positive"
+    if not isinstance(tab, dict) or set(tab) != {"omega_pc_rad_s", "zeta_pc"}:
+        raise ConfigError("rosco_tuning", tab, want, where=where)
+    vals = tuple(tab[k] for k in ("omega_pc_rad_s", "zeta_pc"))
+    if any(isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v < 100
+           for v in vals):
+        raise ConfigError("rosco_tuning", tab, want, where=where)
+    return tuple(float(v) for v in vals)
 
 
 def _entry(params: dict, name: str, unit: str, where: str) -> tuple[float, str]:

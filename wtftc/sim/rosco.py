@@ -78,16 +78,40 @@ def discon_path(spec: str) -> Path:
     return Path(spec)
 
 
-def _discon_copy(tmp: Path, spec: str = NREL5MW_DISCON) -> Path:
+def retuned_gains(kp: np.ndarray, ki: np.ndarray, retune: tuple) -> tuple:
+    """ROSCO's pitch PI gain schedule for another closed-loop target: ``retune`` = (ω_pc,
+    ζ_pc, ω_pc0, ζ_pc0), the new target and the one the schedule was tuned for. ROSCO's
+    toolbox (``ControllerTypes.second_order_PI``) sets K_p = (2ζω + A)/B and K_i = ω²/B
+    on the plant's A and B at each scheduled point, so from the schedule for (ω0, ζ0):
+    B = ω0²/K_i0, and K_p = K_p0 + 2(ζω − ζ0ω0)/B, K_i = K_i0 ω²/ω0², exactly."""
+    w, z, w0, z0 = retune
+    b = w0**2 / np.asarray(ki, float)
+    return np.asarray(kp, float) + 2 * (z * w - z0 * w0) / b, np.asarray(ki, float) * w**2 / w0**2
+
+
+def _retuned_line(line: str, key: str, lines: dict, retune: tuple) -> str:
+    kp, ki = (np.array(lines[k].split("!")[0].split(), float) for k in ("PC_GS_KP", "PC_GS_KI"))
+    gains = dict(zip(("PC_GS_KP", "PC_GS_KI"), retuned_gains(kp, ki, retune), strict=True))
+    return "   ".join(f"{g:.6e}" for g in gains[key]) + "   ! " + line.split("!", 1)[1]
+
+
+def _discon_copy(tmp: Path, spec: str = NREL5MW_DISCON, retune: tuple | None = None) -> Path:
     """The turbine's DISCON.IN with logging off and the Cp file by absolute path (resolved
-    against the DISCON.IN's folder when relative, as ROSCO does)."""
+    against the DISCON.IN's folder when relative, as ROSCO does); with ``retune``, its
+    pitch gain schedule for another closed-loop target (:func:`retuned_gains`)."""
     src = discon_path(spec)
     if not src.is_file():
         raise ConfigError("controller", "rosco", f"a rosco install with {src}")
+    text = src.read_text().splitlines()
+    keyed = {ln.split("!")[-1].strip().split(" ")[0].split("\t")[0]: ln for ln in text
+             if "!" in ln}
     out = []
-    for line in src.read_text().splitlines():
+    for line in text:
         key = line.split("!")[-1].strip().split(" ")[0] if "!" in line else ""
-        if key == "LoggingLevel":
+        key = key.split("\t")[0]
+        if retune is not None and key in ("PC_GS_KP", "PC_GS_KI"):
+            line = _retuned_line(line, key, keyed, retune)
+        elif key == "LoggingLevel":
             line = "0" + line[line.index(" ") if " " in line.strip() else len(line):]
         elif key == "PerfFileName":
             cp = Path(line.split("!")[0].strip().strip('"').strip("'"))
@@ -114,10 +138,12 @@ def _quiet_stdout():
 
 
 def run(loop: Loop, inputs: integrate.Run, t_final: float, dt: float, decimate: int = 1,
-        progress: bool = True, discon: str | None = None) -> integrate.Result:
+        progress: bool = True, discon: str | None = None,
+        retune: tuple | None = None) -> integrate.Result:
     """Simulate one run (its plant, wind, faults) with ROSCO in the loop: ``loop`` is the
     ``external`` controller's, whose parameters are the held blade pitch commands;
-    ``discon`` the turbine's DISCON.IN (a turbine file's ``rosco_discon``)."""
+    ``discon`` the turbine's DISCON.IN (a turbine file's ``rosco_discon``), its pitch
+    gains retuned by ``retune`` (:func:`retuned_gains`)."""
     reason = available()
     if reason:
         raise ConfigError("controller", "rosco", reason)
@@ -133,7 +159,7 @@ def run(loop: Loop, inputs: integrate.Run, t_final: float, dt: float, decimate: 
         cwd = os.getcwd()
         os.chdir(tmp)  # ROSCO writes next to sim_name; keep the user's folder clean
         try:
-            hook = _Discon(Path(tmp), loop, inputs, n_sub, discon or NREL5MW_DISCON)
+            hook = _Discon(Path(tmp), loop, inputs, n_sub, discon or NREL5MW_DISCON, retune)
             res = integrate.run_loops(loop, [inputs], t_final, dt, decimate, progress=False,
                                       hook=hook)[0]
             hook.close()
@@ -153,7 +179,7 @@ class _Discon(integrate.ChunkHook):
     torque (the turbine's rated torque, constant-torque law)."""
 
     def __init__(self, tmp: Path, loop: Loop, inputs: integrate.Run, n_sub: int,
-                 discon: str = NREL5MW_DISCON):
+                 discon: str = NREL5MW_DISCON, retune: tuple | None = None):
         self.steps = n_sub
         self.dt = CONTROL_DT / n_sub
         self.wind = inputs.wind
@@ -182,7 +208,7 @@ class _Discon(integrate.ChunkHook):
         self.ci = _interface(tmp, float(np.degrees(self.pitch.mean())),
                              {"gen_speed": omega_g * n_g, "rot_speed": z0[self.i_omega_r],
                               "ws": float(self.wind(0.0)), "gen_torque": self.tq_hss},
-                             discon)
+                             discon, retune)
 
     def before(self, call: integrate.Buffered) -> None:
         pt = self.p_turbine.copy()
@@ -222,7 +248,8 @@ class _Discon(integrate.ChunkHook):
         self.ci.kill_discon()
 
 
-def _interface(tmp: Path, pitch_deg: float, init_state: dict, discon: str = NREL5MW_DISCON):
+def _interface(tmp: Path, pitch_deg: float, init_state: dict, discon: str = NREL5MW_DISCON,
+               retune: tuple | None = None):
     """ROSCO's ControllerInterface on a private DISCON.IN, its first call given the real
     initial state (the stock one assumes 1 rad/s and 10 m/s)."""
     rosco, ControllerInterface = _import()
@@ -235,7 +262,7 @@ def _interface(tmp: Path, pitch_deg: float, init_state: dict, discon: str = NREL
                 self.avrSWAP[26], self.avrSWAP[22] = s["ws"], s["gen_torque"]
             super().call_discon()
 
-    ci = _InitState(rosco.discon_lib_path, param_filename=str(_discon_copy(tmp, discon)),
+    ci = _InitState(rosco.discon_lib_path, param_filename=str(_discon_copy(tmp, discon, retune)),
                     DT=CONTROL_DT, pitch=pitch_deg, sim_name=str(tmp / "wtftc"),
                     avr_size=2000)
     if ci.aviFAIL.value < 0:

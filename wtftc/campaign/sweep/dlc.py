@@ -31,8 +31,10 @@ import numpy as np
 from wtftc.campaign.compare import CONTROLLERS
 from wtftc.errors import ConfigError
 
-DLC_KEYS = {"case": ("1.2",), "annual_mean_mps": (1.0, 30.0), "bin_width_mps": (0.1, 10.0)}
-DEFAULTS = {"case": "1.2", "annual_mean_mps": 10.0, "bin_width_mps": 2.0}
+DLC_KEYS = {"case": ("1.2", "2.1"), "annual_mean_mps": (1.0, 30.0),
+            "bin_width_mps": (0.1, 10.0), "overspeed_trip": (1.0, 2.0)}
+DEFAULTS = {"case": "1.2", "annual_mean_mps": 10.0, "bin_width_mps": 2.0,
+            "overspeed_trip": 1.2}
 HOURS_PER_YEAR = 8766.0
 
 
@@ -46,12 +48,13 @@ def parse_dlc(table) -> dict:
     out = {**DEFAULTS, **table}
     if out["case"] not in DLC_KEYS["case"]:
         raise ConfigError("dlc.case", out["case"], '"1.2" (power production, normal '
-                          "turbulence)")
-    for key in ("annual_mean_mps", "bin_width_mps"):
+                          'turbulence) or "2.1" (power production with a control fault)')
+    for key, unit in (("annual_mean_mps", "m/s"), ("bin_width_mps", "m/s"),
+                      ("overspeed_trip", "× rated speed")):
         lo, hi = DLC_KEYS[key]
         v = out[key]
         if isinstance(v, bool) or not isinstance(v, int | float) or not lo <= v <= hi:
-            raise ConfigError(f"dlc.{key}", v, f"a number in [{lo:g}, {hi:g}] [m/s]")
+            raise ConfigError(f"dlc.{key}", v, f"a number in [{lo:g}, {hi:g}] [{unit}]")
         out[key] = float(v)
     return out
 
@@ -152,6 +155,86 @@ def section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
             f"{cb[v]['shaft_torque_del_1hz_Nm'] / 1e6:.3f} / {cb[v]['pitch_adc']:.3f}"
             if v in cb else "—" for v in winds) + " |")
     return lines, csv
+
+
+def fault_label(r: dict) -> str:
+    """A run's fault as the DLC 2.1 tables name it: a runaway by its direction."""
+    if r["fault_type"] != "runaway":
+        return r["fault_type"]
+    return "runaway_fine" if (r.get("runaway_target_deg") or 0.0) < 45.0 else "runaway_feather"
+
+
+#: the DLC 2.1 extremes: (key, header, scale, format)
+EXTREMES = [("overspeed_peak_over_rated", "extreme ω / rated [-]", 1.0, "{:.3f}"),
+            ("shaft_torque_max_abs_Nm", "extreme shaft torque [MN m]", 1e-6, "{:.2f}"),
+            ("tower_base_max_abs_Nm", "extreme tower-base moment [MN m]", 1e-6, "{:.1f}")]
+
+
+def extremes(rows: list[dict], trip: float) -> dict:
+    """(controller, fault) → runs, lost (left the envelope), held (never above ``trip`` ×
+    rated and not lost: no overspeed shutdown) and the extremes (EXTREMES) over its runs."""
+    groups: dict[tuple, list] = {}
+    for r in rows:
+        if r["fault_type"] != "none" and r["status"] != "failed":
+            groups.setdefault((r["controller"], fault_label(r)), []).append(r)
+    out = {}
+    for key, rs in sorted(groups.items(), key=lambda kv: (
+            list(CONTROLLERS).index(kv[0][0]), kv[0][1])):
+        held = sum(r["status"] == "ok" and (r["overspeed_peak_over_rated"] or 0.0) <= trip
+                   for r in rs)
+        out[key] = {"runs": len(rs), "lost": sum(r["status"] == "diverged" for r in rs),
+                    "held": held, **{k: max((r[k] for r in rs if r.get(k) is not None),
+                                            default=None) for k, *_ in EXTREMES}}
+    return out
+
+
+def fault_section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
+    """The summary's DLC 2.1 section: per controller and fault type, the runs held
+    without an overspeed shutdown and the extremes; Markdown and CSV lines (SI)."""
+    dlc = parse_dlc(table)
+    trip = dlc["overspeed_trip"]
+    head = ["controller", "fault", "runs", "rotor lost", f"held (ω ≤ {trip:g} × rated)"] + [
+        h for _, h, _, _ in EXTREMES]
+    lines = ["", "## DLC 2.1: power production with a control fault (docs/loads.md)", "",
+             "A fault at a random time in each run; a runaway drives its blade toward fine "
+             "pitch (0°) or feather (90°). \"Held\": the rotor never left the envelope nor "
+             f"passed {trip:g} × rated speed (an overspeed protection would have shut the "
+             "turbine down). Figure `figures/dlc21_extremes.png`.", "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    csv = ["controller,fault,runs,lost,held," + ",".join(k for k, *_ in EXTREMES)]
+    for (c, f), e in extremes(rows, trip).items():
+        lines.append("| " + " | ".join([c, f, str(e["runs"]), str(e["lost"]), str(e["held"])]
+                                       + ["—" if e[k] is None else fmt.format(e[k] * s)
+                                          for k, _, s, fmt in EXTREMES]) + " |")
+        csv.append(",".join([c, f, str(e["runs"]), str(e["lost"]), str(e["held"])]
+                            + ["" if e[k] is None else str(e[k]) for k, *_ in EXTREMES]))
+    return lines, csv
+
+
+def fault_figure(rows: list[dict], table: dict):
+    """The extreme overspeed and shaft torque per fault type, a bar per controller."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ext = extremes(rows, parse_dlc(table)["overspeed_trip"])
+    ctrls = list(dict.fromkeys(c for c, _ in ext))
+    faults = sorted({f for _, f in ext})
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4))
+    width = 0.8 / max(len(ctrls), 1)
+    for ax, (key, label, scale, _) in zip(axes, EXTREMES[:2], strict=True):
+        for i, c in enumerate(ctrls):
+            vals = [(ext.get((c, f), {}).get(key) or np.nan) * scale for f in faults]
+            ax.bar(np.arange(len(faults)) + i * width, vals, width, label=c)
+        ax.set_xticks(np.arange(len(faults)) + 0.4 - width / 2, faults, rotation=20,
+                      fontsize=8)
+        ax.set_ylabel(label)
+    axes[0].axhline(parse_dlc(table)["overspeed_trip"], color="k", lw=0.8, ls="--")
+    axes[0].set_ylim(bottom=1.0)
+    axes[0].legend(fontsize=8)
+    fig.suptitle("DLC 2.1: extremes over every run of each fault type", fontsize=9)
+    return fig
 
 
 def _exponent(rows: list[dict], key: str) -> float:

@@ -22,7 +22,7 @@ from wtftc.sim import rhs
 
 TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "output_rate_hz",
             "batch_size", "controllers", "optional_controllers", "plants", "wind", "fault",
-            "profile", "mismatch", "fault_free_twins", "turbine", "dlc"}
+            "profile", "mismatch", "fault_free_twins", "turbine", "dlc", "tuning"}
 #: the [mismatch] table's keys: the plant's factors against the controllers' model
 #: (config.MISMATCH), each an axis like any other (1.0: none)
 MISMATCH_KEYS = tuple(config.MISMATCH)
@@ -45,8 +45,11 @@ MAGNITUDE_COLUMN = {"angle_deg": "stuck_angle_deg", "rho": "rho", "severity": "s
                     **{k: f"sensor_{k}" for k in SENSOR_MAGNITUDES}}
 TURBULENCE_CLASSES = tuple(wind.I_REF)
 PLANTS = tuple(rhs.PLANTS)
-#: the axes that random mode crosses with every scenario, rather than draws
-CROSSED = ("controllers", "plants")
+#: the axes that random mode crosses with every scenario, rather than draws (a tuned
+#: family runs every scenario at each of its targets)
+CROSSED = ("controllers", "plants", "tuning.omega_n_rad_s", "tuning.zeta")
+#: the [tuning] table's keys (wtftc.campaign.tune.TUNING_KEYS): two axes and a setting
+TUNING_AXES = ("omega_n_rad_s", "zeta")
 
 
 @dataclass(frozen=True)
@@ -314,7 +317,26 @@ def _axes(raw: dict, wind_tab: dict, fault_tab: dict, mode: str, t_final: float)
         # a runaway's target (last, as the sensor: earlier sweeps' scenarios unchanged)
         _axis("fault.target_deg", fault_tab.get("target_deg", 0.0), "float", mode, lo=0.0,
               hi=90.0, lo_open=False),
+        *_tuning_axes(raw.get("tuning"), mode),
     ]
+
+
+def _tuning_axes(tab, mode: str) -> list[Axis]:
+    """[tuning]: the pitch loop's target mode, an axis each (crossed in random mode);
+    without the table one value, None (no run is retuned)."""
+    from wtftc.campaign.tune import TUNING_KEYS
+
+    if tab is None:
+        return [Axis(f"tuning.{k}", values=(None,)) for k in TUNING_AXES]
+    if not isinstance(tab, dict) or set(tab) - set(TUNING_KEYS) or not set(TUNING_AXES) <= set(tab):
+        raise ConfigError("tuning", tab, "a table with omega_n_rad_s and zeta (values or "
+                          "ranges) and optionally design_wind_mps (one number)")
+    _, lo, hi = TUNING_KEYS["design_wind_mps"]
+    _check_value("tuning.design_wind_mps", tab.get("design_wind_mps", 16.0), "float", lo=lo,
+                 hi=hi)
+    return [_axis(f"tuning.{k}", tab[k], "float", "grid" if mode == "random" else mode,
+                  lo=TUNING_KEYS[k][1], hi=TUNING_KEYS[k][2], lo_open=False)
+            for k in TUNING_AXES]
 
 
 def _check_together(by_key: dict[str, Axis], t_final: float) -> None:
@@ -426,6 +448,7 @@ def _point(sw: Sweep, values: dict) -> dict:
     cfg.update(plant=p["plant"], output_rate_hz=sw.output_rate_hz)
     if sw.turbine:  # (absent: the run ids of earlier sweeps)
         cfg["turbine"] = sw.turbine
+    _tuning(sw, values, p, cfg)
     mismatch = {k: float(values[f"mismatch.{k}"]) for k in MISMATCH_KEYS}
     p.update({f"mismatch_{k}": v for k, v in mismatch.items()})
     if any(v != 1.0 for v in mismatch.values()):  # (absent: the run ids of earlier sweeps)
@@ -435,6 +458,21 @@ def _point(sw: Sweep, values: dict) -> dict:
     twin = {"twin_onset_s": float(values["twin_onset_s"])} if values.get("twin_onset_s") \
         is not None else {}
     return {"run_id": run_id, **p, "config": cfg, **twin}
+
+
+def _tuning(sw: Sweep, values: dict, p: dict, cfg: dict) -> None:
+    """A retunable controller's [tuning] target into its run (and its columns)."""
+    from wtftc.campaign.tune import RETUNABLE
+
+    p["tuning_omega_n_rad_s"] = p["tuning_zeta"] = None
+    w = values.get("tuning.omega_n_rad_s")
+    if w is None or CONTROLLERS[p["controller"]].controller not in RETUNABLE:
+        return
+    tab = {"omega_n_rad_s": float(w), "zeta": float(values["tuning.zeta"])}
+    if "design_wind_mps" in sw.raw["tuning"]:
+        tab["design_wind_mps"] = float(sw.raw["tuning"]["design_wind_mps"])
+    cfg["tuning"] = tab
+    p["tuning_omega_n_rad_s"], p["tuning_zeta"] = tab["omega_n_rad_s"], tab["zeta"]
 
 
 def _combinations(sw: Sweep):

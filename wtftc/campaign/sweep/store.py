@@ -66,6 +66,7 @@ def schema():
               f("stuck_angle_deg", pa.string(), "deg"), f("severity", pa.float64(), "-"),
               *[f(f"sensor_{k}", pa.float64(), u) for k, (_, _, _, u) in SENSOR_MAGNITUDES.items()],
               f("runaway_target_deg", pa.float64(), "deg"),
+              f("tuning_omega_n_rad_s", pa.float64(), "rad/s"), f("tuning_zeta", pa.float64(), "-"),
               f("fault_detected", pa.bool_()), f("fault_correct", pa.bool_()),
               f("status", pa.string()), f("cause", pa.string()),
               f("diverged_at_s", pa.float64(), "s"), f("diverged_state", pa.string()),

@@ -10,7 +10,7 @@ import numpy as np
 
 from wtftc import config
 from wtftc.campaign.compare import CONTROLLERS
-from wtftc.campaign.sweep import dlc
+from wtftc.campaign.sweep import dlc, tradeoff
 from wtftc.campaign.sweep.spec import FAULT_TYPES, expand, parse_sweep
 from wtftc.campaign.sweep.store import read_results
 from wtftc.errors import ConfigError
@@ -58,22 +58,46 @@ def summarize(out_dir: Path) -> str:
     lines, csv = _table(rows)
     cost, cost_csv = _cost_table(rows)
     dlc_table = meta["sweep"].get("dlc")
-    dlc_lines, dlc_csv = dlc.section(rows, dlc_table) if dlc_table is not None else ([], [])
+    dlc_lines, dlc_csv = _dlc(rows, dlc_table)
+    family = tradeoff.tuned(rows)
+    tuned_lines, tuned_csv = tradeoff.section(rows) if family else ([], [])
     head = [f"# Sweep {meta['sweep_id']}: {len(rows)} of {n_all} runs saved",
             "", f"Results folder `{out_dir}`; made with "
             + ", ".join(f"{k} {v}" for k, v in meta["versions"].items()) + ".", ""]
-    text = "\n".join(head + lines + cost + dlc_lines + _alarm_rate(rows, meta)
+    text = "\n".join(head + lines + cost + dlc_lines + tuned_lines + _alarm_rate(rows, meta)
                      + _failures(rows)) + "\n"
     atomic_write_text(out_dir / "summary.md", text)
     atomic_write_text(out_dir / "summary.csv", "\n".join(csv) + "\n")
     atomic_write_text(out_dir / "summary_cost.csv", "\n".join(cost_csv) + "\n")
     if dlc_csv:
         atomic_write_text(out_dir / "summary_dlc.csv", "\n".join(dlc_csv) + "\n")
+    if tuned_csv:
+        atomic_write_text(out_dir / "summary_tuning.csv", "\n".join(tuned_csv) + "\n")
     if rows:
         _figures(out_dir, rows)
-        if dlc_table is not None:
-            _save(dlc.figure(rows), out_dir, "dlc_bins")
+        _extra_figures(out_dir, rows, dlc_table, family)
     return text
+
+
+def _dlc(rows: list[dict], table) -> tuple[list[str], list[str]]:
+    """The DLC section the sweep's [dlc] table asks for (wtftc.campaign.sweep.dlc)."""
+    if table is None:
+        return [], []
+    if dlc.parse_dlc(table)["case"] == "2.1":
+        return dlc.fault_section(rows, table)
+    return dlc.section(rows, table)
+
+
+def _extra_figures(out_dir: Path, rows: list[dict], dlc_table, family: bool) -> None:
+    if dlc_table is not None:
+        if dlc.parse_dlc(dlc_table)["case"] == "2.1":
+            _save(dlc.fault_figure(rows, dlc_table), out_dir, "dlc21_extremes")
+        else:
+            _save(dlc.figure(rows), out_dir, "dlc_bins")
+    if family:
+        for faulted, name in ((False, "tradeoff_fault_free"), (True, "tradeoff_faulted")):
+            if tradeoff.points(rows, faulted):
+                _save(tradeoff.figure(rows, faulted), out_dir, name)
 
 
 def _table(rows: list[dict]) -> tuple[list[str], list[str]]:

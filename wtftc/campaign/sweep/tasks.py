@@ -8,7 +8,7 @@ import json
 import numpy as np
 
 from wtftc import config
-from wtftc.campaign import cases
+from wtftc.campaign import cases, tune
 from wtftc.campaign.compare import CONTROLLERS
 from wtftc.campaign.sweep.store import METRICS
 from wtftc.results.metrics import metrics
@@ -64,7 +64,7 @@ def _run_points(points: list[dict], traces: bool) -> list[tuple[dict, dict | Non
     rcs, out = [], []
     for pt in points:
         try:
-            rcs.append(config.make_config(pt["config"]))
+            rcs.append(config.make_config(tune.resolve(pt["config"])))
         except Exception as exc:  # noqa: BLE001 - recorded as the run's failure
             rcs.append(f"{type(exc).__name__}: {exc}")
     ok = [rc for rc in rcs if not isinstance(rc, str)]
