@@ -24,6 +24,9 @@ def test_small_matrix_and_a_cell_re_run_alone(tmp_path):
     cell = out / "ntm_B_16" / "loss_of_effectiveness" / "physical_fdi"
     m = json.loads((cell / "metrics.json").read_text())
     assert m["case"] == 4 and m["fdi"]["isolation_correct"]
+    # the matrix is on the tower plant, in the wind averaged over the 63-m rotor disk
+    assert m["plant"] == "tower" and m["tower_base_del_1hz_Nm"] > 0
+    assert "tower-base DEL" in (out / "compare.md").read_text()
     again = tmp_path / "again"
     p2 = wtftc("run", "--config", cell / "config.toml", "--out", again, "--quiet")
     assert p2.returncode == 0, p2.stderr
@@ -56,6 +59,9 @@ def test_pitch_controllers_run_with_the_baseline_torque_law_and_rosco_with_its_o
         cfg = compare.cell_config(name, "lock", "ntm_B_16", 30.0, 1e-3, 0)
         law = cfg.get("turbine_params", {}).get("gen_torque_law", 0.0)
         assert law == (0.0 if name == "rosco" else 1.0), name
+        assert cfg["plant"] == "tower" and cfg["wind"]["rotor_radius_m"] == 63.0
+    iea = compare.cell_config("pi", "none", "ntm_B_16", 30.0, 1e-3, 0, turbine="iea15mw")
+    assert iea["wind"]["rotor_radius_m"] == 120.97
 
 
 def test_the_matrix_has_every_actuator_fault_type_and_names_the_fdi_variants():

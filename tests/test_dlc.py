@@ -109,3 +109,23 @@ def test_the_sweeps_rotor_radius_reaches_every_runs_wind_and_only_then():
     assert all("rotor_radius_m" not in r["config"]["wind"] for r in plain)
     assert all(r["config"]["wind"]["rotor_radius_m"] == 63.0 for r in rotor)
     assert {r["run_id"] for r in plain}.isdisjoint(r["run_id"] for r in rotor)
+
+
+def test_against_rosco_compares_over_the_bins_both_kept():
+    """A controller that kept a bin ROSCO lost is compared over the shared bins only: the
+    same damage and power there give ratios 1 and +0 %, whatever its extra bin holds."""
+    same = {"shaft_torque_damage_per_10min": 6.0e26, "mean_electrical_power_W": 2.0e6,
+            "pitch_adc": 0.1, "shaft_torque_del_1hz_Nm": 1.0,
+            "tower_base_damage_per_10min": 1.0e24, "tower_base_del_1hz_Nm": 1.0}
+    bins = {"rosco": {8.0: dict(same), 16.0: dict(same)},
+            "pi": {4.0: {**same, "mean_electrical_power_W": 9e9}, 8.0: dict(same),
+                   16.0: {**same, "shaft_torque_damage_per_10min": 16 * 6.0e26}}}
+    table = dlc.parse_dlc({})
+    lines = dlc.against(bins, table, 4.0, 4.0)
+    row = next(ln for ln in lines if ln.startswith("| pi |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[1] == "8, 16"
+    p8, p16 = (float(dlc.bin_probability(v, 2.0, 10.0)) for v in (8.0, 16.0))
+    ratio = ((p8 + 16 * p16) / (p8 + p16)) ** 0.25
+    assert float(cells[2]) == pytest.approx(ratio, abs=0.005)
+    assert cells[3:] == ["1.00", "1.00", "+0.00"]

@@ -180,3 +180,20 @@ def test_dlc21_extremes_by_hand():
     assert any(ln.startswith("| pi | runaway_fine | 2 | 0 | 1 | 1.250 | 6.00 |")
                for ln in lines)
     assert math.isclose(dlc.parse_dlc({"case": "2.1"})["overspeed_trip"], 1.2)
+
+
+def test_the_c2_ratio_is_a_setting_of_the_procedure():
+    """[tuning] c2_over_c1 reaches every run's table; the physical AFTC's c2 follows it,
+    the default being the revised 2 (issue 18)."""
+    sw = _family(controllers=["physical_fdi"], tuning={"omega_n_rad_s": 0.9, "zeta": 0.7,
+                                                   "c2_over_c1": 3.0})
+    runs, _ = sweep.expand(sw)
+    assert {r["config"]["tuning"]["c2_over_c1"] for r in runs} == {3.0}
+    three = tune.resolve(runs[0]["config"])["controller_params"]
+    two = tune.resolve({"controller": "physical", "tuning": {"omega_n_rad_s": 0.9,
+                                                             "zeta": 0.7}})
+    assert three["phys_c2"] == pytest.approx(3 * three["phys_c1"], rel=1e-12)
+    assert two["controller_params"]["phys_c2"] == pytest.approx(
+        2 * two["controller_params"]["phys_c1"], rel=1e-12)
+    with pytest.raises(ConfigError, match="c2_over_c1"):
+        _family(tuning={"omega_n_rad_s": 0.9, "zeta": 0.7, "c2_over_c1": 0.5})

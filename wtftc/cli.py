@@ -450,9 +450,10 @@ def _add_turbine(sub) -> None:
         description="Chooses the gains so that the speed loop's dominant mode on the exact "
                     "linear model (wtftc linearize) at --wind has natural frequency "
                     "--omega-n and damping --zeta: the PI by its pole placement, the "
-                    "physical AFTC by solving for c1 (c2 = 3 c1) and γ. Prints the gains, "
-                    "the turbine's facts and the achieved mode and margins; --out writes a "
-                    "run configuration (wtftc run --config). docs/turbines.md, 'Tuning'.",
+                    "physical AFTC by solving for c1 (c2 = --c2-ratio × c1) and γ. Prints "
+                    "the gains, the turbine's facts and the achieved mode and margins; "
+                    "--out writes a run configuration (wtftc run --config). "
+                    "docs/turbines.md, 'Tuning'.",
         epilog="Example: wtftc turbine tune --turbine iea15mw --controller physical "
                "--omega-n 1.0 --zeta 0.8 --out iea_physical.toml")
     u.add_argument("--turbine", help=TURBINE_HELP)
@@ -464,6 +465,9 @@ def _add_turbine(sub) -> None:
                    help="its damping ratio [-] (default 0.7, ROSCO's NREL 5-MW PC_zeta)")
     u.add_argument("--wind", type=float, default=16.0,
                    help="the design wind [m/s] (default 16)")
+    u.add_argument("--c2-ratio", type=float, default=2.0,
+                   help="the physical AFTC's c2/c1 (default 2; 3 before issue 18: the "
+                        "sensor noise reaches the pitch with a gain ∝ c1 c2)")
     u.add_argument("--out", type=Path, help="write the run configuration (TOML) here")
 
 
@@ -507,7 +511,8 @@ def _turbine_tune(args) -> int:
     from wtftc.campaign import tune
     from wtftc.results.io import atomic_write_text
 
-    r = tune.tune(args.controller, args.turbine, args.omega_n, args.zeta, args.wind)
+    r = tune.tune(args.controller, args.turbine, args.omega_n, args.zeta, args.wind,
+                  args.c2_ratio)
     a = r["achieved"]
     print(f"{args.controller} on {args.turbine or 'nrel5mw'}: gains for a dominant mode of "
           f"{args.omega_n:g} rad/s, ζ {args.zeta:g} at {args.wind:g} m/s")
@@ -524,7 +529,8 @@ def _turbine_tune(args) -> int:
     if args.out:
         atomic_write_text(args.out, f"# wtftc turbine tune --controller {args.controller} "
                           f"--omega-n {args.omega_n:g} --zeta {args.zeta:g} --wind "
-                          f"{args.wind:g}\n" + config.to_toml(r["raw"]))
+                          f"{args.wind:g} --c2-ratio {args.c2_ratio:g}\n"
+                          + config.to_toml(r["raw"]))
         print(f"written: {args.out} (wtftc run --config {args.out})")
     return 0
 

@@ -113,18 +113,27 @@ def _check(kind: str, names, allowed: dict) -> list[str]:
 PROFILE = "realistic"
 
 
+#: the plant of the matrix: the turbine on its flexible tower, so that the tower-base
+#: loads are scored (docs/loads.md)
+PLANT = "tower"
+
+
 def cell_config(controller: str, fault: str, wind: str, t_final: float, dt: float,
                 seed: int, profile: str = PROFILE, turbine: str | None = None) -> dict:
-    """One cell's run configuration. On a turbine other than the NREL 5-MW the gust of
-    ``eog_rated`` comes at that turbine's rated wind (config.rated_wind_speed, to 0.01
-    m/s; the NREL 5-MW keeps Jonkman's 11.4 m/s)."""
+    """One cell's run configuration, on the tower plant. The turbulent wind is the
+    rotor-effective one (averaged over the turbine's rotor disk: docs/wind.md). On a
+    turbine other than the NREL 5-MW the gust of ``eog_rated`` comes at that turbine's
+    rated wind (config.rated_wind_speed, to 0.01 m/s; the NREL 5-MW keeps Jonkman's 11.4
+    m/s)."""
     tab = WINDS[wind]
+    t = turbine_file.load(turbine or turbine_file.DEFAULT)
     if turbine and turbine != turbine_file.DEFAULT and wind == "eog_rated":
-        t = turbine_file.load(turbine)
         tab = {**tab, "mean_mps": round(config.rated_wind_speed(t.vector(), t.table), 2)}
+    if tab["kind"] == "ntm":
+        tab = {**tab, "rotor_radius_m": t.values["rotor_radius"]}
     cfg = variant_config(controller, FAULTS[fault], tab, t_final, dt, seed,
                          label=f"{wind}/{fault}/{controller}", profile=profile)
-    return cfg | ({"turbine": turbine} if turbine else {})
+    return cfg | {"plant": PLANT} | ({"turbine": turbine} if turbine else {})
 
 
 def variant_config(controller: str, faults: list | None, wind: dict, t_final: float,

@@ -33,8 +33,11 @@ from wtftc.model import tuning
 from wtftc.sim.rhs import controllers
 
 TUNABLE = ("physical", "pi")
-#: c2 / c1 of the physical AFTC: the pitch loop faster than the speed loop
-C2_OVER_C1 = 3.0
+#: c2 / c1 of the physical AFTC: the pitch loop faster than the speed loop. Revised from
+#: 3 to 2 (issue 18): the sensor noise reaches the pitch command with a gain ∝ c1 c2, and
+#: at 3 the tuned loop drove the drivetrain's 2.2-Hz mode above 20 m/s (docs/compare.md,
+#: "Tuned families"); 2 is the lowest that still reaches ROSCO's (0.6, 0.7) at 16 m/s
+C2_OVER_C1 = 2.0
 
 
 def _dominant(raw: dict, wind: float, z: np.ndarray) -> tuple[float, float, np.ndarray]:
@@ -43,19 +46,21 @@ def _dominant(raw: dict, wind: float, z: np.ndarray) -> tuple[float, float, np.n
     return row["dominant_omega_n_rad_s"], row["dominant_damping"], op.z
 
 
-def _physical_raw(base: dict, c1: float, gamma: float) -> dict:
+def _physical_raw(base: dict, c1: float, gamma: float, ratio: float = C2_OVER_C1) -> dict:
     return {**base, "controller_params": {**base.get("controller_params", {}),
-                                          "phys_c1": c1, "phys_c2": C2_OVER_C1 * c1,
+                                          "phys_c1": c1, "phys_c2": ratio * c1,
                                           "phys_gamma": gamma}}
 
 
-def _solve_physical(base: dict, wind: float, omega_n: float, zeta: float) -> dict:
-    """(c1, γ) by damped Newton on log-gains, the mode's sensitivities by differences."""
+def _solve_physical(base: dict, wind: float, omega_n: float, zeta: float,
+                    ratio: float = C2_OVER_C1) -> dict:
+    """(c1, γ) by damped Newton on log-gains, the mode's sensitivities by differences;
+    c2 = ``ratio`` c1."""
     x = np.log([2.0, 2.0])  # from the NREL 5-MW's hand choice
-    z = lin.settle(_physical_raw(base, *np.exp(x)), wind)
+    z = lin.settle(_physical_raw(base, *np.exp(x), ratio), wind)
     target = np.array([omega_n, zeta])
     for _ in range(25):
-        wn, ze, z = _dominant(_physical_raw(base, *np.exp(x)), wind, z)
+        wn, ze, z = _dominant(_physical_raw(base, *np.exp(x), ratio), wind, z)
         r = np.array([wn, ze]) - target
         if np.abs(r / target).max() < 1e-4:
             break
@@ -63,26 +68,26 @@ def _solve_physical(base: dict, wind: float, omega_n: float, zeta: float) -> dic
         for k in range(2):
             dx = np.zeros(2)
             dx[k] = 1e-4
-            wn2, ze2, _ = _dominant(_physical_raw(base, *np.exp(x + dx)), wind, z)
+            wn2, ze2, _ = _dominant(_physical_raw(base, *np.exp(x + dx), ratio), wind, z)
             J[:, k] = (np.array([wn2, ze2]) - np.array([wn, ze])) / 1e-4
         step = np.linalg.lstsq(J, -r, rcond=None)[0]
         x = x + np.clip(step, -0.5, 0.5)
     else:
         raise ConfigError("--omega-n/--zeta", (omega_n, zeta), "a mode the physical AFTC "
-                          f"reaches with c2 = {C2_OVER_C1:g} c1 (closest found: ω_n = "
+                          f"reaches with c2 = {ratio:g} c1 (closest found: ω_n = "
                           f"{wn:.3g} rad/s, ζ = {ze:.3g})")
     c1, gamma = np.exp(x)
-    return {"phys_c1": float(c1), "phys_c2": float(C2_OVER_C1 * c1), "phys_gamma": float(gamma)}
+    return {"phys_c1": float(c1), "phys_c2": float(ratio * c1), "phys_gamma": float(gamma)}
 
 
 def tune(controller: str, turbine: str | None, omega_n: float, zeta: float,
-         wind: float) -> dict:
+         wind: float, ratio: float = C2_OVER_C1) -> dict:
     """The gains (``controller_params``), the turbine facts used, and the achieved mode
     and margins at ``wind`` on the exact linear model."""
     if controller not in TUNABLE:
         raise ConfigError("--controller", controller, "one of " + ", ".join(TUNABLE))
     for name, val, lo, hi in (("--omega-n", omega_n, 0.01, 10.0), ("--zeta", zeta, 0.1, 2.0),
-                              ("--wind", wind, 3.0, 40.0)):
+                              ("--wind", wind, 3.0, 40.0), ("--c2-ratio", ratio, 1.0, 10.0)):
         if not (lo <= val <= hi):
             raise ConfigError(name, val, f"a number in [{lo:g}, {hi:g}]")
     base = {"controller": controller, **({"turbine": turbine} if turbine else {})}
@@ -90,7 +95,7 @@ def tune(controller: str, turbine: str | None, omega_n: float, zeta: float,
     if controller == "pi":
         gains = {"pi_omega_n": omega_n, "pi_zeta": zeta}
     else:
-        gains = _solve_physical(base, wind, omega_n, zeta)
+        gains = _solve_physical(base, wind, omega_n, zeta, ratio)
     raw = {**base, "controller_params": gains}
     op = lin.operating_point(raw, wind)
     group = controllers()[controller]["params"]
@@ -103,7 +108,7 @@ def tune(controller: str, turbine: str | None, omega_n: float, zeta: float,
 #: the [tuning] table: the pitch loop's target mode, for every tunable controller alike
 #: (docs/compare.md, "Tuned families"): key → (default, low, high)
 TUNING_KEYS = {"omega_n_rad_s": (None, 0.01, 10.0), "zeta": (None, 0.1, 2.0),
-               "design_wind_mps": (16.0, 3.0, 40.0)}
+               "design_wind_mps": (16.0, 3.0, 40.0), "c2_over_c1": (C2_OVER_C1, 1.0, 10.0)}
 #: the controllers a [tuning] table retunes: ROSCO by its DISCON.IN's gain schedule, the
 #: PI by its targets, the physical AFTC by (c1, γ) solved on the exact linear loop
 RETUNABLE = ("rosco", "pi", "physical")
@@ -133,15 +138,17 @@ def resolve(cfg: dict) -> dict:
     if controller == "rosco":
         return out | {"rosco": {"omega_pc_rad_s": w, "zeta_pc": z}}
     gains = ({"pi_omega_n": w, "pi_zeta": z} if controller == "pi" else
-             _physical_gains(cfg.get("turbine"), w, z, vals["design_wind_mps"]))
+             _physical_gains(cfg.get("turbine"), w, z, vals["design_wind_mps"],
+                             vals["c2_over_c1"]))
     return out | {"controller_params": {**cfg.get("controller_params", {}), **gains}}
 
 
 @functools.cache
-def _physical_gains(turbine: str | None, omega_n: float, zeta: float, wind: float) -> dict:
+def _physical_gains(turbine: str | None, omega_n: float, zeta: float, wind: float,
+                    ratio: float = C2_OVER_C1) -> dict:
     base = {"controller": "physical", **({"turbine": turbine} if turbine else {})}
     try:
-        return _solve_physical(base, wind, omega_n, zeta)
+        return _solve_physical(base, wind, omega_n, zeta, ratio)
     except ConfigError as exc:
         raise ConfigError("tuning", {"omega_n_rad_s": omega_n, "zeta": zeta},
                           exc.allowed) from None

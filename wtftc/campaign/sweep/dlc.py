@@ -145,6 +145,7 @@ def section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
             p = float(bin_probability(v, dlc["bin_width_mps"], dlc["annual_mean_mps"]))
             csv.append(f"{c},{v},{b['runs']},{p}," + ",".join(
                 "" if b[k] is None else str(b[k]) for k in keys))
+    lines += against(bins, dlc, m, m_tower)
     lines += ["", "Per wind bin (`summary_dlc.csv`; figure `figures/dlc_bins.png`): shaft "
               "DEL [MN m] / pitch ADC [-], the mean over the bin's seeds.", ""]
     winds = sorted({v for cb in bins.values() for v in cb})
@@ -155,6 +156,33 @@ def section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
             f"{cb[v]['shaft_torque_del_1hz_Nm'] / 1e6:.3f} / {cb[v]['pitch_adc']:.3f}"
             if v in cb else "—" for v in winds) + " |")
     return lines, csv
+
+
+def against(bins: dict, dlc: dict, m: float, m_tower: float, ref: str = "rosco") -> list[str]:
+    """Each controller against ``ref`` over the wind bins both kept (a lifetime figure
+    over different bins compares different years): the ratios of the lifetime DELs and
+    weighted ADC, and the AEP's difference."""
+    if ref not in bins or len(bins) < 2:
+        return []
+    lines = ["", f"Against {ref}, over the bins both kept:", "",
+             f"| controller | bins in common | shaft DEL / {ref} [-] | tower-base DEL / "
+             f"{ref} [-] | weighted ADC / {ref} [-] | AEP vs {ref} [%] |",
+             "|---|---|---|---|---|---|"]
+    for c, cb in bins.items():
+        common = sorted(set(cb) & set(bins[ref]))
+        if c == ref or not common:
+            continue
+        a, b = (lifetime({v: x[v] for v in common}, dlc, m, m_tower) for x in (cb, bins[ref]))
+        ratios = [_ratio(a[k], b[k]) for k in ("lifetime_shaft_del_1hz_Nm",
+                                               "lifetime_tower_del_1hz_Nm",
+                                               "weighted_pitch_adc")]
+        lines.append(f"| {c} | {', '.join(f'{v:g}' for v in common)} | "
+                     + " | ".join(ratios) + f" | {100 * (a['aep_Wh'] / b['aep_Wh'] - 1):+.2f} |")
+    return lines
+
+
+def _ratio(a, b) -> str:
+    return "—" if a is None or not b else f"{a / b:.2f}"
 
 
 def fault_label(r: dict) -> str:

@@ -330,10 +330,11 @@ def _tuning_axes(tab, mode: str) -> list[Axis]:
         return [Axis(f"tuning.{k}", values=(None,)) for k in TUNING_AXES]
     if not isinstance(tab, dict) or set(tab) - set(TUNING_KEYS) or not set(TUNING_AXES) <= set(tab):
         raise ConfigError("tuning", tab, "a table with omega_n_rad_s and zeta (values or "
-                          "ranges) and optionally design_wind_mps (one number)")
-    _, lo, hi = TUNING_KEYS["design_wind_mps"]
-    _check_value("tuning.design_wind_mps", tab.get("design_wind_mps", 16.0), "float", lo=lo,
-                 hi=hi)
+                          "ranges) and optionally design_wind_mps and c2_over_c1 (one "
+                          "number each)")
+    for key in ("design_wind_mps", "c2_over_c1"):
+        default, lo, hi = TUNING_KEYS[key]
+        _check_value(f"tuning.{key}", tab.get(key, default), "float", lo=lo, hi=hi)
     return [_axis(f"tuning.{k}", tab[k], "float", "grid" if mode == "random" else mode,
                   lo=TUNING_KEYS[k][1], hi=TUNING_KEYS[k][2], lo_open=False)
             for k in TUNING_AXES]
@@ -469,8 +470,9 @@ def _tuning(sw: Sweep, values: dict, p: dict, cfg: dict) -> None:
     if w is None or CONTROLLERS[p["controller"]].controller not in RETUNABLE:
         return
     tab = {"omega_n_rad_s": float(w), "zeta": float(values["tuning.zeta"])}
-    if "design_wind_mps" in sw.raw["tuning"]:
-        tab["design_wind_mps"] = float(sw.raw["tuning"]["design_wind_mps"])
+    for key in ("design_wind_mps", "c2_over_c1"):  # settings, one value for the sweep
+        if key in sw.raw["tuning"]:
+            tab[key] = float(sw.raw["tuning"][key])
     cfg["tuning"] = tab
     p["tuning_omega_n_rad_s"], p["tuning_zeta"] = tab["omega_n_rad_s"], tab["zeta"]
 
