@@ -77,7 +77,32 @@ def section(rows: list[dict]) -> tuple[list[str], list[str]]:
                 csv.append(",".join([cond, c, *("" if p[k] is None else str(p[k]) for k in (
                     "omega_n", "zeta")), str(p["runs"])] + [
                     "" if p[k] is None else str(p[k]) for k, *_ in COLUMNS]))
-    return lines, csv
+    return lines + overspeed_by_fault(rows), csv
+
+
+def overspeed_by_fault(rows: list[dict]) -> list[str]:
+    """The largest peak speed per controller, target and fault type (a runaway by its
+    direction): the extremes a design goal compares fault by fault."""
+    from wtftc.campaign.sweep.dlc import fault_label
+
+    peaks: dict[tuple, float] = {}
+    for r in rows:
+        if r["status"] != "failed" and r["fault_type"] != "none" \
+                and r.get("overspeed_peak_over_rated") is not None:
+            key = (r["controller"], r.get("tuning_omega_n_rad_s"), fault_label(r))
+            peaks[key] = max(peaks.get(key, 0.0), r["overspeed_peak_over_rated"])
+    faults = sorted({f for _, _, f in peaks})
+    if not faults:
+        return []
+    lines = ["", "Largest peak ω / rated [-] per fault type (every run of it):", "",
+             "| controller | target ω_n [rad/s] | " + " | ".join(faults) + " |",
+             "|---|---|" + "---|" * len(faults)]
+    targets = sorted({(c, w) for c, w, _ in peaks}, key=lambda cw: (
+        list(CONTROLLERS).index(cw[0]), cw[1] or 0.0))
+    for c, w in targets:
+        lines.append(f"| {c} | {_f(w, '{:g}')} | " + " | ".join(
+            _f(peaks.get((c, w, f)), "{:.3f}") for f in faults) + " |")
+    return lines
 
 
 def _f(v, fmt: str, scale: float = 1.0) -> str:
