@@ -148,6 +148,12 @@ def _physical_gains(turbine: str | None, omega_n: float, zeta: float, wind: floa
                     ratio: float = C2_OVER_C1) -> dict:
     base = {"controller": "physical", **({"turbine": turbine} if turbine else {})}
     try:
+        import control  # noqa: F401 - the linear loop's modes (wtftc.campaign.linearize)
+    except ImportError:
+        raise ConfigError("tuning", {"omega_n_rad_s": omega_n, "zeta": zeta},
+                          "python-control installed to tune the physical AFTC: pip install "
+                          "'wtftc[linear]' (the control package)") from None
+    try:
         return _solve_physical(base, wind, omega_n, zeta, ratio)
     except ConfigError as exc:
         raise ConfigError("tuning", {"omega_n_rad_s": omega_n, "zeta": zeta},
