@@ -197,3 +197,22 @@ def test_the_c2_ratio_is_a_setting_of_the_procedure():
         2 * two["controller_params"]["phys_c1"], rel=1e-12)
     with pytest.raises(ConfigError, match="c2_over_c1"):
         _family(tuning={"omega_n_rad_s": 0.9, "zeta": 0.7, "c2_over_c1": 0.5})
+
+
+def test_the_design_wind_is_used_and_a_bad_rosco_tuning_is_refused(tmp_path):
+    """The physical AFTC's gains follow [tuning] design_wind_mps; a turbine file whose
+    rosco_tuning is not the two positive numbers is refused naming the key."""
+    at16, at20 = (tune.resolve({"controller": "physical", "tuning": {
+        "omega_n_rad_s": 0.9, "zeta": 0.7, "design_wind_mps": w}})["controller_params"]
+        for w in (16.0, 20.0))
+    assert at16["phys_c1"] != pytest.approx(at20["phys_c1"], rel=1e-3)
+    from wtftc.model import turbine_file
+
+    src = Path(turbine_file.load("nrel5mw").path)
+    text = src.read_text().replace("zeta_pc = 0.7 }", "zeta_pc = -0.7 }")
+    (tmp_path / src.name).write_text(text)
+    (tmp_path / "Cp_Ct_Cq.NREL5MW.txt").write_bytes(
+        Path(turbine_file.load("nrel5mw").cp_path).read_bytes())
+    with pytest.raises(ConfigError) as e:
+        turbine_file.read(tmp_path / src.name)
+    assert e.value.field == "rosco_tuning"

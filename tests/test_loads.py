@@ -124,6 +124,7 @@ def test_below_rated_the_own_reference_is_the_optimal_tip_speed_ratios():
     ({"shaft_wohler_exponent": 0.5}, "loads.shaft_wohler_exponent"),
     ({"wohler": 4}, "loads.wohler"),
     ({"reversal_hysteresis_deg": "0.1"}, "loads.reversal_hysteresis_deg"),
+    ({"tower_wohler_exponent": 25.0}, "loads.tower_wohler_exponent"),
 ])
 def test_a_bad_loads_table_is_refused_naming_the_key(loads_table, field):
     with pytest.raises(ConfigError) as err:

@@ -40,6 +40,12 @@ TUNABLE = ("physical", "pi")
 C2_OVER_C1 = 2.0
 
 
+#: the [tuning] table: the pitch loop's target mode, for every tunable controller alike
+#: (docs/compare.md, "Tuned families"): key → (default, low, high)
+TUNING_KEYS = {"omega_n_rad_s": (None, 0.01, 10.0), "zeta": (None, 0.1, 2.0),
+               "design_wind_mps": (16.0, 3.0, 40.0), "c2_over_c1": (C2_OVER_C1, 1.0, 10.0)}
+
+
 def _dominant(raw: dict, wind: float, z: np.ndarray) -> tuple[float, float, np.ndarray]:
     op = lin.operating_point(raw, wind, z)
     row = lin.summary_row(op)
@@ -86,8 +92,10 @@ def tune(controller: str, turbine: str | None, omega_n: float, zeta: float,
     and margins at ``wind`` on the exact linear model."""
     if controller not in TUNABLE:
         raise ConfigError("--controller", controller, "one of " + ", ".join(TUNABLE))
-    for name, val, lo, hi in (("--omega-n", omega_n, 0.01, 10.0), ("--zeta", zeta, 0.1, 2.0),
-                              ("--wind", wind, 3.0, 40.0), ("--c2-ratio", ratio, 1.0, 10.0)):
+    for name, val, key in (("--omega-n", omega_n, "omega_n_rad_s"), ("--zeta", zeta, "zeta"),
+                           ("--wind", wind, "design_wind_mps"), ("--c2-ratio", ratio,
+                                                                  "c2_over_c1")):
+        _, lo, hi = TUNING_KEYS[key]
         if not (lo <= val <= hi):
             raise ConfigError(name, val, f"a number in [{lo:g}, {hi:g}]")
     base = {"controller": controller, **({"turbine": turbine} if turbine else {})}
@@ -105,10 +113,6 @@ def tune(controller: str, turbine: str | None, omega_n: float, zeta: float,
             "achieved": lin.summary_row(op), "raw": raw}
 
 
-#: the [tuning] table: the pitch loop's target mode, for every tunable controller alike
-#: (docs/compare.md, "Tuned families"): key → (default, low, high)
-TUNING_KEYS = {"omega_n_rad_s": (None, 0.01, 10.0), "zeta": (None, 0.1, 2.0),
-               "design_wind_mps": (16.0, 3.0, 40.0), "c2_over_c1": (C2_OVER_C1, 1.0, 10.0)}
 #: the controllers a [tuning] table retunes: ROSCO by its DISCON.IN's gain schedule, the
 #: PI by its targets, the physical AFTC by (c1, γ) solved on the exact linear loop
 RETUNABLE = ("rosco", "pi", "physical")

@@ -135,6 +135,12 @@ def rotor_inertia(ed: dict, blade: dict) -> float:
 _LINE = re.compile(r"^\s*(?P<value>[^!]*?)\s*!\s*(?P<key>[A-Za-z_][A-Za-z0-9_]*)")
 
 
+def line_key(line: str) -> str | None:
+    """The key of a DISCON.IN line (``value ! Key - comment``), or None."""
+    m = _LINE.match(line)
+    return m["key"] if m else None
+
+
 def read_discon(path: Path) -> dict[str, str]:
     """Key → value text of a ROSCO DISCON.IN (``value ! Key - comment`` lines)."""
     if not path.is_file():

@@ -30,6 +30,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError
+from wtftc.model.turbine_import import line_key, read_discon
 from wtftc.sim import integrate
 from wtftc.sim.rhs import PLANTS, Loop
 
@@ -89,8 +90,8 @@ def retuned_gains(kp: np.ndarray, ki: np.ndarray, retune: tuple) -> tuple:
     return np.asarray(kp, float) + 2 * (z * w - z0 * w0) / b, np.asarray(ki, float) * w**2 / w0**2
 
 
-def _retuned_line(line: str, key: str, lines: dict, retune: tuple) -> str:
-    kp, ki = (np.array(lines[k].split("!")[0].split(), float) for k in ("PC_GS_KP", "PC_GS_KI"))
+def _retuned_line(line: str, key: str, values: dict, retune: tuple) -> str:
+    kp, ki = (np.array(values[k].split(), float) for k in ("PC_GS_KP", "PC_GS_KI"))
     gains = dict(zip(("PC_GS_KP", "PC_GS_KI"), retuned_gains(kp, ki, retune), strict=True))
     return "   ".join(f"{g:.6e}" for g in gains[key]) + "   ! " + line.split("!", 1)[1]
 
@@ -102,15 +103,12 @@ def _discon_copy(tmp: Path, spec: str = NREL5MW_DISCON, retune: tuple | None = N
     src = discon_path(spec)
     if not src.is_file():
         raise ConfigError("controller", "rosco", f"a rosco install with {src}")
-    text = src.read_text().splitlines()
-    keyed = {ln.split("!")[-1].strip().split(" ")[0].split("\t")[0]: ln for ln in text
-             if "!" in ln}
+    values = read_discon(src) if retune is not None else {}
     out = []
-    for line in text:
-        key = line.split("!")[-1].strip().split(" ")[0] if "!" in line else ""
-        key = key.split("\t")[0]
+    for line in src.read_text().splitlines():
+        key = line_key(line)
         if retune is not None and key in ("PC_GS_KP", "PC_GS_KI"):
-            line = _retuned_line(line, key, keyed, retune)
+            line = _retuned_line(line, key, values, retune)
         elif key == "LoggingLevel":
             line = "0" + line[line.index(" ") if " " in line.strip() else len(line):]
         elif key == "PerfFileName":

@@ -7,6 +7,7 @@ import numpy as np
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import load
 from wtftc.model import aero
+from wtftc.model.faults import nominal_actuator
 from wtftc.sim.rhs import PLANTS, Loop, controllers
 
 
@@ -28,10 +29,8 @@ def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0
     plant.update(omega_r=omega, theta_s=torque / tp["k_s"], omega_g=omega,
                  **{f"beta_{j}": beta0 for j in lay.blades()})
     if PLANTS[loop.plant].get("tower"):  # the tower bent by the steady thrust, at rest
-        ct = float(aero.cp_interpolant(loop.table, "ct")(omega * tp["rotor_radius"] / wind0,
-                                                         beta0))
-        thrust = 0.5 * tp["air_density"] * np.pi * tp["rotor_radius"] ** 2 * wind0**2 * ct
-        plant["tower_x"] = thrust / tp["tower_stiffness"]
+        plant["tower_x"] = _thrust(loop, np.array(list(plant.values())), wind0) \
+            / tp["tower_stiffness"]
     # the controller and the FDI start from what they measure (init_<name>, generated)
     meas = {"omega_r": omega, "omega_g_hss": omega * tp["gearbox_ratio"],
             **{f"beta_meas_{j}": beta0 for j in lay.blades()}}
@@ -42,3 +41,16 @@ def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0
     beta_meas = [meas[f"beta_meas_{j}"] for j in lay.blades()]
     xf = np.array(load("init_fdi")(beta_meas=beta_meas)["x_fdi0"]).ravel()
     return np.concatenate([list(plant.values()), xc, xf])
+
+
+def _thrust(loop: Loop, xp: np.ndarray, wind0: float) -> float:
+    """The generated plant's thrust (derivation/turbine.py ``thrust``) with the tower at
+    rest, Ct read at the operating point the generated ``aero_operating_point`` gives."""
+    states = PLANTS[loop.plant]["states"]
+    op = load("aero_operating_point")(x_plant=xp[lay.prefix("plant_states", of=states)],
+                                      wind=wind0, p_turbine=loop.p_turbine)
+    ct = aero.cp_interpolant(loop.table, "ct")(op["tsr"], op["beta_mean"])
+    out = load(PLANTS[loop.plant]["function"])(
+        x_plant=xp, v=xp[lay.block(states, "beta")], wind=wind0, cp=0.0, ct=ct,
+        actuator_faults=nominal_actuator(loop.p_turbine), p_turbine=loop.p_turbine)
+    return float(out["thrust"])

@@ -29,6 +29,7 @@ import math
 import numpy as np
 
 from wtftc.campaign.compare import CONTROLLERS
+from wtftc.config import LOADS_KEYS
 from wtftc.errors import ConfigError
 
 DLC_KEYS = {"case": ("1.2", "2.1"), "annual_mean_mps": (1.0, 30.0),
@@ -118,8 +119,8 @@ def section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
     """The summary's DLC section: per controller the lifetime figures, then per bin the
     shaft DEL, the pitch ADC and the power; Markdown lines and CSV lines (SI units)."""
     dlc = parse_dlc(table)
-    m, m_tower = (_exponent(rows, k) for k in ("shaft_wohler_exponent",
-                                                "tower_wohler_exponent"))
+    # the Wöhler exponents of every sweep run: the [loads] defaults (a sweep has no [loads])
+    m, m_tower = (LOADS_KEYS[k][0] for k in ("shaft_wohler_exponent", "tower_wohler_exponent"))
     bins = per_bin(rows)
     lines = ["", f"## DLC {dlc['case']}: lifetime-weighted (Rayleigh, annual mean "
              f"{dlc['annual_mean_mps']:g} m/s, bins of {dlc['bin_width_mps']:g} m/s; "
@@ -263,12 +264,6 @@ def fault_figure(rows: list[dict], table: dict):
     axes[0].legend(fontsize=8)
     fig.suptitle("DLC 2.1: extremes over every run of each fault type", fontsize=9)
     return fig
-
-
-def _exponent(rows: list[dict], key: str) -> float:
-    """The runs' Wöhler exponent ``key`` (4 when they disagree or give none)."""
-    ms = {r[key] for r in rows if r.get(key)}
-    return ms.pop() if len(ms) == 1 else 4.0
 
 
 def figure(rows: list[dict]):
