@@ -22,9 +22,14 @@ pitch β_m,j.
   stuck angle), and β_m ≈ ρ₀ β̂ through the origin, which estimates a loss of
   effectiveness (with the pitch varying over a few degrees, ρ₁ and c are nearly
   collinear and ρ₁ alone is poorly determined). After detection the accommodation is told
-  σ̂_j = 1, ū_j = c_j when ρ₁ < ρ_lock (the blade does not follow the model: a slope of
+  σ̂_j = 1, ū_j = β_f,j when ρ₁ < ρ_lock (the blade does not follow the model: a slope of
   the windowed regression, which averages the sensor noise out), else σ̂_j = 0 and ρ̂_j =
-  ρ₀ clipped to [ρ_min, 1]; before detection, the nominal values. (Until issue 15 a lock
+  ρ₀ clipped to [ρ_min, 1]; before detection, the nominal values. The stuck angle β_f,j
+  is the measured pitch low-passed over T_r: a locked blade stands still, so its latest
+  filtered reading is the estimate, within the pitch range by construction. (Until issue
+  18 it was the regression's intercept c, which extrapolates: a blade that ran to its 0°
+  stop while the model's pitch rose gave ρ₁ < 0 and c up to 72° for seconds, and the
+  accommodation compensated a blade it believed feathered; docs/fdi.md.) (Until issue 15 a lock
   was told by the RMS of the measured pitch's filtered derivative, which the sensor noise
   swamps: a locked blade was taken for a loss of effectiveness.)
 
@@ -55,16 +60,18 @@ r_f2, e2, e_d, L1, L2 = sp.symbols(
     "residual_filtered_m2 mean_sq_m2 mean_sq_pair sensor_latch_m1 sensor_latch_m2", real=True)
 # the fraction of the window T_f the model's blade spent at its rate limit
 F_sat = sp.Symbol("rate_limited_fraction", real=True)
+# the measured pitch low-passed over T_r: a locked blade's stuck angle
+b_f = sp.Symbol("pitch_filtered", real=True)
 STATE_SYMBOLS = [bh, bhd, e, D, q, S_bb, S_b, S_1, S_mb, S_m, S_mm, r_f, R_h,
-                 bp, bpd, ep, ba, bad, ea, r_f2, e2, e_d, L1, L2, F_sat]
+                 bp, bpd, ep, ba, bad, ea, r_f2, e2, e_d, L1, L2, F_sat, b_f]
 PER_BLADE = ["beta_hat", "beta_hat_rate", "mean_sq", "latch", "confidence", "S_bb", "S_b",
              "S_1", "S_mb", "S_m", "S_mm", "residual_filtered", "rate_msq_model",
              "beta_pd", "beta_pd_rate", "mean_sq_pd", "beta_air", "beta_air_rate",
              "mean_sq_air", "residual_filtered_m2", "mean_sq_m2", "mean_sq_pair",
-             "sensor_latch_m1", "sensor_latch_m2", "rate_limited_fraction"]
+             "sensor_latch_m1", "sensor_latch_m2", "rate_limited_fraction", "pitch_filtered"]
 UNITS = ["rad", "rad/s", "rad^2", "-", "-", "rad^2", "rad", "-", "rad^2", "rad", "rad^2",
          "rad", "rad^2/s^2", "rad", "rad/s", "rad^2", "rad", "rad/s", "rad^2", "rad", "rad^2",
-         "rad^2", "-", "-", "-"]
+         "rad^2", "-", "-", "-", "rad"]
 #: the speed sensors' pair tests (rotor, generator): per pair, each sensor's filtered
 #: residual against the other quantity's sensors, their mean squares, the mean square of
 #: their difference, and each sensor's latch
@@ -136,6 +143,13 @@ PARAMS = [
     Entry("fdi_rho_lock", 0.2, "-",
           "lock-in-place when the windowed regression's slope of the measured pitch on the "
           "model's is below this (the blade does not follow its command)"),
+    Entry("fdi_stop_band", 0.008726646259971648, "rad",
+          "a blade whose filtered pitch is within this of a position limit (0.5°) while its "
+          "model's is farther than fdi_stop_gap from it is stuck at the stop (issue 18: a "
+          "runaway pitch); the filtered reading's noise is below 0.05° (docs/fdi.md)"),
+    Entry("fdi_stop_gap", 0.03490658503988659, "rad",
+          "the model's pitch farther than this (2°) from a blade at its stop: the blade "
+          "does not follow its command"),
     Entry("fdi_omega_pd", nrel5mw.PRESSURE_DROP_OMEGA_N, "rad/s",
           "hydraulic pressure drop model ω_n (Odgaard 2013)"),
     Entry("fdi_zeta_pd", nrel5mw.PRESSURE_DROP_ZETA, "-",
@@ -155,6 +169,7 @@ wn, zt, bmin, bmax, rmax, T_f, r_thr, k_D, T_w, rho_lock, rho_min, T_e = sp.symb
     "fdi_k_latch fdi_T_w fdi_rho_lock fdi_rho_min fdi_T_engage", real=True)
 h_noise, T_r, delta, var_n, T_s, delta_sat = sp.symbols(
     "fdi_thr2_noise fdi_T_r fdi_delta fdi_var_noise fdi_T_s fdi_delta_rate_limited", real=True)
+stop_band, stop_gap = sp.symbols("fdi_stop_band fdi_stop_gap", real=True)
 h_pair, h_rotor, h_gen, speed_floor, gear = sp.symbols(
     "fdi_thr2_pair fdi_thr2_omega_r fdi_thr2_omega_g_hss fdi_speed_floor fdi_gearbox_ratio",
     real=True)
@@ -238,7 +253,7 @@ def blade_rhs() -> list[sp.Expr]:
             *pd, ((beta_v - bp) ** 2 - ep) / T_w, *air, ((beta_v - ba) ** 2 - ea) / T_w,
             (beta_m2 - bh - r_f2) / T_r, (r_f2**2 - e2) / T_f, ((r_f - r_f2)**2 - e_d) / T_f,
             *sensor_latches(e, e2, e_d, L1, L2, thr_d, D >= sp.Rational(1, 2)),
-            (at_rate_limit(bhd) - F_sat) / T_f]
+            (at_rate_limit(bhd) - F_sat) / T_f, (beta_v - b_f) / T_r]
 
 
 #: a speed pair's symbols: its sensors' readings, the reference (the other quantity's
@@ -262,7 +277,7 @@ def dynamics_estimate() -> tuple[sp.Expr, sp.Expr]:
     """(ω̂_n, ζ̂): after detection of a fault that is neither a lock nor a loss of
     effectiveness (ρ̂ within 0.1 of 1), the bank model with the smallest residual
     (window T_w) when it explains the measurement better than the nominal one."""
-    _, _, rho = estimates()
+    _, rho = estimates()
     hydraulic = sp.And(D >= sp.Rational(1, 2), sp.Not(is_locked()), sp.Abs(rho - 1) < 0.1)
     e_nom = e  # the nominal model's residual mean square (window T_f)
     pd_best = sp.And(hydraulic, ep < ea, ep < e_nom)
@@ -272,48 +287,64 @@ def dynamics_estimate() -> tuple[sp.Expr, sp.Expr]:
     return w_hat, z_hat
 
 
-def estimates() -> tuple[sp.Expr, sp.Expr, sp.Expr]:
-    """ρ₁, c of β_m ≈ ρ₁ β̂ + c (guarded against a flat β̂), and ρ₀ of β_m ≈ ρ₀ β̂."""
+def estimates() -> tuple[sp.Expr, sp.Expr]:
+    """ρ₁ of β_m ≈ ρ₁ β̂ + c (guarded against a flat β̂), and ρ₀ of β_m ≈ ρ₀ β̂."""
     det = S_1 * S_bb - S_b**2
     det = sp.Max(det, 1e-12)
     rho1 = (S_1 * S_mb - S_b * S_m) / det
-    c = (S_m - rho1 * S_b) / sp.Max(S_1, 1e-9)
     rho0 = S_mb / sp.Max(S_bb, 1e-12)
-    return rho1, c, rho0
+    return rho1, rho0
+
+
+def stuck_angle() -> sp.Expr:
+    """A locked blade's angle: its measured pitch (the virtual sensor's) low-passed over
+    T_r. Not the regression's intercept c = (S_m − ρ₁ S_b)/S_1, which extrapolates while
+    the window still holds the blade's last moves (issue 18: a runaway to 0° gave c up to
+    72°)."""
+    return b_f
 
 
 def is_locked() -> sp.Expr:
-    """The blade does not follow its model: over the window T_w the regression's slope ρ₁
-    of the measured pitch on the model's is below ρ_lock, and so is the measured pitch's
-    spread against the model's, var(β_m) < ρ_lock² var(β̂) + 2σ² (σ the sensor noise). The
-    second test keeps a loss of effectiveness from passing for a lock while the window
-    still mixes the pre-fault slope 1 with the new one (ρ₁ then dips below 0)."""
-    rho1, _, _ = estimates()
+    """The blade does not follow its model, by either of two tests.
+
+    * Over the window T_w the regression's slope ρ₁ of the measured pitch on the model's
+      is below ρ_lock, and so is the measured pitch's spread against the model's,
+      var(β_m) < ρ_lock² var(β̂) + 2σ² (σ the sensor noise). The second test keeps a loss
+      of effectiveness from passing for a lock while the window still mixes the pre-fault
+      slope 1 with the new one (ρ₁ then dips below 0).
+    * The blade stands at a position limit (its filtered pitch within the stop band)
+      while its model is more than the stop gap away: a runaway that reached its stop
+      (issue 18). The window's test misses it for seconds: the run to the stop fills the
+      window with a spread the model does not have."""
+    rho1, _ = estimates()
     n = sp.Max(S_1, 1e-9)
     var_m = S_mm / n - (S_m / n) ** 2
     var_h = S_bb / n - (S_b / n) ** 2
-    return sp.And(rho1 < rho_lock, var_m < rho_lock**2 * var_h + 2 * var_n)
+    at_stop = sp.Or(sp.And(b_f < bmin + stop_band, bh > b_f + stop_gap),
+                    sp.And(b_f > bmax - stop_band, bh < b_f - stop_gap))
+    return sp.Or(sp.And(rho1 < rho_lock, var_m < rho_lock**2 * var_h + 2 * var_n), at_stop)
 
 
 def accommodation() -> tuple[sp.Expr, sp.Expr, sp.Expr]:
     """(ρ̂, σ̂, ū) for eq (49)'s accommodation: nominal until the latch passes 0.5, then
     blended in with the confidence w = min(q, 1), which grows over T_engage: the early
     estimates still weigh pre-fault data, and acting on them destabilized the loop."""
-    _, c, rho = estimates()
+    _, rho = estimates()
     detected = D >= sp.Rational(1, 2)
     locked = sp.And(detected, is_locked())
     w = sp.Min(sp.Max(q, 0), 1)
     rho_out = sp.Piecewise((1, sp.Not(detected)), (1, locked),
                            (1 + w * (sp.Min(sp.Max(rho, rho_min), 1) - 1), True))
     lock_out = sp.Piecewise((w, locked), (0, True))
-    ubar_out = sp.Piecewise((sp.Min(sp.Max(c, bmin), bmax), locked), (0, True))
+    ubar_out = sp.Piecewise((sp.Min(sp.Max(stuck_angle(), bmin), bmax), locked), (0, True))
     return rho_out, lock_out, ubar_out
 
 
 def initial(beta_meas0) -> list[sp.Expr]:
-    """Model at the measured pitch, at rest; statistics of a fault-free past (ρ = 1, c = 0)
-    with unit weight and a small spread so that the first estimates are defined."""
+    """Model and filtered pitch at the measured pitch, at rest; statistics of a fault-free
+    past (ρ = 1, c = 0) with unit weight and a small spread so that the first estimates
+    are defined."""
     b0 = beta_meas0
     spread = sp.Rational(1, 10**4)
     return [b0, 0, 0, 0, 0, b0**2 + spread, b0, 1, b0**2 + spread, b0, b0**2 + spread, 0, 0,
-            b0, 0, 0, b0, 0, 0, 0, 0, 0, 0, 0, 0]
+            b0, 0, 0, b0, 0, 0, 0, 0, 0, 0, 0, 0, b0]

@@ -352,9 +352,9 @@ def _fdi_blades(x, v, rd, bv, params) -> dict[str, list]:
         out["rhs"] += [tr(e) for e in fdi.blade_rhs()]
         for key, expr in zip(("rho", "lock", "ubar"), fdi.accommodation(), strict=True):
             out[key].append(tr(expr))
-        r1, ce, r0 = fdi.estimates()
+        r1, r0 = fdi.estimates()
         out["rho_hat"].append(tr(sp.Piecewise((r1, fdi.is_locked()), (r0, True))))
-        out["c_hat"].append(tr(ce))
+        out["c_hat"].append(tr(fdi.stuck_angle()))
         out["latch"].append(xs[3])
         # the residual RMS of the pitch sensor in use (m2's once m1 is excluded)
         i_e2, i_l1 = (fdi.PER_BLADE.index(k) for k in ("mean_sq_m2", "sensor_latch_m1"))

@@ -332,7 +332,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     base = {e.name: float(y) for e, y in zip(fdi.PARAMS, p, strict=True)}
     rhs, known, rho, c, latch, rms, wh, zh, thr = [], [[], [], []], [], [], [], [], [], [], []
     excluded = {}
-    r1, ce, r0 = fdi.estimates()
+    r1, r0 = fdi.estimates()
     for j in range(3):
         xs = x[j * n:(j + 1) * n]
         vals = {**base, "v": float(v[j]), "beta_m": rd[f"beta_meas_{j + 1}_m1"],
@@ -342,7 +342,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         for k, a in enumerate(fdi.accommodation()):
             known[k].append(pair(f"fdi_acc{k}", [a], vals))
         rho.append(pair("fdi_rho", [sp.Piecewise((r1, fdi.is_locked()), (r0, True))], vals))
-        c.append(pair("fdi_c", [ce], vals))
+        c.append(pair("fdi_c", [fdi.stuck_angle()], vals))
         latch.append(exact([xs[3]]))
         e_used = vals["mean_sq_m2"] if vals["sensor_latch_m1"] >= 0.5 else xs[2]
         rms.append(exact([np.sqrt(max(e_used, 0.0))]))

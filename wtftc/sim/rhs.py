@@ -24,9 +24,10 @@ PLANTS = {
                 "doc": "NREL 5-MW: two-mass drivetrain, generator torque, 2nd-order "
                        "limited actuators (default)"},
     "tower": {"function": "turbine_tower", "states": "tower_states", "loaded": True,
-              "tower": True,
+              "tower": True, "per_blade": True,
               "doc": "the nrel5mw plant on a flexible tower: first fore-aft mode, rotor "
-                     "thrust from Ct, the rotor in the wind relative to the tower top"},
+                     "thrust from Ct, the rotor in the wind relative to the tower top, "
+                     "each blade's share of Cp and Ct at its own pitch"},
     "paper": {"function": "turbine_paper", "states": "plant_states", "loaded": False,
               "doc": "eqs (1)-(4) as printed: UNLOADED, no generator torque "
                      "(paper-notes defect 3)"},
@@ -183,8 +184,9 @@ def controller_block(loop: Loop, xc, xf, readings, sym: dict, v_applied=None) ->
 
 def plant_block(loop: Loop, xp, v, sym: dict) -> dict:
     """The plant driven by the commands v: its state derivative and its true outputs. The
-    tables are read at the rotor's (λ, β̄): on the tower plant in the wind relative to the
-    tower top (generated ``rotor_inflow``)."""
+    tables are read at the rotor's (λ, β̄), or on a ``per_blade`` plant (the tower's) as
+    the mean of each blade's (λ, β_j) (:func:`_rotor_table`); on the tower plant in the
+    wind relative to the tower top (generated ``rotor_inflow``)."""
     spec = PLANTS[loop.plant]
     pf = load(spec["function"], "interpreted")
     pt, wind = sym["p_turbine"], sym["wind"]
@@ -194,12 +196,12 @@ def plant_block(loop: Loop, xp, v, sym: dict) -> dict:
         x_plant=xp[lay.prefix("plant_states", of=spec["states"])], wind=w_rotor,
         p_turbine=pt)
     # the plant's Cp: the table's, scaled by the model mismatch (1: none)
-    cp = sym["cp_scale"] * _cp_function(loop)(op["tsr"], op["beta_mean"])
+    cp = sym["cp_scale"] * _rotor_table(loop, xp, op)
     args = {"x_plant": xp, "v": v, "wind": wind, "cp": cp,
             "actuator_faults": sym["actuator_faults"], "p_turbine": pt}
     out = {"tsr": op["tsr"], "cp": cp}
     if spec.get("tower"):
-        args["ct"] = out["ct"] = _cp_function(loop, "ct")(op["tsr"], op["beta_mean"])
+        args["ct"] = out["ct"] = _rotor_table(loop, xp, op, "ct")
     p = pf(**args)
     out |= {k: p[k] for k in ("x_plant_dot", "T_aero", "T_gen", "P_gen")}
     if spec.get("tower"):
@@ -207,6 +209,20 @@ def plant_block(loop: Loop, xp, v, sym: dict) -> dict:
                         xp[lay.index(spec["states"], "tower_v")], p["thrust"], p["M_tower"],
                         out["ct"]]
     return out
+
+
+def _rotor_table(loop: Loop, xp, op: dict, quantity: str = "cp") -> ca.SX:
+    """The rotor's Cp (or Ct): the table at (λ, β̄), or on a ``per_blade`` plant the mean
+    of the table at each blade's (λ, β_j): each blade carries a third of the rotor's
+    torque and thrust at its own pitch (ours; docs/loads.md, "Per-blade aerodynamics").
+    Equal when the blades are: fault-free, the same to rounding. A feathered blade is read
+    at the table's largest pitch (the grid clips it: 30° on the NREL 5-MW's)."""
+    fn = _cp_function(loop, quantity)
+    spec = PLANTS[loop.plant]
+    if not spec.get("per_blade"):
+        return fn(op["tsr"], op["beta_mean"])
+    betas = xp[lay.block(spec["states"], "beta")]
+    return sum(fn(op["tsr"], betas[j]) for j in range(lay.n_blades())) / lay.n_blades()
 
 
 @cache

@@ -209,11 +209,15 @@ def _fdi_states(rng: np.random.Generator, rs: np.random.Generator) -> np.ndarray
     order: drawn blade by blade, the regression sums S consistent with a mean and variance;
     the sensor pair tests' states from ``rs`` (rng's draws stay what they were)."""
     values = {}
+    # the filtered pitch (issue 18) from a stream of its own, seeded by rng's state
+    # without advancing it: every other draw stays what it was
+    rp = np.random.default_rng(int(rng.bit_generator.state["state"]["state"]) % 2**59 + 2)
     for j in lay.blades():
         values |= {f"fdi_{kind}_{j}": v for kind, v in _fdi_blade(rng).items()}
         # the time at the rate limit, a fraction like the latch: its draw, so that the
         # draws of the states after it stay what they were before it was added (issue 17)
         values[f"fdi_rate_limited_fraction_{j}"] = values[f"fdi_latch_{j}"]
+        values[f"fdi_pitch_filtered_{j}"] = rp.uniform(-0.05, 1.65)
     for n in lay.names("fdi_states"):
         if n not in values:  # the pair tests': residuals, mean squares, latches
             gen = 100.0 if "omega_g_hss" in n else 1.0  # the HSS: N times the rotor's
