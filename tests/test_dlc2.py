@@ -111,3 +111,27 @@ def test_the_fdi_accommodates_a_runaway_to_fine_pitch_as_well_as_the_oracle():
             c_hat = np.degrees(res.column("fdi_c_hat_1")[np.searchsorted(res.t, reached + 0.5)])
     assert err[4] == pytest.approx(err[3], rel=0.03)
     assert abs(c_hat) < 0.25
+
+
+def test_a_blade_feathered_is_accommodated_as_at_the_tables_last_pitch():
+    """Issue 18: eq (49)'s accommodation inverts the mean-pitch model, linear in the stuck
+    angle. Told of a blade run away to 90° at 24 m/s, it put the healthy blades far finer
+    than the loop asked, and on the tower plant (each blade's share at its own pitch)
+    the rotor reached 1.32 × rated told the truth (case 3) and 1.16 × with its own FDI
+    (case 4), where the unaware controller (case 2) held 1.04. Taken no farther than the
+    Cp table's last pitch (30°), the accommodated loop keeps the unaware one's peak within
+    0.01 and a lower RMS speed error after the fault."""
+    peak, err = {}, {}
+    for case in (2, 3, 4):
+        rc = config.make_config({
+            "controller": "physical", "case": case, "plant": "tower",
+            "profile": "realistic", "t_final_s": 60.0,
+            "wind": {"kind": "ntm", "mean_mps": 24.0, "rotor_radius_m": 63.0},
+            "turbine_params": {"gen_torque_law": 1.0},
+            "fault": [{"blade": 2, "type": "runaway", "onset_s": 20.0, "target_deg": 90.0}]})
+        m = metrics(rc, cases.run(rc, progress=False))
+        peak[case], err[case] = (m["overspeed_peak_over_rated"],
+                                 m["rms_speed_error_after_fault_rad_s"])
+    for case in (3, 4):
+        assert peak[case] < peak[2] + 0.01
+        assert err[case] < err[2]

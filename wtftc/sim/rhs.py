@@ -168,6 +168,7 @@ def controller_block(loop: Loop, xc, xf, readings, sym: dict, v_applied=None) ->
         excluded = sym["use_fdi"] * fd0["excluded"]
     else:
         known, excluded = sym["ctrl_fault"], ca.DM.zeros(n_s)
+    known = _lock_within_table(loop, known)
     m = virtual(loop, readings, excluded, sym)
     c = load(reg["function"], "interpreted")(
         x_ctrl=xc, meas=m["meas"], yd=sym["yd"], sched=m["sched"], p_ctrl=sym["p_ctrl"],
@@ -180,6 +181,20 @@ def controller_block(loop: Loop, xc, xf, readings, sym: dict, v_applied=None) ->
         out["x_fdi_dot"] = fd["x_fdi_dot"]
         out["fdi"] = [fd0[k] for k in FDI_REPORTED] + [fd0["excluded"]]
     return out
+
+
+def _lock_within_table(loop: Loop, known):
+    """The fault told to eq (49)'s accommodation, a locked blade's angle ū_j taken no
+    farther than the Cp table's last pitch (ours; issue 18). The accommodation's
+    v = (3U − Σ σ̂ ū)/Σ(1 − σ̂)ρ̂ is the mean-pitch model's inverse, linear in ū: told of a
+    blade at 90° (a runaway to feather) it put the healthy blades 37° finer than U, and
+    on a rotor whose blades each give their share at their own pitch (the tower plant,
+    a real rotor) the peak reached 1.46 × rated at 24 m/s where the unaware controller
+    held 1.05. Beyond the table's last pitch the controllers' model knows nothing of the
+    blade's torque, and the per-blade plant reads it there (docs/loads.md)."""
+    top = float(np.max(loop.table.pitch_rad))
+    return ca.vertcat(*[ca.fmin(known[k], top) if n.startswith("ubar_") else known[k]
+                        for k, n in enumerate(lay.names("fault_inputs"))])
 
 
 def plant_block(loop: Loop, xp, v, sym: dict) -> dict:
