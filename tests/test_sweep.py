@@ -180,6 +180,7 @@ def test_kill_and_resume_on_a_local_two_worker_cluster(tmp_path):
     assert 3 <= len(saved) < total, "the sweep must be killed in the middle"
     assert len(set(saved)) == len(saved)
     assert not [p for p in (out / "runs").iterdir() if not p.name.startswith("part-")]
+    assert not (out / "sweep.lock").exists(), "an interrupted sweep releases its folder"
 
     again = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
     assert again.returncode == 0, again.stderr
@@ -404,3 +405,37 @@ inertia = { min = 0.9, max = 1.1 }
     # a pitch sensor offset, excluded by the FDI: the run is its twin's, bit for bit
     # before the onset and within a few % after (ideal profile)
     assert 0.9 < ratio_median < 1.1
+
+
+def test_a_folder_another_sweep_is_writing_to_is_refused_and_a_stale_lock_taken_over(tmp_path):
+    """Two sweeps into one folder each saved the other's runs again (issue 18's families:
+    a second copy launched by mistake). A sweep holds its folder with sweep.lock (pid and
+    host): a second one is refused in one line naming the holder, the folder untouched
+    even with --overwrite; a lock whose process is gone is taken over, and a finished
+    sweep leaves none."""
+    import socket
+    out = tmp_path / "res"
+    out.mkdir()
+    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    try:
+        (out / "sweep.lock").write_text(f"{holder.pid} {socket.gethostname()}\n")
+        for extra in ((), ("--overwrite",)):
+            p = wtftc("sweep", ROOT / "examples" / "sweep_small.toml", "--out", out, *extra,
+                      timeout=120)
+            assert p.returncode == 2 and "Traceback" not in p.stderr
+            assert f"process {holder.pid}" in p.stderr and "sweep.lock" in p.stderr
+            assert sorted(c.name for c in out.iterdir()) == ["sweep.lock"]
+    finally:
+        holder.kill()
+        holder.wait()
+    # the holder is gone: its lock is stale, and the sweep takes the folder
+    small = write_sweep(tmp_path / "one.toml", """
+name = "one run"
+mode = "grid"
+t_final_s = 2.0
+controllers = ["pi"]
+""")
+    p = wtftc("sweep", small, "--out", out, timeout=300)
+    assert p.returncode == 0, p.stderr
+    assert sweep.read_results(out).num_rows == 1
+    assert not (out / "sweep.lock").exists()

@@ -116,8 +116,8 @@ def _add_run(sub) -> None:
                    help="1 no fault, 2 fault with the controller unaware, 3 fault known to "
                         "eq (49), 4 fault detected by wtftc's FDI")
     r.add_argument("--plant", help="nrel5mw (default; two-mass drivetrain), tower (nrel5mw "
-                   "on a flexible tower: thrust, tower-base moment) or paper (eqs (1)-(4), "
-                   "unloaded)")
+                   "on a flexible tower: thrust, tower-base moment, Cp and Ct per blade) or "
+                   "paper (eqs (1)-(4), unloaded)")
     r.add_argument("--controller", help=_controller_help())
     r.add_argument("--turbine", help=TURBINE_HELP)
     r.add_argument("--wind", help="wind kind: constant, steps, paper_random, ntm, eog, file")

@@ -42,6 +42,7 @@ from wtftc.campaign.sweep.store import (
     _prepare,
     _save_batch,
     read_results,
+    release,
     schema,
     versions,
 )
@@ -163,10 +164,20 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
     # a remote scheduler first: one that cannot be reached leaves nothing in out_dir
     client, cluster = _client(scheduler, workers) if scheduler else (None, None)
     try:
-        done = _prepare(out_dir, sw, sweep_path.read_text(), overwrite)
+        done, lock = _prepare(out_dir, sw, sweep_path.read_text(), overwrite)
     except BaseException:
         _close(client, cluster)
         raise
+    try:
+        return _run_todo(sw, runs, dup, done, out_dir, client, cluster,
+                         scheduler, workers, traces, quiet)
+    finally:
+        release(lock)
+
+
+def _run_todo(sw, runs, dup, done, out_dir, client, cluster, scheduler, workers, traces,
+              quiet) -> dict:
+    """The runs of ``runs`` not in ``done``, on Dask, saved into ``out_dir`` as they end."""
     todo = [pt for pt in runs if pt["run_id"] not in done]
     if not quiet:
         print(f"sweep {sw.sweep_id} ({sw.mode}): {len(runs)} runs"

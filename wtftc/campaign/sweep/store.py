@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import platform
 import shutil
+import socket
 import time
 from pathlib import Path
 
@@ -89,16 +91,95 @@ def read_results(out_dir: Path):
     return pa.concat_tables([pq.read_table(p, schema=schema()) for p in parts])
 
 
-def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> set[str]:
-    """Create or reopen a results folder; return the run ids already saved in it."""
-    from wtftc.results.io import atomic_write_json, atomic_write_text
+#: the file a sweep holds in its results folder while it writes there
+LOCK = "sweep.lock"
 
+
+def claim(out_dir: Path) -> Path:
+    """Hold ``out_dir`` for this process: create its lock file (pid and host), or refuse
+    naming the sweep that holds it. A lock left by a process that is gone (same host) is
+    taken over. Two sweeps writing one folder would each save the other's runs again."""
+    lock = Path(out_dir) / LOCK
+    lock.parent.mkdir(parents=True, exist_ok=True)
+    for _ in range(2):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
+        except FileExistsError:
+            holder = _holder(lock)
+            if holder is not None:
+                raise ConfigError("--out", str(out_dir), "a results folder no other sweep is "
+                                  f"writing to: {holder} holds it ({lock}); wait for it to "
+                                  "end or --out another folder (remove the file only if "
+                                  "that sweep is gone)") from None
+            lock.unlink(missing_ok=True)
+            continue
+        with os.fdopen(fd, "w") as f:
+            f.write(f"{os.getpid()} {socket.gethostname()}\n")
+        return lock
+    raise ConfigError("--out", str(out_dir), f"a folder whose {LOCK} can be created")
+
+
+def release(lock: Path | None) -> None:
+    if lock is not None:
+        lock.unlink(missing_ok=True)
+
+
+def _holder(lock: Path) -> str | None:
+    """Who holds a lock file: 'process N on host', or None if it is stale (its process
+    gone on this host, or the file unreadable)."""
+    try:
+        pid_text, host = lock.read_text().split()
+        pid = int(pid_text)
+    except (OSError, ValueError):
+        return None
+    if host == socket.gethostname():
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return None
+        except PermissionError:
+            pass
+    return f"process {pid} on {host}"
+
+
+def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> tuple[set[str], Path]:
+    """Create or reopen a results folder and hold it (:func:`claim`); return the run ids
+    already saved in it and the lock to :func:`release`."""
     out_dir = Path(out_dir)
-    meta = out_dir / "sweep.json"
     if out_dir.resolve() in (Path.cwd(), *Path.cwd().parents):
         raise ConfigError("--out", str(out_dir), "a folder of its own (not the current folder "
                           "or one that contains it)")
-    if out_dir.exists() and any(out_dir.iterdir()):
+    _check_folder(out_dir, sw, overwrite)
+    lock = claim(out_dir)
+    try:
+        return _open(out_dir, sw, sweep_text, overwrite), lock
+    except BaseException:
+        release(lock)
+        raise
+
+
+def _open(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> set[str]:
+    from wtftc.results.io import atomic_write_json, atomic_write_text
+
+    meta = out_dir / "sweep.json"
+    if overwrite and meta.exists():
+        for child in out_dir.iterdir():
+            if child.name != LOCK:
+                shutil.rmtree(child) if child.is_dir() else child.unlink()
+    (out_dir / "runs").mkdir(parents=True, exist_ok=True)
+    if not meta.exists():
+        atomic_write_text(out_dir / "sweep.toml", sweep_text)
+        atomic_write_json(meta, {"sweep_id": sw.sweep_id, "sweep": json.loads(sw.text),
+                                 "versions": versions(),
+                                 "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")})
+    return set(read_results(out_dir).column("run_id").to_pylist())
+
+
+def _check_folder(out_dir: Path, sw: Sweep, overwrite: bool) -> None:
+    """Refuse a folder that is not this sweep's results folder (unless --overwrite of a
+    sweep's results folder); the lock file alone does not make a folder ours."""
+    meta = out_dir / "sweep.json"
+    if out_dir.exists() and any(c.name != LOCK for c in out_dir.iterdir()):
         if not meta.exists():  # never removed, even with --overwrite: it is not ours
             raise ConfigError("--out", str(out_dir), "an empty folder or a sweep's results "
                               "folder (this one holds other files; --overwrite removes only "
@@ -115,15 +196,6 @@ def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> set[
                 old = None
             if old is not None:
                 _check_same_sweep(out_dir, old, sw.sweep_id, overwrite)
-        if overwrite:
-            shutil.rmtree(out_dir)
-    (out_dir / "runs").mkdir(parents=True, exist_ok=True)
-    if not meta.exists():
-        atomic_write_text(out_dir / "sweep.toml", sweep_text)
-        atomic_write_json(meta, {"sweep_id": sw.sweep_id, "sweep": json.loads(sw.text),
-                                 "versions": versions(),
-                                 "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")})
-    return set(read_results(out_dir).column("run_id").to_pylist())
 
 
 def _check_same_sweep(out_dir: Path, old: dict, sweep_id: str, overwrite: bool) -> None:
