@@ -60,18 +60,20 @@ r_f2, e2, e_d, L1, L2 = sp.symbols(
     "residual_filtered_m2 mean_sq_m2 mean_sq_pair sensor_latch_m1 sensor_latch_m2", real=True)
 # the fraction of the window T_f the model's blade spent at its rate limit
 F_sat = sp.Symbol("rate_limited_fraction", real=True)
-# the measured pitch low-passed over T_r: a locked blade's stuck angle
-b_f = sp.Symbol("pitch_filtered", real=True)
+# the measured pitch low-passed over T_r: a locked blade's stuck angle; and the fraction
+# of the window T_f it stood at a position limit away from its model (the stop test)
+b_f, H_stop = sp.symbols("pitch_filtered stop_held", real=True)
 STATE_SYMBOLS = [bh, bhd, e, D, q, S_bb, S_b, S_1, S_mb, S_m, S_mm, r_f, R_h,
-                 bp, bpd, ep, ba, bad, ea, r_f2, e2, e_d, L1, L2, F_sat, b_f]
+                 bp, bpd, ep, ba, bad, ea, r_f2, e2, e_d, L1, L2, F_sat, b_f, H_stop]
 PER_BLADE = ["beta_hat", "beta_hat_rate", "mean_sq", "latch", "confidence", "S_bb", "S_b",
              "S_1", "S_mb", "S_m", "S_mm", "residual_filtered", "rate_msq_model",
              "beta_pd", "beta_pd_rate", "mean_sq_pd", "beta_air", "beta_air_rate",
              "mean_sq_air", "residual_filtered_m2", "mean_sq_m2", "mean_sq_pair",
-             "sensor_latch_m1", "sensor_latch_m2", "rate_limited_fraction", "pitch_filtered"]
+             "sensor_latch_m1", "sensor_latch_m2", "rate_limited_fraction", "pitch_filtered",
+             "stop_held"]
 UNITS = ["rad", "rad/s", "rad^2", "-", "-", "rad^2", "rad", "-", "rad^2", "rad", "rad^2",
          "rad", "rad^2/s^2", "rad", "rad/s", "rad^2", "rad", "rad/s", "rad^2", "rad", "rad^2",
-         "rad^2", "-", "-", "-", "rad"]
+         "rad^2", "-", "-", "-", "rad", "-"]
 #: the speed sensors' pair tests (rotor, generator): per pair, each sensor's filtered
 #: residual against the other quantity's sensors, their mean squares, the mean square of
 #: their difference, and each sensor's latch
@@ -145,11 +147,13 @@ PARAMS = [
           "model's is below this (the blade does not follow its command)"),
     Entry("fdi_stop_band", 0.008726646259971648, "rad",
           "a blade whose filtered pitch is within this of a position limit (0.5°) while its "
-          "model's is farther than fdi_stop_gap from it is stuck at the stop (issue 18: a "
-          "runaway pitch); the filtered reading's noise is below 0.05° (docs/fdi.md)"),
+          "filtered residual says the model is farther than fdi_stop_gap beyond it, for "
+          "most of a window T_f, is stuck at the stop (issue 18: a runaway pitch); the "
+          "filtered reading's noise is below 0.05° (docs/fdi.md)"),
     Entry("fdi_stop_gap", 0.03490658503988659, "rad",
-          "the model's pitch farther than this (2°) from a blade at its stop: the blade "
-          "does not follow its command"),
+          "the filtered residual beyond this (2°) with the blade at its stop: the blade "
+          "does not follow its command (a slow actuator that lags leaves the band within "
+          "a fraction of T_f)"),
     Entry("fdi_omega_pd", nrel5mw.PRESSURE_DROP_OMEGA_N, "rad/s",
           "hydraulic pressure drop model ω_n (Odgaard 2013)"),
     Entry("fdi_zeta_pd", nrel5mw.PRESSURE_DROP_ZETA, "-",
@@ -253,7 +257,8 @@ def blade_rhs() -> list[sp.Expr]:
             *pd, ((beta_v - bp) ** 2 - ep) / T_w, *air, ((beta_v - ba) ** 2 - ea) / T_w,
             (beta_m2 - bh - r_f2) / T_r, (r_f2**2 - e2) / T_f, ((r_f - r_f2)**2 - e_d) / T_f,
             *sensor_latches(e, e2, e_d, L1, L2, thr_d, D >= sp.Rational(1, 2)),
-            (at_rate_limit(bhd) - F_sat) / T_f, (beta_v - b_f) / T_r]
+            (at_rate_limit(bhd) - F_sat) / T_f, (beta_v - b_f) / T_r,
+            (sp.Piecewise((1, at_stop()), (0, True)) - H_stop) / T_f]
 
 
 #: a speed pair's symbols: its sensors' readings, the reference (the other quantity's
@@ -312,17 +317,30 @@ def is_locked() -> sp.Expr:
       var(β_m) < ρ_lock² var(β̂) + 2σ² (σ the sensor noise). The second test keeps a loss
       of effectiveness from passing for a lock while the window still mixes the pre-fault
       slope 1 with the new one (ρ₁ then dips below 0).
-    * The blade stands at a position limit (its filtered pitch within the stop band)
-      while its model is more than the stop gap away: a runaway that reached its stop
+    * The blade stands at a position limit while its model is more than the stop gap
+      away, for most of a window T_f (:func:`at_stop`): a runaway that reached its stop
       (issue 18). The window's test misses it for seconds: the run to the stop fills the
       window with a spread the model does not have."""
     rho1, _ = estimates()
     n = sp.Max(S_1, 1e-9)
     var_m = S_mm / n - (S_m / n) ** 2
     var_h = S_bb / n - (S_b / n) ** 2
-    at_stop = sp.Or(sp.And(b_f < bmin + stop_band, bh > b_f + stop_gap),
-                    sp.And(b_f > bmax - stop_band, bh < b_f - stop_gap))
-    return sp.Or(sp.And(rho1 < rho_lock, var_m < rho_lock**2 * var_h + 2 * var_n), at_stop)
+    return sp.Or(sp.And(rho1 < rho_lock, var_m < rho_lock**2 * var_h + 2 * var_n),
+                 H_stop > sp.Rational(1, 2))
+
+
+def at_stop() -> sp.Expr:
+    """The stop test's condition at one instant: the blade's filtered pitch within the
+    stop band of a position limit, and the filtered residual (the pitch sensor in use:
+    m2's once m1 is excluded) putting the model more than the stop gap beyond it. Both
+    sides filtered alike (T_r), so that filtering alone adds no gap; held over most of a
+    window T_f (state stop_held > 1/2) before it counts, so that a slow actuator leaving
+    its stop behind its model is not taken for a stuck one."""
+    def beyond(r):
+        return sp.Or(sp.And(b_f < bmin + stop_band, r < -stop_gap),
+                     sp.And(b_f > bmax - stop_band, r > stop_gap))
+    half = sp.Rational(1, 2)
+    return sp.Or(sp.And(L1 < half, beyond(r_f)), sp.And(L1 >= half, beyond(r_f2)))
 
 
 def accommodation() -> tuple[sp.Expr, sp.Expr, sp.Expr]:
@@ -347,4 +365,4 @@ def initial(beta_meas0) -> list[sp.Expr]:
     b0 = beta_meas0
     spread = sp.Rational(1, 10**4)
     return [b0, 0, 0, 0, 0, b0**2 + spread, b0, 1, b0**2 + spread, b0, b0**2 + spread, 0, 0,
-            b0, 0, 0, b0, 0, 0, 0, 0, 0, 0, 0, 0, b0]
+            b0, 0, 0, b0, 0, 0, 0, 0, 0, 0, 0, 0, b0, 0]

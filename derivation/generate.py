@@ -352,8 +352,8 @@ def _fdi_blades(x, v, rd, bv, params) -> dict[str, list]:
         out["rhs"] += [tr(e) for e in fdi.blade_rhs()]
         for key, expr in zip(("rho", "lock", "ubar"), fdi.accommodation(), strict=True):
             out[key].append(tr(expr))
-        r1, r0 = fdi.estimates()
-        out["rho_hat"].append(tr(sp.Piecewise((r1, fdi.is_locked()), (r0, True))))
+        _, r0 = fdi.estimates()
+        out["rho_hat"].append(tr(sp.Piecewise((0, fdi.is_locked()), (r0, True))))
         out["c_hat"].append(tr(fdi.stuck_angle()))
         out["latch"].append(xs[3])
         # the residual RMS of the pitch sensor in use (m2's once m1 is excluded)

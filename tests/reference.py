@@ -332,7 +332,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     base = {e.name: float(y) for e, y in zip(fdi.PARAMS, p, strict=True)}
     rhs, known, rho, c, latch, rms, wh, zh, thr = [], [[], [], []], [], [], [], [], [], [], []
     excluded = {}
-    r1, r0 = fdi.estimates()
+    _, r0 = fdi.estimates()
     for j in range(3):
         xs = x[j * n:(j + 1) * n]
         vals = {**base, "v": float(v[j]), "beta_m": rd[f"beta_meas_{j + 1}_m1"],
@@ -341,7 +341,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         rhs.append(pair("fdi_rhs", fdi.blade_rhs(), vals))
         for k, a in enumerate(fdi.accommodation()):
             known[k].append(pair(f"fdi_acc{k}", [a], vals))
-        rho.append(pair("fdi_rho", [sp.Piecewise((r1, fdi.is_locked()), (r0, True))], vals))
+        rho.append(pair("fdi_rho", [sp.Piecewise((0, fdi.is_locked()), (r0, True))], vals))
         c.append(pair("fdi_c", [fdi.stuck_angle()], vals))
         latch.append(exact([xs[3]]))
         e_used = vals["mean_sq_m2"] if vals["sensor_latch_m1"] >= 0.5 else xs[2]

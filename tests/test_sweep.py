@@ -407,18 +407,24 @@ inertia = { min = 0.9, max = 1.1 }
     assert 0.9 < ratio_median < 1.1
 
 
-def test_a_folder_another_sweep_is_writing_to_is_refused_and_a_stale_lock_taken_over(tmp_path):
+def test_a_folder_another_sweep_is_writing_to_is_refused_until_its_holder_is_gone(tmp_path):
     """Two sweeps into one folder each saved the other's runs again (issue 18's families:
-    a second copy launched by mistake). A sweep holds its folder with sweep.lock (pid and
-    host): a second one is refused in one line naming the holder, the folder untouched
-    even with --overwrite; a lock whose process is gone is taken over, and a finished
-    sweep leaves none."""
-    import socket
+    a second copy launched by mistake). A sweep holds its folder with an exclusive flock
+    on sweep.lock (its pid and host in it): a second one is refused in one line naming the
+    holder, the folder untouched even with --overwrite. The kernel drops the lock when the
+    holder dies (killed here), so the folder is free again; a finished sweep removes its
+    lock file."""
     out = tmp_path / "res"
     out.mkdir()
-    holder = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import fcntl, os, socket, sys, time\n"
+        f"fd = os.open({str(out / 'sweep.lock')!r}, os.O_CREAT | os.O_RDWR)\n"
+        "fcntl.flock(fd, fcntl.LOCK_EX)\n"
+        "os.write(fd, f'{os.getpid()} {socket.gethostname()}'.encode())\n"
+        "print('held', flush=True)\n"
+        "time.sleep(120)\n")], stdout=subprocess.PIPE, text=True)
     try:
-        (out / "sweep.lock").write_text(f"{holder.pid} {socket.gethostname()}\n")
+        assert holder.stdout.readline().strip() == "held"
         for extra in ((), ("--overwrite",)):
             p = wtftc("sweep", ROOT / "examples" / "sweep_small.toml", "--out", out, *extra,
                       timeout=120)
@@ -428,7 +434,8 @@ def test_a_folder_another_sweep_is_writing_to_is_refused_and_a_stale_lock_taken_
     finally:
         holder.kill()
         holder.wait()
-    # the holder is gone: its lock is stale, and the sweep takes the folder
+    # the holder is gone, its file left behind unlocked: the sweep takes the folder
+    assert (out / "sweep.lock").exists()
     small = write_sweep(tmp_path / "one.toml", """
 name = "one run"
 mode = "grid"

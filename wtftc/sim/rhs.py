@@ -189,9 +189,12 @@ def _lock_within_table(loop: Loop, known):
     v = (3U − Σ σ̂ ū)/Σ(1 − σ̂)ρ̂ is the mean-pitch model's inverse, linear in ū: told of a
     blade at 90° (a runaway to feather) it put the healthy blades 37° finer than U, and
     on a rotor whose blades each give their share at their own pitch (the tower plant,
-    a real rotor) the peak reached 1.46 × rated at 24 m/s where the unaware controller
-    held 1.05. Beyond the table's last pitch the controllers' model knows nothing of the
-    blade's torque, and the per-blade plant reads it there (docs/loads.md)."""
+    a real rotor) the peak at 24 m/s reached 1.32 × rated told the truth (case 3, default
+    gains; 1.46 × in a tuned DLC 2.1 scenario) where the unaware controller held 1.04.
+    Beyond the table's last pitch the controllers' model knows nothing of the blade's
+    torque, and the per-blade plant reads it there (docs/loads.md). On the mean-pitch
+    plants eq (49) with the true ū was the plant's exact inverse; for ū beyond the table
+    (only a lock or runaway past 30°) the bound departs from it."""
     top = float(np.max(loop.table.pitch_rad))
     return ca.vertcat(*[ca.fmin(known[k], top) if n.startswith("ubar_") else known[k]
                         for k, n in enumerate(lay.names("fault_inputs"))])

@@ -218,6 +218,7 @@ def _fdi_states(rng: np.random.Generator, rs: np.random.Generator) -> np.ndarray
         # draws of the states after it stay what they were before it was added (issue 17)
         values[f"fdi_rate_limited_fraction_{j}"] = values[f"fdi_latch_{j}"]
         values[f"fdi_pitch_filtered_{j}"] = rp.uniform(-0.05, 1.65)
+        values[f"fdi_stop_held_{j}"] = rp.uniform(0, 1)
     for n in lay.names("fdi_states"):
         if n not in values:  # the pair tests': residuals, mean squares, latches
             gen = 100.0 if "omega_g_hss" in n else 1.0  # the HSS: N times the rotor's

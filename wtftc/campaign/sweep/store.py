@@ -3,6 +3,7 @@ atomically), the traces, the sweep file and its record, and reopening it to resu
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
 import json
 import os
@@ -10,6 +11,7 @@ import platform
 import shutil
 import socket
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -95,54 +97,54 @@ def read_results(out_dir: Path):
 LOCK = "sweep.lock"
 
 
-def claim(out_dir: Path) -> Path:
-    """Hold ``out_dir`` for this process: create its lock file (pid and host), or refuse
-    naming the sweep that holds it. A lock left by a process that is gone (same host) is
-    taken over. Two sweeps writing one folder would each save the other's runs again."""
+@dataclass
+class Lock:
+    """A held results folder: the lock file and its open descriptor (the kernel's lock
+    lives as long as the descriptor, and dies with the process)."""
+    path: Path
+    fd: int
+
+
+def claim(out_dir: Path) -> Lock:
+    """Hold ``out_dir`` for this process: an exclusive ``flock`` on its lock file (pid and
+    host written in it), or refuse naming the process that holds it. The kernel releases
+    the lock when its process ends, however it ends, so a lock is never stale. Two sweeps
+    writing one folder would each save the other's runs again."""
     lock = Path(out_dir) / LOCK
     lock.parent.mkdir(parents=True, exist_ok=True)
-    for _ in range(2):
+    for _ in range(5):
+        fd = os.open(lock, os.O_CREAT | os.O_RDWR, 0o644)
         try:
-            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY)
-        except FileExistsError:
-            holder = _holder(lock)
-            if holder is not None:
-                raise ConfigError("--out", str(out_dir), "a results folder no other sweep is "
-                                  f"writing to: {holder} holds it ({lock}); wait for it to "
-                                  "end or --out another folder (remove the file only if "
-                                  "that sweep is gone)") from None
-            lock.unlink(missing_ok=True)
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 200, 0).decode(errors="replace").split()
+            os.close(fd)
+            who = f"process {holder[0]} on {holder[1]}" if len(holder) == 2 else "a sweep"
+            raise ConfigError("--out", str(out_dir), "a results folder no other sweep is "
+                              f"writing to: {who} holds it ({lock}); wait for it to end "
+                              "or --out another folder") from None
+        try:
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino
+        except FileNotFoundError:
+            same = False
+        if not same:  # the holder removed the file as we opened it: take the new one
+            os.close(fd)
             continue
-        with os.fdopen(fd, "w") as f:
-            f.write(f"{os.getpid()} {socket.gethostname()}\n")
-        return lock
-    raise ConfigError("--out", str(out_dir), f"a folder whose {LOCK} can be created")
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()} {socket.gethostname()}\n".encode(), 0)
+        return Lock(lock, fd)
+    raise ConfigError("--out", str(out_dir), f"a folder whose {LOCK} can be held")
 
 
-def release(lock: Path | None) -> None:
+def release(lock: Lock | None) -> None:
+    """Give the folder back: remove the lock file (while still holding it, so no one
+    holds the removed file), then drop the lock."""
     if lock is not None:
-        lock.unlink(missing_ok=True)
+        lock.path.unlink(missing_ok=True)
+        os.close(lock.fd)
 
 
-def _holder(lock: Path) -> str | None:
-    """Who holds a lock file: 'process N on host', or None if it is stale (its process
-    gone on this host, or the file unreadable)."""
-    try:
-        pid_text, host = lock.read_text().split()
-        pid = int(pid_text)
-    except (OSError, ValueError):
-        return None
-    if host == socket.gethostname():
-        try:
-            os.kill(pid, 0)
-        except ProcessLookupError:
-            return None
-        except PermissionError:
-            pass
-    return f"process {pid} on {host}"
-
-
-def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> tuple[set[str], Path]:
+def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> tuple[set[str], Lock]:
     """Create or reopen a results folder and hold it (:func:`claim`); return the run ids
     already saved in it and the lock to :func:`release`."""
     out_dir = Path(out_dir)
