@@ -142,6 +142,11 @@ PARAMS = [
           "the gearbox ratio N relating the two speeds (set per run from the turbine)"),
     Entry("fdi_k_latch", 20.0, "1/s", "latch rise rate"),
     Entry("fdi_T_w", 2.0, "s", "least-squares window (exponential forgetting)"),
+    Entry("fdi_T_w_fault", 0.5, "s",
+          "the least-squares window from a detection until the accommodation is fully "
+          "engaged (the confidence reaches 1): the pre-fault data forgotten four times "
+          "faster, so the estimates the accommodation is engaged on are the fault's "
+          "(issue 18: a loss of effectiveness; docs/fdi.md)"),
     Entry("fdi_rho_lock", 0.2, "-",
           "lock-in-place when the windowed regression's slope of the measured pitch on the "
           "model's is below this (the blade does not follow its command)"),
@@ -171,6 +176,7 @@ PARAMS = [
 wn, zt, bmin, bmax, rmax, T_f, r_thr, k_D, T_w, rho_lock, rho_min, T_e = sp.symbols(
     "fdi_omega_n fdi_zeta fdi_pitch_min fdi_pitch_max fdi_rate_max fdi_T_f fdi_r_thr "
     "fdi_k_latch fdi_T_w fdi_rho_lock fdi_rho_min fdi_T_engage", real=True)
+T_wf = sp.Symbol("fdi_T_w_fault", real=True)
 h_noise, T_r, delta, var_n, T_s, delta_sat = sp.symbols(
     "fdi_thr2_noise fdi_T_r fdi_delta fdi_var_noise fdi_T_s fdi_delta_rate_limited", real=True)
 stop_band, stop_gap = sp.symbols("fdi_stop_band fdi_stop_gap", real=True)
@@ -245,14 +251,17 @@ def blade_rhs() -> list[sp.Expr]:
     """Time derivatives of one blade's FDI states."""
     rate, acc = actuator_model(bh, bhd, wn, zt)
     latch = sp.Piecewise((k_D * (1 - D), actuator_alarm()), (0, True))
-    confidence = sp.Piecewise((1 / T_e, sp.And(D >= sp.Rational(1, 2), q < 1)), (0, True))
+    engaging = sp.And(D >= sp.Rational(1, 2), q < 1)
+    confidence = sp.Piecewise((1 / T_e, engaging), (0, True))
+    # the statistics' window: shorter while the accommodation is being engaged
+    window = sp.Piecewise((T_wf, engaging), (T_w, True))
     stats = [bh * bh, bh, 1, beta_v * bh, beta_v, beta_v * beta_v]
     pd = actuator_model(bp, bpd, w_pd, z_pd)
     air = actuator_model(ba, bad, w_air, z_air)
     thr_d = pair_threshold_sq(h_pair, sp.sqrt(2) * r_thr)
     return [rate, acc, (r_f**2 - e) / T_f, latch, confidence,
-            *[(x - s) / T_w for x, s in zip(stats, [S_bb, S_b, S_1, S_mb, S_m, S_mm],
-                                             strict=True)],
+            *[(x - s) / window for x, s in zip(stats, [S_bb, S_b, S_1, S_mb, S_m, S_mm],
+                                                strict=True)],
             (beta_m - bh - r_f) / T_r, (rate**2 - R_h) / T_f,
             *pd, ((beta_v - bp) ** 2 - ep) / T_w, *air, ((beta_v - ba) ** 2 - ea) / T_w,
             (beta_m2 - bh - r_f2) / T_r, (r_f2**2 - e2) / T_f, ((r_f - r_f2)**2 - e_d) / T_f,

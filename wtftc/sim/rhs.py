@@ -316,12 +316,16 @@ _INPUT_GROUPS = {"actuator_faults": "actuator_faults", "sensor_faults": "sensor_
 def fdi_params(loop: Loop) -> np.ndarray:
     """The FDI's parameters for exact sensors, its actuator model the run's turbine's
     nominal one (ω_n, ζ): the FDI is designed for the turbine it watches (its defaults are
-    the NREL 5-MW's). Its noise threshold is set per run (wtftc.sim.fdi)."""
+    the NREL 5-MW's), with the controller's own settings (derivation/controllers.py,
+    ``fdi``). Its noise threshold is set per run (wtftc.sim.fdi)."""
     p = lay.vector("fdi_params", tuning.turbine_params_of("fdi_params", loop.p_turbine))
     tp = lay.values("turbine_params", loop.p_turbine)
     p[lay.index("fdi_params", "fdi_omega_n")] = tp["omega_n_nominal"]
     p[lay.index("fdi_params", "fdi_zeta")] = tp["zeta_nominal"]
     p[lay.index("fdi_params", "fdi_gearbox_ratio")] = tp["gearbox_ratio"]
+    # what the controller's design takes in place of the FDI's defaults (the registry's)
+    for name, value in controllers()[loop.controller].get("fdi", {}).items():
+        p[lay.index("fdi_params", name)] = value
     return p
 
 

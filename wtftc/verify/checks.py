@@ -194,7 +194,8 @@ def _added_last(rng: np.random.Generator, other: np.random.Generator, size: int,
 
 #: FDI parameters added after the points were fixed: drawn from rs, the others from rng,
 #: so that every function's points stay what they were (the same rule as the sensors')
-FDI_PARAMS_ADDED = ("fdi_delta_rate_limited",)  # issue 17
+FDI_PARAMS_ADDED = ("fdi_delta_rate_limited",  # issue 17
+                    "fdi_stop_band", "fdi_stop_gap", "fdi_T_w_fault")  # issue 18
 
 
 def _fdi_param_draws(rng: np.random.Generator, rs: np.random.Generator) -> np.ndarray:
