@@ -263,3 +263,30 @@ def test_pi_baseline_regulates_and_does_not_wind_up():
     beta = np.mean([res.column(f"beta_{j}") for j in (1, 2, 3)], axis=0)
     hi, lo = beta > np.radians(8), (beta > np.radians(1)) & (beta < np.radians(4))
     assert g[hi].mean() < g[lo].mean() < 0
+
+
+def test_held_fault_columns_are_reused_only_while_the_schedules_stay_constant():
+    """Issue 19: a batch's chunks recomputed every run's fault columns, most of the serial
+    Python time per chunk. Held columns are now reused while every schedule stays constant
+    from when they were computed: across an onset, or while a drift grows, they are
+    computed again, and what is reused equals what would be computed."""
+    from types import SimpleNamespace
+
+    from wtftc.model import faults
+    s = faults.Schedule(faults.parse_faults([
+        {"blade": 2, "type": "loss_of_effectiveness", "rho": 0.5, "onset_s": 10.0},
+        {"blade": 1, "type": "pitch_sensor_drift", "onset_s": 20.0}]))
+    run, held = SimpleNamespace(schedule=s, ctrl_schedule=s), {}
+
+    def at(t):
+        return integrate._fault_columns(run, {}, held, np.array([t]), np.array([t]))
+
+    first = at(1.0)
+    assert at(5.0) is first  # nothing changes before the onset
+    after = at(12.0)
+    assert after is not first
+    assert np.array_equal(after["actuator_faults"], s.actuator(np.array([12.0])))
+    assert at(15.0) is after
+    drifting = at(21.0)
+    assert at(22.0) is not drifting  # a drift grows: never reused
+    assert np.array_equal(at(23.0)["sensor_faults"], s.sensor(np.array([23.0])))

@@ -376,27 +376,25 @@ def _noise_streams(loop: Loop, runs: list[Run]) -> list[list[np.random.Generator
 
 
 def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: int, n_c: int,
-               dt: float, loop: Loop, noise: list) -> None:
+               dt: float, loop: Loop, noise: list, held_cols: list[dict]) -> None:
     """Wind at t, t + dt/2, t + dt of every step of the chunk; fault inputs per step, or one
     column held when they are constant over the chunk (the usual case). A sampled loop
     takes the sensor faults, eq (49)'s told fault and one noise draw per signal at each
-    interval's start."""
+    interval's start. ``held_cols``: per run, the held columns last computed and their
+    time, reused while the schedules stay constant from then (issue 19: the schedules were
+    most of this function's time; the same numbers, bit for bit)."""
     tk = (k + np.arange(n_c)) * dt
     held = all(s is None or s.constant_between(tk[0], tk[m - 1])
                for r in runs for s in (r.schedule, r.ctrl_schedule))
     tf = tk[:1] if held else tk
     ts = tf[::loop.interval] if loop.sampled and not held else tf
-    told = lay.prefix("fault_inputs", of="actuator_faults")
     n_runs = len(runs)
     for b, r in enumerate(runs):
         call.put("wind3", np.vstack([r.wind(tk), r.wind(tk + dt / 2), r.wind(tk + dt)]), b,
                  n_runs)
-        s, c = r.schedule, r.ctrl_schedule
-        call.put("actuator_faults", s.actuator(tf) if s else nominal[b]["actuator_faults"], b,
-                 n_runs)
-        call.put("sensor_faults", s.sensor(ts) if s else nominal[b]["sensor_faults"], b, n_runs)
-        call.put("ctrl_fault", c.actuator(ts)[told] if c else nominal[b]["fault_inputs"], b,
-                 n_runs)
+        cols = _fault_columns(r, nominal[b], held_cols[b] if held else None, tf, ts)
+        for name in ("actuator_faults", "sensor_faults", "ctrl_fault"):
+            call.put(name, cols[name], b, n_runs)
         if loop.sampled:  # draws for the intervals this chunk uses, in order
             n_int = n_c // loop.interval
             used = -(-m // loop.interval)
@@ -405,6 +403,24 @@ def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: 
             call.put("noise", draws, b, n_runs)
             call.put("test_pulse", _pulse(r.test_pulse, tk[::loop.interval])[None, :], b,
                      n_runs)
+
+
+def _fault_columns(r: Run, nominal: dict, held: dict | None, tf: np.ndarray,
+                   ts: np.ndarray) -> dict[str, np.ndarray]:
+    """A run's fault inputs over a chunk (plant actuators at ``tf``, sensors and eq (49)'s
+    told fault at ``ts``). ``held`` (a chunk held constant): the cache of the columns last
+    computed, reused while every schedule is constant from their time to ``tf[0]``."""
+    s, c = r.schedule, r.ctrl_schedule
+    if held is not None and "t" in held and all(
+            x is None or x.constant_between(held["t"], tf[0]) for x in (s, c)):
+        return held["cols"]
+    told = lay.prefix("fault_inputs", of="actuator_faults")
+    cols = {"actuator_faults": s.actuator(tf) if s else nominal["actuator_faults"],
+            "sensor_faults": s.sensor(ts) if s else nominal["sensor_faults"],
+            "ctrl_fault": c.actuator(ts)[told] if c else nominal["fault_inputs"]}
+    if held is not None:
+        held.update(t=float(tf[0]), cols=cols)
+    return cols
 
 
 def _pulse(spec: tuple | None, t: np.ndarray) -> np.ndarray:
@@ -462,14 +478,17 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     pitch = lay.block(PLANTS[loop.plant]["states"], "beta")
     _put_static(call, loop, runs, dt)
     nominal, noise = _nominal_inputs(loop, runs), _noise_streams(loop, runs)
+    held_cols: list[dict] = [{} for _ in runs]
     k, t0 = 0, time.perf_counter()
     last_print = t0
     while k < n_steps and not all(batch.diverged):
+        if k in events:  # a lock may bind its angle here: its columns change
+            held_cols = [{} for _ in runs]
         _bind_locks(runs, k, dt, batch.z, pitch, every)
         # a hook's chunks end on multiples of its interval, whatever events cut them
         end = (k // n_c + 1) * n_c if hook is not None else k + n_c
         stop = min([n_steps, end] + [e for e in events if e > k])
-        _put_chunk(call, nominal, runs, k, stop - k, n_c, dt, loop, noise)
+        _put_chunk(call, nominal, runs, k, stop - k, n_c, dt, loop, noise, held_cols)
         call.put("z", batch.z)
         if hook is not None:
             hook.before(call)
