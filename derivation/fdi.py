@@ -24,7 +24,10 @@ pitch β_m,j.
   collinear and ρ₁ alone is poorly determined). After detection the accommodation is told
   σ̂_j = 1, ū_j = β_f,j when ρ₁ < ρ_lock (the blade does not follow the model: a slope of
   the windowed regression, which averages the sensor noise out), else σ̂_j = 0 and ρ̂_j =
-  ρ₀ clipped to [ρ_min, 1]; before detection, the nominal values. The stuck angle β_f,j
+  ρ₀ clipped to [ρ_min, 1]; before detection, the nominal values. A blade standing at a
+  position limit while its model is beyond it is locked too (the stop test, is_locked:
+  a runaway). From a detection until the accommodation is engaged the window is T_w,fault
+  (0.5 s) instead of T_w. The stuck angle β_f,j
   is the measured pitch low-passed over T_r: a locked blade stands still, so its latest
   filtered reading is the estimate, within the pitch range by construction. (Until issue
   18 it was the regression's intercept c, which extrapolates: a blade that ran to its 0°
