@@ -290,3 +290,34 @@ def test_held_fault_columns_are_reused_only_while_the_schedules_stay_constant():
     drifting = at(21.0)
     assert at(22.0) is not drifting  # a drift grows: never reused
     assert np.array_equal(at(23.0)["sensor_faults"], s.sensor(np.array([23.0])))
+
+
+def test_uneven_shards_on_worker_threads_give_the_runs_alone(capsys):
+    """Five runs on three worker threads (shards of 1, 2 and 2 runs, issue 19): each run's
+    numbers are its own alone, bit for bit, in the order given; one progress line counts
+    all five runs."""
+    base = {"controller": "physical", "t_final_s": 12.0, "dt_s": 1e-3,
+            "wind": {"kind": "ntm", "mean_mps": 18.0, "turbulence_class": "B"},
+            "fault": [{"type": "lock", "blade": 2, "onset_s": 4.3}]}
+    rcs = [config.make_config({**base, "seed": s, "case": 3 + s % 2}) for s in range(5)]
+    assert [list(r) for r in integrate._shards(5, 3)] == [[0], [1, 2], [3, 4]]
+    assert len(integrate._shards(2, 8)) == 2
+    single = [cases.run(rc, progress=False) for rc in rcs]
+    capsys.readouterr()
+    batch = cases.run_batch(rcs, threads=3, progress=True)
+    for a, b in zip(single, batch, strict=True):
+        np.testing.assert_array_equal(a.outputs, b.outputs)
+        np.testing.assert_array_equal(a.z_final, b.z_final)
+    assert "5 runs × 12.0 s simulated" in capsys.readouterr().err
+
+
+def test_an_error_in_a_worker_thread_reaches_the_caller(monkeypatch):
+    rcs = [config.make_config({"controller": "physical", "t_final_s": 2.0, "seed": s})
+           for s in range(2)]
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("wind file went away")
+
+    monkeypatch.setattr(integrate, "_put_chunk", broken)
+    with pytest.raises(RuntimeError, match="wind file went away"):
+        cases.run_batch(rcs, threads=2, progress=False)

@@ -51,8 +51,8 @@ def run_batch(rcs: list[RunConfig], threads: int = 1, progress: bool = True,
 
     The runs must share what the compiled loop is built for (:class:`wtftc.sim.rhs.Loop`:
     plant, controller, Cp table, turbine parameters) and dt, t_final and output decimation;
-    wind, faults, seed, case and controller gains may differ. ``threads``: CasADi threads
-    over the runs (use the cores).
+    wind, faults, seed, case and controller gains may differ. ``threads``: worker threads,
+    each advancing its share of the runs (use the cores).
     """
     _check_batch(rcs, threads)
     first = rcs[0]

@@ -16,6 +16,7 @@ from __future__ import annotations
 import os
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from functools import cache
@@ -241,11 +242,9 @@ class ChunkHook:
 
 
 @cache
-def _mapped(f: ca.Function, n_runs: int, threads: int) -> ca.Function:
-    """f evaluated for n_runs independent runs, side by side, on ``threads`` threads."""
-    if n_runs == 1:
-        return f
-    return f.map(n_runs, "thread", threads) if threads > 1 else f.map(n_runs, "serial")
+def _mapped(f: ca.Function, n_runs: int) -> ca.Function:
+    """f evaluated for n_runs independent runs, side by side, in one call."""
+    return f if n_runs == 1 else f.map(n_runs, "serial")
 
 
 @dataclass(frozen=True)
@@ -456,7 +455,12 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
               progress: bool = True, keep_states: bool = False, threads: int = 1,
               fast_math: bool = False, hook: ChunkHook | None = None) -> list[Result]:
     """Integrate independent runs of one loop (same plant, controller, turbine, dt) together:
-    each compiled chunk call advances all of them (``Function.map``, on ``threads`` threads).
+    each compiled chunk call advances all of them (``Function.map``).
+
+    ``threads`` > 1: the runs are cut into that many shards, each advanced by a Python
+    worker thread of its own (its own serial map and inputs): the compiled call releases
+    the GIL, so one shard's Python work (wind, fault inputs, recording) overlaps the
+    others' computing (issue 19: CasADi's thread map left that work serial).
 
     Every run gets the numbers it gets alone (the same compiled step, bit for bit); a run
     that diverges is recorded and frozen while the others go on. ``hook`` (a single run
@@ -467,7 +471,87 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     n_steps = int(round(t_final / dt))
     f = chunk_function(loop, n=hook.steps if hook else CHUNK, fast_math=fast_math,
                        quiet=not progress)
-    call = Buffered(_mapped(f, len(runs), threads))
+    shards = _shards(len(runs), threads)
+    tracker = _Tracker(n_steps, dt, [len(s) for s in shards], progress)
+    args = (loop, f, n_steps, dt, decimate, keep_states)
+    if len(shards) == 1:
+        batches = [_advance(*args, runs, hook, lambda k: tracker.tick(0, k))]
+    else:
+        batches = _in_threads(args, [[runs[i] for i in s] for s in shards], tracker)
+    wall = tracker.end()
+    return [r for b in batches for r in b.results(wall)]
+
+
+def _shards(n_runs: int, threads: int) -> list[range]:
+    """Contiguous shards of the runs, one per thread (at most one per run)."""
+    n = max(1, min(threads, n_runs))
+    cuts = [n_runs * i // n for i in range(n + 1)]
+    return [range(a, b) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
+
+
+def _in_threads(args: tuple, shards: list[list[Run]], tracker: _Tracker) -> list[_Batch]:
+    """Each shard advanced by a worker thread; their batches in shard order. The mapped
+    functions are built here first (CasADi's construction is not to be raced)."""
+    f = args[1]
+    for s in shards:
+        _mapped(f, len(s))
+    out: list = [None] * len(shards)
+
+    def work(i: int) -> None:
+        try:
+            out[i] = _advance(*args, shards[i], None, lambda k: tracker.tick(i, k))
+        except BaseException as exc:  # noqa: BLE001 - re-raised on the calling thread
+            out[i] = exc
+
+    workers = [threading.Thread(target=work, args=(i,), daemon=True)
+               for i in range(len(shards))]
+    for w in workers:
+        w.start()
+    for w in workers:
+        while w.is_alive():
+            w.join(0.25)
+            tracker.show()
+    for o in out:
+        if isinstance(o, BaseException):
+            raise o
+    return out
+
+
+class _Tracker:
+    """Progress over shards advancing at their own pace: each reports the step it reached,
+    the calling thread prints (a bar on a terminal, one line at the end otherwise)."""
+
+    def __init__(self, n_steps: int, dt: float, sizes: list[int], progress: bool):
+        self.n, self.dt, self.sizes, self.progress = n_steps, dt, sizes, progress
+        self.k = [0] * len(sizes)
+        self.t0 = self.last = time.perf_counter()
+
+    def tick(self, shard: int, k: int) -> None:
+        self.k[shard] = k
+        if len(self.sizes) == 1:
+            self.show()
+
+    def _mean_k(self) -> int:
+        return sum(k * s for k, s in zip(self.k, self.sizes, strict=True)) // sum(self.sizes)
+
+    def show(self) -> None:
+        now = time.perf_counter()
+        if self.progress and now - self.last > 0.5:
+            _progress(self._mean_k(), self.n, self.dt, now - self.t0, runs=sum(self.sizes))
+            self.last = now
+
+    def end(self) -> float:
+        wall = time.perf_counter() - self.t0
+        if self.progress:
+            _progress(self._mean_k(), self.n, self.dt, wall, end=True, runs=sum(self.sizes))
+        return wall
+
+
+def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
+             keep_states: bool, runs: list[Run], hook: ChunkHook | None, tick) -> _Batch:
+    """Advance ``runs`` side by side, chunk by chunk, to n_steps (or until all diverged);
+    ``tick(k)`` after each chunk."""
+    call = Buffered(_mapped(f, len(runs)))
     n_c = f.size2_out("out")  # steps per chunk
     every = loop.interval if loop.sampled else 1
     batch = _Batch(runs, loop.state_names(),
@@ -479,8 +563,7 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     _put_static(call, loop, runs, dt)
     nominal, noise = _nominal_inputs(loop, runs), _noise_streams(loop, runs)
     held_cols: list[dict] = [{} for _ in runs]
-    k, t0 = 0, time.perf_counter()
-    last_print = t0
+    k = 0
     while k < n_steps and not all(batch.diverged):
         if k in events:  # a lock may bind its angle here: its columns change
             held_cols = [{} for _ in runs]
@@ -503,14 +586,8 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
             hook.after(stop, batch.z[:, 0], dict(zip(batch.out_names, oo_all[:, stop - k - 1],
                                                      strict=True)))
         k = stop
-        now = time.perf_counter()
-        if progress and now - last_print > 0.5:
-            _progress(k, n_steps, dt, now - t0, runs=len(runs))
-            last_print = now
-    wall = time.perf_counter() - t0
-    if progress:
-        _progress(k, n_steps, dt, wall, end=True, runs=len(runs))
-    return batch.results(wall)
+        tick(k)
+    return batch
 
 
 def divergence(zz: np.ndarray, oo: np.ndarray, z_prev: np.ndarray, names: list[str],
