@@ -60,6 +60,8 @@ def test_the_wheel_carries_the_generated_artefacts_and_no_benchmark(wheel):
     missing = [a for a in manifest["artefacts"] if f"wtftc/_generated/{a}" not in names]
     assert not missing, f"artefacts missing from the wheel: {missing}"
     assert "wtftc/_generated/manifest.json" in names
+    # the C sources compiled at run time: the DISCON export's and ROSCO's bridge
+    assert {"wtftc/sim/discon_bridge.c", "wtftc/export/discon_interface.c"} <= names
     assert not [n for n in names if n.startswith(("bench/", "derivation/", "tests/"))]
 
 

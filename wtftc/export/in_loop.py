@@ -132,7 +132,7 @@ class _Hook(integrate.ChunkHook):
     def _call(self, status: int, t: float, z: np.ndarray):
         return self.lib.call(status, t, z[self.i_r], z[self.i_g] * self.gear, z[self.i_beta])
 
-    def before(self, call: integrate.Buffered) -> None:
+    def before(self, call: integrate.Buffered, k: int, stop: int) -> None:
         pt = self.p_turbine.copy()
         pt[lay.index("turbine_params", "gen_torque_rated")] = self.torque * self.gear
         pt[lay.index("turbine_params", "gen_constant_power")] = 0.0
@@ -140,8 +140,10 @@ class _Hook(integrate.ChunkHook):
         call.put("p_turbine", pt)
         call.put("p_ctrl", self.pitch)
 
-    def after(self, k: int, z: np.ndarray, out: dict[str, float]) -> None:
-        self.pitch, self.torque = self._call(1, k * self.lib.dt / self.steps, z)
+    def after(self, k: int, stop: int, z: np.ndarray, res: list[np.ndarray],
+              out_names: list[str]) -> None:
+        if stop % self.steps == 0:  # an interval's end: the library's next call
+            self.pitch, self.torque = self._call(1, stop * self.lib.dt / self.steps, z)
 
 
 def run(lib: Path, infile: Path, raw: dict, interval: float,

@@ -97,14 +97,19 @@ def compiled(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
     return _compile_function(f, label, flags, quiet)
 
 def _compile_function(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
-                      quiet: bool = False) -> ca.Function:
+                      quiet: bool = False, extra_c: Path | None = None) -> ca.Function:
     """Generate C for f and load it through the loader's verified compile cache; f itself
-    where the loader cannot compile or cache it (the loader warns, once per process)."""
+    where the loader cannot compile or cache it (the loader warns, once per process).
+    ``extra_c``: C source compiled into the same library (the external functions f calls,
+    e.g. the DISCON bridge)."""
     with tempfile.TemporaryDirectory() as tmp:
         cname = f"{label}.c"
         cg = ca.CodeGenerator(cname, {"with_header": False})
         cg.add(f)
         cg.generate(tmp + os.sep)
+        if extra_c is not None:
+            with open(Path(tmp, cname), "a") as c_file:
+                c_file.write("\n" + extra_c.read_text())
         note = None if quiet else (f"  compiling the {label} loop (once; cached in "
                                    f"{cache_dir()}) ...")
         loaded = compiled_external(f.name(), Path(tmp, cname), flags, note)
@@ -228,17 +233,22 @@ class Run:
 
 
 class ChunkHook:
-    """Something outside the compiled loop that acts every ``steps`` steps of a single run
+    """Something outside the generated step that acts every ``steps`` steps of a single run
     (ROSCO's DISCON, wtftc.sim.rosco): :meth:`before` writes the inputs it holds over the
-    next chunk, :meth:`after` reads the last step of the chunk just computed."""
+    next chunk (steps k .. stop - 1 are used), :meth:`after` reads the chunk just computed.
+    ``function``: the chunk function to integrate with (None: the loop's own, of ``steps``
+    steps a call)."""
 
     steps: int = CHUNK
+    function: ca.Function | None = None
 
-    def before(self, call: Buffered) -> None:
+    def before(self, call: Buffered, k: int, stop: int) -> None:
         """Write held inputs (by name) before the chunk is evaluated."""
 
-    def after(self, k: int, z: np.ndarray, out: dict[str, float]) -> None:
-        """k: the step reached; z: the state there; out: the outputs of the last step."""
+    def after(self, k: int, stop: int, z: np.ndarray, res: list[np.ndarray],
+              out_names: list[str]) -> None:
+        """k .. stop - 1: the steps just computed; z: the state at stop; res: the chunk's
+        outputs (columns from step k on)."""
 
 
 @cache
@@ -469,7 +479,8 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     if hook is not None and len(runs) != 1:
         raise ValueError("a chunk hook drives one run at a time")
     n_steps = int(round(t_final / dt))
-    f = chunk_function(loop, n=hook.steps if hook else CHUNK, fast_math=fast_math,
+    f = hook.function if hook is not None and hook.function is not None else \
+        chunk_function(loop, n=hook.steps if hook else CHUNK, fast_math=fast_math,
                        quiet=not progress)
     shards = _shards(len(runs), threads)
     tracker = _Tracker(n_steps, dt, [len(s) for s in shards], progress)
@@ -552,7 +563,7 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
     """Advance ``runs`` side by side, chunk by chunk, to n_steps (or until all diverged);
     ``tick(k)`` after each chunk."""
     call = Buffered(_mapped(f, len(runs)))
-    n_c = f.size2_out("out")  # steps per chunk
+    n_c, i_out = f.size2_out("out"), f.index_out("out")  # steps per chunk
     every = loop.interval if loop.sampled else 1
     batch = _Batch(runs, loop.state_names(),
                    [n for n, _ in output_spec(loop.controller, loop.fdi, loop.plant)],
@@ -574,17 +585,16 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
         _put_chunk(call, nominal, runs, k, stop - k, n_c, dt, loop, noise, held_cols)
         call.put("z", batch.z)
         if hook is not None:
-            hook.before(call)
+            hook.before(call, k, stop)
         res = call.evaluate()
         # a sampled chunk's states after every plant step are its third output
-        zz_all, oo_all = (res[2], res[1]) if loop.sampled else res
+        zz_all, oo_all = (res[2], res[1]) if loop.sampled else (res[0], res[i_out])
         for b in range(len(runs)):
             if not batch.diverged[b]:  # views, valid until the next call
                 batch.record(b, zz_all[:, b * n_c:b * n_c + stop - k],
                              oo_all[:, b * n_c:b * n_c + stop - k], k, stop - k, dt)
-        if hook is not None and not batch.diverged[0] and stop % hook.steps == 0:
-            hook.after(stop, batch.z[:, 0], dict(zip(batch.out_names, oo_all[:, stop - k - 1],
-                                                     strict=True)))
+        if hook is not None and not batch.diverged[0]:
+            hook.after(k, stop, batch.z[:, 0], res, batch.out_names)
         k = stop
         tick(k)
     return batch

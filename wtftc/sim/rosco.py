@@ -19,20 +19,24 @@ absolute path; one instance per process at a time.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import os
 import sys
 import tempfile
 import time
 import types
+from functools import cache
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 
 from wtftc.artefacts import layout as lay
+from wtftc.artefacts import loader
 from wtftc.errors import ConfigError
 from wtftc.model.turbine_import import line_key, read_discon
 from wtftc.sim import integrate
-from wtftc.sim.rhs import PLANTS, Loop
+from wtftc.sim.rhs import PLANTS, Loop, output_spec, rhs_function
 
 ROSCO_VERSION = "2.10.6"
 CONTROL_DT = 0.005  # ROSCO's call interval [s] (OpenFAST's NREL 5-MW case uses 0.00625)
@@ -137,11 +141,13 @@ def _quiet_stdout():
 
 def run(loop: Loop, inputs: integrate.Run, t_final: float, dt: float, decimate: int = 1,
         progress: bool = True, discon: str | None = None,
-        retune: tuple | None = None) -> integrate.Result:
+        retune: tuple | None = None, compiled: bool = True) -> integrate.Result:
     """Simulate one run (its plant, wind, faults) with ROSCO in the loop: ``loop`` is the
     ``external`` controller's, whose parameters are the held blade pitch commands;
     ``discon`` the turbine's DISCON.IN (a turbine file's ``rosco_discon``), its pitch
-    gains retuned by ``retune`` (:func:`retuned_gains`)."""
+    gains retuned by ``retune`` (:func:`retuned_gains`). ``compiled``: DISCON called from
+    inside the compiled loop (:func:`compiled_chunk`; from Python every CONTROL_DT where
+    no C compiler is usable, or with False)."""
     reason = available()
     if reason:
         raise ConfigError("controller", "rosco", reason)
@@ -153,15 +159,21 @@ def run(loop: Loop, inputs: integrate.Run, t_final: float, dt: float, decimate: 
     if n_sub < 1 or abs(n_sub * dt - CONTROL_DT) > 1e-12:
         raise ConfigError("dt_s", dt, f"a divisor of ROSCO's call interval {CONTROL_DT} s")
     t0 = time.perf_counter()
+    chunk = compiled_chunk(loop) if compiled else None
     with tempfile.TemporaryDirectory() as tmp, _quiet_stdout():
         cwd = os.getcwd()
         os.chdir(tmp)  # ROSCO writes next to sim_name; keep the user's folder clean
+        hook = None
         try:
-            hook = _Discon(Path(tmp), loop, inputs, n_sub, discon or NREL5MW_DISCON, retune)
+            args = (Path(tmp), loop, inputs, n_sub)
+            d = discon or NREL5MW_DISCON
+            hook = _CompiledDiscon(*args, chunk, d, retune) if chunk else \
+                _Discon(*args, d, retune)
             res = integrate.run_loops(loop, [inputs], t_final, dt, decimate, progress=False,
                                       hook=hook)[0]
-            hook.close()
         finally:
+            if hook is not None:
+                hook.close()
             os.chdir(cwd)
     res.schedule = inputs.schedule
     res.wall_s = time.perf_counter() - t0
@@ -182,7 +194,9 @@ class _Discon(integrate.ChunkHook):
         self.dt = CONTROL_DT / n_sub
         self.wind = inputs.wind
         self.tp = lay.values("turbine_params", loop.p_turbine)
-        self.p_turbine = np.array(loop.p_turbine)
+        # the run's plant (its own parameters under a model mismatch), its torque ROSCO's
+        self.p_turbine = integrate.plant_params(loop, inputs).copy()
+        self.p_turbine[lay.index("turbine_params", "gen_constant_power")] = 0.0
         z0 = inputs.z0
         n_g = self.tp["gearbox_ratio"]
         pitch = z0[lay.block(PLANTS[loop.plant]["states"], "beta")]
@@ -203,16 +217,19 @@ class _Discon(integrate.ChunkHook):
         self.noise = {n: np.random.default_rng(np.random.SeedSequence(
             inputs.noise_seed, spawn_key=(11, k))) for k, n in enumerate(self.sigma)}
         omega_g = z0[self.i_omega_g]
-        self.ci = _interface(tmp, float(np.degrees(self.pitch.mean())),
-                             {"gen_speed": omega_g * n_g, "rot_speed": z0[self.i_omega_r],
-                              "ws": float(self.wind(0.0)), "gen_torque": self.tq_hss},
-                             discon, retune)
+        self._open(tmp, float(np.degrees(self.pitch.mean())),
+                   {"gen_speed": omega_g * n_g, "rot_speed": z0[self.i_omega_r],
+                    "ws": float(self.wind(0.0)), "gen_torque": self.tq_hss}, discon, retune)
 
-    def before(self, call: integrate.Buffered) -> None:
+    def _open(self, tmp: Path, pitch_deg: float, init_state: dict, discon: str,
+              retune: tuple | None) -> None:
+        """ROSCO's first call (iStatus = 0) on the initial state."""
+        self.ci = _interface(tmp, pitch_deg, init_state, discon, retune)
+
+    def before(self, call: integrate.Buffered, k: int, stop: int) -> None:
         pt = self.p_turbine.copy()
         pt[lay.index("turbine_params", "gen_torque_rated")] = \
             self.tq_hss * self.tp["gearbox_ratio"]  # ROSCO's torque, held
-        pt[lay.index("turbine_params", "gen_constant_power")] = 0.0
         call.put("p_turbine", pt)
         call.put("p_ctrl", self.pitch)
 
@@ -221,7 +238,12 @@ class _Discon(integrate.ChunkHook):
         sigma = self.sigma[name]
         return value + (sigma * self.noise[name].standard_normal() if sigma > 0 else 0.0)
 
-    def after(self, k: int, z: np.ndarray, out: dict[str, float]) -> None:
+    def after(self, k: int, stop: int, z: np.ndarray, res: list[np.ndarray],
+              out_names: list[str]) -> None:
+        if stop % self.steps == 0:
+            self._call(stop, z, dict(zip(out_names, res[1][:, stop - k - 1], strict=True)))
+
+    def _call(self, k: int, z: np.ndarray, out: dict[str, float]) -> None:
         # the pitch as the loop measured it (with a pitch sensor's fault); the speeds at the
         # state reached, exact but for the noise (a speed sensor's fault, bias, resolution
         # and lag do not reach ROSCO: docs/sensors.md)
@@ -267,3 +289,141 @@ def _interface(tmp: Path, pitch_deg: float, init_state: dict, discon: str = NREL
         raise ConfigError("controller", "rosco",
                           "a working ROSCO: " + ci.avcMSG.value.decode(errors="replace"))
     return ci
+
+
+# --- ROSCO at compiled speed (issue 19) ---
+#: the DISCON bridge: a CasADi external function the compiled loop calls every step,
+#: calling DISCON at the end of each control interval (wtftc/sim/discon_bridge.c)
+BRIDGE = Path(__file__).with_name("discon_bridge.c")
+#: the chunk's "discon" input, one column a step: whether DISCON is called at the step's
+#: end, the time then, the wind ROSCO reads (start-up only), the noise on each reading
+DISCON_ROWS = ("call", "t_s", "wind_mps", *[f"noise_beta_meas_{j}" for j in lay.blades()],
+               "noise_omega_g_hss", "noise_omega_r")
+#: what the bridge holds between calls: the blade pitch commands [rad], the torque [N m, HSS]
+HELD = 4
+
+
+def _discon_step(loop: Loop, bridge: ca.Function) -> ca.Function:
+    """One RK4 step of the ``external`` loop, its blade pitch commands and generator torque
+    held from the last DISCON call, then the bridge: DISCON called at an interval's end on
+    what ROSCO reads (the blades' measured pitch at the step's start, the speeds reached)."""
+    step = integrate.rk4_step(rhs_function(loop))
+    ins = {n: ca.MX.sym(n, step.sparsity_in(n)) for n in step.name_in()}
+    held, dis = ca.MX.sym("held", HELD), ca.MX.sym("discon", len(DISCON_ROWS))
+    tp = ins["p_turbine"]
+    i_tq, i_ng, i_eff = (lay.index("turbine_params", n)
+                         for n in ("gen_torque_rated", "gearbox_ratio", "gen_efficiency"))
+    pt = ca.vertcat(tp[:i_tq], held[3] * tp[i_ng], tp[i_tq + 1:])  # ROSCO's torque, held
+    r = step.call({**ins, "p_turbine": pt, "p_ctrl": held[:3]})
+    z, out = r["z_next"], r["out"]
+    names = [n for n, _ in output_spec(loop.controller, loop.fdi, loop.plant)]
+    row = {n: DISCON_ROWS.index(n) for n in DISCON_ROWS}
+    beta = [out[names.index(f"beta_meas_{j}")] + dis[row[f"noise_beta_meas_{j}"]]
+            for j in lay.blades()]
+    states = PLANTS[loop.plant]["states"]
+    meas = ca.vertcat(dis[row["call"]], dis[row["t_s"]], CONTROL_DT,
+                      ((beta[0] + beta[1]) + beta[2]) / 3,
+                      z[lay.index(states, "omega_g")] * tp[i_ng] + dis[row["noise_omega_g_hss"]],
+                      z[lay.index(states, "omega_r")] + dis[row["noise_omega_r"]],
+                      dis[row["wind_mps"]], tp[i_eff], held[3])
+    rest = [n for n in step.name_in() if n != "z"]
+    return ca.Function("discon_step", [ins["z"], held, dis, *[ins[n] for n in rest]],
+                       [z, bridge(meas, held), out], ["z", "held", "discon", *rest],
+                       ["z_next", "held_next", "out"])
+
+
+@cache
+def compiled_chunk(loop: Loop, n: int = integrate.CHUNK) -> tuple[ca.Function, Path] | None:
+    """``n`` steps of ROSCO in the loop in one compiled call, the bridge compiled into the
+    same library (whose DISCON state it holds), and that library's path; None where no C
+    compiler or cache is usable (the caller then calls ROSCO from Python)."""
+    bridge = loader.compiled_external("wtftc_discon", BRIDGE, integrate.LOOP_CFLAGS)
+    if bridge is None:
+        return None
+    chunk = _discon_step(loop, bridge).mapaccum(f"rosco_{loop.plant}", n, 2)
+    label = f"rosco_{loop.plant}_{loop.table_key}_{'' if loop.fdi else 'nofdi_'}{n}"
+    with tempfile.TemporaryDirectory() as tmp:
+        c_path = Path(tmp, f"{label}.c")
+        cg = ca.CodeGenerator(c_path.name, {"with_header": False})
+        cg.add(chunk)
+        cg.generate(tmp + os.sep)
+        with open(c_path, "a") as c_file:
+            c_file.write("\n" + BRIDGE.read_text())
+        try:
+            cc = loader.compiler()
+            so = loader.compile_cached(c_path, cc, integrate.LOOP_CFLAGS) if cc else None
+        except loader.CompileError:
+            so = None
+    return None if so is None else (ca.external(chunk.name(), str(so)), so)
+
+
+class _CompiledDiscon(_Discon):
+    """ROSCO's DISCON called by the compiled loop through the bridge (no Python between
+    calls): the same readings, noise draws and record as :class:`_Discon`, whose set-up it
+    shares; Python writes each chunk's call steps, times, winds and noise beforehand."""
+
+    def __init__(self, tmp: Path, loop: Loop, inputs: integrate.Run, n_sub: int,
+                 chunk: tuple[ca.Function, Path], discon: str = NREL5MW_DISCON,
+                 retune: tuple | None = None):
+        self.function, so = chunk
+        self.n_c = self.function.size2_out("out")
+        self.lib = ctypes.CDLL(str(so))  # the library the chunk runs in: its DISCON state
+        self.lib.wtftc_discon_message.restype = ctypes.c_char_p
+        super().__init__(tmp, loop, inputs, n_sub, discon, retune)
+        self.held = np.append(self.pitch, self.tq_hss)
+
+    def _open(self, tmp: Path, pitch_deg: float, init_state: dict, discon: str,
+              retune: tuple | None) -> None:
+        param, sim = str(_discon_copy(tmp, discon, retune)), str(tmp / "wtftc")
+        record = _first_record(pitch_deg, init_state, param, sim)
+        fail = self.lib.wtftc_discon_open(
+            str(discon_library()).encode(), param.encode(), sim.encode(),
+            record.ctypes.data_as(ctypes.POINTER(ctypes.c_double)), record.size)
+        if fail < 0:
+            msg = self.lib.wtftc_discon_message().decode(errors="replace")
+            self.lib.wtftc_discon_close()
+            raise ConfigError("controller", "rosco", f"a working ROSCO: {msg}")
+
+    def before(self, call: integrate.Buffered, k: int, stop: int) -> None:
+        reached = k + 1 + np.arange(self.n_c)  # the step each column ends on
+        calls = (reached % self.steps == 0) & (reached <= stop)
+        cols = np.zeros((len(DISCON_ROWS), self.n_c))
+        t = reached[calls] * self.dt  # as _Discon: the step reached times CONTROL_DT / n_sub
+        cols[0, calls], cols[1, calls] = 1.0, t
+        cols[2, calls] = [float(self.wind(x)) for x in t]
+        for name, sigma in self.sigma.items():  # each signal's stream, a draw per call
+            if sigma > 0:
+                cols[DISCON_ROWS.index(f"noise_{name}"), calls] = \
+                    sigma * self.noise[name].standard_normal(t.size)
+        call.put("discon", cols)
+        call.put("held", self.held)
+        call.put("p_turbine", self.p_turbine)
+
+    def after(self, k: int, stop: int, z: np.ndarray, res: list[np.ndarray],
+              out_names: list[str]) -> None:
+        self.held = res[1][:, stop - k - 1].copy()
+
+    def close(self) -> None:
+        """The final call (iStatus = -1), then the library is released."""
+        self.lib.wtftc_discon_close()
+
+    @property
+    def calls(self) -> int:
+        return int(self.lib.wtftc_discon_calls())
+
+
+def discon_library() -> Path:
+    """ROSCO's libdiscon.so, as its ControllerInterface loads it."""
+    rosco, _ = _import()
+    return Path(rosco.discon_lib_path)
+
+
+def _first_record(pitch_deg: float, s: dict, param: str, sim: str) -> np.ndarray:
+    """avrSWAP for DISCON's first call (iStatus = 0), field for field as ROSCO's
+    ControllerInterface.init_discon writes it, with the real initial state (:func:`_interface`)."""
+    a = np.zeros(2000)
+    a[2], a[60], a[82], a[27], a[0] = CONTROL_DT, 3, 0, 1, 0
+    a[3] = a[32] = a[33] = pitch_deg * np.deg2rad(1)
+    a[48], a[49], a[50], a[51] = 500, len(param), len(sim.encode("utf-8")), 500
+    a[19], a[20], a[26], a[22] = s["gen_speed"], s["rot_speed"], s["ws"], s["gen_torque"]
+    return a
