@@ -23,6 +23,14 @@ Written by hand for numba, never by printing SymPy: the plant of derivation/turb
   through the series of ν(z_k(t)) (Faà di Bruno to order 3) and their Kronecker products
   (φ_i = ν(z_1) ⊗ ... ⊗ ν(z_i), the factorisation of derivation/fuzzy.py).
 
+The sampled loop of ``wtftc.sim.sampled`` (``simulate_sampled_<controller>``, the bench's
+row beside wtftc's compiled sampled loop) reuses the same pieces: every ``interval`` steps a
+sample reads the plant (exact sensors, the faults at that step), takes the command from the
+controller's state and holds it over the interval (no delay), and advances the controller's
+own state over T = interval·dt by one RK4 step with the readings held; the plant alone takes
+the RK4 steps of dt in between, with the wind and the actuator faults of each step. Without
+the FDI, like the continuous loop.
+
 Written for speed the way numba wants it: one flat scratch array with C-style offsets and
 no array views in the hot path (numba reference-counts each one), small helpers inlined
 at numba's level, the rhs inlined into the RK4 loop at a single call site; IEEE arithmetic
@@ -35,6 +43,7 @@ schedule's breakpoints, the trimmed initial state, the per-step wind and faults)
 
     prep = prepare("paper", config.make_config({"case": 3, "controller": "paper"}))
     t, z = run(prep)          # z[:, 0] is ω_r at the output times t
+    t, z = run(prep, interval=10)  # the controller sampled every 10 steps
 """
 
 from __future__ import annotations
@@ -359,13 +368,18 @@ def _plant(z, v1, v2, v3, wind, cp, af, pt, zdot, o):
 
 
 @njit(**INLINE)
-def _aero_and_sensors(z, wind, sf, pt, kx, ky, coef):
-    """Cp at the true (λ, β̄) (the generated aero_operating_point), the measured pitches."""
+def _cp_at(z, wind, pt, kx, ky, coef):
+    """Cp at the true (λ, β̄) (the generated aero_operating_point)."""
     lam = z[0] * pt[T_R] / wind
     beta_mean = (z[3] + z[4] + z[5]) / 3.0
-    cp = cp_spline(lam, beta_mean, kx, ky, coef)
-    b1, b2, b3 = _measure(z, sf)
-    return cp, b1, b2, b3
+    return cp_spline(lam, beta_mean, kx, ky, coef)
+
+
+@njit(**INLINE)
+def rhs_plant(z, v1, v2, v3, wind, af, pt, kx, ky, coef, zdot, o):
+    """ż[0:9] of the plant alone, driven by the commands v1..v3 (the sampled loop's plant
+    step: sampled._plant_step), into zdot[o:o + 9]."""
+    _plant(z, v1, v2, v3, wind, _cp_at(z, wind, pt, kx, ky, coef), af, pt, zdot, o)
 
 
 # --- controller "physical": derivation/physical.py -----------------------------------------
@@ -422,13 +436,22 @@ def _ctrl_physical(z, bm1, bm2, bm3, yd, sched, pc, kf, zdot, o, ws):
 
 
 @njit(**INLINE)
+def ctrl_physical(z, sf, ck, yd, pc, sb, sg, ws, zdot, o):
+    """The physical design on the plant state z's sensors: the commands v1..v3 (one for
+    every blade) and θ̂̇ (into zdot[o + N_P:])."""
+    b1, b2, b3 = _measure(z, sf)
+    sched = sched_linear((b1 + b2 + b3) / 3.0, sb, sg)
+    v = _ctrl_physical(z, b1, b2, b3, yd, sched, pc, ck, zdot, o, ws)
+    return v, v, v
+
+
+@njit(**INLINE)
 def rhs_physical(z, wind, af, sf, ck, yd, pt, pc, kx, ky, coef, sb, sg, ws, zdot, o):
     """ż = [plant, θ̂] of the closed loop with the physical controller, into
     zdot[o:o + n]."""
-    cp, b1, b2, b3 = _aero_and_sensors(z, wind, sf, pt, kx, ky, coef)
-    sched = sched_linear((b1 + b2 + b3) / 3.0, sb, sg)
-    v = _ctrl_physical(z, b1, b2, b3, yd, sched, pc, ck, zdot, o, ws)
-    _plant(z, v, v, v, wind, cp, af, pt, zdot, o)
+    cp = _cp_at(z, wind, pt, kx, ky, coef)
+    v1, v2, v3 = ctrl_physical(z, sf, ck, yd, pc, sb, sg, ws, zdot, o)
+    _plant(z, v1, v2, v3, wind, cp, af, pt, zdot, o)
 
 
 # --- controller "paper": derivation/backstepping.py, observer.py, fuzzy.py -----------------
@@ -690,17 +713,40 @@ def _ctrl_paper_orders23(z, y, yd, pc, kf, zdot, o, ws, first):
 
 
 @njit(**INLINE)
+def ctrl_paper(z, sf, ck, yd, pc, sb, sg, ws, zdot, o):
+    """The paper's design on the plant state z's rotor speed (y = ω_r: the pitch sensors
+    and the schedule are not its inputs): the commands v_j = sign b_j u0 of eq (14) and
+    ẋ_ctrl (into zdot[o + N_P:])."""
+    u0 = _ctrl_paper(z, z[0], yd, pc, ck, zdot, o, ws)
+    s = pc[P_SIGN]
+    return s * pc[P_B] * u0, s * pc[P_B + 1] * u0, s * pc[P_B + 2] * u0
+
+
+@njit(**INLINE)
 def rhs_paper(z, wind, af, sf, ck, yd, pt, pc, kx, ky, coef, sb, sg, ws, zdot, o):
     """ż = [plant, x̂, θ̂_1..4] of the closed loop with the paper's controller, into
     zdot[o:o + n]."""
-    cp, b1, b2, b3 = _aero_and_sensors(z, wind, sf, pt, kx, ky, coef)
-    u0 = _ctrl_paper(z, z[0], yd, pc, ck, zdot, o, ws)
-    s = pc[P_SIGN]
-    _plant(z, s * pc[P_B] * u0, s * pc[P_B + 1] * u0, s * pc[P_B + 2] * u0, wind, cp, af, pt,
-           zdot, o)
+    cp = _cp_at(z, wind, pt, kx, ky, coef)
+    v1, v2, v3 = ctrl_paper(z, sf, ck, yd, pc, sb, sg, ws, zdot, o)
+    _plant(z, v1, v2, v3, wind, cp, af, pt, zdot, o)
 
 
 # --- the whole simulation in one call ------------------------------------------------------
+
+@njit(**INLINE)
+def _bind_and_keep(k, z, bind_step, bound, out, decimate, n):
+    """At step k: a "current" lock binds its blade's angle; every ``decimate`` steps the
+    state is kept, or False if it left |z| <= 1e8 (the run stops there)."""
+    for j in range(3):
+        if bind_step[j] == k:
+            bound[j] = z[3 + j]
+    if k % decimate == 0:
+        for i in range(n):
+            if not abs(z[i]) <= 1e8:
+                return False
+        out[k // decimate] = z
+    return True
+
 
 @njit(**INLINE)
 def _inputs_at(k, af_all, sf_all, ck_all, bound, af, sf, ck):
@@ -748,17 +794,8 @@ def _rk4_loop(rhs):
         h6 = dt / 6.0
         done = 0
         for k in range(n_steps):
-            for j in range(3):
-                if bind_step[j] == k:
-                    bound[j] = z[3 + j]
-            if k % decimate == 0:
-                ok = True
-                for i in range(n):
-                    if not abs(z[i]) <= 1e8:
-                        ok = False
-                if not ok:
-                    break
-                out[k // decimate] = z
+            if not _bind_and_keep(k, z, bind_step, bound, out, decimate, n):
+                break
             _inputs_at(k, af_all, sf_all, ck_all, bound, af, sf, ck)
             for i in range(n):
                 zt[i] = z[i]
@@ -786,10 +823,112 @@ simulate_physical = _rk4_loop(rhs_physical)
 simulate_paper = _rk4_loop(rhs_paper)
 
 
+# --- the sampled loop (wtftc.sim.sampled): the controller at interval starts -----------------
+
+@njit(**INLINE)
+def _plant_step(z, zt, K, v1, v2, v3, w0, wh, w1, af, pt, kx, ky, coef, dt):
+    """One RK4 step of dt of the plant alone, the commands held (sampled._plant_step; the
+    sensors' lag states it also carries are constant with exact sensors and left out):
+    z[:N_P] advanced in place, the wind at t, t + dt/2 and t + dt."""
+    for i in range(N_P):
+        zt[i] = z[i]
+    for s in range(4):  # one call site of the (inlined) rhs, as in _rk4_loop
+        if s > 0:
+            h = dt if s == 3 else dt / 2.0
+            for i in range(N_P):
+                zt[i] = z[i] + h * K[(s - 1) * N_P + i]
+        w = w0 if s == 0 else (w1 if s == 3 else wh)
+        rhs_plant(zt, v1, v2, v3, w, af, pt, kx, ky, coef, K, s * N_P)
+    h6 = dt / 6.0
+    for i in range(N_P):
+        z[i] = z[i] + h6 * (((K[i] + 2.0 * K[N_P + i]) + 2.0 * K[2 * N_P + i])
+                            + K[3 * N_P + i])
+
+
+def _sample_fn(ctrl):
+    """The sample at t_k with the controller ``ctrl`` (ctrl_physical or ctrl_paper) inlined."""
+
+    @njit(**INLINE)
+    def sample(z, zt, K, xc_next, sf, ck, yd, pc, sb, sg, ws, T):
+        """sampled._sample: the commands at t_k from the controller's state and the plant's
+        readings at t_k (returned, held over the interval), and the controller's state at
+        t_k + T by one classical RK4 step of T of its own equations with those readings
+        held (into xc_next[N_P:]). The plant part of zt stays at t_k throughout."""
+        n = z.shape[0]
+        for i in range(n):
+            zt[i] = z[i]
+        v1 = v2 = v3 = 0.0
+        for s in range(4):
+            if s > 0:
+                h = T if s == 3 else T / 2.0
+                for i in range(N_P, n):
+                    zt[i] = z[i] + h * K[(s - 1) * n + i]
+            c1, c2, c3 = ctrl(zt, sf, ck, yd, pc, sb, sg, ws, K, s * n)
+            if s == 0:  # the command at the controller's state at t_k
+                v1, v2, v3 = c1, c2, c3
+        h6 = T / 6.0
+        for i in range(N_P, n):
+            xc_next[i] = z[i] + h6 * (((K[i] + 2.0 * K[n + i]) + 2.0 * K[2 * n + i])
+                                      + K[3 * n + i])
+        return v1, v2, v3
+
+    return sample
+
+
+def _sampled_loop(ctrl):
+    """The sampled simulation loop with ``ctrl`` inlined (one compiled loop per controller)."""
+    sample = _sample_fn(ctrl)
+
+    @njit(**JIT)
+    def simulate(z0, wind3, af_all, sf_all, ck_all, bind_step, yd, pt, pc, kx, ky, coef, sb,
+                 sg, dt, n_steps, decimate, interval):
+        """wtftc.sim.sampled's loop without the FDI, exact sensors, no delay: every
+        ``interval`` steps a sample (sf_all, ck_all at its step; the command held, the
+        controller's state advanced over T = interval·dt), then RK4 steps of dt of the plant
+        (wind3 and af_all per step). The states kept are as run_loops records them: the
+        controller's as sampled until the interval ends. bind_step: as in _rk4_loop, on
+        interval starts. Returns (states before every ``decimate``-th step, steps done)."""
+        n = z0.shape[0]
+        out = np.empty(((n_steps + decimate - 1) // decimate, n))
+        z = z0.copy()
+        xc_next = z0.copy()  # the controller's state at the next sample: xc_next[N_P:]
+        K = np.empty(4 * n)
+        zt = np.empty(n)
+        ws = np.zeros(W_SIZE)
+        af = np.empty(af_all.shape[1])
+        sf = np.empty(sf_all.shape[1])
+        ck = np.empty(ck_all.shape[1])
+        bound = np.full(3, np.nan)
+        T = interval * dt
+        v1 = v2 = v3 = 0.0
+        done = 0
+        for k in range(n_steps):
+            if k % interval == 0:  # the interval just ended: its controller state
+                for i in range(N_P, n):
+                    z[i] = xc_next[i]
+            if not _bind_and_keep(k, z, bind_step, bound, out, decimate, n):
+                break
+            _inputs_at(k, af_all, sf_all, ck_all, bound, af, sf, ck)
+            if k % interval == 0:
+                v1, v2, v3 = sample(z, zt, K, xc_next, sf, ck, yd, pc, sb, sg, ws, T)
+            _plant_step(z, zt, K, v1, v2, v3, wind3[k, 0], wind3[k, 1], wind3[k, 2], af, pt,
+                        kx, ky, coef, dt)
+            done = k + 1
+        return out[:(done + decimate - 1) // decimate], done
+
+    return simulate
+
+
+#: simulate_sampled_<controller>(the arguments of simulate_<controller>, interval)
+simulate_sampled_physical = _sampled_loop(ctrl_physical)
+simulate_sampled_paper = _sampled_loop(ctrl_paper)
+
+
 # --- everything the numba code needs, extracted from wtftc ---------------------------------
 
 RHS = {"physical": rhs_physical, "paper": rhs_paper}
 SIMULATE = {"physical": simulate_physical, "paper": simulate_paper}
+SIMULATE_SAMPLED = {"physical": simulate_sampled_physical, "paper": simulate_sampled_paper}
 
 
 @dataclass
@@ -832,6 +971,11 @@ class Prepared:
         """The compiled loop of this controller: ``prep.simulate(*prep.args())``."""
         return SIMULATE[self.controller]
 
+    def loop(self, interval: int = 0):
+        """The compiled loop of this controller, continuous (``interval`` 0) or sampled every
+        ``interval`` steps: ``prep.loop(n)(*prep.args(..., interval=n))``."""
+        return SIMULATE_SAMPLED[self.controller] if interval else SIMULATE[self.controller]
+
     def inputs(self, dt: float | None = None, n_steps: int | None = None) -> StepInputs:
         """Per-step inputs for n_steps of dt (default: the configuration's), built once."""
         dt = self.dt if dt is None else float(dt)
@@ -842,16 +986,22 @@ class Prepared:
         return self._inputs[key]
 
     def args(self, n_steps: int | None = None, dt: float | None = None,
-             decimate: int | None = None) -> tuple:
-        """Arguments of ``simulate_<controller>``: the configuration's run, or n_steps of dt
-        with states kept every ``decimate`` steps."""
+             decimate: int | None = None, interval: int = 0) -> tuple:
+        """Arguments of ``prep.loop(interval)``: the configuration's run, or n_steps of dt
+        with states kept every ``decimate`` steps; sampled every ``interval`` steps (> 0),
+        a "current" lock then binds at the start of the interval that holds its onset
+        step, as in run_loops."""
         dt = self.dt if dt is None else float(dt)
         n = self.n_steps if n_steps is None else int(n_steps)
         u = self.inputs(dt, max(n, 1))
-        return (self.z0, u.wind3, u.af, u.sf, u.ck, u.bind_step, self.yd, self.p_turbine,
+        bind = u.bind_step
+        if interval:
+            bind = np.where(bind >= 0, bind // interval * interval, bind)
+        args = (self.z0, u.wind3, u.af, u.sf, u.ck, bind, self.yd, self.p_turbine,
                 self.p_ctrl, self.cp_knots_tsr, self.cp_knots_pitch, self.cp_coef,
                 self.sched_pitch, self.sched_dTdbeta, dt, n,
                 self.decimate if decimate is None else int(decimate))
+        return (*args, int(interval)) if interval else args
 
     def closed_loop_rhs(self, z, wind, af, sf, ck) -> np.ndarray:
         """ż at one state and one set of inputs (for tests)."""
@@ -950,21 +1100,25 @@ def prepare(controller: str, config) -> Prepared:
     return prep
 
 
-def run(prep: Prepared, n_steps: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(t, z): the configuration's run; output times [s] and the states (plant, then
-    controller) at them. One numba call."""
-    z, _ = prep.simulate(*prep.args(n_steps))
+def run(prep: Prepared, n_steps: int | None = None,
+        interval: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(t, z): the configuration's run (with the controller sampled every ``interval``
+    steps: > 0); output times [s] and the states (plant, then controller) at them. One
+    numba call."""
+    z, _ = prep.loop(interval)(*prep.args(n_steps, interval=interval))
     t = np.arange(z.shape[0]) * prep.decimate * prep.dt
     return t, z
 
 
 def omega_trajectory(prep: Prepared, problem=None, dt: float | None = None,
-                     t_final: float | None = None, every: int | None = None) -> np.ndarray:
+                     t_final: float | None = None, every: int | None = None,
+                     interval: int = 0) -> np.ndarray:
     """ω_r [rad/s] every ``every`` steps of dt from t = 0 over [0, t_final) (defaults: the
-    configuration's), in one numba call; the per-step inputs of a new dt are built on the
-    first call and reused. ``problem`` (the benchmark's) is not needed: the inputs come from
-    prep's configuration, the one the problem was made from."""
+    configuration's), in one numba call, the controller sampled every ``interval`` steps
+    (> 0; 0: continuous); the per-step inputs of a new dt are built on the first call and
+    reused. ``problem`` (the benchmark's) is not needed: the inputs come from prep's
+    configuration, the one the problem was made from."""
     dt = prep.dt if dt is None else float(dt)
     n = prep.n_steps if t_final is None else int(round(t_final / dt))
-    z, _ = prep.simulate(*prep.args(n, dt, every))
+    z, _ = prep.loop(interval)(*prep.args(n, dt, every, interval))
     return z[:, 0].copy()

@@ -113,6 +113,8 @@ class Timing:
     error_vs_reference: float | None  # on the horizon, relative to max |ω_r|
     diff_vs_default: float | None  # same, against wtftc's default path at the same step
     note: str = ""
+    #: the row diff_vs_default is taken against when it is not the default (shown in the cell)
+    diff_against: str = ""
     ratio_to_default: float | None = None  # wall per simulated second / the default's
 
     @property
@@ -224,7 +226,8 @@ def solve(p: Problem, method: str, rtol: float, t_final: float,
     return Solution(np.array(out), nfev, steps, t_final, False)
 
 
-#: the sampled controller's interval in the bench's row for it (the realistic profile's)
+#: the sampled controller's interval in the bench's rows for it, compiled and numba (the
+#: realistic profile's)
 SAMPLED_INTERVAL_S = 0.01
 
 
@@ -232,6 +235,22 @@ def rk4_default(p: Problem, dt: float, t_final: float, fast_math: bool = False,
                 ) -> integrate.Result:
     """wtftc's default path: the compiled whole-trajectory chunks (sim.integrate.run_loops)."""
     return _run_bench_loop(p, replace(p.config.loop, fdi=False), t_final, dt, fast_math)
+
+
+def sampled_interval(dt: float) -> int:
+    """Plant steps of dt per SAMPLED_INTERVAL_S, the sampled rows' control interval; 0 where
+    dt does not divide it (no sampled rows then)."""
+    n = int(round(SAMPLED_INTERVAL_S / dt))
+    return n if n >= 1 and abs(n * dt - SAMPLED_INTERVAL_S) <= 1e-12 else 0
+
+
+def rk4_sampled(p: Problem, dt: float, t_final: float) -> integrate.Result:
+    """The problem's loop with the controller sampled every SAMPLED_INTERVAL_S
+    (wtftc.sim.sampled, compiled, through run_loops; exact sensors, no delay)."""
+    interval = sampled_interval(dt)
+    if not interval:
+        raise ValueError(f"dt = {dt:g} s does not divide the {SAMPLED_INTERVAL_S:g} s interval")
+    return _run_bench_loop(p, replace(p.config.loop, fdi=False, interval=interval), t_final, dt)
 
 
 def _run_bench_loop(p: Problem, loop, t_final: float, dt: float,
@@ -308,9 +327,10 @@ def bench_loop(name: str, quick: bool = False, cache: Path | None = None) -> Loo
     reps = 2 if quick else 5
     timings, base = _wtftc_timings(p, name, dt_star, reps, ref, quick)
     report.timings.extend(timings)
-    report.timings.extend(_sampled(p, dt_star, reps, base, ref))
-    # numba: the hand-written loop
-    report.timings.extend(_numba(p, name, dt_star, reps, base, ref))
+    # numba: the hand-written loop, continuous, then both sampled loops side by side
+    numba = _numba_setup(p)
+    report.timings.extend(_numba(p, dt_star, reps, base, ref, numba))
+    report.timings.extend(_sampled(p, dt_star, reps, base, ref, numba))
     # what a user would write: lambdify, in a Python RK4 loop and under solve_ivp
     report.timings.extend(_lambdify(p, dt_star, rtol_star, quick, base, ref, count_ops(p.rhs)))
     # ROSCO's own simple simulator on the same wind, as the point of reference users know
@@ -404,33 +424,41 @@ def _wtftc_timings(p: Problem, name: str, dt_star: float, reps: int, ref: np.nda
     return out, base
 
 
-def _sampled(p: Problem, dt: float, reps: int, base, ref) -> list[Timing]:
+def _sampled(p: Problem, dt: float, reps: int, base, ref, numba) -> list[Timing]:
     """The same loop with the controller sampled at 100 Hz (the realistic profile's
     timing, exact sensors; docs/sensors.md): another system, whose error against the
-    continuous reference is the sampling's, first order in the interval."""
-    interval = int(round(SAMPLED_INTERVAL_S / dt))
-    if interval < 1 or abs(interval * dt - SAMPLED_INTERVAL_S) > 1e-12:
+    continuous reference is the sampling's, first order in the interval; then numba's
+    hand-written loop of the same sampled system (``numba``: from :func:`_numba_setup`)."""
+    interval = sampled_interval(dt)
+    if not interval:
         return []
-    loop = replace(p.config.loop, fdi=False, interval=interval)
     with PeakMemory() as pm:
-        walls, res, warm = _timed(lambda: _run_bench_loop(p, loop, p.t_final, dt), reps)
+        walls, res, warm = _timed(lambda: rk4_sampled(p, dt, p.t_final), reps)
     om = res.column("omega_r")
     n = int(round(p.t_final / dt))
-    return [_timing(f"wtftc: sampled controller at {1 / SAMPLED_INTERVAL_S:g} Hz (compiled)",
-                    f"dt = {dt:g}", p.t_final, n, walls, None, pm.mb, warm, rel_error(om, ref),
-                    rel_error(om, base),
-                    note="another system: the error is the sampling's (docs/sensors.md)")]
+    row = _timing(f"wtftc: sampled controller at {1 / SAMPLED_INTERVAL_S:g} Hz (compiled)",
+                  f"dt = {dt:g}", p.t_final, n, walls, None, pm.mb, warm, rel_error(om, ref),
+                  rel_error(om, base),
+                  note="another system: the error is the sampling's (docs/sensors.md)")
+    return [row, *_numba_sampled(p, dt, reps, ref, numba, row, om)]
 
 
-def _numba(p: Problem, name: str, dt: float, reps: int, base, ref) -> list[Timing]:
+def _numba_setup(p: Problem):
+    """(bench.numba_loop, its Prepared for p, seconds it took), or None without numba."""
     try:
         from bench import numba_loop
     except ImportError as exc:
         log(f"  numba baseline skipped: {exc} (pip install 'wtftc[bench]')")
-        return []
+        return None
     t0 = time.perf_counter()
     setup = numba_loop.prepare(p.controller, p.config)
-    prep = time.perf_counter() - t0
+    return numba_loop, setup, time.perf_counter() - t0
+
+
+def _numba(p: Problem, dt: float, reps: int, base, ref, numba) -> list[Timing]:
+    if numba is None:
+        return []
+    numba_loop, setup, prep = numba
     with PeakMemory() as pm:
         walls, om, warm = _timed(lambda: numba_loop.omega_trajectory(
             setup, p, dt, p.t_final, every=int(round(OUT_DT / dt))), reps)
@@ -438,6 +466,29 @@ def _numba(p: Problem, name: str, dt: float, reps: int, base, ref) -> list[Timin
     return [_timing("numba: hand-written RK4 loop (@njit)", f"dt = {dt:g}", p.t_final, n, walls,
                     None, pm.mb, warm + prep, rel_error(om, ref), rel_error(om, base),
                     "warm-up includes the JIT compilation")]
+
+
+def _numba_sampled(p: Problem, dt: float, reps: int, ref, numba, compiled: Timing,
+                   compiled_om: np.ndarray) -> list[Timing]:
+    """numba's hand-written loop with the sampled semantics of wtftc.sim.sampled, like for
+    like with the ``compiled`` sampled row: its diff and its time are against that row's."""
+    if numba is None:
+        return []
+    numba_loop, setup, prep = numba
+    interval = sampled_interval(dt)
+    with PeakMemory() as pm:
+        walls, om, warm = _timed(lambda: numba_loop.omega_trajectory(
+            setup, p, dt, p.t_final, every=int(round(OUT_DT / dt)), interval=interval), reps)
+    n = int(round(p.t_final / dt))
+    row = _timing(f"numba: hand-written sampled loop at {1 / SAMPLED_INTERVAL_S:g} Hz (@njit)",
+                  f"dt = {dt:g}", p.t_final, n, walls, None, pm.mb, warm + prep,
+                  rel_error(om, ref), rel_error(om, compiled_om))
+    row.diff_against = "the compiled sampled row"
+    ratio = row.ns_per_step / compiled.ns_per_step
+    row.note = (f"warm-up includes the JIT compilation; the diff is against the compiled "
+                f"sampled row (the same sampled system), and the time per step is {ratio:.2f} × "
+                f"that row's")
+    return [row]
 
 
 def _rosco_sim(p: Problem, reps: int) -> list[Timing]:
@@ -602,9 +653,9 @@ def build_times(loops: list[str]) -> dict[str, str]:
             for name in loops:
                 controller, plant = LOOPS[name]
                 p = Problem(name, controller, plant)
-                chunk = integrate.rk4_step(p.rhs).mapaccum(f"loop_{name}", integrate.CHUNK)
+                step = integrate.rk4_step(p.rhs, name=f"build_{name}_step")
                 t0 = time.perf_counter()
-                integrate.compiled(chunk, f"build_{name}", quiet=True)
+                integrate.compiled_chunk(step, integrate.CHUNK, f"build_{name}", quiet=True)
                 flags = " ".join(integrate.LOOP_CFLAGS[:-2])
                 out[f"C compile of the {name} loop ({flags}) [s]"] = \
                     f"{time.perf_counter() - t0:.1f}"
@@ -631,10 +682,12 @@ def _row(t: Timing) -> list[str]:
             f"{t.spread_ns[0]:,.0f}-{t.spread_ns[1]:,.0f}", f"{t.realtime:,.1f}",
             g(t.ratio_to_default, "{:,.2f}"), g(t.ops_per_step, "{:,}"),
             g(t.ops_per_ns, "{:.2f}"), f"{t.peak_mb:.1f}", f"{t.warmup_s:.2f}",
-            g(t.error_vs_reference, "{:.1e}"), g(t.diff_vs_default, "{:.1e}")]
+            g(t.error_vs_reference, "{:.1e}"),
+            g(t.diff_vs_default, "{:.1e}") + (f" (vs {t.diff_against})" if t.diff_against
+                                               else "")]
 
 
-def markdown(reports: list[LoopReport], extra: dict) -> str:
+def markdown(reports: list[LoopReport], extra: dict, sections: tuple = ()) -> str:
     lines = [f"# wtftc bench ({extra['date']}, {extra['machine']})", ""]
     for r in reports:
         lines += [f"## {r.loop}: `{r.controller}` on `{r.plant}`, case 3, NTM B 16 m/s, 60 s",
@@ -671,10 +724,47 @@ def markdown(reports: list[LoopReport], extra: dict) -> str:
                       f"| {b.method} | — | 2 processes | — | — | — | {b.speedup:.2f} |"
                       for b in r.batches]
             lines.append("")
+    for section in sections:
+        lines += section
     for k, v in extra.items():
         if k not in ("date", "machine"):
             lines.append(f"- {k}: {v}")
     return "\n".join(lines) + "\n"
+
+
+def _row_of(r: LoopReport, prefix: str) -> Timing | None:
+    return next((t for t in r.timings if t.method.startswith(prefix)), None)
+
+
+def goals(reports: list[LoopReport], rosco_rows: list | None, build: dict) -> list[str]:
+    """Issue 19's goals against this run's numbers, as a table."""
+    rows = []
+    for r in reports:
+        base, nb = _row_of(r, "wtftc: compiled trajectory (default)"), _row_of(r, "numba: hand")
+        if base and nb:
+            x = nb.ns_per_step / base.ns_per_step
+            rows.append((f"default path ≥ 1.2× faster than numba ({r.loop})",
+                         f"{x:.2f}× ({base.ns_per_step:,.0f} against {nb.ns_per_step:,.0f} "
+                         "ns a step)", x >= 1.2))
+        if r.loop == "paper_case3" and base:
+            rows.append(("≥ 1,000× real time, paper's case 3, one core",
+                         f"{base.realtime:,.0f}×", base.realtime >= 1000))
+        two = next((b for b in r.batches if b.threads == 2 and np.isfinite(b.wall_s)), None)
+        if two is not None:
+            ceiling = r.batches[-1].speedup
+            rows.append((f"batches on 2 cores ≥ 90 % of the ceiling ({r.loop})",
+                         f"{two.speedup:.2f}× against {ceiling:.2f}× "
+                         f"({100 * two.speedup / ceiling:.0f} %)",
+                         two.speedup >= 0.9 * ceiling))
+    if rosco_rows:
+        rt = float(rosco_rows[0][3].replace(",", ""))
+        rows.append(("ROSCO in the loop ≥ 100× real time", f"{rt:,.0f}×", rt >= 100))
+    secs = [float(v) for k, v in build.items() if k.endswith("[s]") and
+            v.replace(".", "", 1).isdigit()]
+    rows.append(("`make regenerate` plus compilation < 60 s", f"{sum(secs):.1f} s",
+                 sum(secs) < 60))
+    return ["## Against issue 19's goals", "", "| goal | measured | met |", "|---|---|---|",
+            *[f"| {g} | {m} | {'yes' if ok else 'no'} |" for g, m, ok in rows], ""]
 
 
 def machine() -> str:
@@ -705,12 +795,16 @@ def run(out: Path, loops: list[str] | None = None, quick: bool = False) -> list[
     ensure_writable_dir(out, "--out")
     build = build_times(loops)
     reports = [bench_loop(name, quick, cache=out / "cache") for name in loops]
+    from bench import rosco_loop
     from bench.discon_cost import call_costs
 
+    log("ROSCO in the loop ...")
+    rosco = rosco_loop.rows(quick)
     extra = {"date": time.strftime("%Y-%m-%d %H:%M"), "machine": machine(),
              "generated functions": len(layout_json()["functions"]), **build,
              **call_costs(repeats=2 if quick else 5)}
-    text = markdown(reports, extra)
+    text = markdown(reports, extra, (rosco_loop.markdown(rosco), goals(
+        reports, rosco[0] if rosco else None, build)))
     atomic_write_text(out / "bench.md", text)
     atomic_write_json(out / "bench.json", {"machine": extra, "loops": [
         {**{k: v for k, v in asdict(r).items() if k != "timings"},

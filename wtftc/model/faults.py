@@ -251,6 +251,11 @@ class Schedule:
         """Times at which a lock "wherever the blade is" must read the blade angle."""
         return sorted({f.onset_s for f in self.faults if f.type == "lock" and f.angle is None})
 
+    @property
+    def has_sensor_faults(self) -> bool:
+        """Whether any fault acts on a sensor (its inputs are then not the nominal ones)."""
+        return any(TYPES[f.type].acts_on == "sensor" for f in self.faults)
+
     def constant_between(self, a: float, b: float) -> bool:
         """Whether every fault input is the same at all times in [a, b] (no onset, end or
         ramp inside): the loop then passes one column for the whole chunk."""

@@ -13,7 +13,6 @@ from the state z_k.
 
 from __future__ import annotations
 
-import os
 import sys
 import tempfile
 import threading
@@ -34,18 +33,25 @@ from wtftc.sim.sampled import interval_function
 CHUNK = 1000  # RK4 steps per compiled call
 
 
-def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out") -> ca.Function:
+def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out",
+             fixed: dict | None = None, name: str = "rk4_step") -> ca.Function:
     """Classical RK4 over one step dt (Kutta 1901) of rhs's ``z_dot``: the ``exogenous``
     input at t, t + dt/2, t + dt (given as <exogenous>3), the other inputs held over the
-    step; the ``report`` output at the start of the step."""
-    z = ca.MX.sym("z", rhs.sparsity_in("z"))
-    w3 = ca.MX.sym(f"{exogenous}3", 3)
+    step; the ``report`` output at the start of the step.
+
+    Written in SX, the four stages in one graph with their common subexpressions shared
+    (what depends on the parameters alone, or on the wind at t + dt/2, is computed once a
+    step: issue 19; the same numbers, bit for bit). ``fixed``: inputs given as values (a
+    specialised step: :func:`chunk_function`), kept as inputs that are not read."""
+    z = ca.SX.sym("z", rhs.sparsity_in("z"))
+    w3 = ca.SX.sym(f"{exogenous}3", 3)
     held = [n for n in rhs.name_in() if n not in ("z", exogenous)]
-    others = {n: ca.MX.sym(n, rhs.sparsity_in(n)) for n in held}
-    dt = ca.MX.sym("dt")
+    others = {n: ca.SX.sym(n, rhs.sparsity_in(n)) for n in held}
+    dt = ca.SX.sym("dt")
+    values = {**others, **{n: ca.SX(ca.DM(v)) for n, v in (fixed or {}).items()}}
 
     def f(zz, w):
-        return rhs.call({"z": zz, exogenous: w, **others})
+        return rhs.call({"z": zz, exogenous: w, **values})
 
     first = f(z, w3[0])
     k1, out = first["z_dot"], first[report]
@@ -53,7 +59,7 @@ def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out") -> 
     k3 = f(z + dt / 2 * k2, w3[1])["z_dot"]
     k4 = f(z + dt * k3, w3[2])["z_dot"]
     z_next = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return ca.Function("rk4_step", [z, w3, *others.values(), dt], [z_next, out],
+    return ca.Function(name, [z, w3, *others.values(), dt], ca.cse([z_next, out]),
                        ["z", f"{exogenous}3", *held, "dt"], ["z_next", report])
 
 
@@ -85,10 +91,18 @@ def rk4_path(rhs, z0, t0: float, t1: float, n: int) -> tuple[np.ndarray, np.ndar
 #: bit-identical to plain -O2 (docs/performance.md, tests/test_bench.py)
 LOOP_CFLAGS = ("-O2", "-fno-semantic-interposition", "-fno-math-errno", "-fPIC", "-shared")
 
-#: opt-in: -ffast-math also reassociates and assumes no NaN/inf: 1.05-1.2× more on the
-#: loops (docs/performance.md); results differ at 1e-12..1e-9 relative (not bit-identical
-#: to the default)
-FAST_MATH_CFLAGS = ("-O2", "-fno-semantic-interposition", "-ffast-math", "-fPIC", "-shared")
+#: opt-in: -ffast-math's code generation (reassociation, reciprocals, no NaN/inf, no signed
+#: zeros): 1.05-1.2× more on the loops (docs/performance.md); results differ at
+#: 1e-12..1e-9 relative (not bit-identical to the default). Its component flags, not
+#: -ffast-math itself: gcc (before 13) links crtfastmath.o into a -ffast-math library,
+#: whose constructor turns on flush-to-zero and denormals-are-zero in the loading thread,
+#: for the whole process from then on (numpy and every other chunk included;
+#: tests/test_loop_codegen.py)
+FAST_MATH_CFLAGS = ("-O2", "-fno-semantic-interposition", "-fno-math-errno",
+                    "-fno-signed-zeros", "-fno-trapping-math", "-fassociative-math",
+                    "-freciprocal-math", "-ffinite-math-only", "-fno-rounding-math",
+                    "-fno-signaling-nans", "-fcx-limited-range", "-fexcess-precision=fast",
+                    "-fPIC", "-shared")
 
 def compiled(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
              quiet: bool = False) -> ca.Function:
@@ -96,44 +110,175 @@ def compiled(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
     machine, where compiling or caching is impossible: one warning per process)."""
     return _compile_function(f, label, flags, quiet)
 
+#: the generated C's min and max helpers call libm's fmin and fmax, which gcc may not
+#: inline under C's rules (a call through the PLT each: 6-8 % of a loop's time); inline,
+#: with the same result for every pair of doubles, NaN and signed zeros included (glibc's
+#: semantics: a NaN argument gives the other one; tests/test_loop_codegen.py)
+INLINE_MINMAX = (("return fmax(x, y);", "return x > y ? x : (y != y ? x : y);"),
+                 ("return fmin(x, y);", "return x < y ? x : (y != y ? x : y);"))
+
+
+def loop_source(f: ca.Function, folder: Path, label: str, extra_c: str = "") -> Path:
+    """The C of a loop chunk ``f`` in ``folder``: CasADi's code with the min and max
+    helpers inlined (INLINE_MINMAX), then ``extra_c`` (C source compiled into the same
+    library: the external functions f calls, e.g. the DISCON bridge)."""
+    cg = ca.CodeGenerator(f"{label}.c", {"with_header": False})
+    cg.add(f)
+    code = cg.dump()
+    for old, new in INLINE_MINMAX:
+        code = code.replace(old, new)
+    if extra_c:
+        code += "\n" + extra_c
+    path = folder / f"{label}.c"
+    path.write_text(code)
+    return path
+
+
 def _compile_function(f: ca.Function, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
-                      quiet: bool = False, extra_c: Path | None = None) -> ca.Function:
-    """Generate C for f and load it through the loader's verified compile cache; f itself
-    where the loader cannot compile or cache it (the loader warns, once per process).
-    ``extra_c``: C source compiled into the same library (the external functions f calls,
-    e.g. the DISCON bridge)."""
+                      quiet: bool = False) -> ca.Function:
+    """Generate C for f (:func:`loop_source`) and load it through the loader's verified
+    compile cache; f itself where the loader cannot compile or cache it (the loader warns,
+    once per process)."""
     with tempfile.TemporaryDirectory() as tmp:
-        cname = f"{label}.c"
-        cg = ca.CodeGenerator(cname, {"with_header": False})
-        cg.add(f)
-        cg.generate(tmp + os.sep)
-        if extra_c is not None:
-            with open(Path(tmp, cname), "a") as c_file:
-                c_file.write("\n" + extra_c.read_text())
+        c_path = loop_source(f, Path(tmp), label)
         note = None if quiet else (f"  compiling the {label} loop (once; cached in "
                                    f"{cache_dir()}) ...")
-        loaded = compiled_external(f.name(), Path(tmp, cname), flags, note)
+        loaded = compiled_external(f.name(), c_path, flags, note)
     return f if loaded is None else loaded
+
+#: the inputs of a loop's step that change from step to step (the chunk takes one column
+#: a step of each); the others are held over the chunk (one column)
+PER_STEP = ("wind3", "actuator_faults", "sensor_faults", "ctrl_fault")
+
+_DRIVER = """
+/* {name}: {n} steps of {step} in one call, each step's state written straight into its
+ * column of the trajectory, the held inputs read in place (wtftc, issue 19: in place of
+ * CasADi's mapaccum, which copies the state, outputs and every input at each step). */
+static const casadi_int {name}_n = {n};
+static const casadi_int {name}_size_in[{n_in}] = {{{size_in}}};
+static const int {name}_per_step[{n_in}] = {{{per_step}}};
+static const casadi_int {name}_size_out[{n_out}] = {{{size_out}}};
+static const char* {name}_names_in[{n_in}] = {{{names_in}}};
+static const char* {name}_names_out[{n_out}] = {{{names_out}}};
+/* dense patterns in CasADi's short form: rows, columns, 1 */
+static const casadi_int {name}_sp[{n_in} + {n_out}][3] = {{{sp}}};
+
+CASADI_SYMBOL_EXPORT casadi_int {name}_n_in(void) {{ return {n_in}; }}
+CASADI_SYMBOL_EXPORT casadi_int {name}_n_out(void) {{ return {n_out}; }}
+CASADI_SYMBOL_EXPORT const char* {name}_name_in(casadi_int i) {{
+  return i >= 0 && i < {n_in} ? {name}_names_in[i] : 0;
+}}
+CASADI_SYMBOL_EXPORT const char* {name}_name_out(casadi_int i) {{
+  return i >= 0 && i < {n_out} ? {name}_names_out[i] : 0;
+}}
+CASADI_SYMBOL_EXPORT const casadi_int* {name}_sparsity_in(casadi_int i) {{
+  return i >= 0 && i < {n_in} ? {name}_sp[i] : 0;
+}}
+CASADI_SYMBOL_EXPORT const casadi_int* {name}_sparsity_out(casadi_int i) {{
+  return i >= 0 && i < {n_out} ? {name}_sp[{n_in} + i] : 0;
+}}
+CASADI_SYMBOL_EXPORT int {name}_work(casadi_int *sz_arg, casadi_int* sz_res,
+                                     casadi_int *sz_iw, casadi_int *sz_w) {{
+  casadi_int a, r, i, w;
+  {step}_work(&a, &r, &i, &w);
+  *sz_arg = {n_in} + a; *sz_res = {n_out} + r; *sz_iw = i;
+  *sz_w = w + 2 * {name}_size_in[0] + {name}_size_out[1];
+  return 0;
+}}
+
+CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casadi_int* iw,
+                                casadi_real* w, int mem) {{
+  casadi_int a, r, ii, ww, k, j;
+  const casadi_real** sarg = arg + {n_in};
+  casadi_real** sres = res + {n_out};
+  casadi_real *zbuf, *obuf;
+  const casadi_real* z = arg[0];
+  {step}_work(&a, &r, &ii, &ww);
+  zbuf = w + ww;
+  obuf = zbuf + 2 * {name}_size_in[0];
+  for (k = 0; k < {name}_n; k++) {{
+    for (j = 1; j < {n_in}; j++)
+      sarg[j] = arg[j] && {name}_per_step[j] ? arg[j] + k * {name}_size_in[j] : arg[j];
+    sarg[0] = z;
+    sres[0] = res[0] ? res[0] + k * {name}_size_out[0] : zbuf + (k % 2) * {name}_size_in[0];
+    sres[1] = res[1] ? res[1] + k * {name}_size_out[1] : obuf;
+    if ({step}(sarg, sres, iw, w, mem)) return 1;
+    z = sres[0];
+  }}
+  return 0;
+}}
+"""
+
+
+def _driver_source(step: ca.Function, n: int, name: str) -> str:
+    """C of the chunk function ``name``: ``n`` steps of ``step`` (whose code comes first)
+    in a loop, as mapaccum computes them, with the held inputs as one column."""
+    ins, outs = step.name_in(), step.name_out()
+    per = [int(x in PER_STEP) for x in ins]
+    sp = [(step.size1_in(i), n if per[i] else 1) for i in range(len(ins))] + \
+         [(step.size1_out(i), n) for i in range(len(outs))]
+    return _DRIVER.format(
+        name=name, step=step.name(), n=n, n_in=len(ins), n_out=len(outs),
+        size_in=", ".join(str(step.size1_in(i)) for i in range(len(ins))),
+        per_step=", ".join(map(str, per)),
+        size_out=", ".join(str(step.size1_out(i)) for i in range(len(outs))),
+        names_in=", ".join(f'"{x}"' for x in ins), names_out=", ".join(f'"{x}"' for x in outs),
+        sp=", ".join(f"{{{r}, {c}, 1}}" for r, c in sp))
+
 
 @cache
 def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False,
-                   quiet: bool = False) -> ca.Function:
+                   quiet: bool = False, exact: bool = False) -> ca.Function:
     """``n`` RK4 steps of ``loop`` in one compiled call (mapaccum over the step, or over
     the control interval of a sampled loop: n rounded down to whole intervals);
     ``fast_math``: compiled with FAST_MATH_CFLAGS instead of LOOP_CFLAGS; ``quiet``: no
-    note when it is compiled."""
+    note when it is compiled; ``exact`` (a continuous loop): specialised for exact sensors
+    without sensor faults (:func:`exact_sensors`), their inputs taken as the layout's
+    defaults and not read (the same numbers as the general chunk given those values, bit
+    for bit; a third fewer operations on the physical loop: docs/performance.md)."""
     tag = "" if loop.fdi else "_nofdi"
     if loop.sampled:
         tag += f"_s{loop.interval}{'d' if loop.delay else ''}"
         m = max(1, n // loop.interval)
         chunk = interval_function(loop).mapaccum(f"loop_{loop.plant}_{loop.controller}{tag}", m)
         n = m * loop.interval
-    else:
-        chunk = rk4_step(rhs_function(loop)).mapaccum(
-            f"loop_{loop.plant}_{loop.controller}{tag}", n)
-    return _compile_function(chunk, f"loop_{loop.plant}_{loop.controller}{tag}_"
-                             f"{loop.table_key}_{n}",
-                             FAST_MATH_CFLAGS if fast_math else LOOP_CFLAGS, quiet)
+        return _compile_function(chunk, f"loop_{loop.plant}_{loop.controller}{tag}_"
+                                 f"{loop.table_key}_{n}",
+                                 FAST_MATH_CFLAGS if fast_math else LOOP_CFLAGS, quiet)
+    tag += "_exact" if exact else ""
+    label = f"loop_{loop.plant}_{loop.controller}{tag}_{loop.table_key}_{n}"
+    fixed = {"p_sensors": lay.defaults("sensor_params"),
+             "sensor_faults": lay.defaults("sensor_faults")} if exact else None
+    step = rk4_step(rhs_function(loop), fixed=fixed, name=f"{label}_step")
+    return compiled_chunk(step, n, label, FAST_MATH_CFLAGS if fast_math else LOOP_CFLAGS,
+                          quiet)
+
+
+def compiled_chunk(step: ca.Function, n: int, label: str, flags: tuple[str, ...] = LOOP_CFLAGS,
+                   quiet: bool = False, extra_c: str = "") -> ca.Function:
+    """``n`` steps of ``step`` in one compiled call (the C driver of :func:`_driver_source`
+    around the step's generated code, then ``extra_c``); where no compiler or cache is
+    usable, the same steps through ``mapaccum`` on CasADi's virtual machine (the same
+    numbers, per-step columns of the held inputs)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        c_path = loop_source(step, Path(tmp), label,
+                             _driver_source(step, n, label) + extra_c)
+        note = None if quiet else (f"  compiling the {label} loop (once; cached in "
+                                   f"{cache_dir()}) ...")
+        loaded = compiled_external(label, c_path, flags, note)
+    return step.mapaccum(label, n) if loaded is None else loaded
+
+
+def exact_sensors(loop: Loop, runs: list[Run]) -> bool:
+    """Whether every run of a continuous loop has exact sensors (the layout's default
+    sensor parameters: no noise, bias, resolution or lag) and no sensor fault: the
+    specialised chunk then computes the same numbers."""
+    if loop.sampled:
+        return False
+    default = lay.defaults("sensor_params")
+    return all((r.p_sensors is None or np.array_equal(r.p_sensors, default))
+               and (r.schedule is None or not r.schedule.has_sensor_faults)
+               for r in runs)
 
 
 class Buffered:
@@ -148,6 +293,7 @@ class Buffered:
     def __init__(self, f: ca.Function):
         self.f = f
         self._buf, self._trigger = f.buffer()
+        self._last: dict = {}  # (name, run) → the object last written with same=True
         self._in = [np.zeros((f.size2_in(i), f.size1_in(i))) for i in range(f.n_in())]
         self._out = [np.zeros((f.size2_out(i), f.size1_out(i))) for i in range(f.n_out())]
         for i, a in enumerate(self._in):
@@ -155,9 +301,17 @@ class Buffered:
         for i, r in enumerate(self._out):
             self._buf.set_res(i, memoryview(r))
 
-    def put(self, name: str, value, run: int = 0, n_runs: int = 1) -> None:
+    def put(self, name: str, value, run: int = 0, n_runs: int = 1, same: bool = False) -> None:
         """Write input ``name`` of run ``run`` (of n_runs side by side) in place: ``value``
-        is (rows, columns) of that run, or one column (rows,) held over its columns."""
+        is (rows, columns) of that run, or one column (rows,) held over its columns.
+        ``same``: ``value`` is never changed in place, so when it is the very object last
+        written here, the buffer already holds it and is left alone."""
+        if same:
+            if self._last.get((name, run)) is value:
+                return
+            self._last[(name, run)] = value
+        else:
+            self._last.pop((name, run), None)
         a = self._in[self.f.index_in(name)]
         w = a.shape[0] // n_runs
         seg = a[run * w:(run + 1) * w]
@@ -316,8 +470,12 @@ class _Batch:
         divergence if one happened (the run then stops at its last finite state)."""
         first = (-k) % self.decimate  # the first step of this chunk on the output grid
         z_prev = self.z[:, b].copy()
-        if not (np.abs(zz).max() <= 1e8 and np.isfinite(oo).all()) or (
-                self.envelope is not None and self.envelope.outside(zz).any()):
+        # |zz| <= 1e8 and finite outputs, without temporaries: max and min propagate NaN
+        # (the comparison is then False); a sum of finite outputs is finite unless it
+        # overflows, where the exact test decides
+        fine = zz.max() <= 1e8 and zz.min() >= -1e8 and (
+            bool(np.isfinite(oo.sum())) or bool(np.isfinite(oo).all()))
+        if not fine or (self.envelope is not None and self.envelope.outside(zz).any()):
             i, self.diverged[b] = divergence(zz, oo, z_prev, self.names, self.out_names, k, dt,
                                              self.envelope)
             m = i + 1
@@ -403,7 +561,7 @@ def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: 
                  n_runs)
         cols = _fault_columns(r, nominal[b], held_cols[b] if held else None, tf, ts)
         for name in ("actuator_faults", "sensor_faults", "ctrl_fault"):
-            call.put(name, cols[name], b, n_runs)
+            call.put(name, cols[name], b, n_runs, same=True)
         if loop.sampled:  # draws for the intervals this chunk uses, in order
             n_int = n_c // loop.interval
             used = -(-m // loop.interval)
@@ -481,7 +639,7 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     n_steps = int(round(t_final / dt))
     f = hook.function if hook is not None and hook.function is not None else \
         chunk_function(loop, n=hook.steps if hook else CHUNK, fast_math=fast_math,
-                       quiet=not progress)
+                       quiet=not progress, exact=exact_sensors(loop, runs))
     shards = _shards(len(runs), threads)
     tracker = _Tracker(n_steps, dt, [len(s) for s in shards], progress)
     args = (loop, f, n_steps, dt, decimate, keep_states)

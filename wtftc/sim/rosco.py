@@ -343,12 +343,7 @@ def compiled_chunk(loop: Loop, n: int = integrate.CHUNK) -> tuple[ca.Function, P
     chunk = _discon_step(loop, bridge).mapaccum(f"rosco_{loop.plant}", n, 2)
     label = f"rosco_{loop.plant}_{loop.table_key}_{'' if loop.fdi else 'nofdi_'}{n}"
     with tempfile.TemporaryDirectory() as tmp:
-        c_path = Path(tmp, f"{label}.c")
-        cg = ca.CodeGenerator(c_path.name, {"with_header": False})
-        cg.add(chunk)
-        cg.generate(tmp + os.sep)
-        with open(c_path, "a") as c_file:
-            c_file.write("\n" + BRIDGE.read_text())
+        c_path = integrate.loop_source(chunk, Path(tmp), label, extra_c=BRIDGE.read_text())
         try:
             cc = loader.compiler()
             so = loader.compile_cached(c_path, cc, integrate.LOOP_CFLAGS) if cc else None

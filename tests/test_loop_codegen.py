@@ -1,0 +1,119 @@
+"""The loop chunk's code generation (issue 19): what it changes for speed leaves every
+number as it was."""
+
+import struct
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from wtftc import config
+from wtftc.artefacts.loader import compiled_external
+from wtftc.campaign import cases
+from wtftc.sim import integrate
+
+SPECIAL = [0.0, -0.0, 1.0, -1.0, np.inf, -np.inf, np.nan, 1e-310, -3.5, 2.0**1023]
+
+
+def _bits(x: float) -> int:
+    return struct.unpack("<q", struct.pack("<d", x))[0]
+
+
+def test_inlined_min_and_max_are_libms_for_every_pair_of_special_doubles(tmp_path):
+    """The inlined helpers (INLINE_MINMAX) against the same function compiled as CasADi
+    writes it, calling the C library's fmin and fmax: the same bits for signed zeros,
+    infinities, NaN (either side), subnormals, on every ordered pair. (CasADi's virtual
+    machine is not the reference here: it gives +0 for max(0, -0) where libm gives -0.)"""
+    x, y = ca.SX.sym("x"), ca.SX.sym("y")
+    f = ca.Function("wtftc_test_minmax_inlined", [x, y], [ca.fmax(x, y), ca.fmin(x, y)])
+    text = integrate.loop_source(f, tmp_path, "inlined").read_text()
+    assert "return fmax(x, y);" not in text and "return fmin(x, y);" not in text
+    inlined = integrate.compiled(f, "wtftc_test_minmax_inlined", quiet=True)
+    g = ca.Function("wtftc_test_minmax_libm", [x, y], [ca.fmax(x, y), ca.fmin(x, y)])
+    cg = ca.CodeGenerator("libm_minmax.c", {"with_header": False})
+    cg.add(g)
+    cg.generate(str(tmp_path) + "/")
+    assert "return fmax(x, y);" in (tmp_path / "libm_minmax.c").read_text()
+    libm = compiled_external(g.name(), tmp_path / "libm_minmax.c", integrate.LOOP_CFLAGS)
+    assert inlined.is_a("External") and libm.is_a("External")
+    for a in SPECIAL:
+        for b in SPECIAL:
+            got = [float(v) for v in inlined(a, b)]
+            want = [float(v) for v in libm(a, b)]
+            assert [_bits(v) for v in got] == [_bits(v) for v in want], (a, b, got, want)
+
+
+def test_the_rk4_step_shares_work_across_its_stages():
+    """The step in SX with common subexpressions shared: fewer operations than four
+    evaluations of the right-hand side, the same numbers (the loop tests below)."""
+    from wtftc.sim.rhs import rhs_function
+
+    loop = config.make_config({"controller": "physical", "case": 3}).loop
+    rhs = rhs_function(loop)
+    step = integrate.rk4_step(rhs)
+    assert step.is_a("SXFunction")
+    assert step.n_instructions() < 4 * rhs.expand().n_instructions()
+
+
+def _runs(raw: dict, exact: bool, monkeypatch) -> list:
+    monkeypatch.setattr(integrate, "exact_sensors", lambda loop, runs: exact)
+    return cases.run(config.make_config(raw), progress=False)
+
+
+@pytest.mark.parametrize("raw", [
+    {"controller": "physical", "case": 4, "t_final_s": 25.0,
+     "fault": [{"type": "lock", "blade": 1, "onset_s": 12.31},
+               {"type": "loss_of_effectiveness", "blade": 3, "rho": 0.5, "onset_s": 6.0}]},
+    {"controller": "paper", "case": 3, "t_final_s": 25.0, "plant": "tower"},
+])
+def test_the_chunk_specialised_for_exact_sensors_gives_the_general_ones_numbers(
+        raw, monkeypatch):
+    """Exact sensors and no sensor fault: the specialised chunk (their inputs folded to
+    the layout's defaults) and the general one, bit for bit, FDI monitor included."""
+    fast = _runs(raw, True, monkeypatch)
+    general = _runs(raw, False, monkeypatch)
+    np.testing.assert_array_equal(fast.outputs, general.outputs)
+    np.testing.assert_array_equal(fast.z_final, general.z_final)
+
+
+def test_the_specialised_chunk_is_chosen_only_where_it_is_exact():
+    def inputs(raw):
+        rc = config.make_config({"controller": "physical", "case": 2, "t_final_s": 30.0,
+                                 **raw})
+        return rc.loop, cases._prepare(rc)[0]
+
+    loop, run = inputs({})
+    assert integrate.exact_sensors(loop, [run])
+    noisy = inputs({"sensors": {"pitch_bias_deg": 0.1}})
+    assert not integrate.exact_sensors(noisy[0], [run, noisy[1]])
+    faulty = inputs({"fault": [{"type": "rotor_speed_sensor_offset", "sensor": 2,
+                                "onset_s": 5.0}]})
+    assert not integrate.exact_sensors(faulty[0], [run, faulty[1]])
+    sampled = inputs({"profile": "realistic"})
+    assert not integrate.exact_sensors(*sampled[:1], [sampled[1]])
+
+
+def test_a_held_column_is_written_again_once_another_one_was():
+    """Buffered.put(same=True) skips only the very object it last wrote there."""
+    u = ca.SX.sym("u", 2)
+    call = integrate.Buffered(ca.Function("f", [u], [2 * u]).map(3))
+    held, other = np.array([1.0, 2.0]), np.array([[5.0, 6.0, 7.0], [0.0, 0.0, 0.0]])
+    call.put("i0", held, same=True)
+    assert call.evaluate()[0][0].tolist() == [2.0, 2.0, 2.0]
+    call.put("i0", other)
+    call.put("i0", held, same=True)  # the held object again, after another one
+    assert call.evaluate()[0][0].tolist() == [2.0, 2.0, 2.0]
+
+
+def test_the_fast_math_chunk_leaves_the_process_denormals_alone():
+    """The opt-in -ffast-math chunk (FAST_MATH_CFLAGS) is built without crtfastmath.o,
+    whose constructor turned on flush-to-zero for the whole process once it was loaded:
+    every later computation, numpy's and the default chunks' included, then lost its
+    subnormals (found when this file's min/max test failed after the bench's fast-math
+    test in the same session)."""
+    tiny = np.array([1e-310])
+    assert (tiny * 1.0)[0] != 0.0
+    loop = config.make_config({"controller": "physical", "case": 3}).loop
+    f = integrate.chunk_function(loop, n=10, fast_math=True, quiet=True)
+    assert f.is_a("External")
+    assert (tiny * 1.0)[0] != 0.0
