@@ -656,7 +656,7 @@ def build_times(loops: list[str]) -> dict[str, str]:
                 step = integrate.rk4_step(p.rhs, name=f"build_{name}_step")
                 t0 = time.perf_counter()
                 integrate.compiled_chunk(step, integrate.CHUNK, f"build_{name}", quiet=True)
-                flags = " ".join(integrate.LOOP_CFLAGS[:-2])
+                flags = " ".join(integrate.loop_flags()[:-2])
                 out[f"C compile of the {name} loop ({flags}) [s]"] = \
                     f"{time.perf_counter() - t0:.1f}"
         finally:

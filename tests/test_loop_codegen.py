@@ -2,6 +2,7 @@
 number as it was."""
 
 import struct
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -34,7 +35,7 @@ def test_inlined_min_and_max_are_libms_for_every_pair_of_special_doubles(tmp_pat
     cg.add(g)
     cg.generate(str(tmp_path) + "/")
     assert "return fmax(x, y);" in (tmp_path / "libm_minmax.c").read_text()
-    libm = compiled_external(g.name(), tmp_path / "libm_minmax.c", integrate.LOOP_CFLAGS)
+    libm = compiled_external(g.name(), tmp_path / "libm_minmax.c", integrate.loop_flags())
     assert inlined.is_a("External") and libm.is_a("External")
     for a in SPECIAL:
         for b in SPECIAL:
@@ -117,3 +118,22 @@ def test_the_fast_math_chunk_leaves_the_process_denormals_alone():
     f = integrate.chunk_function(loop, n=10, fast_math=True, quiet=True)
     assert f.is_a("External")
     assert (tiny * 1.0)[0] != 0.0
+
+
+def test_loop_flags_follow_the_cpu_and_never_contract(monkeypatch):
+    """-ffp-contract=off on every target (aarch64's gcc fuses a*b + c by default, which
+    would part the chunks from CasADi's virtual machine); x86-64-v3 only on a CPU that
+    lists all its instructions (here: read from /proc/cpuinfo)."""
+    import platform
+
+    integrate.arch_flags.cache_clear()
+    monkeypatch.setattr(platform, "machine", lambda: "aarch64")
+    assert integrate.arch_flags() == ("-ffp-contract=off",)
+    integrate.arch_flags.cache_clear()
+    monkeypatch.undo()
+    flags = integrate.loop_flags()
+    assert "-ffp-contract=off" in flags and flags[-2:] == ("-fPIC", "-shared")
+    cpu = Path("/proc/cpuinfo").read_text() if Path("/proc/cpuinfo").exists() else ""
+    line = next((x for x in cpu.splitlines() if x.startswith("flags")), "")
+    has_v3 = integrate.X86_64_V3 <= set(line.split())
+    assert ("-march=x86-64-v3" in flags) == has_v3  # gcc >= 11 takes the flag

@@ -337,7 +337,7 @@ def compiled_chunk(loop: Loop, n: int = integrate.CHUNK) -> tuple[ca.Function, P
     """``n`` steps of ROSCO in the loop in one compiled call, the bridge compiled into the
     same library (whose DISCON state it holds), and that library's path; None where no C
     compiler or cache is usable (the caller then calls ROSCO from Python)."""
-    bridge = loader.compiled_external("wtftc_discon", BRIDGE, integrate.LOOP_CFLAGS)
+    bridge = loader.compiled_external("wtftc_discon", BRIDGE, integrate.loop_flags())
     if bridge is None:
         return None
     chunk = _discon_step(loop, bridge).mapaccum(f"rosco_{loop.plant}", n, 2)
@@ -346,7 +346,7 @@ def compiled_chunk(loop: Loop, n: int = integrate.CHUNK) -> tuple[ca.Function, P
         c_path = integrate.loop_source(chunk, Path(tmp), label, extra_c=BRIDGE.read_text())
         try:
             cc = loader.compiler()
-            so = loader.compile_cached(c_path, cc, integrate.LOOP_CFLAGS) if cc else None
+            so = loader.compile_cached(c_path, cc, integrate.loop_flags()) if cc else None
         except loader.CompileError:
             so = None
     return None if so is None else (ca.external(chunk.name(), str(so)), so)
