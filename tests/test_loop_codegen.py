@@ -137,3 +137,37 @@ def test_loop_flags_follow_the_cpu_and_never_contract(monkeypatch):
     line = next((x for x in cpu.splitlines() if x.startswith("flags")), "")
     has_v3 = integrate.X86_64_V3 <= set(line.split())
     assert ("-march=x86-64-v3" in flags) == has_v3  # gcc >= 11 takes the flag
+
+
+@pytest.mark.parametrize("raw", [
+    {"controller": "physical", "case": 4, "profile": "realistic", "t_final_s": 12.0,
+     "fault": [{"type": "lock", "blade": 1, "onset_s": 6.31},
+               {"type": "pitch_sensor_offset", "blade": 2, "onset_s": 3.0}]},
+    {"controller": "paper", "case": 3, "control_interval_s": 0.01, "control_delay": True,
+     "t_final_s": 12.0, "plant": "tower",
+     "fault": [{"type": "loss_of_effectiveness", "blade": 3, "rho": 0.5, "onset_s": 5.0}]},
+    {"controller": "pi", "case": 2, "t_final_s": 12.0,
+     "fault": [{"type": "rotor_speed_sensor_gain", "sensor": 1, "onset_s": 4.0}]},
+])
+def test_the_c_drivers_are_mapaccum_bit_for_bit(raw, monkeypatch):
+    """The chunks' C drivers (wtftc.sim.drivers: the sampled loop's intervals, the
+    continuous loop's steps) against the same functions chained by CasADi's mapaccum,
+    both compiled: a realistic (noisy, sampled, FDI) run with a lock and a sensor fault,
+    a sampled run with the command delayed on the tower, a continuous run with a speed
+    sensor's fault."""
+    rc = config.make_config(raw)
+    integrate.chunk_function.cache_clear()
+    driven = cases.run(rc, progress=False)
+
+    def mapaccum(fns, driver, label, flags, quiet, fallback):
+        return integrate._compile_function(fallback(), f"{label}_mapaccum", flags, quiet)
+
+    monkeypatch.setattr(integrate, "_driven", mapaccum)
+    integrate.chunk_function.cache_clear()
+    try:
+        chained = cases.run(rc, progress=False)
+    finally:
+        integrate.chunk_function.cache_clear()
+    assert driven.diverged is None
+    np.testing.assert_array_equal(driven.outputs, chained.outputs)
+    np.testing.assert_array_equal(driven.z_final, chained.z_final)

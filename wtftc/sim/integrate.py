@@ -30,6 +30,7 @@ import numpy as np
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import cache_dir, compiled_external, compiler
 from wtftc.model.faults import nominal_actuator
+from wtftc.sim.drivers import intervals_source, steps_source
 from wtftc.sim.rhs import PLANTS, Loop, fdi_params, output_spec, rhs_function, sensor_names
 from wtftc.sim.sampled import interval_function
 
@@ -157,12 +158,14 @@ INLINE_MINMAX = (("return fmax(x, y);", "return x > y ? x : (y != y ? x : y);"),
                  ("return fmin(x, y);", "return x < y ? x : (y != y ? x : y);"))
 
 
-def loop_source(f: ca.Function, folder: Path, label: str, extra_c: str = "") -> Path:
-    """The C of a loop chunk ``f`` in ``folder``: CasADi's code with the min and max
-    helpers inlined (INLINE_MINMAX), then ``extra_c`` (C source compiled into the same
-    library: the external functions f calls, e.g. the DISCON bridge)."""
+def loop_source(f: ca.Function | list[ca.Function], folder: Path, label: str,
+                extra_c: str = "") -> Path:
+    """The C of a loop chunk's function(s) ``f`` in ``folder``: CasADi's code with the min
+    and max helpers inlined (INLINE_MINMAX), then ``extra_c`` (C compiled into the same
+    library: a driver calling them, the DISCON bridge, ...)."""
     cg = ca.CodeGenerator(f"{label}.c", {"with_header": False})
-    cg.add(f)
+    for fn in f if isinstance(f, list) else [f]:
+        cg.add(fn)
     code = cg.dump()
     for old, new in INLINE_MINMAX:
         code = code.replace(old, new)
@@ -189,82 +192,6 @@ def _compile_function(f: ca.Function, label: str, flags: tuple[str, ...] | None 
 #: a step of each); the others are held over the chunk (one column)
 PER_STEP = ("wind3", "actuator_faults", "sensor_faults", "ctrl_fault")
 
-_DRIVER = """
-/* {name}: {n} steps of {step} in one call, each step's state written straight into its
- * column of the trajectory, the held inputs read in place (wtftc, issue 19: in place of
- * CasADi's mapaccum, which copies the state, outputs and every input at each step). */
-static const casadi_int {name}_n = {n};
-static const casadi_int {name}_size_in[{n_in}] = {{{size_in}}};
-static const int {name}_per_step[{n_in}] = {{{per_step}}};
-static const casadi_int {name}_size_out[{n_out}] = {{{size_out}}};
-static const char* {name}_names_in[{n_in}] = {{{names_in}}};
-static const char* {name}_names_out[{n_out}] = {{{names_out}}};
-/* dense patterns in CasADi's short form: rows, columns, 1 */
-static const casadi_int {name}_sp[{n_in} + {n_out}][3] = {{{sp}}};
-
-CASADI_SYMBOL_EXPORT casadi_int {name}_n_in(void) {{ return {n_in}; }}
-CASADI_SYMBOL_EXPORT casadi_int {name}_n_out(void) {{ return {n_out}; }}
-CASADI_SYMBOL_EXPORT const char* {name}_name_in(casadi_int i) {{
-  return i >= 0 && i < {n_in} ? {name}_names_in[i] : 0;
-}}
-CASADI_SYMBOL_EXPORT const char* {name}_name_out(casadi_int i) {{
-  return i >= 0 && i < {n_out} ? {name}_names_out[i] : 0;
-}}
-CASADI_SYMBOL_EXPORT const casadi_int* {name}_sparsity_in(casadi_int i) {{
-  return i >= 0 && i < {n_in} ? {name}_sp[i] : 0;
-}}
-CASADI_SYMBOL_EXPORT const casadi_int* {name}_sparsity_out(casadi_int i) {{
-  return i >= 0 && i < {n_out} ? {name}_sp[{n_in} + i] : 0;
-}}
-CASADI_SYMBOL_EXPORT int {name}_work(casadi_int *sz_arg, casadi_int* sz_res,
-                                     casadi_int *sz_iw, casadi_int *sz_w) {{
-  casadi_int a, r, i, w;
-  {step}_work(&a, &r, &i, &w);
-  *sz_arg = {n_in} + a; *sz_res = {n_out} + r; *sz_iw = i;
-  *sz_w = w + 2 * {name}_size_in[0] + {name}_size_out[1];
-  return 0;
-}}
-
-CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casadi_int* iw,
-                                casadi_real* w, int mem) {{
-  casadi_int a, r, ii, ww, k, j;
-  const casadi_real** sarg = arg + {n_in};
-  casadi_real** sres = res + {n_out};
-  casadi_real *zbuf, *obuf;
-  const casadi_real* z = arg[0];
-  {step}_work(&a, &r, &ii, &ww);
-  zbuf = w + ww;
-  obuf = zbuf + 2 * {name}_size_in[0];
-  for (k = 0; k < {name}_n; k++) {{
-    for (j = 1; j < {n_in}; j++)
-      sarg[j] = arg[j] && {name}_per_step[j] ? arg[j] + k * {name}_size_in[j] : arg[j];
-    sarg[0] = z;
-    sres[0] = res[0] ? res[0] + k * {name}_size_out[0] : zbuf + (k % 2) * {name}_size_in[0];
-    sres[1] = res[1] ? res[1] + k * {name}_size_out[1] : obuf;
-    if ({step}(sarg, sres, iw, w, mem)) return 1;
-    z = sres[0];
-  }}
-  return 0;
-}}
-"""
-
-
-def _driver_source(step: ca.Function, n: int, name: str) -> str:
-    """C of the chunk function ``name``: ``n`` steps of ``step`` (whose code comes first)
-    in a loop, as mapaccum computes them, with the held inputs as one column."""
-    ins, outs = step.name_in(), step.name_out()
-    per = [int(x in PER_STEP) for x in ins]
-    sp = [(step.size1_in(i), n if per[i] else 1) for i in range(len(ins))] + \
-         [(step.size1_out(i), n) for i in range(len(outs))]
-    return _DRIVER.format(
-        name=name, step=step.name(), n=n, n_in=len(ins), n_out=len(outs),
-        size_in=", ".join(str(step.size1_in(i)) for i in range(len(ins))),
-        per_step=", ".join(map(str, per)),
-        size_out=", ".join(str(step.size1_out(i)) for i in range(len(outs))),
-        names_in=", ".join(f'"{x}"' for x in ins), names_out=", ".join(f'"{x}"' for x in outs),
-        sp=", ".join(f"{{{r}, {c}, 1}}" for r, c in sp))
-
-
 @cache
 def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False,
                    quiet: bool = False, exact: bool = False) -> ca.Function:
@@ -279,11 +206,10 @@ def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False,
     if loop.sampled:
         tag += f"_s{loop.interval}{'d' if loop.delay else ''}"
         m = max(1, n // loop.interval)
-        chunk = interval_function(loop).mapaccum(f"loop_{loop.plant}_{loop.controller}{tag}", m)
-        n = m * loop.interval
-        return _compile_function(chunk, f"loop_{loop.plant}_{loop.controller}{tag}_"
-                                 f"{loop.table_key}_{n}",
-                                 loop_flags(fast_math), quiet)
+        label = f"loop_{loop.plant}_{loop.controller}{tag}_{loop.table_key}_{m * loop.interval}"
+        fns, driver = intervals_source(loop, m, label)
+        return _driven(fns, driver, label, loop_flags(fast_math), quiet,
+                       lambda: interval_function(loop).mapaccum(label, m))
     tag += "_exact" if exact else ""
     label = f"loop_{loop.plant}_{loop.controller}{tag}_{loop.table_key}_{n}"
     fixed = {"p_sensors": lay.defaults("sensor_params"),
@@ -295,17 +221,25 @@ def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False,
 def compiled_chunk(step: ca.Function, n: int, label: str,
                    flags: tuple[str, ...] | None = None, quiet: bool = False,
                    extra_c: str = "") -> ca.Function:
-    """``n`` steps of ``step`` in one compiled call (the C driver of :func:`_driver_source`
-    around the step's generated code, then ``extra_c``); where no compiler or cache is
-    usable, the same steps through ``mapaccum`` on CasADi's virtual machine (the same
-    numbers, per-step columns of the held inputs)."""
+    """``n`` steps of ``step`` in one compiled call (the C driver of
+    :func:`wtftc.sim.drivers.steps_source` around the step's generated code, then
+    ``extra_c``); where no compiler or cache is usable, the same steps through
+    ``mapaccum`` on CasADi's virtual machine (the same numbers, per-step columns of the
+    held inputs)."""
+    return _driven([step], steps_source(step, n, label, PER_STEP) + extra_c, label,
+                   flags or loop_flags(), quiet, lambda: step.mapaccum(label, n))
+
+
+def _driven(fns: list[ca.Function], driver: str, label: str, flags: tuple[str, ...],
+            quiet: bool, fallback) -> ca.Function:
+    """The chunk ``label``: ``driver`` (C) compiled with the code of ``fns``, loaded; else
+    ``fallback()`` (on CasADi's virtual machine)."""
     with tempfile.TemporaryDirectory() as tmp:
-        c_path = loop_source(step, Path(tmp), label,
-                             _driver_source(step, n, label) + extra_c)
+        c_path = loop_source(fns, Path(tmp), label, driver)
         note = None if quiet else (f"  compiling the {label} loop (once; cached in "
                                    f"{cache_dir()}) ...")
-        loaded = compiled_external(label, c_path, flags or loop_flags(), note)
-    return step.mapaccum(label, n) if loaded is None else loaded
+        loaded = compiled_external(label, c_path, flags, note)
+    return fallback() if loaded is None else loaded
 
 
 def exact_sensors(loop: Loop, runs: list[Run]) -> bool:

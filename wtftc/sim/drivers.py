@@ -1,0 +1,224 @@
+"""C drivers of the loop chunks (issue 19): the loop over a chunk's steps written in C
+around CasADi's generated step functions, in place of ``mapaccum``.
+
+``mapaccum`` copies the state, the outputs and every input (the parameters included, one
+column a step) at each step, and in the sampled loop repeats the held sample across the
+interval's steps through MX copies; the drivers read the held inputs in place, write each
+step's state straight into its column of the trajectory, and call the same generated
+functions in the same order, so the numbers are the same, bit for bit
+(tests/test_loop_codegen.py). Each driver is a CasADi external function (its interface:
+:func:`_interface`), compiled into one library with the functions it calls.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from wtftc.sim import sampled
+from wtftc.sim.rhs import Loop
+
+_INTERFACE = """
+/* {name}: the chunk (wtftc.sim.drivers) */
+static const char* {name}_names_in[{n_in}] = {{{names_in}}};
+static const char* {name}_names_out[{n_out}] = {{{names_out}}};
+/* dense patterns in CasADi's short form: rows, columns, 1 */
+static const casadi_int {name}_sp[{n_in} + {n_out}][3] = {{{sp}}};
+
+CASADI_SYMBOL_EXPORT casadi_int {name}_n_in(void) {{ return {n_in}; }}
+CASADI_SYMBOL_EXPORT casadi_int {name}_n_out(void) {{ return {n_out}; }}
+CASADI_SYMBOL_EXPORT const char* {name}_name_in(casadi_int i) {{
+  return i >= 0 && i < {n_in} ? {name}_names_in[i] : 0;
+}}
+CASADI_SYMBOL_EXPORT const char* {name}_name_out(casadi_int i) {{
+  return i >= 0 && i < {n_out} ? {name}_names_out[i] : 0;
+}}
+CASADI_SYMBOL_EXPORT const casadi_int* {name}_sparsity_in(casadi_int i) {{
+  return i >= 0 && i < {n_in} ? {name}_sp[i] : 0;
+}}
+CASADI_SYMBOL_EXPORT const casadi_int* {name}_sparsity_out(casadi_int i) {{
+  return i >= 0 && i < {n_out} ? {name}_sp[{n_in} + i] : 0;
+}}
+CASADI_SYMBOL_EXPORT int {name}_work(casadi_int *sz_arg, casadi_int* sz_res,
+                                     casadi_int *sz_iw, casadi_int *sz_w) {{
+  casadi_int a = 0, r = 0, i = 0, w = 0, a1, r1, i1, w1;
+{work_calls}
+  *sz_arg = {n_in} + a; *sz_res = {n_out} + r; *sz_iw = i; *sz_w = w + {scratch};
+  return 0;
+}}
+"""
+
+_WORK_CALL = """  {fn}_work(&a1, &r1, &i1, &w1);
+  if (a1 > a) a = a1;
+  if (r1 > r) r = r1;
+  if (i1 > i) i = i1;
+  if (w1 > w) w = w1;"""
+
+
+def _interface(name: str, inputs: list[tuple[str, int, int]],
+               outputs: list[tuple[str, int, int]], functions: list[str],
+               scratch: str) -> str:
+    """CasADi's external-function interface of the C function ``name``: inputs and
+    outputs as (name, rows, columns), dense; its work the largest of ``functions``' plus
+    ``scratch`` doubles (a C expression)."""
+    return _INTERFACE.format(
+        name=name, n_in=len(inputs), n_out=len(outputs),
+        names_in=", ".join(f'"{n}"' for n, _, _ in inputs),
+        names_out=", ".join(f'"{n}"' for n, _, _ in outputs),
+        sp=", ".join(f"{{{r}, {c}, 1}}" for _, r, c in [*inputs, *outputs]),
+        work_calls="\n".join(_WORK_CALL.format(fn=f) for f in functions), scratch=scratch)
+
+
+def _max_work(functions: list[str]) -> str:
+    """C statements: ww, the largest work of ``functions`` (the driver's scratch follows)."""
+    return "\n".join(["  casadi_int ww = 0, a1, r1, i1, w1;"] + [
+        f"  {f}_work(&a1, &r1, &i1, &w1);\n  if (w1 > ww) ww = w1;" for f in functions])
+
+
+_STEPS = """
+CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casadi_int* iw,
+                                casadi_real* w, int mem) {{
+  static const casadi_int size_in[{n_in}] = {{{size_in}}};
+  static const int per_step[{n_in}] = {{{per_step}}};
+  const casadi_int nz = {nz}, no = {no};
+  const casadi_real** sarg = arg + {n_in};
+  casadi_real** sres = res + {n_out};
+  casadi_real *zbuf, *obuf;
+  const casadi_real* z = arg[0];
+  casadi_int k, j;
+{max_work}
+  zbuf = w + ww;
+  obuf = zbuf + 2 * nz;
+  for (k = 0; k < {n}; k++) {{
+    for (j = 1; j < {n_in}; j++)
+      sarg[j] = arg[j] && per_step[j] ? arg[j] + k * size_in[j] : arg[j];
+    sarg[0] = z;
+    sres[0] = res[0] ? res[0] + k * nz : zbuf + (k % 2) * nz;
+    sres[1] = res[1] ? res[1] + k * no : obuf;
+    if ({step}(sarg, sres, iw, w, mem)) return 1;
+    z = sres[0];
+  }}
+  return 0;
+}}
+"""
+
+
+def steps_source(step: ca.Function, n: int, name: str, per_step: tuple[str, ...]) -> str:
+    """C of the chunk ``name``: ``n`` steps of ``step`` (state in and out first, then its
+    report) in a loop; the ``per_step`` inputs one column a step, the others held (one
+    column). ``step``'s own code must come before it."""
+    ins, outs = step.name_in(), step.name_out()
+    per = [int(x in per_step) for x in ins]
+    nz, no = step.size1_in(0), step.size1_out(1)
+    inputs = [(x, step.size1_in(i), n if per[i] else 1) for i, x in enumerate(ins)]
+    outputs = [(x, step.size1_out(i), n) for i, x in enumerate(outs)]
+    return _interface(name, inputs, outputs, [step.name()], f"3 * {max(nz, no)}") + \
+        _STEPS.format(name=name, step=step.name(), n=n, n_in=len(ins), n_out=len(outs),
+                      size_in=", ".join(str(r) for _, r, _ in inputs),
+                      per_step=", ".join(map(str, per)), nz=nz, no=no,
+                      max_work=_max_work([step.name()]))
+
+
+_INTERVALS = """
+CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casadi_int* iw,
+                                casadi_real* w, int mem) {{
+  /* sizes: state, plant, controller, FDI, sensors, blades, held sample, measurements,
+   * outputs; plant steps an interval, intervals a chunk */
+  const casadi_int nz = {nz}, np = {np}, nc = {nc}, nf = {nf}, ns = {ns}, nb = {nb}, nh = {nh};
+  const casadi_int nm = {nm}, no = {no}, n = {steps}, m = {m}, o = np + nc + nf;
+  const casadi_real** sarg = arg + {n_in};
+  casadi_real** sres = res + {n_out};
+  casadi_real *zc, *xa, *xb, *fa, *fb, *xcn, *held, *va, *vn, *rd, *me, *col, *outs, *t;
+  casadi_real T, dt = arg[{i_dt}][0];
+  casadi_int j, i, k, q;
+{max_work}
+  zc = w + ww; xa = zc + nz; xb = xa + np + ns; fa = xb + np + ns; fb = fa + nf;
+  xcn = fb + nf; held = xcn + nc; va = held + nh; vn = va + nb; rd = vn + nb; me = rd + ns;
+  col = me + nm; outs = col + nz;
+  for (q = 0; q < nz; q++) zc[q] = arg[0][q];
+  T = n * dt;
+  for (j = 0; j < m; j++) {{
+    /* the sample at the interval's start */
+{sample_args}
+    sres[0] = xcn; sres[1] = held; sres[2] = va; sres[3] = vn; sres[4] = rd; sres[5] = me;
+    if ({sample}(sarg, sres, iw, w, mem)) return 1;
+    for (q = 0; q < np; q++) xa[q] = zc[q];
+    for (q = 0; q < ns; q++) xa[np + q] = zc[o + q];
+    for (q = 0; q < nf; q++) fa[q] = zc[np + nc + q];
+    for (i = 0; i < n; i++) {{
+      k = j * n + i;
+      /* the plant (and the sensors' lags) over one step of dt, the command held */
+{plant_args}
+      sres[0] = xb; sres[1] = res[1] ? res[1] + k * no : outs;
+      if ({plant}(sarg, sres, iw, w, mem)) return 1;
+{fdi_call}
+      /* the state after the step: the controller's as sampled until the last step */
+      t = res[2] ? res[2] + k * nz : col;
+      for (q = 0; q < np; q++) t[q] = xb[q];
+      for (q = 0; q < nc; q++) t[np + q] = i < n - 1 ? zc[np + q] : xcn[q];
+      for (q = 0; q < nf; q++) t[np + nc + q] = fb[q];
+      for (q = 0; q < ns; q++) t[o + q] = xb[np + q];
+      for (q = o + ns; q < nz; q++) t[q] = vn[q - o - ns];
+      {{ casadi_real* s = xa; xa = xb; xb = s; s = fa; fa = fb; fb = s; }}
+    }}
+    for (q = 0; q < nz; q++) zc[q] = t[q];
+    if (res[0]) for (q = 0; q < nz; q++) res[0][j * nz + q] = zc[q];
+  }}
+  return 0;
+}}
+"""
+
+_FDI_CALL = """      sarg[0] = fa; sarg[1] = va; sarg[2] = rd; sarg[3] = me;
+      sarg[4] = arg[{i_p_fdi}]; sarg[5] = &dt;
+      sres[0] = fb;
+      if ({fdi}(sarg, sres, iw, w, mem)) return 1;"""
+
+
+def _renamed(f: ca.Function, name: str) -> ca.Function:
+    """The SX function f under another name (its C symbol in a chunk's library)."""
+    x = f.sx_in()
+    return ca.Function(name, x, f.call(x), f.name_in(), f.name_out())
+
+
+def _args(fn: ca.Function, given: dict[str, str], indent: str) -> str:
+    """C statements pointing sarg[i] at each of fn's inputs (``given``: C expressions)."""
+    return "\n".join(f"{indent}sarg[{i}] = {given[x]};" for i, x in enumerate(fn.name_in()))
+
+
+def intervals_source(loop: Loop, m: int, name: str) -> tuple[list[ca.Function], str]:
+    """The functions of the sampled loop (sample, plant step, FDI step: their code comes
+    first, in this order) and the C of the chunk ``name``: ``m`` control intervals, as
+    :func:`wtftc.sim.sampled.interval_function` mapped by mapaccum computes them, with
+    the same inputs (the held ones as one column) and outputs."""
+    iv = sampled.interval_function(loop)
+    sz = sampled._sizes(loop)
+    fns = [_renamed(sampled._sample(loop), f"{name}_sample"),
+           _renamed(sampled._plant_step(loop), f"{name}_plant")]
+    if loop.fdi:
+        fns.append(_renamed(sampled._fdi_step(loop), f"{name}_fdi"))
+    steps = loop.interval
+    ins = iv.name_in()
+    idx = {x: i for i, x in enumerate(ins)}
+    cols = {x: steps * m if x in sampled.PER_STEP else
+            m if x in sampled.PER_INTERVAL else 1 for x in ins}
+    at = {x: f"arg[{idx[x]}]" for x in ins}
+    interval = {**at, "z": "zc", "T": "&T",
+                **{x: f"arg[{idx[x]}] + j * {iv.size1_in(idx[x])}"
+                   for x in sampled.PER_INTERVAL}}
+    plant = {**interval, "x": "xa", "v": "va", "held": "held",
+             **{x: f"arg[{idx[x]}] + k * {iv.size1_in(idx[x])}" for x in sampled.PER_STEP}}
+    inputs = [(x, iv.size1_in(i), cols[x]) for i, x in enumerate(ins)]
+    outputs = [("z_next", sz["z"], m), ("out", iv.size1_out(1), steps * m),
+               ("z_steps", sz["z"], steps * m)]
+    scratch = (f"{sz['z']} * 2 + 2 * ({sz['p']} + {sz['s']}) + 2 * {sz['f']} + {sz['c']} + "
+               f"{sampled._held_size(loop)} + 2 * {sz['b']} + {sz['s']} + {sz['m']} + "
+               f"{iv.size1_out(1)}")
+    body = _INTERVALS.format(
+        name=name, n_in=len(ins), n_out=3, i_dt=idx["dt"], nz=sz["z"], np=sz["p"],
+        nc=sz["c"], nf=sz["f"] if loop.fdi else 0, ns=sz["s"], nb=sz["b"],
+        nh=sampled._held_size(loop), nm=sz["m"], no=iv.size1_out(1), steps=steps, m=m,
+        max_work=_max_work([f.name() for f in fns]), sample=fns[0].name(),
+        sample_args=_args(fns[0], interval, "    "), plant=fns[1].name(),
+        plant_args=_args(fns[1], plant, "      "),
+        fdi_call=_FDI_CALL.format(i_p_fdi=idx.get("p_fdi", -1), fdi=fns[2].name())
+        if loop.fdi else "")
+    return fns, _interface(name, inputs, outputs, [f.name() for f in fns], scratch) + body
