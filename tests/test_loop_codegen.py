@@ -171,3 +171,23 @@ def test_the_c_drivers_are_mapaccum_bit_for_bit(raw, monkeypatch):
     assert driven.diverged is None
     np.testing.assert_array_equal(driven.outputs, chained.outputs)
     np.testing.assert_array_equal(driven.z_final, chained.z_final)
+
+
+def test_the_stage_shared_step_and_four_calls_of_the_rhs_agree_bit_for_bit(monkeypatch):
+    """rk4_step's two forms (SX with the stages' common work shared, as loops without the
+    FDI run; four calls of the right-hand side, as loops with it run): the same numbers,
+    on the bench's paper loop (case 3 fault, no FDI), 25 s at 2 ms."""
+    from bench import runner
+    from bench.problem import LOOPS, Problem
+
+    p = Problem("paper_case3", *LOOPS["paper_case3"], t_final=25.0)
+    orig = integrate.rk4_step
+    results = []
+    for shared in (True, False):
+        monkeypatch.setattr(integrate, "rk4_step",
+                            lambda *a, shared=shared, **k: orig(*a, **{**k, "shared": shared}))
+        integrate.chunk_function.cache_clear()
+        results.append(runner.rk4_default(p, 2e-3, 25.0))
+    integrate.chunk_function.cache_clear()
+    np.testing.assert_array_equal(results[0].outputs, results[1].outputs)
+    assert results[0].diverged is None

@@ -38,21 +38,31 @@ CHUNK = 1000  # RK4 steps per compiled call
 
 
 def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out",
-             fixed: dict | None = None, name: str = "rk4_step") -> ca.Function:
+             fixed: dict | None = None, name: str = "rk4_step",
+             shared: bool = True) -> ca.Function:
     """Classical RK4 over one step dt (Kutta 1901) of rhs's ``z_dot``: the ``exogenous``
     input at t, t + dt/2, t + dt (given as <exogenous>3), the other inputs held over the
-    step; the ``report`` output at the start of the step.
+    step; the ``report`` output at the start of the step. ``fixed``: inputs given as
+    values (a specialised step: :func:`chunk_function`), kept as inputs that are not read.
 
-    Written in SX, the four stages in one graph with their common subexpressions shared
+    ``shared``: written in SX, the four stages in one graph with their common work shared
     (what depends on the parameters alone, or on the wind at t + dt/2, is computed once a
-    step: issue 19; the same numbers, bit for bit). ``fixed``: inputs given as values (a
-    specialised step: :func:`chunk_function`), kept as inputs that are not read."""
-    z = ca.SX.sym("z", rhs.sparsity_in("z"))
-    w3 = ca.SX.sym(f"{exogenous}3", 3)
+    step: 7-10 % faster, issue 19), at four times the C for the compiler; else four calls
+    of rhs (for a loop with the FDI's 95 states, whose stage-shared C takes gcc 5-6 s and
+    runs no faster: docs/performance.md). The same numbers either way, bit for bit."""
+    sym = ca.SX if shared else ca.MX
+    if fixed and not shared:  # the values folded into the right-hand side itself
+        ins = rhs.sx_in()
+        given = [ca.SX(ca.DM(fixed[n])) if n in fixed else x
+                 for n, x in zip(rhs.name_in(), ins, strict=True)]
+        rhs = ca.Function(f"{rhs.name()}_fixed", ins, ca.cse(rhs(*given)), rhs.name_in(),
+                          rhs.name_out())
+    z = sym.sym("z", rhs.sparsity_in("z"))
+    w3 = sym.sym(f"{exogenous}3", 3)
     held = [n for n in rhs.name_in() if n not in ("z", exogenous)]
-    others = {n: ca.SX.sym(n, rhs.sparsity_in(n)) for n in held}
-    dt = ca.SX.sym("dt")
-    values = {**others, **{n: ca.SX(ca.DM(v)) for n, v in (fixed or {}).items()}}
+    others = {n: sym.sym(n, rhs.sparsity_in(n)) for n in held}
+    dt = sym.sym("dt")
+    values = {**others, **{n: ca.SX(ca.DM(v)) for n, v in (fixed or {}).items() if shared}}
 
     def f(zz, w):
         return rhs.call({"z": zz, exogenous: w, **values})
@@ -63,7 +73,8 @@ def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out",
     k3 = f(z + dt / 2 * k2, w3[1])["z_dot"]
     k4 = f(z + dt * k3, w3[2])["z_dot"]
     z_next = z + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return ca.Function(name, [z, w3, *others.values(), dt], ca.cse([z_next, out]),
+    outs = ca.cse([z_next, out]) if shared else [z_next, out]
+    return ca.Function(name, [z, w3, *others.values(), dt], outs,
                        ["z", f"{exogenous}3", *held, "dt"], ["z_next", report])
 
 
@@ -214,7 +225,7 @@ def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False,
     label = f"loop_{loop.plant}_{loop.controller}{tag}_{loop.table_key}_{n}"
     fixed = {"p_sensors": lay.defaults("sensor_params"),
              "sensor_faults": lay.defaults("sensor_faults")} if exact else None
-    step = rk4_step(rhs_function(loop), fixed=fixed, name=f"{label}_step")
+    step = rk4_step(rhs_function(loop), fixed=fixed, name=f"{label}_step", shared=not loop.fdi)
     return compiled_chunk(step, n, label, loop_flags(fast_math), quiet)
 
 

@@ -307,7 +307,7 @@ def _discon_step(loop: Loop, bridge: ca.Function) -> ca.Function:
     """One RK4 step of the ``external`` loop, its blade pitch commands and generator torque
     held from the last DISCON call, then the bridge: DISCON called at an interval's end on
     what ROSCO reads (the blades' measured pitch at the step's start, the speeds reached)."""
-    step = integrate.rk4_step(rhs_function(loop))
+    step = integrate.rk4_step(rhs_function(loop), shared=not loop.fdi)
     ins = {n: ca.MX.sym(n, step.sparsity_in(n)) for n in step.name_in()}
     held, dis = ca.MX.sym("held", HELD), ca.MX.sym("discon", len(DISCON_ROWS))
     tp = ins["p_turbine"]
