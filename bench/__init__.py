@@ -8,8 +8,14 @@ the repository root.
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
+
+# BLAS on one thread, before numpy loads it, as the wtftc command sets it (wtftc/cli.py):
+# OpenBLAS's idle worker threads spin on the cores the timed loops and batches use
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,5 +1,10 @@
+import os
 import sys
 from pathlib import Path
+
+# BLAS on one thread, before numpy loads it, as the wtftc command sets it (wtftc/cli.py)
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
 
 ROOT = Path(__file__).resolve().parent.parent
 for p in (ROOT, ROOT / "tests"):

@@ -1,6 +1,7 @@
 """`wtftc run` end to end, and bad input: one clear line, exit code 2, no output written."""
 
 import json
+import os
 import subprocess
 import sys
 
@@ -139,3 +140,18 @@ def test_an_internal_error_shows_its_traceback_not_a_user_error(tmp_path, monkey
     with pytest.raises(KeyError, match="an internal key"):
         cli.main(["run", "--t-final", "1", "--out", str(tmp_path / "o"), "--quiet"])
     assert not (tmp_path / "o" / "metrics.json").exists()
+
+
+def test_the_command_runs_blas_on_one_thread_unless_told_otherwise():
+    """Set before numpy loads OpenBLAS, whose idle worker threads otherwise spin on the
+    cores the loops use (docs/performance.md); a user's own setting wins."""
+    from wtftc import cli
+
+    code = "import os, wtftc.cli, numpy; print(os.environ['OPENBLAS_NUM_THREADS'])"
+    env = {k: v for k, v in os.environ.items() if k not in cli.BLAS_THREADS}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, check=True).stdout.strip()
+    assert out == "1"
+    out = subprocess.run([sys.executable, "-c", code], env={**env, "OPENBLAS_NUM_THREADS": "3"},
+                         capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "3"

@@ -9,14 +9,24 @@
 
 from __future__ import annotations
 
-import argparse
 import os
-import sys
-from pathlib import Path
 
-from wtftc import __version__
-from wtftc.artefacts.loader import GeneratedArtefactError
-from wtftc.errors import ConfigError
+#: BLAS on one thread unless the environment says otherwise, set before numpy loads it: the
+#: loops are single-threaded compiled code, and numpy's OpenBLAS keeps a worker thread
+#: spinning between its calls (7.8 % of the bench process's perf samples were in it) on the
+#: cores a run or a batch's second worker needs (docs/performance.md). Dask's sweep workers
+#: set the same themselves.
+BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+for _name in BLAS_THREADS:
+    os.environ.setdefault(_name, "1")
+
+import argparse  # noqa: E402
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from wtftc import __version__  # noqa: E402
+from wtftc.artefacts.loader import GeneratedArtefactError  # noqa: E402
+from wtftc.errors import ConfigError  # noqa: E402
 
 
 class _Parser(argparse.ArgumentParser):
