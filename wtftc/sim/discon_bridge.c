@@ -146,5 +146,5 @@ int wtftc_discon(const casadi_real **arg, casadi_real **res, casadi_int *iw,
   wtftc_calls++;
   for (j = 0; j < 3; j++) out[j] = (casadi_real)a[41 + j]; /* blade pitch demands 42-44 */
   out[3] = (casadi_real)a[46];                              /* generator torque 47 */
-  return 0; /* a failure (aviFAIL < 0) is read by the caller after the chunk */
+  return 0; /* a failure (aviFAIL < 0): wtftc_discon_fail, read after each chunk */
 }

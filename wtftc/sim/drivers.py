@@ -128,9 +128,10 @@ CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casa
   const casadi_real** sarg = arg + {n_in};
   casadi_real** sres = res + {n_out};
   casadi_real *zc, *xa, *xb, *fa, *fb, *xcn, *held, *va, *vn, *rd, *me, *col, *outs, *t;
-  casadi_real T, dt = arg[{i_dt}][0];
+  casadi_real T, dt = arg[{i_dt}] ? arg[{i_dt}][0] : 0;
   casadi_int j, i, k, q;
 {max_work}
+  if (!arg[0]) return 1; /* no initial state */
   zc = w + ww; xa = zc + nz; xb = xa + np + ns; fa = xb + np + ns; fb = fa + nf;
   xcn = fb + nf; held = xcn + nc; va = held + nh; vn = va + nb; rd = vn + nb; me = rd + ns;
   col = me + nm; outs = col + nz;
@@ -201,11 +202,12 @@ def intervals_source(loop: Loop, m: int, name: str) -> tuple[list[ca.Function], 
     cols = {x: steps * m if x in sampled.PER_STEP else
             m if x in sampled.PER_INTERVAL else 1 for x in ins}
     at = {x: f"arg[{idx[x]}]" for x in ins}
-    interval = {**at, "z": "zc", "T": "&T",
-                **{x: f"arg[{idx[x]}] + j * {iv.size1_in(idx[x])}"
-                   for x in sampled.PER_INTERVAL}}
+    def col(x: str, i: str) -> str:  # column i of input x (NULL: an input left out)
+        return f"(arg[{idx[x]}] ? arg[{idx[x]}] + {i} * {iv.size1_in(idx[x])} : 0)"
+
+    interval = {**at, "z": "zc", "T": "&T", **{x: col(x, "j") for x in sampled.PER_INTERVAL}}
     plant = {**interval, "x": "xa", "v": "va", "held": "held",
-             **{x: f"arg[{idx[x]}] + k * {iv.size1_in(idx[x])}" for x in sampled.PER_STEP}}
+             **{x: col(x, "k") for x in sampled.PER_STEP}}
     inputs = [(x, iv.size1_in(i), cols[x]) for i, x in enumerate(ins)]
     outputs = [("z_next", sz["z"], m), ("out", iv.size1_out(1), steps * m),
                ("z_steps", sz["z"], steps * m)]

@@ -164,7 +164,8 @@ def compiled(f: ca.Function, label: str, flags: tuple[str, ...] | None = None,
 #: the generated C's min and max helpers call libm's fmin and fmax, which gcc may not
 #: inline under C's rules (a call through the PLT each: 6-8 % of a loop's time); inline,
 #: with the same result for every pair of doubles, NaN and signed zeros included (glibc's
-#: semantics: a NaN argument gives the other one; tests/test_loop_codegen.py)
+#: semantics on x86-64: a NaN argument gives the other one; tests/test_loop_codegen.py;
+#: not applied elsewhere: aarch64's glibc orders -0 below +0)
 INLINE_MINMAX = (("return fmax(x, y);", "return x > y ? x : (y != y ? x : y);"),
                  ("return fmin(x, y);", "return x < y ? x : (y != y ? x : y);"))
 
@@ -178,8 +179,9 @@ def loop_source(f: ca.Function | list[ca.Function], folder: Path, label: str,
     for fn in f if isinstance(f, list) else [f]:
         cg.add(fn)
     code = cg.dump()
-    for old, new in INLINE_MINMAX:
-        code = code.replace(old, new)
+    if platform.machine() in ("x86_64", "AMD64"):  # aarch64's fmin/fmax order signed zeros
+        for old, new in INLINE_MINMAX:
+            code = code.replace(old, new)
     if extra_c:
         code += "\n" + extra_c
     path = folder / f"{label}.c"
@@ -314,6 +316,7 @@ class Buffered:
     def __call__(self, *args, copy: bool = True) -> list[np.ndarray]:
         """Results as (rows, columns) arrays; ``copy=False``: views of the buffers, valid
         until the next call (no copy of what the caller does not keep)."""
+        self._last.clear()  # every input is written here
         for a, x in zip(self._in, args, strict=True):
             x = np.asarray(x, dtype=float)
             cols, rows = a.shape

@@ -193,9 +193,11 @@ class _Discon(integrate.ChunkHook):
         self.steps = n_sub
         self.dt = CONTROL_DT / n_sub
         self.wind = inputs.wind
-        self.tp = lay.values("turbine_params", loop.p_turbine)
-        # the run's plant (its own parameters under a model mismatch), its torque ROSCO's
+        # the run's plant (its own parameters under a model mismatch), its torque ROSCO's;
+        # what ROSCO reads (HSS speed, efficiency) is that plant's too, as in the compiled
+        # loop (_discon_step)
         self.p_turbine = integrate.plant_params(loop, inputs).copy()
+        self.tp = lay.values("turbine_params", self.p_turbine)
         self.p_turbine[lay.index("turbine_params", "gen_constant_power")] = 0.0
         z0 = inputs.z0
         n_g = self.tp["gearbox_ratio"]
@@ -397,6 +399,10 @@ class _CompiledDiscon(_Discon):
     def after(self, k: int, stop: int, z: np.ndarray, res: list[np.ndarray],
               out_names: list[str]) -> None:
         self.held = res[1][:, stop - k - 1].copy()
+        if self.lib.wtftc_discon_fail() < 0:  # ROSCO reported an error (aviFAIL < 0)
+            msg = self.lib.wtftc_discon_message().decode(errors="replace").strip()
+            raise ConfigError("controller", "rosco", f"a ROSCO that runs: it failed by "
+                              f"t = {stop * self.dt:.3f} s ({msg or 'no message'})")
 
     def close(self) -> None:
         """The final call (iStatus = -1), then the library is released."""
