@@ -282,19 +282,33 @@ def compile_cached(c_path: Path, cc: str, flags: tuple[str, ...] = CFLAGS) -> Pa
     return _build(c_path, cc, flags, None)
 
 
+def compiled_library(c_path: Path, flags: tuple[str, ...] = CFLAGS,
+                     announce: str | None = None) -> Path | None:
+    """The verified library of c_path, compiled through the cache (``announce`` printed
+    before compiling); None where compiling or caching is impossible, with one warning per
+    process naming CC or WTFTC_CACHE."""
+    try:
+        cc = compiler()
+        if cc is None:
+            raise _no_compiler()
+        return _build(c_path, cc, flags, announce)
+    except CompileError as exc:
+        _warn_once(f"{exc}{_VM}")
+        return None
+
+
 def compiled_external(name: str, c_path: Path, flags: tuple[str, ...] = CFLAGS,
                       announce: str | None = None) -> ca.Function | None:
     """The function ``name`` of c_path, compiled through the cache and loaded with
     ``casadi.external`` (``announce`` printed before compiling); None where compiling or
     caching is impossible, with one warning per process naming CC or WTFTC_CACHE."""
-    try:
-        cc = compiler()
-        if cc is None:
-            raise _no_compiler()
-        so = _build(c_path, cc, flags, announce)
-    except CompileError as exc:
-        _warn_once(f"{exc}{_VM}")
-        return None
+    so = compiled_library(c_path, flags, announce)
+    return None if so is None else external_of(name, so)
+
+
+def external_of(name: str, so: Path) -> ca.Function | None:
+    """The function ``name`` of the compiled library ``so`` (``casadi.external``); None
+    where it cannot be loaded, with one warning per process."""
     try:
         return ca.external(name, str(so))
     except RuntimeError as exc:

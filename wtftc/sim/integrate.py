@@ -28,7 +28,7 @@ import casadi as ca
 import numpy as np
 
 from wtftc.artefacts import layout as lay
-from wtftc.artefacts.loader import cache_dir, compiled_external, compiler
+from wtftc.artefacts.loader import cache_dir, compiled_library, compiler, external_of
 from wtftc.model.faults import nominal_actuator
 from wtftc.sim.drivers import intervals_source, steps_source
 from wtftc.sim.rhs import PLANTS, Loop, fdi_params, output_spec, rhs_function, sensor_names
@@ -127,13 +127,17 @@ FAST_MATH_CFLAGS = ("-O2", "-fno-semantic-interposition", "-fno-math-errno",
 X86_64_V3 = {"avx", "avx2", "bmi1", "bmi2", "f16c", "fma", "abm", "movbe", "xsave"}
 
 
+def _x86_64() -> bool:
+    return platform.machine() in ("x86_64", "AMD64")
+
+
 @cache
 def arch_flags() -> tuple[str, ...]:
     """-ffp-contract=off, and -march=x86-64-v3 where this CPU has its instructions and the
     compiler takes the flag (the flags are part of the compile cache's key, so a shared
     cache never hands a v3 library to a CPU without them)."""
     flags = ("-ffp-contract=off",)
-    if platform.machine() not in ("x86_64", "AMD64"):
+    if not _x86_64():
         return flags
     try:
         info = Path("/proc/cpuinfo").read_text()
@@ -179,7 +183,7 @@ def loop_source(f: ca.Function | list[ca.Function], folder: Path, label: str,
     for fn in f if isinstance(f, list) else [f]:
         cg.add(fn)
     code = cg.dump()
-    if platform.machine() in ("x86_64", "AMD64"):  # aarch64's fmin/fmax order signed zeros
+    if _x86_64():  # aarch64's fmin/fmax order signed zeros
         for old, new in INLINE_MINMAX:
             code = code.replace(old, new)
     if extra_c:
@@ -194,11 +198,8 @@ def _compile_function(f: ca.Function, label: str, flags: tuple[str, ...] | None 
     """Generate C for f (:func:`loop_source`) and load it through the loader's verified
     compile cache; f itself where the loader cannot compile or cache it (the loader warns,
     once per process)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        c_path = loop_source(f, Path(tmp), label)
-        note = None if quiet else (f"  compiling the {label} loop (once; cached in "
-                                   f"{cache_dir()}) ...")
-        loaded = compiled_external(f.name(), c_path, flags or loop_flags(), note)
+    so = loop_library([f], label, "", flags or loop_flags(), quiet)
+    loaded = None if so is None else external_of(f.name(), so)
     return f if loaded is None else loaded
 
 #: the inputs of a loop's step that change from step to step (the chunk takes one column
@@ -247,12 +248,21 @@ def _driven(fns: list[ca.Function], driver: str, label: str, flags: tuple[str, .
             quiet: bool, fallback) -> ca.Function:
     """The chunk ``label``: ``driver`` (C) compiled with the code of ``fns``, loaded; else
     ``fallback()`` (on CasADi's virtual machine)."""
+    so = loop_library(fns, label, driver, flags, quiet)
+    loaded = None if so is None else external_of(label, so)
+    return fallback() if loaded is None else loaded
+
+
+def loop_library(fns: list[ca.Function], label: str, extra_c: str, flags: tuple[str, ...],
+                 quiet: bool = False) -> Path | None:
+    """The compiled library of :func:`loop_source` (the code of ``fns``, then ``extra_c``),
+    from the verified cache; None where no compiler or cache is usable (the loader warns,
+    once per process)."""
     with tempfile.TemporaryDirectory() as tmp:
-        c_path = loop_source(fns, Path(tmp), label, driver)
+        c_path = loop_source(fns, Path(tmp), label, extra_c)
         note = None if quiet else (f"  compiling the {label} loop (once; cached in "
                                    f"{cache_dir()}) ...")
-        loaded = compiled_external(label, c_path, flags, note)
-    return fallback() if loaded is None else loaded
+        return compiled_library(c_path, flags, note)
 
 
 def exact_sensors(loop: Loop, runs: list[Run]) -> bool:
@@ -733,7 +743,7 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
             hook.before(call, k, stop)
         res = call.evaluate()
         # a sampled chunk's states after every plant step are its third output
-        zz_all, oo_all = (res[2], res[1]) if loop.sampled else (res[0], res[i_out])
+        zz_all, oo_all = res[2] if loop.sampled else res[0], res[i_out]
         for b in range(len(runs)):
             if not batch.diverged[b]:  # views, valid until the next call
                 batch.record(b, zz_all[:, b * n_c:b * n_c + stop - k],

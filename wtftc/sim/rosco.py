@@ -344,14 +344,9 @@ def compiled_chunk(loop: Loop, n: int = integrate.CHUNK) -> tuple[ca.Function, P
         return None
     chunk = _discon_step(loop, bridge).mapaccum(f"rosco_{loop.plant}", n, 2)
     label = f"rosco_{loop.plant}_{loop.table_key}_{'' if loop.fdi else 'nofdi_'}{n}"
-    with tempfile.TemporaryDirectory() as tmp:
-        c_path = integrate.loop_source(chunk, Path(tmp), label, extra_c=BRIDGE.read_text())
-        try:
-            cc = loader.compiler()
-            so = loader.compile_cached(c_path, cc, integrate.loop_flags()) if cc else None
-        except loader.CompileError:
-            so = None
-    return None if so is None else (ca.external(chunk.name(), str(so)), so)
+    so = integrate.loop_library([chunk], label, BRIDGE.read_text(), integrate.loop_flags())
+    loaded = None if so is None else loader.external_of(chunk.name(), so)
+    return None if loaded is None else (loaded, so)
 
 
 class _CompiledDiscon(_Discon):
@@ -407,10 +402,6 @@ class _CompiledDiscon(_Discon):
     def close(self) -> None:
         """The final call (iStatus = -1), then the library is released."""
         self.lib.wtftc_discon_close()
-
-    @property
-    def calls(self) -> int:
-        return int(self.lib.wtftc_discon_calls())
 
 
 def discon_library() -> Path:
