@@ -18,6 +18,37 @@ from derivation.layout import N_MF
 sys.setrecursionlimit(max(10_000, sys.getrecursionlimit()))
 
 
+#: conditions with more comparisons than this are translated as written (the minimisation
+#: is exponential in them)
+MAX_LOGIC_ATOMS = 8
+
+
+def minimal_logic(cond: sp.Basic) -> sp.Basic:
+    """``cond`` as the shortest of itself and its minimal sum and product of its comparisons.
+
+    SymPy merges a Piecewise's branches of equal value into one condition in conjunctive
+    form: the actuator's rate limit ``(β ≥ β_max ∧ r > 0) ∨ (β ≤ β_min ∧ r < 0)`` arrives
+    as four clauses of seven logical operations, each a double-valued operation in the
+    generated C on the loop's critical path. The minimisation is pure Boolean algebra
+    (Quine-McCluskey, each comparison an independent atom, no knowledge of what it
+    compares), so the result is the same truth function: equal for every input, NaN
+    included, and the generated code computes the same numbers bit for bit (issue 19).
+    """
+    if not isinstance(cond, sp.logic.boolalg.BooleanFunction):
+        return cond
+    atoms = sorted(cond.atoms(sp.core.relational.Relational), key=sp.default_sort_key)
+    if not atoms or len(atoms) > MAX_LOGIC_ATOMS:
+        return cond
+    names = sp.symbols(f"_logic_atom0:{len(atoms)}")
+    b = cond.xreplace(dict(zip(atoms, names, strict=True)))
+    if b.atoms(sp.core.relational.Relational):  # a comparison of booleans: leave it
+        return cond
+    forms = [b, sp.simplify_logic(b, form="dnf", force=True),
+             sp.simplify_logic(b, form="cnf", force=True)]
+    best = min(forms, key=lambda x: (sp.count_ops(x), forms.index(x)))
+    return best.xreplace(dict(zip(names, atoms, strict=True)))
+
+
 class Translator:
     """Translate SymPy expressions into CasADi SX, memoizing every node."""
 
@@ -113,7 +144,7 @@ class Translator:
                 else:
                     if out is None:
                         raise NotImplementedError(f"Piecewise without a default: {e}")
-                    out = ca.if_else(self(cond), self(val), out)
+                    out = ca.if_else(self(minimal_logic(cond)), self(val), out)
             return out
         return None
 

@@ -191,3 +191,52 @@ def test_the_stage_shared_step_and_four_calls_of_the_rhs_agree_bit_for_bit(monke
     integrate.chunk_function.cache_clear()
     np.testing.assert_array_equal(results[0].outputs, results[1].outputs)
     assert results[0].diverged is None
+
+
+def _actuator(minimise: bool, monkeypatch) -> ca.Function:
+    """The benchmark actuator's [β̇, β̈] (derivation/turbine.py) translated to SX, its
+    conditions minimised or as SymPy writes them."""
+    import sympy as sp
+
+    from derivation import casadi_build, turbine
+
+    if not minimise:
+        monkeypatch.setattr(casadi_build, "minimal_logic", lambda c: c)
+    names = "b w u wn zt bmin bmax rmax"
+    syms = sp.symbols(names, real=True)
+    x = ca.SX.sym("x", len(syms))
+    tr = casadi_build.Translator({s.name: x[i] for i, s in enumerate(syms)})
+    out = ca.vertcat(*[tr(e) for e in turbine.limited_actuator(*syms)])
+    monkeypatch.undo()
+    return ca.Function("actuator", [x], [out])
+
+
+def test_minimised_conditions_are_the_same_truth_function(monkeypatch):
+    """minimal_logic (derivation/casadi_build.py): SymPy's conjunctive form of the
+    actuator's limits (four clauses, seven logical operations) becomes the two-term sum it
+    means, and the translated actuator gives the same bits on every combination of values
+    at, inside and outside its limits, signed zeros, infinities and NaN included."""
+    import itertools
+
+    import sympy as sp
+
+    from derivation.casadi_build import minimal_logic
+
+    a, b, c, d = sp.symbols("a b c d", real=True)
+    cnf = (((a >= 1) | (b <= 0)) & ((a >= 1) | (c < 0)) & ((b <= 0) | (c > 0))
+           & ((c > 0) | (c < 0)))
+    small = minimal_logic(cnf)
+    assert sp.count_ops(small) < sp.count_ops(cnf)
+    atoms = sorted(cnf.atoms(sp.core.relational.Relational), key=sp.default_sort_key)
+    for values in itertools.product([False, True], repeat=len(atoms)):
+        truth = dict(zip(atoms, map(sp.S, values), strict=True))
+        assert bool(cnf.xreplace(truth)) == bool(small.xreplace(truth))
+    f, g = _actuator(True, monkeypatch), _actuator(False, monkeypatch)
+    assert f.n_instructions() < g.n_instructions()
+    pitch = [-0.1, 0.0, -0.0, 0.5, np.pi / 2, 1.6, np.nan]
+    rate = [-0.2, -0.14, -0.0, 0.0, 0.14, 0.2, np.inf, -np.inf, np.nan]
+    command = [-1.0, 0.0, 0.3, 1.6, np.nan]
+    for b_, w_, u_ in itertools.product(pitch, rate, command):
+        point = [b_, w_, u_, 11.1, 0.6, 0.0, np.pi / 2, 0.14]
+        x, y = np.array(f(point)).ravel(), np.array(g(point)).ravel()
+        assert [_bits(v) for v in x] == [_bits(v) for v in y], point
