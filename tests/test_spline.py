@@ -1,6 +1,8 @@
 """The closed loop's Cp(λ, β) (wtftc.model.spline: bicubic cells of CasADi's B-spline, looked up on
 the uniform grid) against CasADi's own evaluation of the same spline."""
 
+from pathlib import Path
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -74,3 +76,61 @@ def test_schedule_lookup_is_casadis_linear_interpolant():
     x = np.concatenate([np.random.default_rng(3).uniform(-0.3, 1.0, 3000), betas])
     np.testing.assert_array_equal(np.array(fast(x)),
                                   np.array(aero.pitch_sensitivity_schedule(table, pt)(x)))
+
+
+def _casadis_own_c(f: ca.Function, tmp_path, label: str) -> ca.Function:
+    """f compiled from CasADi's code as it writes it (no lean bodies), with the loop flags."""
+    from wtftc.artefacts.loader import compiled_external
+
+    cg = ca.CodeGenerator(f"{label}.c", {"with_header": False})
+    cg.add(f)
+    cg.generate(str(tmp_path) + "/")
+    return compiled_external(f.name(), tmp_path / f"{label}.c", integrate.loop_flags())
+
+
+def _bits(a) -> np.ndarray:
+    return np.asarray(a, dtype=float).ravel().view(np.int64)
+
+
+def _points(grid: np.ndarray, rng, n: int) -> np.ndarray:
+    special = [0.0, -0.0, np.inf, -np.inf, np.nan, 1e-310, -1e-310]
+    return np.concatenate([special, grid, np.nextafter(grid, np.inf), np.nextafter(grid, -np.inf),
+                           rng.uniform(grid[0] - 1, grid[-1] + 1, n)])
+
+
+@pytest.mark.parametrize("origin", [0.0, 2.0])
+def test_the_lean_c_is_casadis_code_bit_for_bit(origin, tmp_path):
+    """The lean bodies put into a loop's C in place of CasADi's (spline.lean_c: one integer
+    base for the 16 coefficients, no per-entry checks; 6 % of the physical loop's step)
+    give CasADi's bits everywhere: on and beside every grid node, inside, beyond the grid,
+    at signed zeros, infinities, NaN and subnormals; on a grid starting at 0 (where CasADi
+    simplifies v - 0) and one that does not, with a unit and a half step."""
+    rng = np.random.default_rng(7)
+    x = origin + np.arange(9) * (1.0 if origin == 0 else 0.5)
+    y = origin + np.arange(7) * 0.25
+    values = rng.uniform(0, 1, (x.size, y.size))
+    ref = ca.interpolant("t", "bspline", [x, y], values.ravel(order="F"))
+    cell = spline.fast_cp(ref, x, y, "cpx")
+    sched = spline.fast_linear(y, rng.uniform(-2, 0, y.size), "schedx", "beta", "g")
+    lam, beta = np.meshgrid(_points(x, rng, 60), _points(y, rng, 60))
+    lam, beta = lam.ravel(), beta.ravel()
+    n = lam.size
+    for f, args in ((cell, (lam, beta)), (sched, (beta,))):
+        mapped = f.map(n)
+        text = integrate.loop_source(mapped, tmp_path, f"lean_{f.name()}").read_text()
+        assert "wtftc.model.spline: fast_" in text  # the lean body is in place
+        lean = integrate.compiled(mapped, f"test_lean_{f.name()}", quiet=True)
+        own = _casadis_own_c(mapped, tmp_path, f"own_{f.name()}")
+        np.testing.assert_array_equal(_bits(lean(*args)), _bits(own(*args)))
+        # and the virtual machine's values (which give +0 where libm's max gives -0)
+        np.testing.assert_array_equal(np.array(lean(*args)), np.array(mapped(*args)))
+
+
+def test_each_table_gets_its_own_lean_function():
+    """The lean bodies are found by function name: two tables never share one."""
+    table = nrel5mw_cp_table()
+    from wtftc.model.cp_table import read_cp_table
+
+    other = read_cp_table(Path(aero.__file__).parent.parent / "data" / "Cp_Ct_Cq.IEA15MW.txt")
+    names = {aero.cp_loop_function(t, q).name() for t in (table, other) for q in ("cp", "ct")}
+    assert len(names) == 4 and all(n in spline.LEAN_C for n in names)

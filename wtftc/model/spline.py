@@ -16,6 +16,7 @@ A spline, not an equation of the paper: nothing here is derived, it is table loo
 
 from __future__ import annotations
 
+import hashlib
 import re
 
 import casadi as ca
@@ -139,8 +140,77 @@ def fast_cp(interpolant: ca.Function, x: np.ndarray, y: np.ndarray,
         for m in (3, 2, 1, 0):
             row = row * sig + cm.get_nz(False, base + (4 * k + m))
         out = out * tau + row
-    return ca.Function(name, [lam, beta], [out], ["tsr", "beta"], [name],
+    grid = (float(x[0]), float(x[-1]), hx, 1 / hx, nx, float(y[0]), float(y[-1]), hy, 1 / hy, ny)
+    fname = f"{name}_{hashlib.sha256(np.array([*grid, *table]).tobytes()).hexdigest()[:12]}"
+    LEAN_C[fname] = _lean_cell_c(table, *grid)
+    return ca.Function(fname, [lam, beta], [out], ["tsr", "beta"], [name],
                        {"never_inline": True})
+
+
+#: lean C bodies of the spline functions built here, by function name (unique: it carries
+#: a hash of the grid and the table), for :func:`lean_c`
+LEAN_C: dict[str, str] = {}
+
+_LEAN_CELL = """  /* wtftc.model.spline: fast_cp's operations in the order of CasADi's code
+   * for it (the same bits), the 16 coefficients read from one integer base (issue 19) */
+  static const casadi_real table[{size}] = {{{table}}};
+  casadi_real lam = arg[0] ? arg[0][0] : 0, beta = arg[1] ? arg[1][0] : 0;
+  casadi_real lc, bc, cx, cy, tau, sig, b, r3, r2, r1, r0, out;
+  const casadi_real* c;
+  bc = casadi_fmin({y1}, casadi_fmax({y0}, beta));
+  cy = casadi_fmin({cy_max}, floor({ihy} * {bc_off}));
+  lc = casadi_fmin({x1}, casadi_fmax({x0}, lam));
+  cx = casadi_fmin({cx_max}, floor({ihx} * {lc_off}));
+  b = 16. * ({row} * cy + cx);
+  sig = {ihy} * (bc - {y_cell});
+  tau = {ihx} * (lc - {x_cell});
+  if (!(b >= 0 && b <= {last})) {{ /* CasADi's lookup gives NaN off the table */
+    if (res[0]) res[0][0] = casadi_nan;
+    return 0;
+  }}
+  c = table + (casadi_int) b;
+  r3 = ((c[15] * sig + c[14]) * sig + c[13]) * sig + c[12];
+  r2 = ((c[11] * sig + c[10]) * sig + c[9]) * sig + c[8];
+  r1 = ((c[7] * sig + c[6]) * sig + c[5]) * sig + c[4];
+  r0 = ((c[3] * sig + c[2]) * sig + c[1]) * sig + c[0];
+  out = ((r3 * tau + r2) * tau + r1) * tau + r0;
+  if (res[0]) res[0][0] = out;
+  return 0;"""
+
+
+def _lean_cell_c(table: np.ndarray, x0: float, x1: float, hx: float, ihx: float, nx: int,
+                 y0: float, y1: float, hy: float, ihy: float, ny: int) -> str:
+    """The body of fast_cp's function in C (doubles printed to round trip exactly), with
+    the simplifications CasADi makes where a grid starts at 0 (v - 0 is v, 0 + v is v)."""
+    r = repr
+
+    def offset(v: str, origin: float) -> str:  # v - origin
+        return v if origin == 0 else f"({v} - {r(origin)})"
+
+    def cell(origin: float, h: float, c: str) -> str:  # origin + h c
+        return f"({r(h)} * {c})" if origin == 0 else f"({r(origin)} + {r(h)} * {c})"
+
+    return _LEAN_CELL.format(size=table.size, table=", ".join(map(r, map(float, table))),
+                             x0=r(x0), x1=r(x1), ihx=r(ihx), cx_max=r(float(nx - 2)),
+                             y0=r(y0), y1=r(y1), ihy=r(ihy), cy_max=r(float(ny - 2)),
+                             bc_off=offset("bc", y0), lc_off=offset("lc", x0),
+                             y_cell=cell(y0, hy, "cy"), x_cell=cell(x0, hx, "cx"),
+                             row=r(float(nx - 1)), last=r(float(table.size - 16)))
+
+
+def lean_c(code: str) -> str:
+    """CasADi's C ``code`` with the body of each function of LEAN_C it holds replaced by
+    the lean one (its comment line names it: ``/* name:(...)->(...) */``)."""
+    for fname, body in LEAN_C.items():
+        head = re.compile(r"/\* " + re.escape(fname) + r":\([^\n]*\*/\n"
+                          r"static int casadi_f\d+\(const casadi_real\*\* arg, casadi_real\*\* "
+                          r"res, casadi_int\* iw, casadi_real\* w, int mem\) \{\n")
+        m = head.search(code)
+        if m is None:
+            continue
+        end = code.index("\n}\n", m.end())
+        code = code[:m.end()] + body + code[end:]
+    return code
 
 
 def fast_linear(grid: np.ndarray, values: np.ndarray, name: str, in_name: str,
@@ -158,4 +228,36 @@ def fast_linear(grid: np.ndarray, values: np.ndarray, name: str, in_name: str,
     g0, g1 = g.get_nz(False, j), g.get_nz(False, j + 1)
     a = (xc - g0) / (g1 - g0)
     out = (1 - a) * v.get_nz(False, j) + a * v.get_nz(False, j + 1)
-    return ca.Function(name, [x], [out], [in_name], [out_name], {"never_inline": True})
+    fname = f"{name}_{hashlib.sha256(np.concatenate([grid, values]).tobytes()).hexdigest()[:12]}"
+    LEAN_C[fname] = _lean_linear_c(grid, values, h)
+    return ca.Function(fname, [x], [out], [in_name], [out_name], {"never_inline": True})
+
+
+_LEAN_LINEAR = """  /* wtftc.model.spline: fast_linear's operations in the order of CasADi's code
+   * for it (the same bits), the interval's entries read from one integer index (issue 19) */
+  static const casadi_real grid[{n}] = {{{grid}}};
+  static const casadi_real values[{n}] = {{{values}}};
+  casadi_real x = arg[0] ? arg[0][0] : 0, xc, j, a, out;
+  casadi_int i;
+  xc = casadi_fmin({g1}, casadi_fmax({g0}, x));
+  j = casadi_fmin({j_max}, casadi_fmax(0., floor({ih} * {xc_off})));
+  if (!(j >= 0 && j <= {j_max})) {{ /* CasADi's lookup gives NaN off the table */
+    if (res[0]) res[0][0] = casadi_nan;
+    return 0;
+  }}
+  i = (casadi_int) j;
+  a = (xc - grid[i]) / (grid[i + 1] - grid[i]);
+  out = (1. - a) * values[i] + a * values[i + 1];
+  if (res[0]) res[0][0] = out;
+  return 0;"""
+
+
+def _lean_linear_c(grid: np.ndarray, values: np.ndarray, h: float) -> str:
+    """The body of fast_linear's function in C (as :func:`_lean_cell_c`)."""
+    r = repr
+    g0 = float(grid[0])
+    return _LEAN_LINEAR.format(n=grid.size, grid=", ".join(map(r, map(float, grid))),
+                               values=", ".join(map(r, map(float, values))), g0=r(g0),
+                               g1=r(float(grid[-1])), ih=r(1 / h),
+                               j_max=r(float(grid.size - 2)),
+                               xc_off="xc" if g0 == 0 else f"(xc - {r(g0)})")

@@ -29,6 +29,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import cache_dir, compiled_library, compiler, external_of
+from wtftc.model import spline
 from wtftc.model.faults import nominal_actuator
 from wtftc.sim.drivers import intervals_source, steps_source
 from wtftc.sim.rhs import PLANTS, Loop, fdi_params, output_spec, rhs_function, sensor_names
@@ -182,7 +183,7 @@ def loop_source(f: ca.Function | list[ca.Function], folder: Path, label: str,
     cg = ca.CodeGenerator(f"{label}.c", {"with_header": False})
     for fn in f if isinstance(f, list) else [f]:
         cg.add(fn)
-    code = cg.dump()
+    code = spline.lean_c(cg.dump())
     if _x86_64():  # aarch64's fmin/fmax order signed zeros
         for old, new in INLINE_MINMAX:
             code = code.replace(old, new)
