@@ -240,3 +240,52 @@ def test_minimised_conditions_are_the_same_truth_function(monkeypatch):
         point = [b_, w_, u_, 11.1, 0.6, 0.0, np.pi / 2, 0.14]
         x, y = np.array(f(point)).ravel(), np.array(g(point)).ravel()
         assert [_bits(v) for v in x] == [_bits(v) for v in y], point
+
+
+def _divisions(f: ca.Function) -> int:
+    return sum(f.instruction_id(k) == ca.OP_DIV for k in range(f.n_instructions()))
+
+
+def test_shared_reciprocals_replace_divisions_by_what_a_step_holds():
+    """wtftc.sim.reciprocals: x/d with d held over the step becomes x·(1/d), 1/d from a
+    call CasADi does not fold back into a division; a d used otherwise too keeps its
+    divisions; a d that changes within the step (the state, the wind) is left alone."""
+    from wtftc.sim.reciprocals import with_shared_reciprocals
+
+    x, w, p, q = (ca.SX.sym(n) for n in "xwpq")
+    f = ca.Function("f", [x, w, p, q],
+                    [ca.vertcat(x / p, w / p, x / (2 * p), x / q, x * q, x / w)],
+                    ["z", "wind", "p", "q"], ["o"])
+    g = with_shared_reciprocals(f, ("z", "wind"))
+    # x/p, w/p: one reciprocal of p, x/(2p) one of 2p; x/q keeps its division (q is also
+    # multiplied); x/w is by the wind
+    assert _divisions(f) == 5 and _divisions(g) == 2
+    assert sum(g.instruction_id(k) == ca.OP_CALL for k in range(g.n_instructions())) == 2
+    point = [0.7, 1.3, 3.0, 0.1]
+    np.testing.assert_allclose(np.array(g(*point)), np.array(f(*point)), rtol=4e-16, atol=0)
+    # the Jacobian through the call (the stability check and linearize take it)
+    args = [ca.SX.sym(n) for n in "xwpq"]
+    jg = ca.Function("jg", args, [ca.jacobian(g(*args), ca.vertcat(*args))])
+    jf = ca.Function("jf", args, [ca.jacobian(f(*args), ca.vertcat(*args))])
+    np.testing.assert_allclose(np.array(jg(*point)), np.array(jf(*point)), rtol=1e-14)
+
+
+def test_the_loops_divide_less_and_compute_the_same_to_rounding():
+    """The physical AFTC's right-hand side: 51 divisions a stage before, 30 with the
+    shared reciprocals; ż the same to a few ulps at random states (the compiled chunk is
+    still the virtual machine's to rounding: tests/test_bench.py)."""
+    from dataclasses import replace
+
+    from wtftc.sim.rhs import _closed_loop_rhs, rhs_function
+
+    rc = config.make_config({"controller": "physical"})
+    loop = replace(rc.loop, fdi=False)
+    before, after = _closed_loop_rhs(loop), rhs_function(loop)
+    assert _divisions(after) <= _divisions(before) - 20
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        vals = [rng.uniform(0.5, 1.5, before.nnz_in(i)) for i in range(before.n_in())]
+        vals[before.index_in("p_turbine")] = np.asarray(loop.p_turbine)
+        vals[before.index_in("p_ctrl")] = np.asarray(rc.p_ctrl)
+        a, b = before(*vals)[0], after(*vals)[0]
+        np.testing.assert_allclose(np.array(b), np.array(a), rtol=1e-14, atol=1e-300)

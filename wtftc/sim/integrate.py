@@ -35,7 +35,23 @@ from wtftc.sim.drivers import intervals_source, steps_source
 from wtftc.sim.rhs import PLANTS, Loop, fdi_params, output_spec, rhs_function, sensor_names
 from wtftc.sim.sampled import interval_function
 
-CHUNK = 1000  # RK4 steps per compiled call
+#: RK4 steps per compiled call, at most (:func:`chunk_steps`); 1000 before issue 19, when
+#: the per-chunk Python work (the fault columns, the calls, the records) cost the physical
+#: loop 6 % more
+CHUNK = 4000
+#: what a chunk's per-step buffers (state, outputs, per-step inputs) may take: beyond about
+#: this the paper's loop (2 KB a step) got slower with longer chunks, 5 % at 4000 steps
+CHUNK_BYTES = 4 << 20
+
+
+def chunk_steps(loop: Loop) -> int:
+    """The steps of ``loop``'s chunk: CHUNK, or fewer (not under 1000) where their buffers
+    would take more than CHUNK_BYTES."""
+    per_step = len(loop.state_names()) + len(output_spec(loop.controller, loop.fdi,
+                                                            loop.plant))
+    per_step += 3 + sum(len(lay.names(g)) for g in ("actuator_faults", "sensor_faults",
+                                                     "fault_inputs"))
+    return max(1000, min(CHUNK, CHUNK_BYTES // (8 * per_step) // 500 * 500))
 
 
 def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out",
@@ -554,9 +570,9 @@ def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: 
     tf = tk[:1] if held else tk
     ts = tf[::loop.interval] if loop.sampled and not held else tf
     n_runs = len(runs)
-    for b, r in enumerate(runs):
-        call.put("wind3", np.vstack([r.wind(tk), r.wind(tk + dt / 2), r.wind(tk + dt)]), b,
-                 n_runs)
+    for b, r in enumerate(runs):  # stacked as the buffer lies: a contiguous copy
+        w3 = np.stack([r.wind(tk), r.wind(tk + dt / 2), r.wind(tk + dt)], axis=1)
+        call.put("wind3", w3.T, b, n_runs)
         cols = _fault_columns(r, nominal[b], held_cols[b] if held else None, tf, ts)
         for name in ("actuator_faults", "sensor_faults", "ctrl_fault"):
             call.put(name, cols[name], b, n_runs, same=True)
@@ -636,7 +652,7 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
         raise ValueError("a chunk hook drives one run at a time")
     n_steps = int(round(t_final / dt))
     f = hook.function if hook is not None and hook.function is not None else \
-        chunk_function(loop, n=hook.steps if hook else CHUNK, fast_math=fast_math,
+        chunk_function(loop, n=hook.steps if hook else chunk_steps(loop), fast_math=fast_math,
                        quiet=not progress, exact=exact_sensors(loop, runs))
     shards = _shards(len(runs), threads)
     tracker = _Tracker(n_steps, dt, [len(s) for s in shards], progress)

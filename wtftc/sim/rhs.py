@@ -16,6 +16,7 @@ from wtftc.artefacts.loader import load
 from wtftc.model import tuning
 from wtftc.model.aero import cp_loop_function, sched_loop_function
 from wtftc.model.cp_table import CpTable, nrel5mw_cp_table
+from wtftc.sim.reciprocals import with_shared_reciprocals
 
 #: the plants, the one list; ``loaded``: a generator torque carries the rotor (the paper's
 #: eq (3) has none: paper-notes defect 3)
@@ -378,5 +379,7 @@ def measurement_index(name: str) -> int:
 
 @cache
 def rhs_function(loop: Loop) -> ca.Function:
-    """The closed-loop right-hand side of ``loop`` (built once per loop)."""
-    return _closed_loop_rhs(loop)
+    """The closed-loop right-hand side of ``loop`` (built once per loop), its divisions by
+    what a step holds constant computed as multiplications by shared reciprocals
+    (wtftc.sim.reciprocals)."""
+    return with_shared_reciprocals(_closed_loop_rhs(loop), ("z", "wind"))

@@ -28,6 +28,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import load
+from wtftc.sim.reciprocals import with_shared_reciprocals
 from wtftc.sim.rhs import (
     FDI_REPORTED,
     PLANTS,
@@ -115,9 +116,10 @@ def _sample(loop: Loop) -> ca.Function:
     xc_next, held = ca.cse([xc_next, held])
     # the command the actuators hold over the interval (and the FDI's model with them),
     # the one held for the next (with the delay), the sampled readings and measurements
-    return ca.Function("sample", [args[k] for k in names],
-                       [xc_next, held, v_applied, v_now, readings, m["meas"]], names,
-                       ["xc_next", "held", "v_applied", "v_now", "readings", "meas"])
+    return with_shared_reciprocals(ca.Function(
+        "sample", [args[k] for k in names], [xc_next, held, v_applied, v_now, readings,
+                                             m["meas"]], names,
+        ["xc_next", "held", "v_applied", "v_now", "readings", "meas"]), ("z", "noise"))
 
 
 def _rk4(f, x, h):
@@ -148,8 +150,9 @@ def _fdi_step(loop: Loop) -> ca.Function:
 
     names = ["x_fdi", "v", "readings", "meas", "p_fdi", "h"]
     args = {"x_fdi": x, "v": v, "readings": rd, "meas": meas, "h": h, **sym}
-    return ca.Function("fdi_step", [args[k] for k in names], [_rk4(rate, x, h)], names,
-                       ["x_fdi_next"])
+    return with_shared_reciprocals(ca.Function(
+        "fdi_step", [args[k] for k in names], [_rk4(rate, x, h)], names, ["x_fdi_next"]),
+        ("x_fdi", "v", "readings", "meas"))
 
 
 def _plant_step(loop: Loop) -> ca.Function:
@@ -180,8 +183,9 @@ def _plant_step(loop: Loop) -> ca.Function:
     names = ["x", "wind3", "actuator_faults", "p_turbine", "cp_scale", "sensor_faults",
              "p_sensors", "yd", "v", "held", "dt"]
     args = {**sym, "x": x, "wind3": w3, "v": v, "held": held, "dt": dt}
-    return ca.Function("plant_step", [args[k] for k in names], [x_next, out], names,
-                       ["x_next", "out"])
+    return with_shared_reciprocals(ca.Function(
+        "plant_step", [args[k] for k in names], [x_next, out], names, ["x_next", "out"]),
+        ("x", "wind3"))
 
 
 @cache
