@@ -289,3 +289,85 @@ def test_the_loops_divide_less_and_compute_the_same_to_rounding():
         vals[before.index_in("p_ctrl")] = np.asarray(rc.p_ctrl)
         a, b = before(*vals)[0], after(*vals)[0]
         np.testing.assert_allclose(np.array(b), np.array(a), rtol=1e-14, atol=1e-300)
+
+
+def test_the_steps_driver_keeps_the_reports_asked_for():
+    """REPORT_INPUTS: every 4th step's report from step 1 lands in the report's first
+    columns, the same bits as that step's report when every step's is kept; the states of
+    every step as before."""
+    from dataclasses import replace
+
+    from bench import runner
+    from bench.problem import LOOPS, Problem
+
+    p = Problem("physical_case3", *LOOPS["physical_case3"])
+    loop = replace(p.config.loop, fdi=False)
+    f = integrate.chunk_function(loop, n=1000, quiet=True, exact=True)
+    assert f.name_in()[-2:] == list(integrate.REPORT_INPUTS)
+    w3, af, sf, ck = runner.step_inputs(p, 0.001, 1000)
+    args = dict(z=p.z0, wind3=w3, actuator_faults=af, sensor_faults=sf, ctrl_fault=ck,
+                yd=p.yd, p_turbine=loop.p_turbine, p_ctrl=p.config.p_ctrl, cp_scale=1.0,
+                dt=0.001)
+    call = integrate.Buffered(f)
+    for name, value in args.items():
+        call.put(name, value)
+    z_all, o_all = (a.copy() for a in call.evaluate())
+    integrate._report_grid(call, 1, 4, 1)
+    z_some, o_some = call.evaluate()
+    np.testing.assert_array_equal(z_some, z_all)
+    np.testing.assert_array_equal(o_some[:, :250], o_all[:, 1::4])
+
+
+@pytest.mark.parametrize("raw", [
+    "diverging",  # blows up (tests/conftest.py)
+    {"control_sign": 1, "t_final_s": 12.0, "output_rate_hz": 50.0,  # stalls: envelope
+     "turbine_params": {"gen_torque_law": 0.0}},
+    {"controller": "physical", "t_final_s": 25.0, "case": 3},  # runs through
+])
+def test_runs_keeping_only_their_output_grid_are_the_runs_keeping_every_report(raw,
+                                                                              monkeypatch):
+    """The default chunk keeps the reports of the output grid only; a chunk that looks
+    wrong is run again with every step's report, so that a divergence is found at the
+    same step with the same record: the same outputs, times, final state and divergence
+    as the chunk keeping every report."""
+    from conftest import DIVERGING_RUN
+
+    rc = config.make_config(DIVERGING_RUN if raw == "diverging" else raw)
+    assert rc.decimate > 1
+    compact = cases.run(rc, progress=False)
+    monkeypatch.setattr(integrate, "REPORT_INPUTS", ("not_an_input", "not_an_input"))
+    full = cases.run(rc, progress=False)
+    np.testing.assert_array_equal(compact.outputs, full.outputs)
+    np.testing.assert_array_equal(compact.t, full.t)
+    np.testing.assert_array_equal(compact.z_final, full.z_final)
+    assert compact.diverged == full.diverged
+    assert (compact.diverged is None) == (raw not in ("diverging",) and "control_sign" not in
+                                          str(raw))
+
+
+def test_a_small_step_gets_a_state_only_twin_and_a_large_one_does_not():
+    """integrate._state_step: the physical loop's step (1,600 SX instructions) gets a twin
+    computing the next state alone, for the steps whose report is not kept, and it gives
+    the step's next state bit for bit; the paper's (9,600: two bodies alternating cost it
+    instruction fetch) and a step in MX do not."""
+    from dataclasses import replace
+
+    from bench.problem import LOOPS, Problem
+    from wtftc.sim.rhs import rhs_function
+
+    steps = {}
+    for name in ("physical_case3", "paper_case3"):
+        loop = replace(Problem(name, *LOOPS[name]).config.loop, fdi=False)
+        steps[name] = integrate.rk4_step(rhs_function(loop))
+    twin = integrate._state_step(steps["physical_case3"])
+    assert twin is not None and twin.n_out() == 1
+    assert twin.n_instructions() < steps["physical_case3"].n_instructions()
+    assert integrate._state_step(steps["paper_case3"]) is None
+    assert integrate._state_step(integrate.rk4_step(rhs_function(
+        replace(Problem("physical_case3", "physical", "nrel5mw").config.loop, fdi=False)),
+        shared=False)) is None
+    rng = np.random.default_rng(5)
+    step = steps["physical_case3"]
+    for _ in range(5):
+        vals = [rng.uniform(0.5, 1.5, step.nnz_in(i)) for i in range(step.n_in())]
+        np.testing.assert_array_equal(np.array(twin(*vals)), np.array(step(*vals)[0]))

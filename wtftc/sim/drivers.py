@@ -77,45 +77,65 @@ def _max_work(functions: list[str]) -> str:
 _STEPS = """
 CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casadi_int* iw,
                                 casadi_real* w, int mem) {{
-  static const casadi_int size_in[{n_in}] = {{{size_in}}};
-  static const int per_step[{n_in}] = {{{per_step}}};
   const casadi_int nz = {nz}, no = {no};
-  const casadi_real** sarg = arg + {n_in};
+  const casadi_real** sarg = arg + {n_in} + 2;
   casadi_real** sres = res + {n_out};
   casadi_real *zbuf, *obuf;
   const casadi_real* z = arg[0];
-  casadi_int k, j;
+  casadi_int k, j, every = 1, next = 0, col = 0;
 {max_work}
+  /* the report of every out_every-th step from step out_first, in its first columns
+   * (left out: every step's) */
+  if (arg[{n_in}] && arg[{n_in}][0] > 1) every = (casadi_int) arg[{n_in}][0];
+  if (arg[{n_in} + 1] && arg[{n_in} + 1][0] > 0) next = (casadi_int) arg[{n_in} + 1][0];
   zbuf = w + ww;
   obuf = zbuf + 2 * nz;
+  for (j = 1; j < {n_in}; j++) sarg[j] = arg[j];  /* the held inputs, once */
   for (k = 0; k < {n}; k++) {{
-    for (j = 1; j < {n_in}; j++)
-      sarg[j] = arg[j] && per_step[j] ? arg[j] + k * size_in[j] : arg[j];
+{per_step}
     sarg[0] = z;
     sres[0] = res[0] ? res[0] + k * nz : zbuf + (k % 2) * nz;
-    sres[1] = res[1] ? res[1] + k * no : obuf;
-    if ({step}(sarg, sres, iw, w, mem)) return 1;
+    if (res[1] && k == next) {{
+      sres[1] = res[1] + col++ * no;
+      next += every;
+      if ({step}(sarg, sres, iw, w, mem)) return 1;
+    }} else {{
+      sres[1] = obuf;
+      if ({state_step}(sarg, sres, iw, w, mem)) return 1;
+    }}
     z = sres[0];
   }}
   return 0;
 }}
 """
 
+#: the steps driver's inputs after the step's: which steps' reports it keeps
+REPORT_INPUTS = ("out_every", "out_first")
 
-def steps_source(step: ca.Function, n: int, name: str, per_step: tuple[str, ...]) -> str:
+
+def steps_source(step: ca.Function, n: int, name: str, per_step: tuple[str, ...],
+                 state_step: ca.Function | None = None) -> str:
     """C of the chunk ``name``: ``n`` steps of ``step`` (state in and out first, then its
     report) in a loop; the ``per_step`` inputs one column a step, the others held (one
-    column). ``step``'s own code must come before it."""
+    column); then REPORT_INPUTS: given, the report of every ``out_every``-th step from step
+    ``out_first`` only, written to the report's first columns (the others are left as they
+    were: a run recording every 40th step stores 1/40 of the reports); left out, every
+    step's. ``state_step`` (the same inputs, the next state alone) takes the steps whose
+    report is not kept. The code of the functions it calls must come before it."""
     ins, outs = step.name_in(), step.name_out()
     per = [int(x in per_step) for x in ins]
     nz, no = step.size1_in(0), step.size1_out(1)
     inputs = [(x, step.size1_in(i), n if per[i] else 1) for i, x in enumerate(ins)]
     outputs = [(x, step.size1_out(i), n) for i, x in enumerate(outs)]
-    return _interface(name, inputs, outputs, [step.name()], f"3 * {max(nz, no)}") + \
-        _STEPS.format(name=name, step=step.name(), n=n, n_in=len(ins), n_out=len(outs),
-                      size_in=", ".join(str(r) for _, r, _ in inputs),
-                      per_step=", ".join(map(str, per)), nz=nz, no=no,
-                      max_work=_max_work([step.name()]))
+    called = [step.name()] + ([state_step.name()] if state_step is not None else [])
+    return _interface(name, inputs + [(x, 1, 1) for x in REPORT_INPUTS], outputs,
+                      called, f"3 * {max(nz, no)}") + \
+        _STEPS.format(name=name, step=step.name(), state_step=called[-1], n=n,
+                      n_in=len(ins), n_out=len(outs),
+                      per_step="\n".join(
+                          f"    if (arg[{j}]) sarg[{j}] = arg[{j}] + k * {r};"
+                          for j, (_, r, _) in enumerate(inputs) if per[j]),
+                      nz=nz, no=no, max_work=_max_work(called))
 
 
 _INTERVALS = """

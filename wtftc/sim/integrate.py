@@ -31,7 +31,7 @@ from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import cache_dir, compiled_library, compiler, external_of
 from wtftc.model import spline
 from wtftc.model.faults import nominal_actuator
-from wtftc.sim.drivers import intervals_source, steps_source
+from wtftc.sim.drivers import REPORT_INPUTS, intervals_source, steps_source
 from wtftc.sim.rhs import PLANTS, Loop, fdi_params, output_spec, rhs_function, sensor_names
 from wtftc.sim.sampled import interval_function
 
@@ -257,8 +257,27 @@ def compiled_chunk(step: ca.Function, n: int, label: str,
     ``extra_c``); where no compiler or cache is usable, the same steps through
     ``mapaccum`` on CasADi's virtual machine (the same numbers, per-step columns of the
     held inputs)."""
-    return _driven([step], steps_source(step, n, label, PER_STEP) + extra_c, label,
+    state_step = _state_step(step)
+    fns = [step] + ([state_step] if state_step is not None else [])
+    return _driven(fns, steps_source(step, n, label, PER_STEP, state_step) + extra_c, label,
                    flags or loop_flags(), quiet, lambda: step.mapaccum(label, n))
+
+#: the largest step (SX instructions) given a state-only twin: two bodies of the paper's
+#: loop (9,600) alternating every few steps cost it 6 % in instruction fetch, where the
+#: physical loop's (1,600) gains 3 % (docs/performance.md)
+STATE_STEP_MAX = 4000
+
+
+def _state_step(step: ca.Function) -> ca.Function | None:
+    """``step`` computing its next state alone (its report's own operations left out), for
+    the steps whose report is not kept: the same inputs, the same next state bit for bit
+    (the same operations on the same values). None for a step in MX (its calls compute
+    their reports anyway) or one larger than STATE_STEP_MAX."""
+    if not step.is_a("SXFunction") or step.n_instructions() > STATE_STEP_MAX:
+        return None
+    ins = step.sx_in()
+    return ca.Function(f"{step.name()}_state", ins, [step.call(ins)[0]], step.name_in(),
+                       [step.name_out(0)])
 
 
 def _driven(fns: list[ca.Function], driver: str, label: str, flags: tuple[str, ...],
@@ -307,6 +326,7 @@ class Buffered:
         self.f = f
         self._buf, self._trigger = f.buffer()
         self._last: dict = {}  # (name, run) → the object last written with same=True
+        self._index = {n: i for i, n in enumerate(f.name_in())}  # (f.index_in: 1 µs a call)
         self._in = [np.zeros((f.size2_in(i), f.size1_in(i))) for i in range(f.n_in())]
         self._out = [np.zeros((f.size2_out(i), f.size1_out(i))) for i in range(f.n_out())]
         for i, a in enumerate(self._in):
@@ -325,7 +345,7 @@ class Buffered:
             self._last[(name, run)] = value
         else:
             self._last.pop((name, run), None)
-        a = self._in[self.f.index_in(name)]
+        a = self._in[self._index[name]]
         w = a.shape[0] // n_runs
         seg = a[run * w:(run + 1) * w]
         v = np.asarray(value, dtype=float)
@@ -479,21 +499,28 @@ class _Batch:
             [[] for _ in range(n)]
         self.diverged, self.steps = [None] * n, [0] * n
 
-    def record(self, b: int, zz: np.ndarray, oo: np.ndarray, k: int, m: int, dt: float) -> None:
-        """Keep run b's chunk (steps k .. k + m - 1): outputs on the decimated grid, the
-        divergence if one happened (the run then stops at its last finite state)."""
+    def record(self, b: int, zz: np.ndarray, oo: np.ndarray, k: int, m: int, dt: float,
+               compact: bool = False) -> bool:
+        """Keep run b's chunk (steps k .. k + m - 1): outputs on the decimated grid
+        (``compact``: ``oo`` holds only those, in its first columns), the divergence if one
+        happened (the run then stops at its last finite state). A compact chunk that looks
+        wrong is not kept (False): its caller runs it again with every step's outputs, from
+        which :func:`divergence` finds the step and what failed."""
         first = (-k) % self.decimate  # the first step of this chunk on the output grid
+        seen = oo[:, :len(range(first, m, self.decimate))] if compact else oo
         z_prev = self.z[:, b].copy()
         # |zz| <= 1e8 and finite outputs, without temporaries: max and min propagate NaN
         # (the comparison is then False); a sum of finite outputs is finite unless it
         # overflows, where the exact test decides
         fine = zz.max() <= 1e8 and zz.min() >= -1e8 and (
-            bool(np.isfinite(oo.sum())) or bool(np.isfinite(oo).all()))
+            bool(np.isfinite(seen.sum())) or bool(np.isfinite(seen).all()))
         if not fine or (self.envelope is not None and self.envelope.outside(zz).any()):
+            if compact:
+                return False
             i, self.diverged[b] = divergence(zz, oo, z_prev, self.names, self.out_names, k, dt,
                                              self.envelope)
             m = i + 1
-        self.outs[b].append(oo[:, first:m:self.decimate].T.copy())
+        self.outs[b].append(seen.T.copy() if compact else oo[:, first:m:self.decimate].T.copy())
         self.ts[b].append(np.arange(k + first, k + m, self.decimate) * dt)
         if self.keep_states:
             # the state before step i is z (i = 0) or zz[:, i-1]
@@ -506,6 +533,7 @@ class _Batch:
             self.z[:, b] = zz[:, m - 2] if m > 1 else z_prev
         else:
             self.z[:, b] = zz[:, m - 1]
+        return True
 
     def results(self, wall: float) -> list[Result]:
         n_out = len(self.out_names)
@@ -746,6 +774,8 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
     _put_static(call, loop, runs, dt)
     nominal, noise = _nominal_inputs(loop, runs), _noise_streams(loop, runs)
     held_cols: list[dict] = [{} for _ in runs]
+    # a chunk with the C steps driver keeps only the reports on the output grid
+    compact = hook is None and decimate > 1 and REPORT_INPUTS[0] in f.name_in()
     k = 0
     while k < n_steps and not all(batch.diverged):
         if k in events:  # a lock may bind its angle here: its columns change
@@ -756,20 +786,44 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
         stop = min([n_steps, end] + [e for e in events if e > k])
         _put_chunk(call, nominal, runs, k, stop - k, n_c, dt, loop, noise, held_cols)
         call.put("z", batch.z)
+        if compact:
+            _report_grid(call, len(runs), decimate, (-k) % decimate)
         if hook is not None:
             hook.before(call, k, stop)
-        res = call.evaluate()
-        # a sampled chunk's states after every plant step are its third output
-        zz_all, oo_all = res[2] if loop.sampled else res[0], res[i_out]
-        for b in range(len(runs)):
-            if not batch.diverged[b]:  # views, valid until the next call
-                batch.record(b, zz_all[:, b * n_c:b * n_c + stop - k],
-                             oo_all[:, b * n_c:b * n_c + stop - k], k, stop - k, dt)
+        res = _record_chunk(call, batch, loop, i_out, k, stop, dt, compact)
         if hook is not None and not batch.diverged[0]:
             hook.after(k, stop, batch.z[:, 0], res, batch.out_names)
         k = stop
         tick(k)
     return batch
+
+
+def _report_grid(call: Buffered, n_runs: int, every: int, first: int) -> None:
+    """The steps driver's REPORT_INPUTS: the report of every ``every``-th step from step
+    ``first`` of the chunk (1, 0: every step's)."""
+    for b in range(n_runs):
+        call.put(REPORT_INPUTS[0], [float(every)], b, n_runs)
+        call.put(REPORT_INPUTS[1], [float(first)], b, n_runs)
+
+
+def _record_chunk(call: Buffered, batch: _Batch, loop: Loop, i_out: int, k: int, stop: int,
+                  dt: float, compact: bool) -> list[np.ndarray]:
+    """Evaluate the chunk (steps k .. stop - 1) and record every live run; where a compact
+    chunk (the reports on the output grid only) looks wrong for a run, evaluate it again
+    with every step's report (the same states, bit for bit: the inputs are as they were)
+    and record from there. The chunk's results."""
+    res, n_c, b = call.evaluate(), call.f.size2_out(i_out) // len(batch.runs), 0
+    while b < len(batch.runs):
+        # a sampled chunk's states after every plant step are its third output
+        zz_all, oo_all = res[2] if loop.sampled else res[0], res[i_out]
+        cols = slice(b * n_c, b * n_c + stop - k)  # views, valid until the next call
+        if not batch.diverged[b] and not batch.record(b, zz_all[:, cols], oo_all[:, cols],
+                                                      k, stop - k, dt, compact):
+            _report_grid(call, len(batch.runs), 1, 0)
+            res, compact = call.evaluate(), False
+            continue
+        b += 1
+    return res
 
 
 def divergence(zz: np.ndarray, oo: np.ndarray, z_prev: np.ndarray, names: list[str],
