@@ -371,3 +371,23 @@ def test_a_small_step_gets_a_state_only_twin_and_a_large_one_does_not():
     for _ in range(5):
         vals = [rng.uniform(0.5, 1.5, step.nnz_in(i)) for i in range(step.n_in())]
         np.testing.assert_array_equal(np.array(twin(*vals)), np.array(step(*vals)[0]))
+
+
+def test_branch_free_selects_are_casadis_selects_bit_for_bit(tmp_path):
+    """integrate.SELECT: CasADi's ``(c?x:0)`` written as a mask gives CasADi's bits on
+    every pair of special doubles (c: zero of either sign, NaN, infinities, subnormals;
+    x the same), against CasADi's own C; the loops' code has them (the physical loop's
+    rate limits and anti-windup)."""
+    c, x = ca.SX.sym("c"), ca.SX.sym("x")
+    f = ca.Function("wtftc_test_select", [c, x], [ca.if_else(c, x, 0)])
+    text = integrate.loop_source(f, tmp_path, "select").read_text()
+    assert "wtftc_select(" in text and "?" not in text.split("wtftc_select(")[-1]
+    masked = integrate.compiled(f, "wtftc_test_select", quiet=True)
+    cg = ca.CodeGenerator("own_select.c", {"with_header": False})
+    cg.add(f)
+    cg.generate(str(tmp_path) + "/")
+    assert "?" in (tmp_path / "own_select.c").read_text()
+    own = compiled_external(f.name(), tmp_path / "own_select.c", integrate.loop_flags())
+    for a in SPECIAL:
+        for b in SPECIAL:
+            assert _bits(float(masked(a, b))) == _bits(float(own(a, b))), (a, b)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 import platform
+import re
 import subprocess
 import sys
 import tempfile
@@ -191,15 +192,45 @@ INLINE_MINMAX = (("return fmax(x, y);", "return x > y ? x : (y != y ? x : y);"),
                  ("return fmin(x, y);", "return x < y ? x : (y != y ? x : y);"))
 
 
+#: CasADi writes its branch-free select ``if_else_zero`` (an anti-windup's κ, an actuator
+#: at its limit: every ``Piecewise`` of the derivation) as ``(c?x:0)``, which gcc compiles
+#: to a branch where it may not assume that comparisons do not trap (its default); as a
+#: mask, the same bits (x where c is nonzero, NaN included, else +0), without the branch:
+#: 4.5 % of the physical loop's step, the paper's as before (issue 19)
+SELECT = re.compile(r"\((a\d+)\?(a\d+):0\)")
+SELECT_C = """
+/* wtftc: (c?x:0) without a branch (wtftc.sim.integrate.SELECT) */
+static inline casadi_real wtftc_select(casadi_real c, casadi_real x) {
+  uint64_t bits, mask = -(uint64_t) (c != 0);
+  memcpy(&bits, &x, sizeof bits);
+  bits &= mask;
+  memcpy(&x, &bits, sizeof x);
+  return x;
+}
+"""
+_SELECT_AFTER = "#define casadi_int long long int\n#endif\n"
+
+
+def branch_free_selects(code: str) -> str:
+    """CasADi's C ``code`` with its selects ``(c?x:0)`` written as SELECT_C's mask (left
+    as they are where the code does not have the expected layout)."""
+    if _SELECT_AFTER not in code or not SELECT.search(code):
+        return code
+    code = code.replace(_SELECT_AFTER, _SELECT_AFTER + "#include <stdint.h>\n#include <string.h>\n"
+                        + SELECT_C, 1)
+    return SELECT.sub(r"wtftc_select(\1, \2)", code)
+
+
 def loop_source(f: ca.Function | list[ca.Function], folder: Path, label: str,
                 extra_c: str = "") -> Path:
-    """The C of a loop chunk's function(s) ``f`` in ``folder``: CasADi's code with the min
-    and max helpers inlined (INLINE_MINMAX), then ``extra_c`` (C compiled into the same
+    """The C of a loop chunk's function(s) ``f`` in ``folder``: CasADi's code with the lean
+    spline bodies (wtftc.model.spline.lean_c), the selects without branches (SELECT), the
+    min and max helpers inlined (INLINE_MINMAX), then ``extra_c`` (C compiled into the same
     library: a driver calling them, the DISCON bridge, ...)."""
     cg = ca.CodeGenerator(f"{label}.c", {"with_header": False})
     for fn in f if isinstance(f, list) else [f]:
         cg.add(fn)
-    code = spline.lean_c(cg.dump())
+    code = branch_free_selects(spline.lean_c(cg.dump()))
     if _x86_64():  # aarch64's fmin/fmax order signed zeros
         for old, new in INLINE_MINMAX:
             code = code.replace(old, new)
