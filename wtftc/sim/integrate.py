@@ -496,6 +496,12 @@ class Envelope:
         w = zz[self.row]
         return (w > self.high) | (w < self.low)
 
+    def left(self, zz: np.ndarray) -> bool:
+        """Whether the rotor left the envelope anywhere in the finite states ``zz``
+        (``outside(zz).any()`` without its temporaries)."""
+        w = zz[self.row]
+        return bool(w.max() > self.high or w.min() < self.low)
+
     def reason(self, w: float) -> str:
         env = lay.layout()["envelope"]
         if w > self.high:
@@ -545,7 +551,7 @@ class _Batch:
         # overflows, where the exact test decides
         fine = zz.max() <= 1e8 and zz.min() >= -1e8 and (
             bool(np.isfinite(seen.sum())) or bool(np.isfinite(seen).all()))
-        if not fine or (self.envelope is not None and self.envelope.outside(zz).any()):
+        if not fine or (self.envelope is not None and self.envelope.left(zz)):
             if compact:
                 return False
             i, self.diverged[b] = divergence(zz, oo, z_prev, self.names, self.out_names, k, dt,
