@@ -7,6 +7,7 @@ factorized fuzzy sums described in :mod:`derivation.fuzzy`.
 
 from __future__ import annotations
 
+import itertools
 import sys
 
 import casadi as ca
@@ -46,7 +47,17 @@ def minimal_logic(cond: sp.Basic) -> sp.Basic:
     forms = [b, sp.simplify_logic(b, form="dnf", force=True),
              sp.simplify_logic(b, form="cnf", force=True)]
     best = min(forms, key=lambda x: (sp.count_ops(x), forms.index(x)))
-    return best.xreplace(dict(zip(names, atoms, strict=True)))
+    out = best.xreplace(dict(zip(names, atoms, strict=True)))
+    # SymPy's constructors may rewrite the comparisons on the way back (¬(x > 0) as
+    # x ≤ 0, (x ≤ 0) ∨ (x > 0) as true), which is not the same for NaN: keep the result
+    # only where it is the same function of the very same comparisons
+    if out in (sp.true, sp.false) or not out.atoms(sp.core.relational.Relational) <= set(atoms):
+        return cond
+    for values in itertools.product((sp.false, sp.true), repeat=len(atoms)):
+        truth = dict(zip(atoms, values, strict=True))
+        if bool(cond.xreplace(truth)) != bool(out.xreplace(truth)):
+            return cond
+    return out
 
 
 class Translator:

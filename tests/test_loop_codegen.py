@@ -391,3 +391,29 @@ def test_branch_free_selects_are_casadis_selects_bit_for_bit(tmp_path):
     for a in SPECIAL:
         for b in SPECIAL:
             assert _bits(float(masked(a, b))) == _bits(float(own(a, b))), (a, b)
+
+
+def test_minimal_logic_keeps_what_sympy_would_rewrite_on_the_way_back():
+    """Where SymPy's constructors would rewrite the minimised form's comparisons (a
+    complementary pair folded to true, a negation turned into the opposite comparison:
+    not the same for NaN), or the form is a constant, the condition is kept as written."""
+    import sympy as sp
+
+    from derivation.casadi_build import minimal_logic
+
+    x, y = sp.symbols("x y", real=True)
+    folded = ((x <= 0) & (y > 1)) | ((x > 0) & (y > 1))  # would become y > 1
+    assert minimal_logic(folded) == folded
+    negated = ~((y > 0) | ((x > 0) & (y > 0)))  # would become y <= 0
+    got = minimal_logic(negated)
+    assert got.atoms(sp.core.relational.Relational) <= negated.atoms(
+        sp.core.relational.Relational)
+
+
+def test_shared_reciprocals_leave_a_function_with_a_sparse_input_alone():
+    from wtftc.sim.reciprocals import with_shared_reciprocals
+
+    x = ca.SX.sym("x")
+    p = ca.SX.sym("p", ca.Sparsity.triplet(3, 1, [0, 2], [0, 0]))
+    f = ca.Function("f", [x, p], [x / p[0] + x * p[2]], ["z", "p"], ["o"])
+    assert with_shared_reciprocals(f, ("z",)) is f

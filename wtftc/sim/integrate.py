@@ -636,7 +636,8 @@ def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: 
     ts = tf[::loop.interval] if loop.sampled and not held else tf
     n_runs = len(runs)
     for b, r in enumerate(runs):  # stacked as the buffer lies: a contiguous copy
-        w3 = np.stack([r.wind(tk), r.wind(tk + dt / 2), r.wind(tk + dt)], axis=1)
+        w3 = np.stack([np.broadcast_to(np.asarray(r.wind(t), dtype=float), tk.shape)
+                       for t in (tk, tk + dt / 2, tk + dt)], axis=1)
         call.put("wind3", w3.T, b, n_runs)
         cols = _fault_columns(r, nominal[b], held_cols[b] if held else None, tf, ts)
         for name in ("actuator_faults", "sensor_faults", "ctrl_fault"):

@@ -65,6 +65,8 @@ def with_shared_reciprocals(f: ca.Function, varying: tuple[str, ...]) -> ca.Func
     ``varying`` (the state, the wind) computed as a multiplication by its reciprocal (the
     same inputs and outputs)."""
     ins, names = f.sx_in(), f.name_in()
+    if not all(x.is_dense() and x.is_column() for x in ins):
+        return f  # the rewrite below indexes elements as nonzeros: dense columns only
     held = [i for i, n in enumerate(names) if n not in varying]
     par = ca.vertcat(*[ins[i] for i in held])
     ret, syms, parts = ca.extract_parametric(f.call(ins), par)
