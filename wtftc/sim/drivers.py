@@ -78,7 +78,7 @@ _STEPS = """
 CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casadi_int* iw,
                                 casadi_real* w, int mem) {{
   const casadi_int nz = {nz}, no = {no};
-  const casadi_real** sarg = arg + {n_in} + 2;
+  const casadi_real** sarg = arg + {n_in} + {n_report};
   casadi_real** sres = res + {n_out};
   casadi_real *zbuf, *obuf;
   const casadi_real* z = arg[0];
@@ -131,7 +131,7 @@ def steps_source(step: ca.Function, n: int, name: str, per_step: tuple[str, ...]
     return _interface(name, inputs + [(x, 1, 1) for x in REPORT_INPUTS], outputs,
                       called, f"3 * {max(nz, no)}") + \
         _STEPS.format(name=name, step=step.name(), state_step=called[-1], n=n,
-                      n_in=len(ins), n_out=len(outs),
+                      n_in=len(ins), n_report=len(REPORT_INPUTS), n_out=len(outs),
                       per_step="\n".join(
                           f"    if (arg[{j}]) sarg[{j}] = arg[{j}] + k * {r};"
                           for j, (_, r, _) in enumerate(inputs) if per[j]),
