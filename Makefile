@@ -22,14 +22,13 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev]'
 	@# ROSCO's controller library for the ROSCO-in-the-loop tests and rows, without the
 	@# 1.4 GB its wheel pulls in (wisdem, openmdao, ...): wtftc needs only libdiscon and
-	@# its ControllerInterface (docs/controllers.md)
-	$(PY) -m pip install --quiet pyzmq pyyaml ruamel.yaml
-	$(PY) -m pip install --quiet --no-deps 'rosco==2.10.6' 
-	@# OpenFAST's input-file reader for `wtftc turbine import`, without the pandas it
-	@# declares (its reader does not use it); deepdiff, because ROSCO's toolbox imports it
-	@# through openfast-io once that is installed
-	$(PY) -m pip install --quiet --no-deps 'openfast-io==5.0.0'
-	$(PY) -m pip install --quiet 'deepdiff>8.0'
+	@# its ControllerInterface (docs/controllers.md). OpenFAST's input-file reader for
+	@# `wtftc turbine import`, without the pandas it declares (its reader does not use it);
+	@# deepdiff, because ROSCO's toolbox imports it through openfast-io. Every install with
+	@# dependencies comes first and the two --no-deps ones last, so that pip's resolver never
+	@# re-checks them and set-up prints no ERROR line (issue 30)
+	$(PY) -m pip install --quiet pyzmq pyyaml ruamel.yaml 'deepdiff>8.0'
+	$(PY) -m pip install --quiet --no-deps 'rosco==2.10.6' 'openfast-io==5.0.0'
 	@touch $(STAMP)
 
 setup: $(STAMP)

@@ -32,6 +32,7 @@ from derivation import backstepping as bs
 from derivation import controllers, fdi, lyapunov, nrel5mw, observer, plant, sensors, turbine
 from derivation import layout as lay
 from derivation.casadi_build import FuzzyEvaluator, Translator, joint_cse
+from wtftc.files import swap_folder
 
 ROOT = Path(__file__).resolve().parent.parent
 DERIVATION_DIR = Path(__file__).resolve().parent
@@ -538,6 +539,27 @@ def write(outdir: Path) -> dict:
     return manifest
 
 
+def _not_replaceable(outdir: Path) -> str | None:
+    """Why ``outdir`` may not be replaced by a new generation, or None: it must be missing,
+    empty, or hold only an earlier generation (its manifest.json and the artefacts that
+    manifest lists); a folder holding anything else is never touched."""
+    if not outdir.exists():
+        return None
+    if not outdir.is_dir() or outdir.is_symlink():
+        return "not a folder"
+    names = {p.name for p in outdir.iterdir()}
+    if not names:
+        return None
+    try:
+        listed = set(json.loads((outdir / "manifest.json").read_text())["artefacts"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return "holds files but no readable manifest.json of an earlier generation"
+    extra = sorted(names - listed - {"manifest.json"})
+    if extra:
+        return f"holds files the generation did not write ({', '.join(extra[:3])})"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if os.environ.get("PYTHONHASHSEED") != "0":
@@ -546,14 +568,22 @@ def main(argv: list[str] | None = None) -> int:
         os.execve(sys.executable, [sys.executable, "-m", "derivation.generate", *argv], env)
     outdir = Path(argv[0]) if argv else ROOT / "generated"
     t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory() as tmp:
-        manifest = write(Path(tmp))
-        outdir.mkdir(parents=True, exist_ok=True)
-        for old in outdir.iterdir():
-            if old.suffix in {".c", ".casadi", ".json"}:
-                old.unlink()
-        for p in Path(tmp).iterdir():
-            shutil.copy2(p, outdir / p.name)
+    refusal = _not_replaceable(outdir)
+    if refusal:
+        print(f"derivation.generate: {outdir}: {refusal}; nothing was written",
+              file=sys.stderr)
+        return 2
+    outdir.parent.mkdir(parents=True, exist_ok=True)
+    # built whole in a sibling, then swapped in (issue 30): a run reading generated/
+    # meanwhile sees the old artefacts or the new ones, never a folder half rewritten
+    tmp = Path(tempfile.mkdtemp(prefix=f".{outdir.name}.", suffix=".partial",
+                                dir=outdir.parent))
+    try:
+        manifest = write(tmp)
+        os.chmod(tmp, (outdir.stat().st_mode & 0o7777) if outdir.is_dir() else 0o755)
+        swap_folder(tmp, outdir)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
     print(f"regenerated {len(manifest['artefacts'])} artefacts in {outdir} "
           f"({time.perf_counter() - t0:.1f} s)")
     return 0

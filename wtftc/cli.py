@@ -367,12 +367,13 @@ def _cmd_sweep(args) -> int:
 
 
 def _cmd_verify(args) -> int:
-    from wtftc.results.io import ensure_writable_dir
-    from wtftc.verify.report import run_verification, to_markdown
+    from wtftc.files import check_out_folder, owned_folder
+    from wtftc.verify.report import is_legacy_verify, run_verification, to_markdown
 
-    ensure_writable_dir(args.out, "--out")
+    check_out_folder(args.out, "--out", legacy=is_legacy_verify)
     print(f"wtftc verify → {args.out}/")
-    summary = run_verification(args.out, n_points=args.points, seed=args.seed)
+    with owned_folder(args.out, "--out", command="verify", legacy=is_legacy_verify) as tmp:
+        summary = run_verification(tmp, n_points=args.points, seed=args.seed)
     print()
     print(to_markdown(summary))
     print(f"written: {args.out}/summary.json, summary.md, alpha_dot_fd.png")
@@ -382,10 +383,10 @@ def _cmd_verify(args) -> int:
 def _cmd_run(args) -> int:
     from wtftc import config
     from wtftc.campaign import cases, tune
-    from wtftc.results.io import ensure_writable_dir
+    from wtftc.results.io import check_run_folder
 
     rc = config.make_config(tune.resolve(_run_overrides(args)))
-    ensure_writable_dir(args.out, "--out", create=False)
+    check_run_folder(args.out, "--out")
     print(f"{rc.label}: case {rc.case} ({config.CASES[rc.case]}) on {rc.plant}, "
           f"{rc.t_final:g} s at dt = {rc.dt:g} s")
     res, table, paths = cases.run_and_write(rc, args.out, progress=not args.quiet)
@@ -399,18 +400,17 @@ def _cmd_run(args) -> int:
 def _cmd_cases(args) -> int:
     from wtftc import config
     from wtftc.campaign import cases
-    from wtftc.results.io import ensure_writable_dir
-    from wtftc.results.tables import write_table
+    from wtftc.files import check_out_folder
 
     over = _run_overrides(args)
     other = over.get("turbine", "nrel5mw") != "nrel5mw"
     plants = tuple(args.plant) if args.plant else ("nrel5mw",) if other else ("nrel5mw",
                                                                              "paper")
     config.make_config({**over, "plant": plants[0]})  # validate before any work
-    ensure_writable_dir(args.out, "--out", create=False)
-    rows = cases.run_cases(args.out, plants, over, progress=not args.quiet)
+    check_out_folder(args.out, "--out", legacy=cases.is_legacy_cases)
+    cases.run_cases(args.out, plants, over, progress=not args.quiet)
     print()
-    print(write_table(args.out, rows))
+    print((args.out / "metrics.md").read_text(), end="")
     print(f"written under {args.out}/: metrics.md, metrics.csv, <plant>/case<N>/, "
           "<plant>/figures/")
     return 0
@@ -418,13 +418,13 @@ def _cmd_cases(args) -> int:
 
 def _cmd_compare(args) -> int:
     from wtftc.campaign import compare
-    from wtftc.results.io import ensure_writable_dir
+    from wtftc.files import check_out_folder
 
-    ensure_writable_dir(args.out, "--out", create=False)
-    rows = compare.run_compare(args.out, args.controllers, args.faults, args.winds,
+    check_out_folder(args.out, "--out", legacy=compare.is_legacy_compare)
+    compare.run_compare(args.out, args.controllers, args.faults, args.winds,
                                t_final=args.t_final, seed=args.seed, progress=not args.quiet,
                                profile=args.profile, turbine=args.turbine)
-    print(compare.write_compare_table(args.out, rows))
+    print((args.out / "compare.md").read_text(), end="")
     print(f"written under {args.out}/: compare.md, compare.csv, compare.png, "
           "<wind>/<fault>/<controller>/{config.toml,metrics.json}")
     return 0
@@ -574,7 +574,7 @@ def _cmd_linearize(args) -> int:
                           "'wtftc[linear]' (the control package)") from None
     from wtftc import config
     from wtftc.campaign import linearize
-    from wtftc.results.io import ensure_writable_dir
+    from wtftc.files import check_out_folder
 
     raw = {"controller": args.controller, **({"turbine": args.turbine} if args.turbine
                                              else {})}
@@ -583,7 +583,7 @@ def _cmd_linearize(args) -> int:
     for w in winds:
         if not (0 < w <= 60):
             raise ConfigError("--winds", w, "wind speeds in (0, 60] m/s")
-    ensure_writable_dir(args.out, "--out", create=False)
+    check_out_folder(args.out, "--out", legacy=linearize.is_legacy_linearize)
     linearize.run_linearize(raw, winds, args.out, progress=not args.quiet)
     print((args.out / "linearize.md").read_text(), end="")
     print(f"written under {args.out}/: linearize.md, linearize.csv, modes.csv, "

@@ -38,6 +38,10 @@ MARKER = ".wtftc-written"
 PARTIAL_LOCK = ".wtftc-partial"
 #: the largest file wtftc reads from a user (a 600-s wind file at 1 kHz is ~10 MB)
 MAX_INPUT_BYTES = 256 * 1024 * 1024
+#: the largest TOML file (a configuration, a sweep, a turbine file) wtftc reads
+MAX_TOML_BYTES = 16 * 1024 * 1024
+#: the largest Cp/Ct/Cq table (the IEA 15-MW's is 0.3 MB)
+MAX_TABLE_BYTES = 64 * 1024 * 1024
 
 
 # --------------------------------------------------------------------- what a user hands us
@@ -298,19 +302,29 @@ def _swap_in(tmp: Path, out: Path, parent: Path, option: str, legacy) -> None:
         check_out_folder(out, option, legacy)  # again: out may have changed meanwhile
         mode = (out.stat().st_mode & 0o7777) if out.is_dir() else 0o777 & ~_umask()
         os.chmod(tmp, mode)  # mkdtemp makes 0700
-        if out.is_dir():
-            if not _exchange(tmp, out):  # two renames on a file system without exchange
-                old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial",
-                                            dir=parent))
-                os.rename(out, old / out.name)
-                os.rename(tmp, out)
-                os.rename(old / out.name, tmp)
-                old.rmdir()
-        else:
-            os.rename(tmp, out)
+        swap_folder(tmp, out)
     finally:
         fcntl.flock(fd, fcntl.LOCK_UN)
         os.close(fd)
+
+
+def swap_folder(new: Path, out: Path) -> None:
+    """Put the complete folder ``new`` in place of ``out`` (which may be missing) in one
+    step where the file system allows (RENAME_EXCHANGE; a reader sees the old folder or
+    the new one, never none), leaving the old contents at ``new`` for the caller to
+    remove. The caller has checked that ``out`` may be replaced."""
+    new, out = Path(new), Path(out)
+    if not out.exists():
+        os.rename(new, out)
+        return
+    if _exchange(new, out):
+        return
+    parent = out.parent if str(out.parent) else Path(".")
+    old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=parent))
+    os.rename(out, old / out.name)
+    os.rename(new, out)
+    os.rename(old / out.name, new)
+    old.rmdir()
 
 
 # ------------------------------------------------------------------------- single files

@@ -194,9 +194,26 @@ def _lookup(prefix: Path, heal: bool = True) -> Path | None:
             print(f"wtftc: {path} in WTFTC_CACHE is damaged ({damage}); deleting it and "
                   "rebuilding", file=sys.stderr, flush=True)
         if heal:
-            with contextlib.suppress(OSError):
-                path.unlink()
+            _remove_damaged(path)
     return None
+
+
+def _remove_damaged(path: Path) -> None:
+    """Clear a damaged cache entry's name: a file is deleted (wtftc wrote it); a folder
+    sitting there is removed when empty, else moved aside whole (``<name>.moved-<n>``), so
+    that the name heals and nothing a user may have put inside is deleted."""
+    if path.is_dir() and not path.is_symlink():
+        try:
+            path.rmdir()
+        except OSError:
+            with contextlib.suppress(OSError):
+                aside = Path(tempfile.mkdtemp(prefix=f"{path.name}.moved-", dir=path.parent))
+                os.replace(path, aside / path.name)
+                print(f"wtftc: moved the folder at {path} aside to {aside}",
+                      file=sys.stderr, flush=True)
+        return
+    with contextlib.suppress(OSError):
+        path.unlink()
 
 
 def _cache_error(folder: Path, exc: OSError) -> CompileError:

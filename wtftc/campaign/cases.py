@@ -15,8 +15,9 @@ import numpy as np
 
 from wtftc.config import CASES, RunConfig, make_config
 from wtftc.errors import ConfigError
+from wtftc.files import owned_folder
 from wtftc.model.faults import Schedule
-from wtftc.results.io import run_folder
+from wtftc.results.io import is_legacy_tree, run_folder
 from wtftc.results.metrics import metrics
 from wtftc.results.tables import write_table
 from wtftc.results.traces import write_outputs
@@ -171,6 +172,18 @@ def run_cases(out_dir: Path, plants=tuple(PLANTS), overrides: dict | None = None
     if sign_as_written and configs[plants[0]][0].signed:
         sign_rc = make_config({**over, "plant": plants[0], "case": 1, "control_sign": 1,
                                "label": f"{names[plants[0]]}_case1_sign_as_written"})
+    with owned_folder(out_dir, "--out", command="cases", legacy=is_legacy_cases) as tmp:
+        rows = _run_all(tmp, configs, names, sign_rc, plants[0], progress)
+    return rows
+
+
+def is_legacy_cases(out: Path) -> bool:
+    """A `wtftc cases` folder written before the marker existed."""
+    return is_legacy_tree(out, ("metrics.md", "metrics.csv"))
+
+
+def _run_all(out_dir: Path, configs: dict, names: dict, sign_rc, first: str,
+             progress: bool) -> list[dict]:
     rows = []
     for plant, rcs in configs.items():
         runs = []
@@ -184,11 +197,11 @@ def run_cases(out_dir: Path, plants=tuple(PLANTS), overrides: dict | None = None
             rows.append(m)
         _case_figures(runs, out_dir / names[plant])
     if sign_rc is not None:
-        print(f"{names[plants[0]]}, case 1 with the control sign as written (s = +1)",
+        print(f"{names[first]}, case 1 with the control sign as written (s = +1)",
               flush=True)
         res = run(sign_rc, progress=progress)
         m = metrics(sign_rc, res)
-        write_outputs(out_dir / names[plants[0]] / "case1_sign_as_written", sign_rc, res, m)
+        write_outputs(out_dir / names[first] / "case1_sign_as_written", sign_rc, res, m)
         rows.append(m)
     write_table(out_dir, rows)
     return rows

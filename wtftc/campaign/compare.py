@@ -18,8 +18,9 @@ from wtftc import config
 from wtftc.artefacts import layout as lay
 from wtftc.campaign import cases
 from wtftc.errors import ConfigError
+from wtftc.files import owned_folder
 from wtftc.model import turbine_file
-from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text
+from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text, is_legacy_tree
 from wtftc.results.metrics import metrics
 
 ONSET_S = 20.0
@@ -194,6 +195,19 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
     configs = {(w, f, c): config.make_config(cell_config(c, f, w, t_final, dt, seed, profile,
                                                                 turbine))
                for w in wind_names for f in fault_names for c in ctrl_names}
+    with owned_folder(out_dir, "--out", command="compare", legacy=is_legacy_compare) as tmp:
+        rows = _run_cells(tmp, configs, progress)
+        write_compare_table(tmp, rows)
+        figure(tmp, rows, ctrl_names, fault_names, wind_names)
+    return rows
+
+
+def is_legacy_compare(out: Path) -> bool:
+    """A `wtftc compare` folder written before the marker existed."""
+    return is_legacy_tree(out, ("compare.md", "compare.csv"))
+
+
+def _run_cells(out_dir: Path, configs: dict, progress: bool) -> list[dict]:
     rows = []
     n = len(configs)
     for k, ((w, f, c), rc) in enumerate(configs.items(), 1):
@@ -205,8 +219,6 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
         atomic_write_json(d / "metrics.json", m)
         atomic_write_text(d / "config.toml", config.to_toml(rc.raw))
         rows.append(_row(c, f, w, m))
-    write_compare_table(out_dir, rows)
-    figure(out_dir, rows, ctrl_names, fault_names, wind_names)
     return rows
 
 

@@ -247,12 +247,26 @@ UNITS = {"wind_mps": "wind [m/s]", "pitch_deg": "pitch [deg]",
 
 def run_linearize(raw: dict, winds, out_dir, progress: bool = True) -> list[dict]:
     """Every wind's operating point, its matrices (``linear_<wind>mps.npz``), the modes
-    (``modes.csv``), the summary (``linearize.md``, ``.csv``) and a figure, in out_dir."""
-    from pathlib import Path
+    (``modes.csv``), the summary (``linearize.md``, ``.csv``) and a figure, in out_dir,
+    swapped in whole (wtftc.files.owned_folder: a folder holding anything wtftc did not
+    write is refused)."""
+    from wtftc.files import owned_folder
 
+    with owned_folder(out_dir, "--out", command="linearize", legacy=is_legacy_linearize) \
+            as tmp:
+        return _write_linearize(raw, winds, tmp, progress)
+
+
+def is_legacy_linearize(out) -> bool:
+    """A `wtftc linearize` folder written before the marker existed."""
+    from wtftc.results.io import is_legacy_tree
+
+    return is_legacy_tree(out, ("linearize.md", "linearize.csv", "modes.csv"))
+
+
+def _write_linearize(raw: dict, winds, out, progress: bool) -> list[dict]:
     from wtftc.results.io import atomic_savez, atomic_write_text
 
-    out = Path(out_dir)
     rows, mode_lines = [], ["wind_mps,real_1_per_s,imag_rad_s,omega_n_rad_s,damping"]
     for w in winds:
         op = operating_point(raw, float(w))

@@ -32,6 +32,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError
+from wtftc.files import MAX_TABLE_BYTES, read_user_bytes
 
 __all__ = [
     "CpTable",
@@ -166,7 +167,9 @@ def read_cp_table(path) -> CpTable:
     where = str(path)
     p = Path(path)
     try:
-        raw = p.read_bytes()
+        raw = read_user_bytes(p, _FIELD, MAX_TABLE_BYTES)
+    except ConfigError as exc:
+        raise ConfigError(_FIELD, where, f"{exc.allowed} in {_FORMAT}", where=where) from None
     except FileNotFoundError:
         raise ConfigError(_FIELD, where, f"an existing file in {_FORMAT}", where=where) from None
     except OSError as exc:

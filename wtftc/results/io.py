@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import fcntl
 import io
 import json
 import os
-import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -15,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from wtftc.errors import ConfigError
+from wtftc.files import check_out_folder, owned_folder
 
 #: what makes a folder a wtftc run folder, which a new run may replace as a whole
 RUN_MARKERS = ("config.toml", "metrics.json")
@@ -107,60 +106,27 @@ def ensure_writable_dir(path: Path, option: str = "--out", create: bool = True) 
 @contextmanager
 def run_folder(out: Path, option: str = "--out") -> Iterator[Path]:
     """Write a run's files into a hidden temporary sibling of ``out`` and put it in place as
-    a whole: a run folder is never mixed from two runs nor left half-written, and an old run
-    in ``out`` is replaced, stale files included. A folder that is not a run folder (no
-    config.toml and metrics.json) and is not empty is refused, as is the current folder or
-    one of its ancestors. Concurrent runs into one ``out`` swap in turn (a lock on the
-    parent folder): the last one's files are there, all of them."""
-    out = Path(out)
-    _check_replaceable(out, option)
-    parent = out.parent if str(out.parent) else Path(".")
-    made = [p for p in (parent, *parent.parents) if not p.exists()]  # removed on a failure
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=parent))
-    except OSError as exc:
-        raise ConfigError(option, str(out),
-                          f"a folder that can be written ({exc.strerror})") from None
-    done = False
-    try:
+    a whole (wtftc.files.owned_folder): a run folder is never mixed from two runs nor left
+    half-written, and an earlier run in ``out`` is replaced, stale files included. A folder
+    holding anything wtftc did not write is refused, as is the current folder or one of its
+    ancestors; run folders written before the marker existed are recognised by their files
+    (:func:`is_legacy_run_folder`). Concurrent runs into one ``out`` swap in turn."""
+    with owned_folder(out, option, command="run", legacy=is_legacy_run_folder) as tmp:
         yield tmp
-        os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp creates 0700
-        _swap_in(tmp, out, parent, option)
-        done = True
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-        for p in made if not done else ():  # a refused or failed run leaves no folder
-            try:
-                p.rmdir()
-            except OSError:
-                break
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+def check_run_folder(out: Path, option: str = "--out") -> Path:
+    """Refuse, before any work, an ``out`` that a run may not replace."""
+    return check_out_folder(out, option, legacy=is_legacy_run_folder)
 
 
-def _check_replaceable(out: Path, option: str) -> None:
-    if not str(out) or out.resolve() in (Path.cwd(), *Path.cwd().parents):
-        raise ConfigError(option, str(out), "a folder of its own (not the current folder or "
-                          "one that contains it)")
-    if out.exists() and not out.is_dir():
-        raise ConfigError(option, str(out), "a folder (this is a file)")
-    if out.is_dir() and not _is_run_folder(out):
-        raise ConfigError(option, str(out), "a new folder, an empty one or a wtftc run folder "
-                          "(this one holds other files; nothing was written)")
-
-
-def _is_run_folder(out: Path) -> bool:
-    """Empty, or only a run's files with its metrics.json (checked before the run and again
-    under the lock, just before the swap: a file added meanwhile is never deleted)."""
+def is_legacy_run_folder(out: Path) -> bool:
+    """A run folder of a wtftc from before the marker: only a run's files, with its
+    metrics.json (checked before the run and again under the lock, just before the swap)."""
     names = {p.name for p in out.iterdir()}
-    if not names:
-        return True
     if not names <= RUN_FILES or not all(m in names for m in RUN_MARKERS):
+        return False
+    if any(p.is_symlink() for p in out.iterdir()):
         return False
     try:
         m = json.loads((out / "metrics.json").read_text())
@@ -169,21 +135,19 @@ def _is_run_folder(out: Path) -> bool:
     return isinstance(m, dict) and {"label", "config", "case"} <= set(m)
 
 
-def _swap_in(tmp: Path, out: Path, parent: Path, option: str) -> None:
-    fd = os.open(parent, os.O_RDONLY)
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-        _check_replaceable(out, option)  # again: out may have changed during the run
-        old = None
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".old", dir=parent))
-            os.rename(out, old / out.name)
-        os.rename(tmp, out)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    finally:
-        fcntl.flock(fd, fcntl.LOCK_UN)
-        os.close(fd)
+def is_legacy_tree(out: Path, top: tuple[str, ...]) -> bool:
+    """A folder tree of an older wtftc campaign (cases, compare): the ``top`` files at its
+    top, and nothing anywhere but regular files of the kinds wtftc writes."""
+    if not all((out / n).is_file() for n in top):
+        return False
+    for p in out.rglob("*"):
+        if p.is_symlink() or not (p.is_dir() or (p.is_file() and p.suffix in LEGACY_KINDS)):
+            return False
+    return True
+
+
+#: the kinds of file wtftc's campaigns wrote before the marker (tables, traces, figures)
+LEGACY_KINDS = {".md", ".csv", ".parquet", ".json", ".toml", ".png", ".pdf", ".npz"}
 
 
 def write_parquet(path: Path, columns: dict, units: dict) -> None:

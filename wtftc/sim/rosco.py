@@ -34,6 +34,7 @@ import numpy as np
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts import loader
 from wtftc.errors import ConfigError
+from wtftc.files import MAX_TOML_BYTES, read_user_text
 from wtftc.model.turbine_import import line_key, read_discon
 from wtftc.sim import integrate
 from wtftc.sim.rhs import PLANTS, Loop, output_spec, rhs_function
@@ -105,11 +106,12 @@ def _discon_copy(tmp: Path, spec: str = NREL5MW_DISCON, retune: tuple | None = N
     against the DISCON.IN's folder when relative, as ROSCO does); with ``retune``, its
     pitch gain schedule for another closed-loop target (:func:`retuned_gains`)."""
     src = discon_path(spec)
-    if not src.is_file():
+    if spec.startswith("rosco:") and not src.is_file():
         raise ConfigError("controller", "rosco", f"a rosco install with {src}")
+    text = read_user_text(src, "rosco_discon", MAX_TOML_BYTES)  # a FIFO, a folder: refused
     values = read_discon(src) if retune is not None else {}
     out = []
-    for line in src.read_text().splitlines():
+    for line in text.splitlines():
         key = line_key(line)
         if retune is not None and key in ("PC_GS_KP", "PC_GS_KI"):
             line = _retuned_line(line, key, values, retune)

@@ -52,6 +52,13 @@ def run_verification(out_dir: Path, n_points: int = 50, seed: int = 0) -> dict:
     return summary
 
 
+def is_legacy_verify(out: Path) -> bool:
+    """A `wtftc verify` folder written before the marker existed: its three files only."""
+    return {q.name for q in Path(out).iterdir()} == {"summary.json", "summary.md",
+                                                    "alpha_dot_fd.png"} \
+        and not any(q.is_symlink() for q in Path(out).iterdir())
+
+
 def _check_artefacts(summary: dict) -> None:
     _step("checking generated/ against its manifest")
     for name in manifest()["artefacts"]:
