@@ -62,7 +62,7 @@ from pathlib import Path
 import numpy as np
 
 from wtftc.errors import ConfigError
-from wtftc.files import check_user_file, read_user_bytes
+from wtftc.files import read_user_bytes
 
 KINDS = ("constant", "steps", "paper_random", "ntm", "eog", "file")
 
@@ -506,8 +506,7 @@ def _file(path, field: str) -> SampledWind:
             raise ConfigError(field, str(path), f"a wind file of at most {MAX_FILE_BYTES:,} "
                               f"bytes (this one: {size:,}; a 10-min series at 100 Hz is about "
                               "3 MB): resample it")
-        check_user_file(p, field, MAX_FILE_BYTES)  # a FIFO or a device: refused unread
-        raw = read_user_bytes(p, field, MAX_FILE_BYTES)
+        raw = read_user_bytes(p, field, MAX_FILE_BYTES)  # a FIFO, a device: refused unread
     except OSError as exc:
         raise ConfigError(field, str(path), f"an existing, readable file ({exc.strerror})") \
             from None
