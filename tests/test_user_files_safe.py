@@ -228,10 +228,12 @@ def test_regenerate_builds_in_a_sibling_and_never_half_rewrites(tmp_path, monkey
 
 # ------------------------------------------------------------------------ special files
 
-def _special(kind: str, tmp: Path) -> Path:
+def _special(kind: str, tmp: Path, suffix: str = "") -> Path:
+    p = tmp / f"{kind}{suffix}"
     if kind == "dev_zero":
-        return Path("/dev/zero")
-    p = tmp / kind
+        if not suffix:
+            return Path("/dev/zero")
+        p.symlink_to("/dev/zero")  # a name the command takes for a file of its kind
     if kind == "fifo":
         os.mkfifo(p)
     elif kind == "folder":
@@ -269,7 +271,7 @@ FILE_ARGS = {
 @pytest.mark.parametrize("arg", sorted(FILE_ARGS))
 def test_a_special_file_argument_is_refused_unread(arg, kind, tmp_path, capsys):
     make_args, field = FILE_ARGS[arg]
-    path = _special(kind, tmp_path)
+    path = _special(kind, tmp_path, ".toml" if arg == "turbine" else "")
     with _no_hang():
         code = cli.main(["run", *make_args(path), "--t-final", "0.5", "--quiet",
                          "--out", str(tmp_path / "out")])
@@ -330,3 +332,22 @@ def test_set_up_leaves_pips_resolver_nothing_to_report():
     no_deps = [i for i, ln in enumerate(lines) if "--no-deps" in ln]
     assert no_deps and max(i for i, ln in enumerate(lines) if "--no-deps" not in ln) \
         < min(no_deps), lines
+
+
+@pytest.mark.parametrize("kind", SPECIAL)
+@pytest.mark.parametrize("argv,field", [
+    (["sweep", "{p}", "--out", "{out}"], "SWEEP.toml"),
+    (["turbine", "show", "{p}"], "turbine"),
+    (["turbine", "tune", "--turbine", "{p}"], "turbine"),
+    (["linearize", "--turbine", "{p}", "--out", "{out}"], "turbine"),
+], ids=["sweep", "turbine_show", "turbine_tune", "linearize"])
+def test_special_files_in_the_other_commands_are_refused_unread(argv, field, kind, tmp_path,
+                                                                 capsys):
+    path = _special(kind, tmp_path, ".toml")
+    args = [a.format(p=path, out=tmp_path / "out") for a in argv]
+    with _no_hang():
+        code = cli.main(args)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.startswith("wtftc: error: ") and err.count("\n") == 1 and field in err, err
+    assert not (tmp_path / "out").exists()

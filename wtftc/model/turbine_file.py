@@ -33,6 +33,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError
+from wtftc.files import MAX_TOML_BYTES, read_user_text
 from wtftc.model.cp_table import CpTable, read_cp_table
 
 #: the turbines shipped with wtftc: name → file in wtftc/data
@@ -89,7 +90,7 @@ def read(path: Path) -> Turbine:
     """A turbine file; a ConfigError naming the file and the key on any defect."""
     where = str(path)
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+        doc = tomllib.loads(read_user_text(path, "turbine", MAX_TOML_BYTES))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ConfigError("turbine", where, f"a readable TOML turbine file ({exc})") from None
     for key in ("name", "title", "cp_table"):
