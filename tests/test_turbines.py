@@ -168,10 +168,11 @@ def test_the_built_in_iea15mw_is_what_the_import_gives(tmp_path):
 
 
 @needs_decks
-def test_contradictory_files_are_refused_naming_the_key(tmp_path):
-    """ROSCO's BAR-10 deck: its DISCON.IN's WE_Jtot (3.1e8 kg m²) against the 6.5e6
-    kg m² its ElastoDyn blade file gives as openfast-io 5 reads it (an older format, a
-    PitchAxis column) is refused in one line naming WE_Jtot and the file."""
+def test_a_misread_blade_file_is_refused_naming_the_blade_file(tmp_path):
+    """ROSCO's BAR-10 deck: openfast-io 5 reads its ElastoDyn blade file (an older format,
+    a PitchAxis column) one column off, the structural twist as BMassDen; the negative
+    mass density is refused in one line naming the blade file and BMassDen, not the
+    DISCON.IN's WE_Jtot that the wrong inertia then contradicts (issue 30)."""
     fst = EXAMPLES / "BAR_10" / "BAR_10.fst"
     done = subprocess.run([sys.executable, "-m", "wtftc.cli", "turbine", "import",
                            "--openfast", str(fst), "--name", "bar10",
@@ -179,8 +180,8 @@ def test_contradictory_files_are_refused_naming_the_key(tmp_path):
                           capture_output=True, text=True, timeout=300)
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(lines) == 1, done.stderr
-    assert "WE_Jtot" in lines[0] and "BAR_10_DISCON.IN" in lines[0]
-    assert not (tmp_path / "bar10.toml").exists()
+    assert "BAR_10_ElastoDyn_blade.dat: BMassDen[" in lines[0] and "PitchAxis" in lines[0]
+    assert not any(tmp_path.iterdir())
 
 
 @needs_decks

@@ -452,7 +452,12 @@ def _add_turbine(sub) -> None:
                    help="ROSCO's input file (default: the one ServoDyn's DLL_InFile names)")
     i.add_argument("--name", required=True, help="the turbine's short name")
     i.add_argument("--title", help="a one-line description (default: the name)")
-    i.add_argument("--out", type=Path, required=True, help="the turbine file (.toml)")
+    i.add_argument("--out", type=Path, required=True,
+                   help="the turbine file (.toml); the Cp table is copied beside it. Never "
+                        "inside the installed wtftc package")
+    i.add_argument("--overwrite", action="store_true",
+                   help="replace an existing turbine file or Cp table of the same name "
+                        "(refused without it; a table with the same bytes is shared)")
     s = ts.add_parser("show", help="a turbine's parameters, units and sources")
     s.add_argument("turbine", help=TURBINE_HELP)
     u = ts.add_parser(
@@ -494,20 +499,25 @@ def _cmd_turbine(args) -> int:
         for n, v in t.values.items():
             print(f"  {n:<20s} {v:>16.8g} {units[n]:<14s} {t.sources[n]}")
         return 0
+    from wtftc import config
     from wtftc.model import turbine_import
 
+    turbine_import.check_out(args.out, args.overwrite)  # before any file is read
     if args.openfast is None:
         if args.rosco is None:
             raise ConfigError("--openfast", None, "the OpenFAST deck's main file (and "
                               "optionally --rosco DISCON.IN)")
         turbine_import.discon_only(args.rosco)
-    values, sources, cp, discon = turbine_import.import_turbine(args.openfast, args.rosco)
+    imported = turbine_import.import_turbine(args.openfast, args.rosco)
     header = (f"wtftc turbine file (docs/turbines.md), imported by wtftc turbine import "
               f"from {args.openfast.name}.\nValues referred to the low-speed shaft, in "
               "the layout's units, each with its file and key.")
-    out = turbine_import.write(args.out, args.name, args.title or args.name, values, sources,
-                               cp, header, rosco_discon=str(discon.resolve()))
-    print(f"written: {out} and {out.parent / cp.name}")
+    # checked first as `wtftc run --turbine FILE` checks it, then both files written
+    # together or neither (issue 30)
+    out, table = turbine_import.write(args.out, imported, args.name, args.title or args.name,
+                                      header, overwrite=args.overwrite,
+                                      check=lambda p: config.make_config({"turbine": str(p)}))
+    print(f"written: {out} and {table}")
     return 0
 
 

@@ -37,6 +37,7 @@ from wtftc.files import MAX_TABLE_BYTES, read_user_bytes
 __all__ = [
     "CpTable",
     "read_cp_table",
+    "parse_cp_table",
     "write_cp_table",
     "nrel5mw_cp_table",
     "aero_torque_raw",
@@ -175,6 +176,12 @@ def read_cp_table(path) -> CpTable:
     except OSError as exc:
         raise ConfigError(_FIELD, where, f"a readable file in {_FORMAT} ({exc.strerror})",
                           where=where) from None
+    return _parse(raw, source=where, where=where)
+
+
+def parse_cp_table(raw: bytes, where: str) -> CpTable:
+    """The table in a file's bytes ``raw`` (already read), as :func:`read_cp_table` reads
+    it: what ``wtftc turbine import`` checks before it copies a table."""
     return _parse(raw, source=where, where=where)
 
 

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import functools
 import importlib.resources
-import json
 import math
 import tomllib
 from dataclasses import dataclass
@@ -33,7 +32,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError
-from wtftc.files import MAX_TOML_BYTES, read_user_text
+from wtftc.files import MAX_TABLE_BYTES, MAX_TOML_BYTES, check_user_file, read_user_text
 from wtftc.model.cp_table import CpTable, read_cp_table
 
 #: the turbines shipped with wtftc: name → file in wtftc/data
@@ -88,10 +87,18 @@ def load(turbine: str = DEFAULT) -> Turbine:
 
 def read(path: Path) -> Turbine:
     """A turbine file; a ConfigError naming the file and the key on any defect."""
+    return parse(read_user_text(path, "turbine", MAX_TOML_BYTES), Path(path))
+
+
+def parse(text: str, path: Path, cp_must_exist: bool = True) -> Turbine:
+    """A turbine file's ``text``, as read from ``path`` (its Cp table and rosco_discon
+    relative to its folder): what :func:`read` checks, on text in memory
+    (``wtftc turbine import`` checks what it will write before writing it; then the Cp
+    table need not exist yet: ``cp_must_exist`` False)."""
     where = str(path)
     try:
-        doc = tomllib.loads(read_user_text(path, "turbine", MAX_TOML_BYTES))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        doc = tomllib.loads(text)
+    except (tomllib.TOMLDecodeError, RecursionError) as exc:
         raise ConfigError("turbine", where, f"a readable TOML turbine file ({exc})") from None
     for key in ("name", "title", "cp_table"):
         if not isinstance(doc.get(key), str) or not doc[key]:
@@ -101,7 +108,24 @@ def read(path: Path) -> Turbine:
         raise ConfigError("rosco_discon", rosco, "the path of ROSCO's DISCON.IN for this "
                           "turbine (relative to the turbine file, or rosco:<path in the "
                           "rosco package's tree>)", where=where)
-    params = doc.get("params")
+    values, sources = _params(doc.get("params"), where)
+    cp = Path(doc["cp_table"])
+    cp = cp if cp.is_absolute() else path.parent / cp
+    if cp_must_exist:
+        try:
+            check_user_file(cp, "cp_table", MAX_TABLE_BYTES)
+        except ConfigError as exc:
+            raise ConfigError("cp_table", doc["cp_table"], f"a Cp_Ct_Cq file ({cp}: "
+                              f"{exc.allowed}; relative paths are from the turbine file's "
+                              "folder)", where=where) from None
+    if rosco is not None and not rosco.startswith("rosco:") and not Path(rosco).is_absolute():
+        rosco = str(path.parent / rosco)
+    return Turbine(doc["name"], doc["title"], where, values, sources, str(cp), rosco,
+                   _rosco_tuning(doc.get("rosco_tuning"), where))
+
+
+def _params(params, where: str) -> tuple[dict, dict]:
+    """The [params] table: every turbine parameter once, in its unit, a finite number."""
     if not isinstance(params, dict):
         raise ConfigError("params", params, "a [params] table of every turbine parameter",
                           where=where)
@@ -113,16 +137,7 @@ def read(path: Path) -> Turbine:
     values, sources = {}, {}
     for name, unit in units.items():
         values[name], sources[name] = _entry(params, name, unit, where)
-    cp = Path(doc["cp_table"])
-    cp = cp if cp.is_absolute() else path.parent / cp
-    if not cp.is_file():
-        raise ConfigError("cp_table", doc["cp_table"], f"a Cp_Ct_Cq file ({cp} does not "
-                          "exist; relative paths are from the turbine file's folder)",
-                          where=where)
-    if rosco is not None and not rosco.startswith("rosco:") and not Path(rosco).is_absolute():
-        rosco = str(path.parent / rosco)
-    return Turbine(doc["name"], doc["title"], where, values, sources, str(cp), rosco,
-                   _rosco_tuning(doc.get("rosco_tuning"), where))
+    return values, sources
 
 
 def _rosco_tuning(tab, where: str) -> tuple | None:
@@ -149,7 +164,11 @@ def _entry(params: dict, name: str, unit: str, where: str) -> tuple[float, str]:
         raise ConfigError(field, e, '{ value = <number>, unit = "...", source = "..." }',
                           where=where)
     v = e["value"]
-    if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+    try:  # an integer beyond a float's range (10**400) is not finite either
+        finite = not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
+    except OverflowError:
+        finite = False
+    if not finite:
         raise ConfigError(field, v, f"a finite number in {unit}", where=where)
     if e.get("unit", unit) != unit:
         raise ConfigError(f"{field}.unit", e["unit"], f"{unit!r} (the layout's unit)",
@@ -159,14 +178,43 @@ def _entry(params: dict, name: str, unit: str, where: str) -> tuple[float, str]:
 
 def text(name: str, title: str, cp_table: str, values: dict, sources: dict,
          header: str = "", rosco_discon: str | None = None) -> str:
-    """A turbine file's text: every turbine parameter on one line, in the layout's order."""
-    lines = [f"# {ln}".rstrip() for ln in header.splitlines()] + [
-        f"name = {json.dumps(name)}", f"title = {json.dumps(title)}",
-        f"cp_table = {json.dumps(cp_table)}",
-        *([f"rosco_discon = {json.dumps(rosco_discon)}"] if rosco_discon else []),
+    """A turbine file's text: every turbine parameter on one line, in the layout's order
+    (every string a TOML string whatever it holds: :func:`toml_string`)."""
+    lines = [f"# {_comment(ln)}".rstrip() for ln in header.splitlines()] + [
+        f"name = {toml_string(name)}", f"title = {toml_string(title)}",
+        f"cp_table = {toml_string(cp_table)}",
+        *([f"rosco_discon = {toml_string(rosco_discon)}"] if rosco_discon else []),
         "", "[params]"]
     for e in lay.layout()["turbine_params"]:
         n = e["name"]
-        lines.append(f"{n} = {{ value = {float(values[n])!r}, unit = {json.dumps(e['unit'])}, "
-                     f"source = {json.dumps(sources.get(n, ''), ensure_ascii=False)} }}")
+        lines.append(f"{n} = {{ value = {float(values[n])!r}, unit = {toml_string(e['unit'])}, "
+                     f"source = {toml_string(sources.get(n, ''))} }}")
     return "\n".join(lines) + "\n"
+
+
+_ESCAPES = {'"': '\\"', "\\": "\\\\", "\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f",
+            "\r": "\\r"}
+
+
+def toml_string(s: str) -> str:
+    """``s`` as a TOML basic string: quotes, backslashes and control characters escaped
+    (json.dumps is not TOML: it escapes a character beyond U+FFFF as a surrogate pair,
+    which TOML refuses, and leaves DEL bare), a lone surrogate (a file name's undecodable
+    byte) as U+FFFD."""
+    out = []
+    for ch in s:
+        o = ord(ch)
+        if ch in _ESCAPES:
+            out.append(_ESCAPES[ch])
+        elif o < 0x20 or o == 0x7F:
+            out.append(f"\\u{o:04x}")
+        elif 0xD800 <= o <= 0xDFFF:
+            out.append("\\ufffd")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def _comment(line: str) -> str:
+    """A comment line's text: what TOML allows in a comment (no control characters)."""
+    return "".join(ch if ch.isprintable() else "?" for ch in line)
