@@ -81,6 +81,11 @@ PAPER_REFERENCE = 1.27
 
 #: the largest seed: the sweep stores seeds as signed 64-bit integers
 SEED_MAX = 2**63 - 1
+#: the most RK4 steps one run may take (t_final_s / dt_s): 2e8 steps are about 9 min at
+#: the compiled loop's 2.7 µs a step (docs/performance.md); the longest run, 36,000 s,
+#: takes 3.6e7 at the default dt_s. A dt_s of 1e-9 over 60 s (6e10 steps, days without a
+#: line of progress) is refused (issue 30)
+MAX_STEPS = 200_000_000
 
 _INF = math.inf
 @functools.cache
@@ -278,7 +283,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     if not isinstance(raw.get("label", ""), str):
         raise ConfigError("label", raw["label"], "a string (the run's name in tables)")
     _profile(raw, cfg)
-    t_final, dt, seed, decimate = _timing(raw)
+    t_final, dt, seed, decimate = _timing(raw, given=cfg)
     interval = _control_interval(raw, dt, t_final)
     p_sensors = _sensors(raw, interval)
     if raw["controller"] == "rosco" and any(
@@ -597,14 +602,21 @@ def _controller(name) -> str:
     return name
 
 
-def _timing(raw: dict) -> tuple[float, float, int, int]:
-    """t_final, dt, seed and the output decimation."""
+def _timing(raw: dict, given: dict | None = None) -> tuple[float, float, int, int]:
+    """t_final, dt, seed and the output decimation. An ``output_rate_hz`` the
+    configuration ``given`` sets must be reachable (at most one output per step, its
+    interval a whole number of steps); the default's is lowered to one per step where
+    dt_s is longer than its interval, and ``raw`` records the rate used."""
     t_final = float(_number(raw, "t_final_s", lo=0, hi=36000))
     # the upper bound is only a sanity cap: the real limit is checked against the closed
     # loop's fastest mode before the run (wtftc.sim.stability.check_dt)
     dt = float(_number(raw, "dt_s", lo=0, hi=10.0))
     if dt > t_final:
         raise ConfigError("dt_s", dt, f"at most t_final_s = {t_final}")
+    if t_final / dt > MAX_STEPS:
+        raise ConfigError("dt_s", dt, f"a step that takes at most {MAX_STEPS:.3g} steps over "
+                          f"t_final_s = {t_final:g} s (this one takes {t_final / dt:.3g}): "
+                          f"dt_s >= {t_final / MAX_STEPS:.3g} s, or a shorter t_final_s")
     n_steps = round(t_final / dt)
     if abs(n_steps * dt - t_final) > 1e-9 * max(t_final, 1.0):
         raise ConfigError("t_final_s", t_final, f"a whole number of steps of dt_s = {dt:g} s "
@@ -613,9 +625,16 @@ def _timing(raw: dict) -> tuple[float, float, int, int]:
     seed = _seed(raw)
     rate = float(_number(raw, "output_rate_hz", lo=0, hi=1e6))
     decimate = max(1, int(round(1.0 / (rate * dt))))
-    if abs(decimate * dt * rate - 1.0) > 1e-6 and decimate > 1:
-        raise ConfigError("output_rate_hz", rate, f"a rate whose interval is a whole number of "
-                          f"steps of dt_s = {dt:g} s (e.g. {1.0 / (decimate * dt):.6g} Hz)")
+    if abs(decimate * dt * rate - 1.0) > 1e-6:
+        if "output_rate_hz" in (given or {}):
+            # a rate above 1/dt_s used to be lowered to it silently, while the saved
+            # configuration kept the rate asked for (issue 30)
+            raise ConfigError("output_rate_hz", raw["output_rate_hz"], (
+                f"at most 1/dt_s = {1.0 / dt:.6g} Hz (one output per step of dt_s = "
+                f"{dt:g} s)") if rate * dt > 1.0 + 1e-6 else (
+                f"a rate whose interval is a whole number of steps of dt_s = {dt:g} s "
+                f"(e.g. {1.0 / (decimate * dt):.6g} Hz)"))
+        raw["output_rate_hz"] = 1.0 / (decimate * dt)  # the default's, as used
     return t_final, dt, seed, decimate
 
 

@@ -100,17 +100,41 @@ def tune(controller: str, turbine: str | None, omega_n: float, zeta: float,
             raise ConfigError(name, val, f"a number in [{lo:g}, {hi:g}]")
     base = {"controller": controller, **({"turbine": turbine} if turbine else {})}
     rc = config.make_config(base)
-    if controller == "pi":
-        gains = {"pi_omega_n": omega_n, "pi_zeta": zeta}
-    else:
-        gains = _solve_physical(base, wind, omega_n, zeta, ratio)
-    raw = {**base, "controller_params": gains}
-    op = lin.operating_point(raw, wind)
+    try:
+        if controller == "pi":
+            gains = {"pi_omega_n": omega_n, "pi_zeta": zeta}
+        else:
+            gains = _solve_physical(base, wind, omega_n, zeta, ratio)
+        raw = {**base, "controller_params": gains}
+        op = lin.operating_point(raw, wind)
+    except lin.NotAtRest as exc:  # no operating point at the design wind
+        raise ConfigError("--wind", wind, exc.allowed) from None
     group = controllers()[controller]["params"]
     values = lay.values(group, rc.p_ctrl)
     facts = tuning.turbine_params_of(group, rc.p_turbine)
     return {"gains": gains, "facts": {k: values[k] for k in facts},
-            "achieved": lin.summary_row(op), "raw": raw}
+            "achieved": lin.summary_row(op), "least_stable": lin.least_stable(op),
+            "rated_wind_mps": config.rated_wind_speed(rc.loop.p_turbine, rc.loop.table),
+            "raw": raw}
+
+
+def check_stable(r: dict, omega_n: float, zeta: float, wind: float) -> None:
+    """Refuse a tuning result (:func:`tune`) whose loop is not asymptotically stable on
+    the exact linear model at ``wind``: a mode with ζ <= 0. ``wtftc turbine tune
+    --omega-n 9 --zeta 0.7`` reached its dominant mode and wrote a design whose drivetrain
+    mode had ζ -0.005 (gain margin -24 dB), exit 0 (issue 30)."""
+    s, a = r["least_stable"], r["achieved"]
+    if s["real"] < 0:
+        return
+    found = (f"this one has a mode of {s['omega_n_rad_s']:.4g} rad/s at ζ {s['damping']:.3g}, "
+             f"gain margin {a['gain_margin_dB']:.3g} dB; nothing written")
+    if wind < r["rated_wind_mps"]:  # the pitch rests at its stop: no pitch loop to tune
+        raise ConfigError("--wind", wind, f"a design wind above the rated "
+                          f"{r['rated_wind_mps']:.3g} m/s, where the pitch loop acts and "
+                          f"can be stable (every mode ζ > 0); {found}")
+    raise ConfigError("--omega-n/--zeta", (omega_n, zeta), "a target whose tuned loop is "
+                      f"stable on the exact linear model at {wind:g} m/s (every mode ζ > 0; "
+                      f"a lower --omega-n); {found}")
 
 
 #: the controllers a [tuning] table retunes: ROSCO by its DISCON.IN's gain schedule, the

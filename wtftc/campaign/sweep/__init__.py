@@ -41,6 +41,7 @@ from wtftc.campaign.sweep.store import (
     STATUS,
     _prepare,
     _save_batch,
+    count_status,
     read_results,
     release,
     schema,
@@ -51,7 +52,8 @@ from wtftc.campaign.sweep.tasks import run_task
 from wtftc.errors import ConfigError
 
 __all__ = ["FAULT_TYPES", "METRICS", "PLANTS", "STATUS", "TURBULENCE_CLASSES", "Axis",
-           "Interrupted", "Sweep", "batches", "expand", "load_sweep", "parse_sweep",
+           "Interrupted", "Sweep", "batches", "count_status", "expand", "load_sweep",
+           "parse_sweep",
            "read_results", "run_sweep", "run_task", "schema", "show_run", "summarize",
            "versions"]
 
@@ -153,8 +155,10 @@ def _collect(futures: list, out_dir: Path, done: set[str], progress: _Progress,
 
 
 def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str | None = None,
-              traces: bool = False, overwrite: bool = False, quiet: bool = False) -> dict:
-    """Run (or resume) a sweep into out_dir; returns counts of what this call did."""
+              traces: bool = False, overwrite: bool = False, quiet: bool = False,
+              retry_failed: bool = False) -> dict:
+    """Run (or resume) a sweep into out_dir; returns counts of what this call did.
+    ``retry_failed``: the runs saved as failed (they raised) are run again, not kept."""
     import distributed  # noqa: F401 - Dask is needed: fail before anything is written
 
     sweep_path = Path(sweep_path)
@@ -164,27 +168,31 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
     # a remote scheduler first: one that cannot be reached leaves nothing in out_dir
     client, cluster = _client(scheduler, workers) if scheduler else (None, None)
     try:
-        done, lock = _prepare(out_dir, sw, sweep_path.read_text(), overwrite)
+        done, lock, retried = _prepare(out_dir, sw, sweep_path.read_text(), overwrite,
+                                       retry_failed)
     except BaseException:
         _close(client, cluster)
         raise
     try:
         return _run_todo(sw, runs, dup, done, out_dir, client, cluster,
-                         scheduler, workers, traces, quiet)
+                         scheduler, workers, traces, quiet, retried)
     finally:
         release(lock)
 
 
 def _run_todo(sw, runs, dup, done, out_dir, client, cluster, scheduler, workers, traces,
-              quiet) -> dict:
+              quiet, retried: int = 0) -> dict:
     """The runs of ``runs`` not in ``done``, on Dask, saved into ``out_dir`` as they end."""
     todo = [pt for pt in runs if pt["run_id"] not in done]
     if not quiet:
         print(f"sweep {sw.sweep_id} ({sw.mode}): {len(runs)} runs"
               + (f" ({dup} duplicate draws dropped)" if dup else "")
               + (f", {len(runs) - len(todo)} already in {out_dir}" if len(todo) < len(runs)
-                 else "") + f", {len(todo)} to run in batches of {sw.batch_size}", flush=True)
-    summary = {"runs": len(runs), "already": len(runs) - len(todo), "ran": 0, "lost": 0}
+                 else "") + f", {len(todo)} to run in batches of {sw.batch_size}"
+              + (f" ({retried} that had failed, run again: --retry-failed)" if retried
+                 else ""), flush=True)
+    summary = {"runs": len(runs), "already": len(runs) - len(todo), "ran": 0, "lost": 0,
+               "retried": retried}
     if not todo:
         _close(client, cluster)
         return summary

@@ -3,12 +3,13 @@ atomically), the traces, the sweep file and its record, and reopening it to resu
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import hashlib
 import json
 import os
 import platform
-import shutil
+import re
 import socket
 import time
 from dataclasses import dataclass
@@ -93,6 +94,14 @@ def read_results(out_dir: Path):
     return pa.concat_tables([pq.read_table(p, schema=schema()) for p in parts])
 
 
+def count_status(out_dir: Path) -> dict[str, int]:
+    """How many saved runs of a results folder have each STATUS (ok, diverged, failed)."""
+    counts = dict.fromkeys(STATUS, 0)
+    for status in read_results(out_dir).column("status").to_pylist():
+        counts[status] = counts.get(status, 0) + 1
+    return counts
+
+
 #: the file a sweep holds in its results folder while it writes there
 LOCK = "sweep.lock"
 
@@ -144,9 +153,11 @@ def release(lock: Lock | None) -> None:
         os.close(lock.fd)
 
 
-def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> tuple[set[str], Lock]:
+def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool,
+             retry_failed: bool = False) -> tuple[set[str], Lock, int]:
     """Create or reopen a results folder and hold it (:func:`claim`); return the run ids
-    already saved in it and the lock to :func:`release`."""
+    already saved in it, the lock to :func:`release`, and how many failed runs were
+    dropped to run again (``retry_failed``, :func:`drop_failed`)."""
     out_dir = Path(out_dir)
     if out_dir.resolve() in (Path.cwd(), *Path.cwd().parents):
         raise ConfigError("--out", str(out_dir), "a folder of its own (not the current folder "
@@ -154,10 +165,64 @@ def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> tupl
     _check_folder(out_dir, sw, overwrite)
     lock = claim(out_dir)
     try:
-        return _open(out_dir, sw, sweep_text, overwrite), lock
+        done = _open(out_dir, sw, sweep_text, overwrite)
+        retried = drop_failed(out_dir) if retry_failed else 0
+        if retried:
+            done = set(read_results(out_dir).column("run_id").to_pylist())
+        return done, lock, retried
     except BaseException:
         release(lock)
         raise
+
+
+#: what a sweep writes in its results folder, and so all that --overwrite deletes: these
+#: files at the top (the sweep file, its record, the lock, the summary's tables) and, in
+#: runs/, traces/ and figures/, each batch's runs, each run's traces (named by its run
+#: id) and the summary's figures (FIGURES); the hidden temporaries that a killed
+#: sweep's atomic writes left (".<name>.<8 random>", a figure's ".<stem>.<8 random>.<ext>")
+#: are its too. Anything else is a user's.
+SWEEP_FILES = ("sweep.toml", "sweep.json", LOCK, "summary.md", "summary.csv",
+               "summary_cost.csv", "summary_dlc.csv", "summary_tuning.csv")
+#: every figure the summary writes, figures/<name>.png and .pdf (summary._save writes
+#: no other: a name missing here would be taken for a user's file)
+FIGURES = ("rms_speed_error", "overspeed", "detection_delay", "dlc_bins", "dlc21_extremes",
+           "tradeoff_fault_free", "tradeoff_faulted")
+_HEX16 = "[0-9a-f]{16}"
+_TEMP = "[a-z0-9_]{8}"  # tempfile.mkstemp's random part
+
+
+def _sweep_names() -> dict[str | None, re.Pattern]:
+    """Folder (None: the top) → the pattern of the names a sweep writes there."""
+
+    def names(alternatives: str) -> re.Pattern:
+        return re.compile(rf"(?:{alternatives})|\.(?:{alternatives})\.{_TEMP}")
+
+    figures = "|".join(map(re.escape, FIGURES))
+    return {None: names("|".join(map(re.escape, SWEEP_FILES))),
+            "runs": names(rf"part-{_HEX16}\.parquet"),
+            "traces": names(rf"{_HEX16}\.parquet"),
+            "figures": re.compile(rf"(?:{figures})\.(?:png|pdf)|\.(?:{figures})\.{_TEMP}"
+                                  r"\.(?:png|pdf)")}
+
+
+def sweep_contents(out_dir: Path) -> tuple[list[Path], list[Path]]:
+    """(the files a sweep wrote in ``out_dir``, everything else in it). Only regular files
+    of the names a sweep writes (:func:`_sweep_names`) are the sweep's; a symbolic link,
+    a folder, a file of another name is not (never followed, never deleted)."""
+    pattern = _sweep_names()
+    ours, other = [], []
+    for child in sorted(Path(out_dir).iterdir()):
+        if child.name in pattern and child.is_dir() and not child.is_symlink():
+            for f in sorted(child.iterdir()):
+                mine = (f.is_file() and not f.is_symlink()
+                        and pattern[child.name].fullmatch(f.name) is not None)
+                (ours if mine else other).append(f)
+        elif child.is_file() and not child.is_symlink() and \
+                pattern[None].fullmatch(child.name):
+            ours.append(child)
+        else:
+            other.append(child)
+    return ours, other
 
 
 def _open(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> set[str]:
@@ -165,9 +230,15 @@ def _open(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> set[str
 
     meta = out_dir / "sweep.json"
     if overwrite and meta.exists():
-        for child in out_dir.iterdir():
-            if child.name != LOCK:
-                shutil.rmtree(child) if child.is_dir() else child.unlink()
+        # only what a sweep wrote (its lock kept: held), after _check_folder found nothing
+        # else; a file added since is left where it is, and so is its folder
+        ours, _ = sweep_contents(out_dir)
+        for f in ours:
+            if f.name != LOCK or f.parent != out_dir:
+                f.unlink(missing_ok=True)
+        for sub in ("runs", "traces", "figures"):
+            with contextlib.suppress(OSError):  # absent, or not empty: kept
+                (out_dir / sub).rmdir()
     (out_dir / "runs").mkdir(parents=True, exist_ok=True)
     if not meta.exists():
         atomic_write_text(out_dir / "sweep.toml", sweep_text)
@@ -177,27 +248,67 @@ def _open(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> set[str
     return set(read_results(out_dir).column("run_id").to_pylist())
 
 
+def drop_failed(out_dir: Path) -> int:
+    """Remove the runs saved as failed (status "failed": the run raised, its cause in the
+    row) from the results of ``out_dir``, so that the sweep runs them again; returns how
+    many. Each batch file holding one is rewritten without it, atomically under its own
+    name, or removed if it held only failed runs: killed midway, a failed run is either
+    still saved or missing, and a missing run is run again by any resume. A diverged run
+    is a result (its time, state and cause), not a failure: it stays."""
+    import pyarrow.compute as pc
+    import pyarrow.parquet as pq
+
+    from wtftc.results.io import atomic_write_table
+
+    n = 0
+    for part in sorted((Path(out_dir) / "runs").glob("part-*.parquet")):
+        table = pq.read_table(part, schema=schema())
+        failed = pc.fill_null(pc.equal(table.column("status"), "failed"), False)
+        k = pc.sum(failed.cast("int64")).as_py() or 0
+        if not k:
+            continue
+        keep = table.filter(pc.invert(failed))
+        if keep.num_rows:
+            atomic_write_table(part, keep)
+        else:
+            part.unlink()
+        n += k
+    return n
+
+
 def _check_folder(out_dir: Path, sw: Sweep, overwrite: bool) -> None:
     """Refuse a folder that is not this sweep's results folder (unless --overwrite of a
-    sweep's results folder); the lock file alone does not make a folder ours."""
+    sweep's results folder); the lock file alone does not make a folder ours. --overwrite
+    deletes only what a sweep wrote (:func:`sweep_contents`): a results folder that also
+    holds anything else is refused whole, nothing deleted."""
     meta = out_dir / "sweep.json"
     if out_dir.exists() and any(c.name != LOCK for c in out_dir.iterdir()):
         if not meta.exists():  # never removed, even with --overwrite: it is not ours
             raise ConfigError("--out", str(out_dir), "an empty folder or a sweep's results "
                               "folder (this one holds other files; --overwrite removes only "
                               "a sweep's results folder)")
-        else:
-            try:
-                old = json.loads(meta.read_text())
-                old["sweep_id"], old["versions"]["generated_manifest_sha256"]  # noqa: B018
-            except (OSError, ValueError, KeyError, TypeError):
-                if not overwrite:
-                    raise ConfigError("--out", str(out_dir), "a sweep's results folder with a "
-                                      "readable sweep.json (this one is damaged; --overwrite "
-                                      "discards it)") from None
-                old = None
-            if old is not None:
-                _check_same_sweep(out_dir, old, sw.sweep_id, overwrite)
+        if overwrite:
+            _, other = sweep_contents(out_dir)
+            if other:
+                names = ", ".join(str(p.relative_to(out_dir)) for p in other[:3])
+                raise ConfigError("--out", str(out_dir), "a sweep's results folder holding "
+                                  "only what a sweep wrote, for --overwrite to replace (this "
+                                  f"one also holds {len(other)} other: {names}"
+                                  + (", ..." if len(other) > 3 else "") + "; nothing was "
+                                  "deleted: move them away, or --out another folder)")
+        try:
+            if not meta.is_file():
+                raise OSError("not a regular file")
+            old = json.loads(meta.read_text())
+            old["sweep_id"], old["versions"]["generated_manifest_sha256"]  # noqa: B018
+        except (OSError, ValueError, KeyError, TypeError):
+            if not overwrite:
+                raise ConfigError("--out", str(out_dir), "a sweep's results folder with a "
+                                  "readable sweep.json (this one is damaged; --overwrite "
+                                  "discards it)") from None
+            old = None
+        if old is not None:
+            _check_same_sweep(out_dir, old, sw.sweep_id, overwrite)
 
 
 def _check_same_sweep(out_dir: Path, old: dict, sweep_id: str, overwrite: bool) -> None:

@@ -12,7 +12,7 @@ from wtftc import config
 from wtftc.campaign.compare import CONTROLLERS
 from wtftc.campaign.sweep import dlc, tradeoff
 from wtftc.campaign.sweep.spec import FAULT_TYPES, expand, parse_sweep
-from wtftc.campaign.sweep.store import read_results
+from wtftc.campaign.sweep.store import FIGURES, read_results
 from wtftc.errors import ConfigError
 
 #: the summary table's columns: (header, format of a cell)
@@ -286,6 +286,9 @@ def _save(fig, out_dir: Path, name: str) -> None:
     import matplotlib.pyplot as plt
 
     from wtftc.results.io import atomic_savefig
+
+    if name not in FIGURES:  # a bug: --overwrite would take it for a user's file
+        raise ValueError(f"figure {name!r} is not in wtftc.campaign.sweep.store.FIGURES")
 
     fig.tight_layout()
     for ext in ("png", "pdf"):
