@@ -351,3 +351,28 @@ def test_special_files_in_the_other_commands_are_refused_unread(argv, field, kin
     assert code == 2, err
     assert err.startswith("wtftc: error: ") and err.count("\n") == 1 and field in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_turbine_tune_never_writes_over_a_users_file(tmp_path, capsys):
+    """--out: a user's file is refused before the tuning (nothing changes); the file an
+    earlier tuning wrote is replaced; --overwrite replaces the user's; the package's own
+    data is never written."""
+    import wtftc
+
+    out = tmp_path / "gains.toml"
+    out.write_text("my gains\n")
+    tune = ["turbine", "tune", "--controller", "pi", "--out", str(out)]
+    assert cli.main(tune) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("wtftc: error: --out") and "--overwrite" in err, err
+    assert out.read_text() == "my gains\n"
+    assert cli.main([*tune, "--overwrite"]) == 0
+    first = out.read_text()
+    assert first.startswith("# wtftc turbine tune --controller pi")
+    assert cli.main([*tune[:-2], "--zeta", "0.8", "--out", str(out)]) == 0  # its own file
+    assert out.read_text() != first and "--zeta 0.8" in out.read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["gains.toml"]
+    data = Path(wtftc.__file__).parent / "data" / "tuned.toml"
+    assert cli.main([*tune[:-1], str(data), "--overwrite"]) == 2
+    assert "outside the installed wtftc package" in capsys.readouterr().err
+    assert not data.exists()

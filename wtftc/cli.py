@@ -496,7 +496,10 @@ def _add_turbine(sub) -> None:
     u.add_argument("--c2-ratio", type=float, default=2.0,
                    help="the physical AFTC's c2/c1 (default 2; 3 before issue 18: the "
                         "sensor noise reaches the pitch with a gain ∝ c1 c2)")
-    u.add_argument("--out", type=Path, help="write the run configuration (TOML) here")
+    u.add_argument("--out", type=Path, help="write the run configuration (TOML) here (an "
+                   "existing file only if an earlier tuning wrote it, or with --overwrite)")
+    u.add_argument("--overwrite", action="store_true",
+                   help="replace an existing --out file that wtftc did not write")
 
 
 def _cmd_turbine(args) -> int:
@@ -542,8 +545,10 @@ def _turbine_tune(args) -> int:
                           "'wtftc[linear]' (the control package)") from None
     from wtftc import config
     from wtftc.campaign import tune
-    from wtftc.results.io import atomic_write_text
+    from wtftc.files import check_new_file, write_files_together
 
+    if args.out:  # refused before the work: a user's file, a folder, the package's data
+        check_new_file(args.out, "--out", args.overwrite, ours=_written_by_tune)
     r = tune.tune(args.controller, args.turbine, args.omega_n, args.zeta, args.wind,
                   args.c2_ratio)
     a = r["achieved"]
@@ -561,12 +566,27 @@ def _turbine_tune(args) -> int:
           f"ζ {a['least_damped_damping']:.3g}")
     tune.check_stable(r, args.omega_n, args.zeta, args.wind)  # an unstable design: exit 2
     if args.out:
-        atomic_write_text(args.out, f"# wtftc turbine tune --controller {args.controller} "
-                          f"--omega-n {args.omega_n:g} --zeta {args.zeta:g} --wind "
-                          f"{args.wind:g} --c2-ratio {args.c2_ratio:g}\n"
-                          + config.to_toml(r["raw"]))
+        check_new_file(args.out, "--out", args.overwrite, ours=_written_by_tune)  # again
+        write_files_together({args.out: (
+            f"{TUNE_HEADER} --controller {args.controller} --omega-n {args.omega_n:g} "
+            f"--zeta {args.zeta:g} --wind {args.wind:g} --c2-ratio {args.c2_ratio:g}\n"
+            + config.to_toml(r["raw"])).encode()})
         print(f"written: {args.out} (wtftc run --config {args.out})")
     return 0
+
+
+#: the first line of every run configuration `wtftc turbine tune --out` writes
+TUNE_HEADER = "# wtftc turbine tune"
+
+
+def _written_by_tune(path: Path) -> bool:
+    """Whether ``path`` is a configuration `turbine tune` wrote (its first line), which a
+    new tuning may replace without --overwrite."""
+    try:
+        with open(path, "rb") as fh:
+            return fh.read(len(TUNE_HEADER) + 1) == (TUNE_HEADER + " ").encode()
+    except OSError:
+        return False
 
 
 def _add_linearize(sub) -> None:

@@ -246,9 +246,11 @@ def _seed(raw: dict) -> int:
 def load_toml(path: Path, field: str = "config") -> dict:
     """The table of a TOML file; anything unreadable is a ConfigError naming ``field`` (the
     option or key that gave the path)."""
+    from wtftc.files import MAX_TOML_BYTES, check_user_file, read_user_bytes
+
+    check_user_file(path, field, MAX_TOML_BYTES)  # a FIFO, a device, a folder: refused
     try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
+        return tomllib.loads(read_user_bytes(path, field, MAX_TOML_BYTES).decode())
     except FileNotFoundError:
         raise ConfigError(field, str(path), "an existing TOML file") from None
     except IsADirectoryError:

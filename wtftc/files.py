@@ -65,6 +65,8 @@ def check_user_file(path, field: str, max_bytes: int = MAX_INPUT_BYTES) -> Path:
     try:
         st = os.stat(p)
     except OSError as exc:
+        if exc.errno in (errno.ENOENT, errno.ENOTDIR):
+            raise ConfigError(field, str(path), "an existing file (there is none)") from None
         why = ("a symbolic link loop" if exc.errno == errno.ELOOP else
                exc.strerror or type(exc).__name__)
         raise ConfigError(field, str(path), f"a readable regular file ({why})") from None
