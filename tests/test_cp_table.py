@@ -302,3 +302,12 @@ def test_steady_pitch_raw_no_root_is_valueerror():
     # A torque so small (negative: motoring) that 30 deg of pitch cannot shed enough.
     with pytest.raises(ValueError, match="beyond the table's pitch range"):
         steady_pitch_raw(t, OMEGA_RATED, -1e9, 12.0)
+
+
+def test_a_table_that_never_makes_power_is_refused(tmp_path):
+    """A Cp table with no positive Cp has no rated wind ((2P/(ρAπ Cp_max))^(1/3) of a
+    negative number) and no operating point: refused when read, not a TypeError later."""
+    t = synthetic_table()
+    p = write_cp_table(CpTable(pitch_rad=t.pitch_rad, tsr=t.tsr, cp=-np.abs(t.cp) - 0.01,
+                               ct=t.ct, cq=t.cq, source="test"), tmp_path / "neg.txt")
+    expect_error(p, "largest Cp", "positive power coefficient")

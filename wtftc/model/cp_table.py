@@ -224,6 +224,9 @@ def _parse(raw: bytes, source: str, where: str) -> CpTable:
                    f"power coefficients at most the Betz limit 16/27 = {BETZ_LIMIT:.4f} "
                    "(negative ones are physical: ROSCO's NREL 5-MW table reaches -11.9 where "
                    "the rotor absorbs power)")
+    if not cp.max() > 0:  # no operating point makes power: no rated wind, no trim
+        raise _bad(where, f"the largest Cp = {cp.max():g}", "a table where the rotor makes "
+                   "power somewhere (a positive power coefficient)")
     ct = _matrix(sections, "ct", shape, where)
     cq = _matrix(sections, "cq", shape, where)
     return CpTable(pitch_rad=np.deg2rad(pitch_deg), tsr=tsr, cp=cp, ct=ct, cq=cq,
