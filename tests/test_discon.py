@@ -6,8 +6,13 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
+import os
+import shutil
+import signal
+import stat
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -15,10 +20,10 @@ import pytest
 from discon_host import SWAP, Host
 
 from bench import rosco_sim
-from wtftc import config
+from wtftc import cli, config, files
 from wtftc.artefacts import layout
 from wtftc.campaign import cases
-from wtftc.export import discon
+from wtftc.export import discon, discon_checks
 from wtftc.model import cp_table
 from wtftc.model.aero import schedule_points
 from wtftc.model.cp_table import nrel5mw_cp_table, read_cp_table, write_cp_table
@@ -417,3 +422,333 @@ def test_a_bad_or_missing_cp_file_is_refused_with_a_message(lib, tmp_path, case)
     out = host.call(0, 0.0, *RATED, [0.2] * 3)
     assert out["fail"] < 0 and text in out["msg"], out["msg"]
     assert host.call(1, 0.01, *RATED, [0.2] * 3)["fail"] < 0
+
+
+# ------------------------------------------------------------------ issue 30, defect 3
+
+def _config_refusal(name: str, value: float) -> str:
+    """wtftc's own refusal (wtftc.config) of the default parameters with ``name`` set to
+    ``value``: its 'allowed' text."""
+    rc = discon.run_config("physical")
+    group = next(g for g in ("turbine_params", "physical_params") if name in layout.names(g))
+    vec = (rc.p_turbine if group == "turbine_params" else rc.p_ctrl).copy()
+    vec[layout.index(group, name)] = value
+    with pytest.raises(config.ConfigError) as exc:
+        if group == "turbine_params":
+            config.check_turbine(vec)
+        else:
+            config.check_ranges(group, vec, "controller_params")
+    return exc.value.allowed
+
+
+def _edited(tmp_path: Path, lib: Path, edit) -> Path:
+    """The physical library's .IN edited, in tmp_path with its Cp file beside it."""
+    shutil.copy(lib / cp_table.NREL5MW_FILE, tmp_path / cp_table.NREL5MW_FILE)
+    return _bad_file(tmp_path, lib, edit)
+
+
+#: the values the issue names, each accepted before (aviFAIL = 0; with gearbox_ratio 0 a
+#: NaN torque demand): (name, value, what the message must say)
+BAD_VALUES = {
+    "pitch limit in degrees": ("pitch_max", 90, "looks like degrees"),
+    "controller's pitch limit in degrees": ("phys_pitch_max", 90, "looks like degrees"),
+    "negative inertia": ("phys_inertia", -43784725.444, "a number > 0 [kg m^2]"),
+    "negative rotor inertia": ("J_r", -38759228.0, "a number > 0 [kg m^2]"),
+    "cut-in at region-2 speed": ("vs_cut_in_speed", 0.9403186597938145,
+                                 "vs_cut_in_speed < vs_region2_speed"),
+    "cut-in above region-2 speed": ("vs_cut_in_speed", 1.0,
+                                    "vs_cut_in_speed < vs_region2_speed"),
+    "gen_torque_law 2": ("gen_torque_law", 2, "a number in [0, 1] [-]"),
+    "gen_torque_law 0.5": ("gen_torque_law", 0.5, "0 or 1"),
+    "vs_slip 0": ("vs_slip", 0, "a number in (0, 1) [-]"),
+    "negative gearbox ratio": ("gearbox_ratio", -97, "a number > 0 [-]"),
+    "zero gearbox ratio (NaN demands)": ("gearbox_ratio", 0, "a number > 0 [-]"),
+    "fdi_T_f 0": ("fdi_T_f", 0, "a number > 0 [s]"),
+    "FDI's pitch limit in degrees": ("fdi_pitch_max", 90, "as turbine_params.pitch_max"),
+    "another interval in the FDI": ("fdi_T_s", 0.02, "the call interval the library is "
+                                                     "exported for"),
+    "reference out of the envelope": ("yd_0", 5.0, "inside the operating envelope"),
+    "negative noise": ("sigma_omega_r_m1", -0.1, "a number >= 0 [rad/s]"),
+    "'1.5e' (scanf read 1.5)": ("phys_c1", "1.5e", "'1.5e' is not a number"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD_VALUES))
+def test_every_value_is_checked_against_wtftcs_ranges_at_the_first_call(lib, tmp_path,
+                                                                           case):
+    """Each value the issue names is refused at the first call: aviFAIL = -1, one message
+    naming the file's line, the parameter, its value and what is allowed (for the layout's
+    ranges, wtftc.config's own words), nothing written to the demands; the next call is
+    refused too."""
+    name, value, text = BAD_VALUES[case]
+    host = Host(lib / "libwtftc_physical.so", _edited(
+        tmp_path, lib, lambda ls: _set(ls, name, value)))
+    out = host.call(0, 0.0, *RATED, [0.2] * 3)
+    assert out["fail"] == -1 and text in out["msg"], out["msg"]
+    assert "bad.IN line " in out["msg"] and f" {name} " in f" {out['msg']} "
+    assert np.all(host.swap[41:47] == 0)  # no demand written
+    if isinstance(value, (int, float)) and name in layout.names("turbine_params") + \
+            layout.names("physical_params") and "<" not in text:
+        assert _config_refusal(name, value) in out["msg"]  # the same range as wtftc's
+    assert host.call(1, 0.01, *RATED, [0.2] * 3)["fail"] == -1
+
+
+def test_a_demand_that_is_no_finite_float_is_never_returned(lib, tmp_path):
+    """The final guard: values each within its range (the torque law's rated power and
+    maximum torque 1e300 W and N m) give a torque demand of 8e297 N m, finite as a double
+    but not as avrSWAP's float (it was written as inf with aviFAIL = 0): refused naming
+    the record and the time, nothing written."""
+    path = _edited(tmp_path, lib, lambda ls: _set(_set(_set(
+        ls, "vs_max_torque", 1e300), "vs_rated_power", 1e300), "gen_torque_law", 1))
+    host = Host(lib / "libwtftc_physical.so", path)
+    out = host.call(0, 12.5, *RATED, [0.2] * 3)
+    assert out["fail"] == -1, out
+    assert "generator torque demand (#47)" in out["msg"] and "t = 12.5 s" in out["msg"]
+    assert host.swap[46] == 0 and np.all(np.isfinite(host.swap))
+
+
+@pytest.mark.parametrize("capacity", [0, 1, 2, 17, 100, 1025, -3.0, float("nan"), 1e30])
+def test_the_message_never_passes_the_length_the_host_gives(lib, capacity):
+    """avcMSG gets at most #49 bytes, its NUL included (ServoDyn: its message length + 1);
+    none when #49 is below 1 or not a number. The rest of the buffer (a canary) is never
+    written: before, 256 bytes went into a buffer of 1."""
+    from discon_host import CANARY, MSG_BUFFER, message
+
+    host = Host(lib / "libwtftc_physical.so", lib / "wtftc_physical.IN")
+    full = host.call(2, 0.0, *RATED, [0.2] * 3)["msg"]  # iStatus 2, #49 = 1024
+    assert full.startswith("wtftc physical: iStatus = 2") and len(full) > 40
+    for status in (2, 0, -1):  # a refusal, a call that succeeds, the final call
+        out = host.raw(status, 0.0, *RATED, [0.2] * 3, capacity=capacity)
+        cap = 0 if not capacity >= 1 else min(int(capacity), MSG_BUFFER)
+        raw = out["msg_bytes"]
+        assert all(b == CANARY for b in raw[cap:]), (status, raw[:cap + 8])
+        if cap:
+            assert 0 in raw[:cap]
+            assert message(out) == (full[:cap - 1] if status == 2 else "")
+        assert out["fail"] == (-1 if status == 2 else 0)
+
+
+def test_long_lines_nul_bytes_and_special_files_are_refused_without_hanging(lib, tmp_path):
+    """A comment of any length is skipped; a longer line that is not one, a NUL byte, a
+    FIFO (its open would block), a folder and /dev/zero as the input file or the Cp file
+    are refused with a message."""
+    ok = _edited(tmp_path, lib, lambda ls: [ls[0] + " " + "c" * 20000, *ls[1:]])
+    assert Host(lib / "libwtftc_physical.so", ok).call(0, 0.0, *RATED, [0.2] * 3)["fail"] == 0
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    (tmp_path / "long").mkdir()
+    (tmp_path / "nul").mkdir()
+    cases = {
+        "longer than 4095": _bad_file(tmp_path / "long", lib, lambda ls: ["y" * 5000, *ls]),
+        "a NUL byte": _bad_file(tmp_path / "nul", lib, lambda ls: ["phys_c1 2.0\0", *ls[1:]]),
+        "is not a regular file": fifo,
+    }
+    for text, path in {**cases, "not a regular file": tmp_path}.items():
+        out = Host(lib / "libwtftc_physical.so", path).call(0, 0.0, *RATED, [0.2] * 3)
+        assert out["fail"] == -1 and text in out["msg"], (text, out["msg"])
+    for target in (fifo, "/dev/zero", tmp_path):
+        path = _with_cp(tmp_path, lib, None, key=f'PerfFileName "{target}"')
+        out = Host(lib / "libwtftc_physical.so", path).call(0, 0.0, *RATED, [0.2] * 3)
+        assert out["fail"] == -1 and "not a regular file" in out["msg"], out["msg"]
+
+
+# ------------------------------------------------------------- issue 30, defects 1, 6, 8
+
+def _snapshot(folder: Path) -> dict:
+    out = {".": stat.S_IMODE(folder.stat().st_mode)}
+    for p in sorted(folder.rglob("*")):
+        out[str(p.relative_to(folder))] = (p.read_bytes() if p.is_file() else None,
+                                           stat.S_IMODE(p.lstat().st_mode))
+    return out
+
+
+def _umask() -> int:
+    m = os.umask(0)
+    os.umask(m)
+    return m
+
+
+def _export_cli(*args) -> list[str]:
+    return ["export", "discon", "--controller", "pi", *args]
+
+
+def _one_line_refusal(capsys, code: int, option: str) -> str:
+    err = capsys.readouterr().err
+    assert code == 2 and err.startswith(f"wtftc: error: {option} = ") and \
+        err.count("\n") == 1, err
+    return err
+
+
+def _earlier(lib: Path, tmp_path: Path, name: str) -> Path:
+    """A copy of the module's export as the export wrote it before the marker existed."""
+    out = tmp_path / name
+    shutil.copytree(lib, out)
+    (out / files.MARKER).unlink()
+    (out / "wtftc_discon_checks.h").unlink()
+    return out
+
+
+def test_export_never_deletes_a_folder_it_did_not_write(lib, tmp_path, monkeypatch, capsys):
+    """Defect 1: a folder that merely holds a README.txt (before: removed whole with its
+    subfolders, exit 0), the current folder, an export folder with a user's file added, and
+    an earlier export whose .IN the user edited (same size): each refused in one line naming
+    --out, exit 2, nothing touched, no partial folder left."""
+    mine = tmp_path / "mine"
+    (mine / "sub").mkdir(parents=True)
+    (mine / "README.txt").write_text("my notes\n")
+    (mine / "sub" / "thesis.tex").write_text("keep")
+    added = tmp_path / "added"
+    shutil.copytree(lib, added)
+    (added / "notes.txt").write_text("mine")
+    edited = _earlier(lib, tmp_path, "edited")
+    text = (edited / "wtftc_physical.IN").read_text()
+    tuned = "".join(ln.replace(" 2.0  !", " 3.0  !") if ln.startswith("phys_c1 ") else ln
+                    for ln in text.splitlines(keepends=True))
+    (edited / "wtftc_physical.IN").write_text(tuned)
+    assert tuned != text and len(tuned.encode()) == len(text.encode())
+    for out in (mine, added, edited):
+        before = _snapshot(out)
+        code = cli.main(["export", "discon", "--controller", "physical", "--out", str(out)])
+        assert "did not write" in _one_line_refusal(capsys, code, "--out")
+        assert _snapshot(out) == before
+    monkeypatch.chdir(mine)
+    assert "current folder" in _one_line_refusal(capsys, cli.main(_export_cli("--out", ".")),
+                                                 "--out")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["added", "edited", "mine"]
+
+
+def test_export_replaces_its_own_folder_whole_keeping_its_mode(lib, tmp_path, monkeypatch):
+    """An export folder (its marker), or an untouched one from before the marker (exactly
+    an export's files, its .IN and Cp file as written), is replaced whole and keeps its
+    mode; a new one gets 0777 minus the umask, not 0700 (the module's own export, made
+    through the command line, too). The build is the module's files copied (no compile)."""
+    assert stat.S_IMODE(lib.stat().st_mode) == 0o777 & ~_umask()
+    assert files.written_by_wtftc(lib)
+
+    def copy_build(rc, out, cc="gcc", opt="-O2"):
+        for p in lib.iterdir():
+            if p.name != files.MARKER:
+                shutil.copy(p, out / p.name)
+        (out / "built").write_text("again")
+
+    monkeypatch.setattr(discon, "build", copy_build)
+    ours, earlier, new = tmp_path / "ours", _earlier(lib, tmp_path, "earlier"), tmp_path / "n"
+    shutil.copytree(lib, ours)
+    for out in (ours, earlier):
+        os.chmod(out, 0o750)
+        assert discon.export("physical", out) == out.resolve()
+        assert (out / "built").is_file() and files.written_by_wtftc(out)
+        assert stat.S_IMODE(out.stat().st_mode) == 0o750
+    discon.export("physical", new)
+    assert stat.S_IMODE(new.stat().st_mode) == 0o777 & ~_umask()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["earlier", "n", "ours"]
+
+
+@pytest.mark.parametrize("interval, text", [
+    ("nan", "a whole multiple of 0.001 s"), ("inf", "a whole multiple of 0.001 s"),
+    ("-inf", "a whole multiple of 0.001 s"), ("0", "a whole multiple of 0.001 s"),
+    ("1e9", "an interval in (0, 1] s"), ("2", "an interval in (0, 1] s"),
+])
+def test_a_bad_interval_is_one_line_naming_interval(tmp_path, capsys, interval, text):
+    """Defect 6: --interval nan and inf gave tracebacks, 1e9 was blamed on
+    control_interval_s; each is one line naming --interval, exit 2, nothing written."""
+    code = cli.main(_export_cli(f"--interval={interval}", "--out", str(tmp_path / "x")))
+    err = _one_line_refusal(capsys, code, "--interval")
+    assert text in err and "control_interval_s" not in err and "t_final_s" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_interval_that_does_not_divide_a_minute_is_exported():
+    """7 ms: the library's parameters come from a run of whole intervals (59.997 s), not
+    refused for a run length the user never gave."""
+    rc = discon.run_config("pi", 0.007)
+    assert rc.control_interval == 0.007 and rc.t_final == pytest.approx(59.997, abs=1e-9)
+
+
+def test_a_compiler_that_fails_is_one_line_naming_cc(tmp_path, capsys):
+    """Defect 6: --cc /bin/false gave a 15-line RuntimeError; a compiler that is missing or
+    fails is one line naming --cc, exit 2, and --out is not created, no partial left."""
+    for cc, text in (("/bin/false", "exited with status 1"),
+                     (str(tmp_path / "no-such-cc"), "a C compiler on the PATH")):
+        code = cli.main(_export_cli("--cc", cc, "--out", str(tmp_path / "x")))
+        assert text in _one_line_refusal(capsys, code, "--cc")
+        assert list(tmp_path.iterdir()) == []
+
+
+def _fake_compiler(tmp_path: Path) -> tuple[Path, Path]:
+    """A 'compiler' that starts a child which outlives it unless killed, writes the child's
+    pid, and waits."""
+    pidfile, cc = tmp_path / "child.pid", tmp_path / "fake-cc"
+    cc.write_text(f"#!/bin/sh\nsleep 300 &\necho $! > {pidfile}.tmp\n"
+                  f"mv {pidfile}.tmp {pidfile}\nwait\n")
+    cc.chmod(0o755)
+    return cc, pidfile
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def _wait_for(path: Path, seconds: float = 120.0) -> int:
+    end = time.monotonic() + seconds
+    while not path.exists():
+        assert time.monotonic() < end, f"{path} never appeared"
+        time.sleep(0.05)
+    return int(path.read_text())
+
+
+def test_a_compiler_past_its_timeout_is_killed_with_its_children(tmp_path):
+    cc, pidfile = _fake_compiler(tmp_path)
+    start = time.monotonic()
+    with pytest.raises(config.ConfigError, match="within 1 s") as exc:
+        discon.compile_library([str(cc)], str(cc), timeout=1.0)
+    assert exc.value.field == "--cc" and time.monotonic() - start < 30
+    assert not _alive(_wait_for(pidfile))
+
+
+def test_an_interrupted_export_leaves_no_compiler_and_no_folder(tmp_path):
+    """Defect 8: SIGTERM to `wtftc export discon` while its compiler runs: the compiler's
+    whole process group is killed (its child too), the command says it was interrupted
+    (exit 130), and neither --out nor a partial folder is left."""
+    cc, pidfile = _fake_compiler(tmp_path)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "wtftc.cli", *_export_cli(
+        "--cc", str(cc), "--out", str(out))], stderr=subprocess.PIPE, text=True)
+    try:
+        child = _wait_for(pidfile)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130 and "interrupted" in err, err
+    deadline = time.monotonic() + 10
+    while _alive(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _alive(child)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["child.pid", "fake-cc"]
+
+
+@pytest.mark.parametrize("controller", discon.exportable())
+def test_the_library_checks_every_parameter_with_wtftcs_own_ranges(controller):
+    """The generated table (wtftc.export.discon_checks) has a range for every parameter of
+    the .IN, in its order; the turbine's are wtftc.config's TURBINE_RANGES, read from the
+    same layout entries, and its pairs and flags are wtftc.config's; the values the export
+    writes lie inside."""
+    rc = discon.run_config(controller)
+    c = discon_checks.checks(rc, discon._groups(controller))
+    params = discon.parameters(rc)
+    assert [r[0] for r in c["ranges"]] == [n for n, *_ in params]
+    ranges = {name: tuple(rest[:4]) for name, *rest in c["ranges"]}
+    texts = {name: rest[4] for name, *rest in c["ranges"]}
+    for name, (lo, hi, lo_open, hi_open, unit) in config.TURBINE_RANGES.items():
+        assert ranges[name] == (lo, hi, lo_open, hi_open) and f"[{unit}]" in texts[name]
+    assert set(config.TURBINE_ORDER) <= set(c["order"])
+    assert {f for f, *_ in c["one_of"]} >= set(config.TURBINE_FLAGS)
+    for name, value, *_ in params:
+        lo, hi, lo_open, hi_open = ranges[name]
+        assert lo <= value <= hi and not (lo_open and value == lo) and \
+            not (hi_open and value == hi), (name, value)

@@ -253,18 +253,22 @@ def _add_export(sub) -> None:
     e.add_argument("target", choices=("discon",), help="what to export")
     e.add_argument("--controller", required=True,
                    help="the registered controller: physical, pi, paper or drivetrain")
-    e.add_argument("--out", type=Path, required=True, help="output folder (replaced whole)")
-    e.add_argument("--cc", default="gcc", help="the C compiler (default gcc)")
+    e.add_argument("--out", type=Path, required=True,
+                   help="output folder: new, empty or an earlier export's, replaced whole; "
+                        "a folder holding anything else is refused")
+    e.add_argument("--cc", default="gcc",
+                   help="the C compiler (default gcc); stopped with every process it "
+                        "started on Ctrl-C, SIGTERM or after 600 s")
     e.add_argument("--interval", type=float, default=0.01,
                    help="the call interval DLL_DT [s] the library is built for (default "
-                        "0.01, a multiple of 0.001)")
+                        "0.01, a multiple of 0.001 in (0, 1])")
 
 
 def _cmd_export(args) -> int:
     from wtftc.export import discon
 
     out = discon.export(args.controller, args.out, cc=args.cc, interval=args.interval)
-    cp = [discon.cp_file_name(discon.run_config(args.controller).loop.table)] \
+    cp = [discon.cp_file_name(discon.run_config(args.controller, args.interval).loop.table)] \
         if discon.needs_cp(args.controller) else []
     files = [f"libwtftc_{args.controller}.so", f"wtftc_{args.controller}.IN", *cp,
              "servodyn_snippet.txt", "README.txt"]

@@ -27,24 +27,35 @@ folder as ROSCO resolves it), by ``discon_cp.c`` (this package): the same steps 
 writes the table the run used beside the .IN. The gearbox ratio the virtual sensors use
 is the .IN's too: editing the .IN's turbine values retunes the library without a new
 export.
+
+Every value of the .IN is checked at the first call (``wtftc_discon_checks.h``, generated
+by :mod:`wtftc.export.discon_checks`: the layout's valid ranges, the FDI's, wtftc.config's
+cross-checks). The export writes its folder through :func:`wtftc.files.owned_folder`
+(never over a folder it did not write) and runs the compiler in its own process group,
+killed whole on an interrupt or a timeout.
 """
 
 from __future__ import annotations
 
 import hashlib
 import importlib.resources
+import math
+import os
 import shutil
+import signal
 import subprocess
-import tempfile
+import threading
+from contextlib import contextmanager, suppress
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
-from wtftc import config
+from wtftc import config, files
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import load
 from wtftc.errors import ConfigError
+from wtftc.export import discon_checks
 from wtftc.model.cp_table import NREL5MW_FILE, NREL5MW_SOURCE, CpTable, write_cp_table
 from wtftc.sim import sampled
 from wtftc.sim.rhs import (
@@ -115,20 +126,35 @@ def schedule_table(betas: np.ndarray, grads: np.ndarray) -> np.ndarray:
     return np.concatenate([[grads[0]], start, width, slope])
 
 
+#: the length of the run a library's parameters are made for [s] (its wind decides the
+#: torque law, wtftc.config): a whole number of call intervals near this
+RUN_S = 60.0
+
+
 def run_config(controller: str, interval: float = CONTROL_DT) -> config.RunConfig:
     """The run whose sampled loop the library reproduces: case 4 (wtftc's FDI feeds the
     accommodation), the realistic profile's noise levels, the call interval ``interval``
-    (a whole multiple of the 1-ms step the FDI substeps at: refused otherwise, naming
-    --interval)."""
+    (a whole multiple of the 1-ms step the FDI substeps at, within what wtftc's sampled
+    loop accepts: refused otherwise, naming --interval)."""
     if controller not in exportable():
         raise ConfigError("--controller", controller, "one of " + ", ".join(exportable()))
-    n = round(interval / PLANT_DT) if isinstance(interval, (int, float)) else 0
+    allowed = f"a whole multiple of {PLANT_DT} s (the FDI's substep), e.g. 0.01 or 0.005"
+    ok = (isinstance(interval, (int, float)) and not isinstance(interval, bool)
+          and math.isfinite(interval) and interval > 0)
+    n = round(interval / PLANT_DT) if ok else 0
     if not (n >= 1 and abs(n * PLANT_DT - interval) <= 1e-12):
-        raise ConfigError("--interval", interval, f"a whole multiple of {PLANT_DT} s "
-                          "(the FDI's substep), e.g. 0.01 or 0.005")
-    return config.make_config({"case": 4, "controller": controller, "profile": "realistic",
-                               "dt_s": PLANT_DT, "control_interval_s": interval,
-                               "t_final_s": 60.0})
+        raise ConfigError("--interval", interval, allowed)
+    calls = round(RUN_S / interval)
+    t_final = interval * calls if calls >= 1 else RUN_S  # longer: the loop refuses it
+    try:
+        return config.make_config({"case": 4, "controller": controller,
+                                   "profile": "realistic", "dt_s": PLANT_DT,
+                                   "control_interval_s": interval, "t_final_s": t_final})
+    except ConfigError as exc:  # what the sampled loop refuses is said of --interval
+        if exc.field != "control_interval_s":
+            raise
+        raise ConfigError("--interval", interval, f"{allowed}; wtftc's sampled loop takes "
+                          f"{exc.allowed}") from None
 
 
 def parameters(rc: config.RunConfig) -> list[tuple[str, float, str, str]]:
@@ -275,6 +301,8 @@ def _meta_header(rc: config.RunConfig, params: list) -> str:
 #define WTFTC_SCHED_RES {work["res"]}
 #define WTFTC_SCHED_IW {work["iw"]}
 #define WTFTC_SCHED_W {work["w"]}
+#define WTFTC_MAX_IN_BYTES {files.MAX_TOML_BYTES}LL
+#define WTFTC_MAX_CP_BYTES {files.MAX_TABLE_BYTES}LL
 static const char *const WTFTC_PARAM_NAMES[WTFTC_N_PARAMS] = {{
     {names}
 }};
@@ -335,27 +363,43 @@ It writes #42-#44 the blade pitch demands [rad], #45 = #42, #47 the generator to
 demand [N m, HSS], #35 = 1, #36 = 0, #55 = #56 = 0, #65 the number of logged channels,
 written from record #63 on: {logged}
 (latches [-], effectiveness estimates [-], stuck-angle estimates [rad]). avcOUTNAME is
-read only (the run's name); avcMSG holds at most #49 characters (256 when #49 is 0).
+read only (the run's name); avcMSG gets at most #49 bytes, its NUL included (nothing when
+#49 is below 1).
 
-Input file: wtftc_{c}.IN, every parameter by name (value, unit, source); all must be set.
-{cp}Errors (a bad or missing input file or Cp file, a wrong interval, a non-finite
-measurement, an unknown iStatus) set aviFAIL = -1 with a message in avcMSG; the host keeps
-running.
+Input file: wtftc_{c}.IN, every parameter by name (value, unit, source); all must be set,
+each within its valid range (wtftc's own: e.g. angles in rad within +-pi/2, inertias,
+ratios and time constants > 0) and wtftc's cross-checks (pitch_min < pitch_max, cut-in
+below region-2 speed, flags 0 or 1, the reference inside the operating envelope).
+{cp}Errors (a bad or missing input file or Cp file, a value out of its range, a wrong
+interval, a non-finite measurement, an unknown iStatus, a demand that would not be a finite
+float) set aviFAIL = -1 with a message in avcMSG; the host keeps running. No call returns
+aviFAIL = 0 with a demand that is not finite.
 The controller's states advance at the call interval as in wtftc's sampled loop; the
 FDI runs inside and feeds the accommodation (wtftc's case 4). Details: docs/discon.md.
 """
+
+
+def _source_bytes(table: CpTable) -> bytes:
+    if table.source == NREL5MW_SOURCE:
+        return (importlib.resources.files("wtftc") / "data" / NREL5MW_FILE).read_bytes()
+    src = Path(table.source)
+    return src.read_bytes() if src.is_file() else b""
+
+
+def _table_bytes(table: CpTable) -> bytes | None:
+    """The bytes of the file ``table`` was read from when that file is at hand and
+    unchanged since (the packaged NREL 5-MW table, a user's file), else None."""
+    raw = _source_bytes(table)
+    return raw if table.sha256 is not None and \
+        hashlib.sha256(raw).hexdigest() == table.sha256 else None
 
 
 def _write_table(table: CpTable, path: Path) -> None:
     """The controllers' Cp table as a file: the file it was read from, byte for byte, when
     that is at hand (the packaged NREL 5-MW table, a user's file unchanged since it was
     read), else written round-trip exact (wtftc.model.cp_table.write_cp_table)."""
-    if table.source == NREL5MW_SOURCE:
-        raw = (importlib.resources.files("wtftc") / "data" / NREL5MW_FILE).read_bytes()
-    else:
-        src = Path(table.source)
-        raw = src.read_bytes() if src.is_file() else b""
-    if table.sha256 is not None and hashlib.sha256(raw).hexdigest() == table.sha256:
+    raw = _table_bytes(table)
+    if raw is not None:
         path.write_bytes(raw)
     else:
         write_cp_table(table, path, title=table.source)
@@ -378,6 +422,72 @@ def write_input(rc: config.RunConfig, path: Path) -> Path:
     return path
 
 
+#: the longest a compile may take [s] (the physical controller's: about 20 s at -O2)
+COMPILE_TIMEOUT_S = 600.0
+
+
+@contextmanager
+def _sigterm_as_interrupt():
+    """Meanwhile SIGTERM raises KeyboardInterrupt, so that what is running is stopped and
+    cleaned up as on Ctrl-C (only in the main thread, where Python takes signals)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _kill_group(proc: subprocess.Popen) -> None:
+    """Kill the compiler and every process it started (its own process group), then reap
+    it; its leader not yet reaped, the group's id cannot have been reused."""
+    with suppress(ProcessLookupError, PermissionError):
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    for pipe in (proc.stdout, proc.stderr):
+        if pipe is not None:
+            pipe.close()
+
+
+def compile_library(cmd: list[str], cc: str, timeout: float | None = None) -> None:
+    """Run the compiler command ``cmd`` in a process group of its own: on an interrupt
+    (Ctrl-C, SIGTERM) or after ``timeout`` s (:data:`COMPILE_TIMEOUT_S`) the whole group is
+    killed, so no compiler is left behind. A compiler that cannot be started, fails or
+    times out is a ConfigError naming --cc, in one line."""
+    timeout = COMPILE_TIMEOUT_S if timeout is None else timeout
+    with _sigterm_as_interrupt():
+        try:
+            proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                    stderr=subprocess.PIPE, text=True, errors="replace",
+                                    start_new_session=True)
+        except (OSError, ValueError) as exc:
+            why = getattr(exc, "strerror", None) or str(exc)
+            raise ConfigError("--cc", cc, f"a C compiler on the PATH, e.g. gcc or clang "
+                              f"({why})") from None
+        try:
+            _, err = proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            _kill_group(proc)
+            raise ConfigError("--cc", cc, f"a C compiler that builds the library within "
+                              f"{timeout:g} s (stopped with every process it started)") \
+                from None
+        except BaseException:
+            _kill_group(proc)
+            raise
+    if proc.returncode != 0:
+        lines = [ln.strip() for ln in err.splitlines() if ln.strip()]
+        first = next((ln for ln in lines if "error" in ln.lower()), lines[0] if lines else "")
+        raise ConfigError("--cc", cc, f"a C compiler that builds the library (it exited with "
+                          f"status {proc.returncode}" + (f": {first[:300]}" if first else "")
+                          + ")")
+
+
 def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2") -> None:
     """Generate the C of the library's functions into ``out`` and compile it there."""
     params = parameters(rc)
@@ -388,17 +498,14 @@ def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2") ->
         cg.add(f)
     cg.generate(str(out) + "/")
     (out / "wtftc_discon_meta.h").write_text(_meta_header(rc, params))
+    (out / "wtftc_discon_checks.h").write_text(
+        discon_checks.header(rc, _groups(rc.loop.controller)))
     for name in SOURCES:
         shutil.copy(HERE / name, out / name)
     lib = out / f"libwtftc_{rc.loop.controller}.so"
     cmd = [cc, opt, "-std=c99", "-shared", "-fPIC", "-o", str(lib),
            str(out / "wtftc_discon_gen.c"), *(str(out / n) for n in SOURCES), "-lm"]
-    try:
-        done = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
-    except FileNotFoundError:
-        raise ConfigError("--cc", cc, "a C compiler on the PATH (gcc, clang)") from None
-    if done.returncode != 0:
-        raise RuntimeError(f"{' '.join(cmd)} failed:\n{done.stderr[-2000:]}")
+    compile_library(cmd, cc)
     write_input(rc, out / f"wtftc_{rc.loop.controller}.IN")
     (out / "servodyn_snippet.txt").write_text(servodyn_snippet(rc.loop.controller,
                                                                rc.control_interval))
@@ -412,23 +519,47 @@ def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2") ->
                                                   swap_max=SWAP_MAX, logged=logged))
 
 
+def _earlier_export(folder: Path) -> bool:
+    """Whether ``folder`` is an export written before the marker existed, untouched since:
+    exactly the files an export of one controller writes (the C it built from, the
+    library, its .IN, the Cp file if it needs one, the ServoDyn lines, the README), each a
+    regular file, the README's first line naming that library, and the .IN and the Cp
+    file as the export writes them for the interval its ServoDyn lines give (a user's
+    edit, to tune, makes the folder the user's)."""
+    try:
+        entries = {e.name: e for e in os.scandir(folder)}
+        if not all(e.is_file(follow_symlinks=False) for e in entries.values()):
+            return False
+        libs = [n[len("libwtftc_"):-3] for n in entries
+                if n.startswith("libwtftc_") and n.endswith(".so")]
+        if len(libs) != 1 or libs[0] not in exportable():
+            return False
+        c = libs[0]
+        dt = float((folder / "servodyn_snippet.txt").read_text(encoding="utf-8")
+                   .split("DLL_DT")[0].split()[-1])
+        rc = run_config(c, dt)
+        cp = [cp_file_name(rc.loop.table)] if needs_cp(c) else []
+        expected = {f"libwtftc_{c}.so", f"wtftc_{c}.IN", "servodyn_snippet.txt", "README.txt",
+                    "wtftc_discon_gen.c", "wtftc_discon_meta.h", *SOURCES, *cp}
+        first = README.format(c=c, cp="", dt=dt, swap_max=SWAP_MAX, logged="").split("\n")[0]
+        infile = input_file(rc, parameters(rc), cp_file_name(rc.loop.table))
+        return (set(entries) == expected
+                and (folder / "README.txt").read_text(encoding="utf-8").split("\n")[0] == first
+                and (folder / f"wtftc_{c}.IN").read_text(encoding="utf-8") == infile
+                and all(_table_bytes(rc.loop.table) == (folder / n).read_bytes() for n in cp))
+    except (OSError, ValueError, IndexError, ConfigError):
+        return False
+
+
 def export(controller: str, out_dir: Path, cc: str = "gcc", opt: str = "-O2",
            interval: float = CONTROL_DT) -> Path:
-    """Build the library of ``controller`` into ``out_dir`` as a whole: in a temporary
-    folder beside it, moved into place when every file is written (an existing export
-    folder is replaced; a folder holding anything else is refused)."""
+    """Build the library of ``controller`` into ``out_dir`` as a whole (wtftc.files.
+    owned_folder): in a hidden folder beside it, swapped in when every file is written.
+    ``out_dir`` may be new, empty, or a folder an export wrote and nobody changed since
+    (its marker; or :func:`_earlier_export`); anything else is refused in one line naming
+    --out, nothing touched."""
     rc = run_config(controller, interval)
-    out_dir = Path(out_dir).resolve()
-    if out_dir.exists() and any(out_dir.iterdir()) and not (out_dir / "README.txt").exists():
-        raise ConfigError("--out", str(out_dir), "a new folder or an earlier export's")
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}-", dir=out_dir.parent))
-    try:
+    with files.owned_folder(out_dir, "--out", command="export discon",
+                            legacy=_earlier_export) as tmp:
         build(rc, tmp, cc, opt)
-        if out_dir.exists():
-            shutil.rmtree(out_dir)
-        tmp.rename(out_dir)
-    finally:
-        if tmp.exists():
-            shutil.rmtree(tmp, ignore_errors=True)
-    return out_dir
+    return Path(out_dir).resolve()

@@ -20,11 +20,13 @@
  * λ-spline through the column Cp(·, β_k), and ∂Cp/∂β(λ, β_k) the λ-spline through the
  * β-derivatives at β_k of the β-splines through each row.
  */
+#define _POSIX_C_SOURCE 200809L /* stat() and S_ISREG under -std=c99 */
 #include <ctype.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "wtftc_discon_meta.h"
 
@@ -89,6 +91,13 @@ static int numbers(char *line, double *out, int *n, int cap, int *overflow)
 
 static char *slurp(const char *path, char *err, size_t n_err)
 {
+    struct stat st; /* a regular file under the cap: a FIFO would block the open */
+    if (stat(path, &st) == 0 && (!S_ISREG(st.st_mode) || st.st_size > WTFTC_MAX_CP_BYTES)) {
+        snprintf(err, n_err, "the Cp file '%s' is not a regular file of at most %lld bytes "
+                 "(a folder, a FIFO, a device or too large)", path,
+                 (long long)WTFTC_MAX_CP_BYTES);
+        return NULL;
+    }
     FILE *f = fopen(path, "rb");
     if (!f) {
         snprintf(err, n_err, "cannot open the Cp file '%s' (PerfFileName, relative to the "
@@ -98,7 +107,7 @@ static char *slurp(const char *path, char *err, size_t n_err)
     fseek(f, 0, SEEK_END);
     long size = ftell(f);
     fseek(f, 0, SEEK_SET);
-    char *text = size >= 0 && size < 64L * 1024 * 1024 ? malloc((size_t)size + 1) : NULL;
+    char *text = size >= 0 && size <= WTFTC_MAX_CP_BYTES ? malloc((size_t)size + 1) : NULL;
     if (!text || fread(text, 1, (size_t)size, f) != (size_t)size) {
         snprintf(err, n_err, "cannot read the Cp file '%s'", path);
         free(text);

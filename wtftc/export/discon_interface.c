@@ -10,18 +10,27 @@
  *   write: #42-#44 pitch demands [rad], #45 = #42, #47 generator torque demand [N m,
  *          HSS], #35 = 1, #36 = 0, #55 = #56 = 0, #65 = logged channels.
  * Every error sets aviFAIL < 0 with a NUL-terminated message in avcMSG and returns; the
- * host is never crashed and no record is written from a half-read state.
+ * host is never crashed and no record is written from a half-read state. avcMSG gets at
+ * most #49 bytes, its NUL included (ServoDyn: its message length + 1); nothing when #49
+ * is below 1. The first call checks every value of the input file against its valid range
+ * and wtftc's cross-checks (wtftc_discon_checks.h); no call returns aviFAIL = 0 with a
+ * demand that is not a finite float.
  *
- * The generated functions (wtftc_step, wtftc_init) and the parameter names come from
- * wtftc_discon_gen.c and wtftc_discon_meta.h, written by the export.
+ * The generated functions (wtftc_step, wtftc_init), the parameter names and the checks
+ * come from wtftc_discon_gen.c, wtftc_discon_meta.h and wtftc_discon_checks.h, written by
+ * the export.
  */
+#define _POSIX_C_SOURCE 200809L /* stat() and S_ISREG under -std=c99 */
 #include <ctype.h>
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 #include "wtftc_discon_meta.h"
+#include "wtftc_discon_checks.h"
 
 typedef long long casadi_int;
 typedef double casadi_real;
@@ -36,11 +45,10 @@ int wtftc_step_work(casadi_int *sz_arg, casadi_int *sz_res, casadi_int *sz_iw,
 int wtftc_init_work(casadi_int *sz_arg, casadi_int *sz_res, casadi_int *sz_iw,
                     casadi_int *sz_w);
 
-/* avcMSG's capacity: #49 when the caller gives it (ServoDyn: its message length + 1),
- * else this, the shorter of the usual hosts' buffers (ROSCO's interface: 1000) */
-#define MSG_DEFAULT 256
-#define MSG_MAX 1024
-static size_t msg_len = MSG_DEFAULT;
+/* the most of avcMSG ever written, whatever #49 says (a message is shorter) */
+#define MSG_MAX 4096
+/* the longest line of the input file (longer: refused, unless it is a comment's) */
+#define LINE_MAX_IN 4096
 
 typedef struct {
     double p[WTFTC_N_PARAMS];
@@ -55,10 +63,61 @@ typedef struct {
 
 static Instance *instance = NULL;
 
-static void fail(int *aviFAIL, char *avcMSG, const char *text)
+/* avcMSG's capacity in bytes, its NUL included: #49 (ServoDyn sets its message length
+ * + 1, ROSCO's ControllerInterface its buffer's); 0 (nothing may be written) when #49 is
+ * below 1 or not a number. */
+static size_t msg_capacity(const float *avrSWAP)
+{
+    float given = avrSWAP[48];
+    if (!(given >= 1.0f)) return 0;
+    return given >= (float)MSG_MAX ? MSG_MAX : (size_t)given;
+}
+
+static void fail(int *aviFAIL, char *avcMSG, size_t n_msg, const char *text)
 {
     *aviFAIL = -1;
-    snprintf(avcMSG, msg_len, "wtftc %s: %s", WTFTC_CONTROLLER, text);
+    if (n_msg > 0) snprintf(avcMSG, n_msg, "wtftc %s: %s", WTFTC_CONTROLLER, text);
+}
+
+/* A record read as an integer (iStatus, Ptch_Cntrl, a record number); `none` when it is
+ * not a finite number of a sane size (a float beyond int's range is undefined in C). */
+static int record_int(float v, int none)
+{
+    return isfinite(v) && fabsf(v) < 1e9f ? (int)lroundf(v) : none;
+}
+
+/* v printed in the fewest digits (15 to 17) that read back as v. */
+static const char *number(double v, char *buf, size_t n)
+{
+    for (int digits = 15; digits <= 17; digits++) {
+        snprintf(buf, n, "%.*g", digits, v);
+        if (strtod(buf, NULL) == v) break;
+    }
+    return buf;
+}
+
+/* Whether path is a regular file of at most max_bytes: -1 with a message otherwise (a
+ * folder, a FIFO that would block the open, a device such as /dev/zero, a file too
+ * large), before it is opened. */
+static int regular_file(const char *path, const char *what, long long max_bytes, char *err,
+                        size_t n_err)
+{
+    struct stat st;
+    if (stat(path, &st) != 0) {
+        snprintf(err, n_err, "cannot open the %s '%s'", what, path);
+        return -1;
+    }
+    if (!S_ISREG(st.st_mode)) {
+        snprintf(err, n_err, "the %s '%s' is not a regular file (a folder, a FIFO or a "
+                 "device)", what, path);
+        return -1;
+    }
+    if ((long long)st.st_size > max_bytes) {
+        snprintf(err, n_err, "the %s '%s' has %lld bytes: at most %lld are read", what, path,
+                 (long long)st.st_size, max_bytes);
+        return -1;
+    }
+    return 0;
 }
 
 static void release(void)
@@ -111,22 +170,56 @@ static int cp_name(const char *path, const char *line, int lineno, char *cp, siz
     return 0;
 }
 
-/* Read the input file: lines "name value ! unit - source"; '!' and '#' start comments.
- * Every parameter must be set once, and only known names with finite values; the Cp
- * file once when the controller needs it (cp: its resolved path). */
-static int read_input(const char *path, double *p, char *cp, size_t n_cp, char *err,
-                      size_t n_err)
+enum { LINE_OK, LINE_END, LINE_LONG, LINE_NUL };
+
+/* One line of f into buf (the newline dropped, NUL-terminated, at most n - 1 bytes kept):
+ * LINE_END at the end of the file, LINE_LONG for a longer line (the rest is skipped),
+ * LINE_NUL for a line holding a NUL byte (a binary file). */
+static int read_line(FILE *f, char *buf, size_t n)
 {
+    size_t k = 0;
+    int c, got = 0, long_line = 0, nul = 0;
+    while ((c = getc(f)) != EOF) {
+        got = 1;
+        if (c == '\n') break;
+        if (c == '\0') nul = 1;
+        if (k + 1 < n) buf[k++] = (char)c;
+        else long_line = 1;
+    }
+    buf[k] = '\0';
+    return !got ? LINE_END : nul ? LINE_NUL : long_line ? LINE_LONG : LINE_OK;
+}
+
+/* Read the input file: lines "name value ! unit - source"; '!' and '#' start comments.
+ * Every parameter must be set once, and only known names with finite values (line_of:
+ * the line of each); the Cp file once when the controller needs it (cp: its resolved
+ * path). */
+static int read_input(const char *path, double *p, int *line_of, char *cp, size_t n_cp,
+                      char *err, size_t n_err)
+{
+    if (regular_file(path, "input file", WTFTC_MAX_IN_BYTES, err, n_err) != 0) return -1;
     FILE *f = fopen(path, "r");
     if (!f) {
         snprintf(err, n_err, "cannot open the input file '%s'", path);
         return -1;
     }
     int seen[WTFTC_N_PARAMS] = {0};
-    char line[512];
-    int lineno = 0, rc = 0, cp_seen = 0;
-    while (rc == 0 && fgets(line, sizeof line, f)) {
+    char line[LINE_MAX_IN];
+    int lineno = 0, rc = 0, cp_seen = 0, got;
+    while (rc == 0 && (got = read_line(f, line, sizeof line)) != LINE_END) {
         lineno++;
+        if (got == LINE_NUL) {
+            snprintf(err, n_err, "%s line %d: a NUL byte (a text file is needed)", path,
+                     lineno);
+            rc = -1;
+            break;
+        }
+        if (got == LINE_LONG && !strpbrk(line, "!#")) {
+            snprintf(err, n_err, "%s line %d: longer than %d characters", path, lineno,
+                     LINE_MAX_IN - 1);
+            rc = -1;
+            break;
+        }
         char key[128];
         if (WTFTC_NEEDS_CP && sscanf(line, "%127s", key) == 1 && strcmp(key, WTFTC_CP_KEY) == 0) {
             if (cp_seen++) {
@@ -139,17 +232,17 @@ static int read_input(const char *path, double *p, char *cp, size_t n_cp, char *
         }
         char *c = strpbrk(line, "!#");
         if (c) *c = '\0';
-        char name[128], rest[128];
-        double value;
-        int n = sscanf(line, "%127s %lf %127s", name, &value, rest);
+        char name[128], word[128], rest[128], *end;
+        int n = sscanf(line, "%127s %127s %127s", name, word, rest);
         if (n <= 0) continue; /* blank or comment */
+        /* the whole word a number (scanf's %lf would take "1.5e" for 1.5) */
+        double value = n >= 2 ? strtod(word, &end) : 0.0;
         if (n == 1) {
-            char word[128];
-            if (sscanf(line, "%127s %127s", name, word) == 2)
-                snprintf(err, n_err, "%s line %d: %s = '%s' is not a number", path, lineno,
-                         name, word);
-            else
-                snprintf(err, n_err, "%s line %d: %s has no value", path, lineno, name);
+            snprintf(err, n_err, "%s line %d: %s has no value", path, lineno, name);
+            rc = -1;
+        } else if (n == 2 && (end == word || *end != '\0')) {
+            snprintf(err, n_err, "%s line %d: %s = '%s' is not a number", path, lineno, name,
+                     word);
             rc = -1;
         } else if (n == 3) {
             snprintf(err, n_err, "%s line %d: '%s' after the value of %s (a comment starts "
@@ -171,6 +264,7 @@ static int read_input(const char *path, double *p, char *cp, size_t n_cp, char *
             } else {
                 p[k] = value;
                 seen[k] = 1;
+                line_of[k] = lineno;
             }
         }
     }
@@ -188,11 +282,68 @@ static int read_input(const char *path, double *p, char *cp, size_t n_cp, char *
     return rc;
 }
 
+static int in_range(const WtftcRange *r, double v)
+{
+    return !(v < r->lo || v > r->hi || (r->lo_open && v == r->lo) || (r->hi_open && v == r->hi));
+}
+
+/* Every value against its valid range, then wtftc's cross-checks (wtftc_discon_checks.h,
+ * generated from layout.json and wtftc.config): the first refusal in the file's order,
+ * naming the line, the parameter, its value and what is allowed. */
+static int check_values(const char *path, const double *p, const int *line_of, char *err,
+                        size_t n_err)
+{
+    char a[40], b[40];
+    int bad = -1;
+    for (int k = 0; k < WTFTC_N_PARAMS; k++)
+        if (!in_range(&WTFTC_RANGE[k], p[k]) && (bad < 0 || line_of[k] < line_of[bad]))
+            bad = k;
+    if (bad >= 0) {
+        const WtftcRange *r = &WTFTC_RANGE[bad];
+        int degrees = r->angle && in_range(r, p[bad] * (3.141592653589793 / 180.0));
+        snprintf(err, n_err, "%s line %d: %s = %s is not allowed: %s%s", path, line_of[bad],
+                 WTFTC_PARAM_NAMES[bad], number(p[bad], a, sizeof a), r->allowed,
+                 degrees ? " (radians: this looks like degrees)" : "");
+        return -1;
+    }
+    for (int k = 0; k < WTFTC_N_ORDER; k++) {
+        int lo = WTFTC_ORDER[k][0], hi = WTFTC_ORDER[k][1];
+        if (!(p[lo] < p[hi])) {
+            snprintf(err, n_err, "%s line %d: %s = %s is not allowed: %s < %s (here %s = %s)",
+                     path, line_of[lo], WTFTC_PARAM_NAMES[lo], number(p[lo], a, sizeof a),
+                     WTFTC_PARAM_NAMES[lo], WTFTC_PARAM_NAMES[hi], WTFTC_PARAM_NAMES[hi],
+                     number(p[hi], b, sizeof b));
+            return -1;
+        }
+    }
+    for (int k = 0; k < WTFTC_N_ONE_OF; k++) {
+        const WtftcOneOf *o = &WTFTC_ONE_OF[k];
+        if (p[o->k] != o->a && p[o->k] != o->b) {
+            snprintf(err, n_err, "%s line %d: %s = %s is not allowed: %s", path,
+                     line_of[o->k], WTFTC_PARAM_NAMES[o->k], number(p[o->k], a, sizeof a),
+                     o->allowed);
+            return -1;
+        }
+    }
+    double rated = p[WTFTC_ENVELOPE_RATED], ref = p[WTFTC_ENVELOPE_REF];
+    double low = WTFTC_ENVELOPE_LOW * rated, high = WTFTC_ENVELOPE_HIGH * rated;
+    if (!(low < ref && ref < high)) {
+        snprintf(err, n_err, "%s line %d: %s = %s is not allowed: a speed inside the operating "
+                 "envelope, %.4g-%.4g rad/s (%g-%g x %s; layout.json envelope)", path,
+                 line_of[WTFTC_ENVELOPE_REF], WTFTC_PARAM_NAMES[WTFTC_ENVELOPE_REF],
+                 number(ref, a, sizeof a), low, high, WTFTC_ENVELOPE_LOW, WTFTC_ENVELOPE_HIGH,
+                 WTFTC_PARAM_NAMES[WTFTC_ENVELOPE_RATED]);
+        return -1;
+    }
+    return 0;
+}
+
 /* The input file's name: accINFILE up to its length (#50) or its NUL, whichever first
  * (ROSCO's ControllerInterface passes the length without the +1 of the NUL). */
 static void input_name(const float *avrSWAP, const char *accINFILE, char *out, size_t n)
 {
-    size_t len = (size_t)(avrSWAP[49] > 0 ? avrSWAP[49] + 0.5f : 0);
+    int given = record_int(avrSWAP[49], 0);
+    size_t len = given > 0 ? (size_t)given : 0;
     size_t k = 0;
     while (k < len && k + 1 < n && accINFILE[k] != '\0') {
         out[k] = accINFILE[k];
@@ -264,13 +415,15 @@ static int schedule(const char *cp, char *err, size_t n_err)
 static int first_call(float *avrSWAP, const char *accINFILE, char *err, size_t n_err)
 {
     char path[1024], cp[2048] = "";
+    int line_of[WTFTC_N_PARAMS] = {0};
     release();
     if (allocate() != 0) {
         snprintf(err, n_err, "out of memory");
         return -1;
     }
     input_name(avrSWAP, accINFILE, path, sizeof path);
-    if (read_input(path, instance->p, cp, sizeof cp, err, n_err) != 0) return -1;
+    if (read_input(path, instance->p, line_of, cp, sizeof cp, err, n_err) != 0) return -1;
+    if (check_values(path, instance->p, line_of, err, n_err) != 0) return -1;
     if (schedule(cp, err, n_err) != 0) return -1;
     double dt = avrSWAP[2];
     if (!(fabs(dt - WTFTC_DT) <= 1e-6 * WTFTC_DT)) {
@@ -278,7 +431,7 @@ static int first_call(float *avrSWAP, const char *accINFILE, char *err, size_t n
                  "or export again with --interval", dt, WTFTC_DT, WTFTC_DT);
         return -1;
     }
-    if ((int)lroundf(avrSWAP[27]) != 1) { /* #28 Ptch_Cntrl */
+    if (record_int(avrSWAP[27], 0) != 1) { /* #28 Ptch_Cntrl */
         snprintf(err, n_err, "Ptch_Cntrl = %g (#28): the accommodation commands each blade "
                  "(#42-#44); set Ptch_Cntrl 1 (individual pitch) in ServoDyn", avrSWAP[27]);
         return -1;
@@ -294,7 +447,23 @@ static int first_call(float *avrSWAP, const char *accINFILE, char *err, size_t n
         snprintf(err, n_err, "the initialisation failed");
         return -1;
     }
+    for (int k = 0; k < WTFTC_N_CTRL + WTFTC_N_FDI; k++) {
+        double x = k < WTFTC_N_CTRL ? instance->x_ctrl[k] : instance->x_fdi[k - WTFTC_N_CTRL];
+        if (!isfinite(x)) {
+            snprintf(err, n_err, "the initial %s state %d is not finite at t = %g s: check "
+                     "the input file's values", k < WTFTC_N_CTRL ? "controller" : "FDI",
+                     k < WTFTC_N_CTRL ? k + 1 : k - WTFTC_N_CTRL + 1, avrSWAP[1]);
+            return -1;
+        }
+    }
     return 0;
+}
+
+/* Whether v converts to a finite float (beyond FLT_MAX the conversion is undefined in C,
+ * inf in practice). */
+static int as_float(double v)
+{
+    return isfinite(v) && fabs(v) <= FLT_MAX;
 }
 
 static int step(float *avrSWAP, char *err, size_t n_err)
@@ -318,10 +487,24 @@ static int step(float *avrSWAP, char *err, size_t n_err)
         snprintf(err, n_err, "the controller's step failed");
         return -1;
     }
+    /* the final guard: every value written is a finite float, or nothing is written */
+    static const char *const pitch_records[3] = {"#42", "#43", "#44"};
     for (int k = 0; k < 3; k++)
-        if (!isfinite(pitch[k])) {
-            snprintf(err, n_err, "the pitch demand of blade %d is not finite at t = %g s",
-                     k + 1, avrSWAP[1]);
+        if (!as_float(pitch[k])) {
+            snprintf(err, n_err, "the pitch demand of blade %d (%s) is %g at t = %g s: not a "
+                     "finite float; nothing written", k + 1, pitch_records[k], pitch[k],
+                     avrSWAP[1]);
+            return -1;
+        }
+    if (!as_float(torque)) {
+        snprintf(err, n_err, "the generator torque demand (#47) is %g at t = %g s: not a "
+                 "finite float; nothing written", torque, avrSWAP[1]);
+        return -1;
+    }
+    for (int k = 0; k < WTFTC_N_LOG; k++)
+        if (!as_float(logged[k])) {
+            snprintf(err, n_err, "the logged channel %d is %g at t = %g s: not a finite "
+                     "float; nothing written", k + 1, logged[k], avrSWAP[1]);
             return -1;
         }
     memcpy(instance->x_ctrl, xc, sizeof xc);
@@ -336,7 +519,7 @@ static int step(float *avrSWAP, char *err, size_t n_err)
     avrSWAP[54] = 0.0f; /* pitch override: yes */
     avrSWAP[55] = 0.0f; /* torque override: yes */
     avrSWAP[64] = 0.0f;
-    int first_log = (int)(avrSWAP[62] + 0.5f); /* #63: record of the first logged value */
+    int first_log = record_int(avrSWAP[62], 0); /* #63: record of the first logged value */
     if (WTFTC_N_LOG > 0 && first_log >= 1 && first_log - 1 + WTFTC_N_LOG <= WTFTC_SWAP_MAX) {
         for (int k = 0; k < WTFTC_N_LOG; k++) avrSWAP[first_log - 1 + k] = (float)logged[k];
         avrSWAP[64] = (float)WTFTC_N_LOG;
@@ -353,17 +536,17 @@ static int step(float *avrSWAP, char *err, size_t n_err)
 WTFTC_EXPORT void DISCON(float *avrSWAP, int *aviFAIL, const char *accINFILE,
                          char *avcOUTNAME, char *avcMSG)
 {
-    char err[900] = "";
-    int status = (int)lroundf(avrSWAP[0]);
-    int given = (int)lroundf(avrSWAP[48]); /* #49: avcMSG's capacity */
-    msg_len = given >= 2 && given <= MSG_MAX ? (size_t)given : MSG_DEFAULT;
+    char err[1200] = "";
+    int status = record_int(avrSWAP[0], -1000);
+    size_t n_msg = msg_capacity(avrSWAP);
     *aviFAIL = 0;
-    avcMSG[0] = '\0';
+    if (n_msg > 0) avcMSG[0] = '\0';
     (void)avcOUTNAME; /* an input (the run's root name): never written; the logged
                          channels' names are in README.txt and docs/discon.md */
     if (status == -8 || status == -9) {
-        fail(aviFAIL, avcMSG, status == -8 ? "checkpoints are not supported (iStatus = -8)"
-                                           : "restarts are not supported (iStatus = -9)");
+        fail(aviFAIL, avcMSG, n_msg, status == -8
+                 ? "checkpoints are not supported (iStatus = -8)"
+                 : "restarts are not supported (iStatus = -9)");
         return;
     }
     if (status == -1) {
@@ -371,19 +554,19 @@ WTFTC_EXPORT void DISCON(float *avrSWAP, int *aviFAIL, const char *accINFILE,
         return;
     }
     if (status != 0 && status != 1) {
-        snprintf(err, sizeof err, "iStatus = %d (#1) is not one of 0, 1, -1", status);
-        fail(aviFAIL, avcMSG, err);
+        snprintf(err, sizeof err, "iStatus = %g (#1) is not one of 0, 1, -1", avrSWAP[0]);
+        fail(aviFAIL, avcMSG, n_msg, err);
         return;
     }
     if (status == 0 && first_call(avrSWAP, accINFILE, err, sizeof err) != 0) {
         release();
-        fail(aviFAIL, avcMSG, err);
+        fail(aviFAIL, avcMSG, n_msg, err);
         return;
     }
     if (!instance) {
-        fail(aviFAIL, avcMSG, "called with iStatus = 1 before a first call (iStatus = 0) "
-                              "succeeded");
+        fail(aviFAIL, avcMSG, n_msg, "called with iStatus = 1 before a first call "
+                                     "(iStatus = 0) succeeded");
         return;
     }
-    if (step(avrSWAP, err, sizeof err) != 0) fail(aviFAIL, avcMSG, err);
+    if (step(avrSWAP, err, sizeof err) != 0) fail(aviFAIL, avcMSG, n_msg, err);
 }

@@ -1,0 +1,196 @@
+"""What a DISCON library checks in its input file at the first call (issue 30, defect 3):
+every value against its valid range and wtftc's cross-checks, as C tables
+(``wtftc_discon_checks.h``, read by discon_interface.c).
+
+The ranges are not retyped: the layout's ``valid`` entries (derivation/layout.py, emitted in
+generated/layout.json, the ones wtftc.config checks); for the FDI's parameters, which wtftc
+computes and a user never sets, the range of what wtftc sets each from (a turbine
+parameter, an ``[fdi]`` key, the call interval) and, for its own constants,
+:data:`FDI_OWN_VALID`; the cross-checks of wtftc.config (TURBINE_ORDER, TURBINE_FLAGS, the
+controller's pitch range, the control sign, the reference inside the envelope).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.sim import rhs
+
+_POSITIVE = (0.0, math.inf, True, True)
+_NONNEG = (0.0, math.inf, False, True)
+#: The FDI's own constants. wtftc never lets a user set one (each is the derivation's value
+#: or a controller's registry override: wtftc.sim.rhs.fdi_params), so the layout gives them
+#: no valid range; in a library's .IN they are the user's. Each is bounded by what it is
+#: (ours, docs/discon.md): time constants, windows and the latch's rise rate > 0 (each
+#: divides, or the latch never rises); thresholds, mean squares, variances and bands >= 0;
+#: the regression slope that tells a lock in [0, 1]; a "group.name" takes that layout
+#: entry's range (the smallest ρ̂ as ρ̂ itself, the fault models' ω_n and ζ as the nominal
+#: actuator's).
+FDI_OWN_VALID = {
+    **dict.fromkeys(("fdi_T_f", "fdi_T_r", "fdi_T_w", "fdi_T_w_fault", "fdi_T_engage",
+                     "fdi_k_latch"), _POSITIVE),
+    **dict.fromkeys(("fdi_r_thr", "fdi_thr2_noise", "fdi_thr2_pair", "fdi_thr2_omega_r",
+                     "fdi_thr2_omega_g_hss", "fdi_var_noise", "fdi_speed_floor",
+                     "fdi_stop_band", "fdi_stop_gap"), _NONNEG),
+    "fdi_rho_lock": (0.0, 1.0, False, False),
+    "fdi_rho_min": "controller_params.rho_hat_1",
+    **dict.fromkeys(("fdi_omega_pd", "fdi_omega_air"), "turbine_params.omega_n_nominal"),
+    **dict.fromkeys(("fdi_zeta_pd", "fdi_zeta_air"), "turbine_params.zeta_nominal"),
+}
+#: the FDI's parameters wtftc sets from a key of a run's [fdi] table: that key's range
+#: (wtftc.config.FDI_KEYS)
+FDI_FROM_CONFIG = {"fdi_delta": "model_uncertainty",
+                   "fdi_delta_rate_limited": "rate_limited_uncertainty"}
+#: the FDI's parameter that is the call interval (wtftc.sim.fdi.run_params sets it so)
+FDI_INTERVAL = "fdi_T_s"
+
+
+def _range_text(rng: tuple, unit: str) -> str:
+    """What a range allows, in wtftc.config's words."""
+    lo, hi, lo_open, hi_open = rng
+    if lo == -math.inf and hi == math.inf:
+        return f"a finite number [{unit}]"
+    if hi == math.inf:
+        return f"a number {'>' if lo_open else '>='} {lo:g} [{unit}]"
+    if lo == -math.inf:
+        return f"a number {'<' if hi_open else '<='} {hi:g} [{unit}]"
+    return (f"a number in {'(' if lo_open else '['}{lo:.6g}, {hi:.6g}{')' if hi_open else ']'}"
+            f" [{unit}]")
+
+
+def _layout_range(group: str, name: str) -> tuple[tuple | None, str]:
+    """The ``valid`` range of a layout entry (None: unbounded) and its unit."""
+    e = lay.layout()[group][lay.index(group, name)]
+    v = e.get("valid")
+    if not v:
+        return None, e["unit"]
+    return ((-math.inf if v["min"] is None else v["min"], math.inf if v["max"] is None
+             else v["max"], v["min_open"], v["max_open"]), e["unit"])
+
+
+def fdi_facts(rc: config.RunConfig) -> dict[str, str]:
+    """The FDI's parameters that are a turbine parameter's value in wtftc (wtftc.sim.rhs.
+    fdi_params: the actuator's ω_n and ζ, its limits, the gearbox ratio), by name: found by
+    giving every turbine parameter a value of its own."""
+    names = lay.names("turbine_params")
+    probe = tuple((k + 1) * math.pi / 100 for k in range(len(names)))
+    p_fdi = rhs.fdi_params(dataclasses.replace(rc.loop, p_turbine=probe))
+    return {f: names[probe.index(float(v))]
+            for f, v in zip(lay.names("fdi_params"), p_fdi, strict=True)
+            if float(v) in probe}
+
+
+def _fdi_range(name: str, unit: str, facts: dict, interval: float) -> tuple[tuple, str]:
+    if name in facts:
+        rng, _ = _layout_range("turbine_params", facts[name])
+        return rng, f"{_range_text(rng, unit)} (as turbine_params.{facts[name]})"
+    if name in FDI_FROM_CONFIG:
+        key = FDI_FROM_CONFIG[name]
+        _, lo, hi, _ = config.FDI_KEYS[key]
+        rng = (lo, hi, False, False)
+        return rng, f"{_range_text(rng, unit)} (as the [fdi] table's {key})"
+    if name == FDI_INTERVAL:
+        return (interval, interval, False, False), (
+            f"{interval!r} [s], the call interval the library is exported for")
+    if name not in FDI_OWN_VALID:  # a new FDI parameter: give it a range here
+        raise KeyError(f"the FDI's parameter {name} has no range: add it to FDI_OWN_VALID "
+                       "(wtftc/export/discon_checks.py)")
+    own = FDI_OWN_VALID[name]
+    if isinstance(own, str):
+        group, entry = own.split(".")
+        own, _ = _layout_range(group, entry)
+        return own, f"{_range_text(own, unit)} (as {group}.{entry})"
+    return own, f"{_range_text(own, unit)} (the FDI's own range, docs/discon.md)"
+
+
+def checks(rc: config.RunConfig, groups: dict[str, str]) -> dict:
+    """What the library checks at its first call, by parameter name: ``ranges`` (low,
+    high, low_open, high_open, what is allowed, whether an angle) of every parameter in
+    the library's order (``groups``: the layout group of each .IN section, in order),
+    from the layout's ``valid`` ranges (the ones wtftc.config
+    checks) and, for the FDI, :func:`fdi_facts`, :data:`FDI_FROM_CONFIG` and
+    :data:`FDI_OWN_VALID`; ``order``, pairs (low, high) that must increase strictly
+    (wtftc.config.TURBINE_ORDER and every ``*pitch_min`` < ``*pitch_max``); ``one_of``,
+    (name, (a, b), allowed) (the turbine's flags, the control sign); ``envelope``, the
+    reference and the rated speed it must stay near (layout.json envelope, as
+    wtftc.config checks the reference)."""
+    facts = fdi_facts(rc)
+    ranges = []
+    for group in groups.values():
+        for name, unit in zip(lay.names(group), lay.units(group), strict=True):
+            if group == "fdi_params":
+                rng, text = _fdi_range(name, unit, facts, rc.control_interval)
+            else:
+                rng, unit = _layout_range(group, name)
+                rng = rng or (-math.inf, math.inf, True, True)
+                text = _range_text(rng, unit)
+            ranges.append((name, *rng, text, unit == "rad" and math.isfinite(rng[1])))
+    names = [r[0] for r in ranges]
+    order = list(config.TURBINE_ORDER)
+    order += [(n, n.replace("pitch_min", "pitch_max")) for n in names
+              if n.endswith("pitch_min") and n.replace("pitch_min", "pitch_max") in names
+              and (n, n.replace("pitch_min", "pitch_max")) not in order]
+    one_of = [(f, (0.0, 1.0), "0 or 1 (docs/running.md)") for f in config.TURBINE_FLAGS]
+    if "control_sign" in names:  # wtftc.config._control_sign
+        one_of.append(("control_sign", (-1.0, 1.0), "-1 (corrected, default) or +1 (as "
+                       "written, stalls the rotor: paper-notes defect 2)"))
+    env = lay.layout()["envelope"]
+    return {"ranges": ranges, "order": order, "one_of": one_of,
+            "envelope": ("yd_0", "omega_g_rated", env["stall_under_rated"],
+                         env["overspeed_over_rated"])}
+
+
+def _c_double(x: float) -> str:
+    return repr(float(x)) if math.isfinite(x) else ("HUGE_VAL" if x > 0 else "-HUGE_VAL")
+
+
+def _c_string(text: str) -> str:
+    text.encode("ascii")  # the messages are ASCII: a host prints them as bytes
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def header(rc: config.RunConfig, groups: dict[str, str]) -> str:
+    """wtftc_discon_checks.h: :func:`checks` as C tables."""
+    c = checks(rc, groups)
+    names = [r[0] for r in c["ranges"]]
+    rows = ",\n    ".join(
+        f"{{{_c_double(lo)}, {_c_double(hi)}, {int(lo_open)}, {int(hi_open)}, {int(angle)}, "
+        f"{_c_string(text)}}} /* {name} */"
+        for name, lo, hi, lo_open, hi_open, text, angle in c["ranges"])
+    order = ", ".join(f"{{{names.index(a)}, {names.index(b)}}}" for a, b in c["order"])
+    one_of = ",\n    ".join(f"{{{names.index(n)}, {_c_double(a)}, {_c_double(b)}, "
+                            f"{_c_string(text)}}}" for n, (a, b), text in c["one_of"])
+    ref, rated, low, high = c["envelope"]
+    return f"""/* wtftc export discon: the checks of every input-file value of {rc.loop.controller}
+ * (wtftc/export/discon.py, checks: the layout's valid ranges, the FDI's, wtftc.config's
+ * cross-checks). Generated: do not edit. */
+typedef struct {{
+    double lo, hi;
+    int lo_open, hi_open, angle; /* angle: a value in rad (a degrees hint when refused) */
+    const char *allowed;
+}} WtftcRange;
+static const WtftcRange WTFTC_RANGE[WTFTC_N_PARAMS] = {{
+    {rows}
+}};
+/* pairs (low, high) that must increase strictly */
+#define WTFTC_N_ORDER {len(c["order"])}
+static const int WTFTC_ORDER[{max(1, len(c["order"]))}][2] = {{{order or "{0, 0}"}}};
+/* values that must be one of two */
+typedef struct {{
+    int k;
+    double a, b;
+    const char *allowed;
+}} WtftcOneOf;
+#define WTFTC_N_ONE_OF {len(c["one_of"])}
+static const WtftcOneOf WTFTC_ONE_OF[{max(1, len(c["one_of"]))}] = {{
+    {one_of or '{0, 0.0, 0.0, ""}'}
+}};
+/* the reference inside the operating envelope: (LOW, HIGH) x the rated speed */
+#define WTFTC_ENVELOPE_REF {names.index(ref)}
+#define WTFTC_ENVELOPE_RATED {names.index(rated)}
+#define WTFTC_ENVELOPE_LOW {_c_double(low)}
+#define WTFTC_ENVELOPE_HIGH {_c_double(high)}
+"""
