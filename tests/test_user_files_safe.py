@@ -376,3 +376,15 @@ def test_turbine_tune_never_writes_over_a_users_file(tmp_path, capsys):
     assert cli.main([*tune[:-1], str(data), "--overwrite"]) == 2
     assert "outside the installed wtftc package" in capsys.readouterr().err
     assert not data.exists()
+
+
+def test_a_listed_file_edited_to_the_same_size_is_the_users(tmp_path):
+    """A tuned value edited in place (2.0 -> 3.0 in a .IN) keeps the file's size: the
+    marker's sha256 still tells that wtftc did not write it."""
+    out = tmp_path / "o"
+    with _written(out, {"wtftc_physical.IN": "2.0   ! phys_c1\n"}):
+        pass
+    (out / "wtftc_physical.IN").write_text("3.0   ! phys_c1\n")
+    with pytest.raises(ConfigError, match="did not write"), _written(out, {"b": "x"}):
+        pass
+    assert (out / "wtftc_physical.IN").read_text() == "3.0   ! phys_c1\n"

@@ -7,8 +7,8 @@
 * **What wtftc wrote** (:func:`owned_folder`, :func:`write_files_together`): a command that
   writes a folder builds it in a hidden sibling and swaps it in whole. It may replace a
   folder only when that folder is empty or holds exactly what wtftc wrote there, as its
-  marker file ``.wtftc-written`` lists it (path and size of every file); anything else,
-  a user's file added, a listed file changed, is refused in one line and nothing is
+  marker file ``.wtftc-written`` lists it (path, size and sha256 of every file); anything
+  else, a user's file added, a listed file changed, is refused in one line and nothing is
   touched. A command never deletes a file it did not write.
 
 A killed command leaves its hidden ``.<name>.*.partial`` sibling behind; the next command
@@ -21,6 +21,7 @@ import ctypes
 import ctypes.util
 import errno
 import fcntl
+import hashlib
 import json
 import os
 import shutil
@@ -32,7 +33,8 @@ from pathlib import Path
 
 from wtftc.errors import ConfigError
 
-#: the marker of a folder wtftc wrote: JSON {"written_by": command, "files": {path: size}}
+#: the marker of a folder wtftc wrote: JSON {"written_by": command, "files": {path:
+#: "<size> <sha256>"}}: a file edited since, even to the same size, makes it the user's
 MARKER = ".wtftc-written"
 #: the lock a folder under construction holds while its command runs
 PARTIAL_LOCK = ".wtftc-partial"
@@ -134,10 +136,10 @@ def _umask() -> int:
     return mask
 
 
-def _listing(folder: Path) -> dict[str, int] | None:
-    """Every file under ``folder`` (relative path: size), the marker left out; None when it
-    holds anything but regular files and folders (a symlink, a FIFO...)."""
-    out: dict[str, int] = {}
+def _listing(folder: Path) -> dict[str, str] | None:
+    """Every file under ``folder`` (relative path: "<size> <sha256>"), the marker left out;
+    None when it holds anything but regular files and folders (a symlink, a FIFO...)."""
+    out: dict[str, str] = {}
     for root, dirs, files in os.walk(folder, followlinks=False):
         for name in dirs:
             if os.path.islink(os.path.join(root, name)):
@@ -149,8 +151,16 @@ def _listing(folder: Path) -> dict[str, int] | None:
                 return None
             rel = os.path.relpath(full, folder)
             if rel != MARKER:
-                out[rel] = st.st_size
+                out[rel] = f"{st.st_size} {_sha256(full)}"
     return out
+
+
+def _sha256(path: str) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
 
 
 def written_by_wtftc(folder: Path) -> bool:
