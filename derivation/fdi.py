@@ -43,8 +43,11 @@ after a detection with ρ̂ ≈ 1 the model with the smallest residual gives (ω
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import sympy as sp
 
+from derivation import layout as lay
 from derivation import nrel5mw, turbine
 from derivation.layout import Entry
 
@@ -176,6 +179,27 @@ PARAMS = [
           "least-squares windows; chosen with T_w among (3, 4) × (2, 3) s on NTM B at 16 and "
           "20 m/s and the paper's wind: docs/fdi.md)"),
 ]
+#: The physical range of the FDI's own constants (issue 30): wtftc never lets a user set
+#: one (each is this value or a controller's registry override), but in an exported
+#: library's .IN they are the user's, and the library checks them against this range
+#: (wtftc/export/discon_checks.py). Time constants, windows and the latch's rise rate > 0
+#: (each divides, or the latch never rises); thresholds, mean squares, variances and
+#: bands >= 0; the regression slope that tells a lock in [0, 1]; the smallest ρ̂ as ρ̂
+#: itself; the fault models' ω_n and ζ as the nominal actuator's. The parameters that copy
+#: a turbine parameter or a run's [fdi] key (ω_n, ζ, limits, gearbox ratio, δ) take that
+#: one's range, and T_s is the call interval.
+FDI_VALID = {
+    **dict.fromkeys(("fdi_T_f", "fdi_T_r", "fdi_T_w", "fdi_T_w_fault", "fdi_T_engage",
+                     "fdi_k_latch"), lay.TURBINE_VALID["J_r"]),
+    **dict.fromkeys(("fdi_r_thr", "fdi_thr2_noise", "fdi_thr2_pair", "fdi_thr2_omega_r",
+                     "fdi_thr2_omega_g_hss", "fdi_var_noise", "fdi_speed_floor",
+                     "fdi_stop_band", "fdi_stop_gap"), (0.0, None, False, True)),
+    "fdi_rho_lock": (0.0, 1.0, False, False),
+    "fdi_rho_min": lay.CONTROLLER_VALID["rho_hat"],
+    **dict.fromkeys(("fdi_omega_pd", "fdi_omega_air"), lay.TURBINE_VALID["omega_n_nominal"]),
+    **dict.fromkeys(("fdi_zeta_pd", "fdi_zeta_air"), lay.TURBINE_VALID["zeta_nominal"]),
+}
+PARAMS = [replace(e, valid=FDI_VALID.get(e.name)) for e in PARAMS]
 wn, zt, bmin, bmax, rmax, T_f, r_thr, k_D, T_w, rho_lock, rho_min, T_e = sp.symbols(
     "fdi_omega_n fdi_zeta fdi_pitch_min fdi_pitch_max fdi_rate_max fdi_T_f fdi_r_thr "
     "fdi_k_latch fdi_T_w fdi_rho_lock fdi_rho_min fdi_T_engage", real=True)

@@ -5,9 +5,10 @@ every value against its valid range and wtftc's cross-checks, as C tables
 The ranges are not retyped: the layout's ``valid`` entries (derivation/layout.py, emitted in
 generated/layout.json, the ones wtftc.config checks); for the FDI's parameters, which wtftc
 computes and a user never sets, the range of what wtftc sets each from (a turbine
-parameter, an ``[fdi]`` key, the call interval) and, for its own constants,
-:data:`FDI_OWN_VALID`; the cross-checks of wtftc.config (TURBINE_ORDER, TURBINE_FLAGS, the
-controller's pitch range, the control sign, the reference inside the envelope).
+parameter, an ``[fdi]`` key, the call interval) and, for its own constants, the layout's
+``valid`` (derivation/fdi.py FDI_VALID); the cross-checks of wtftc.config (TURBINE_ORDER,
+TURBINE_FLAGS, the controller's pitch range, the control sign, the reference inside the
+envelope).
 """
 
 from __future__ import annotations
@@ -19,27 +20,6 @@ from wtftc import config
 from wtftc.artefacts import layout as lay
 from wtftc.sim import rhs
 
-_POSITIVE = (0.0, math.inf, True, True)
-_NONNEG = (0.0, math.inf, False, True)
-#: The FDI's own constants. wtftc never lets a user set one (each is the derivation's value
-#: or a controller's registry override: wtftc.sim.rhs.fdi_params), so the layout gives them
-#: no valid range; in a library's .IN they are the user's. Each is bounded by what it is
-#: (ours, docs/discon.md): time constants, windows and the latch's rise rate > 0 (each
-#: divides, or the latch never rises); thresholds, mean squares, variances and bands >= 0;
-#: the regression slope that tells a lock in [0, 1]; a "group.name" takes that layout
-#: entry's range (the smallest ρ̂ as ρ̂ itself, the fault models' ω_n and ζ as the nominal
-#: actuator's).
-FDI_OWN_VALID = {
-    **dict.fromkeys(("fdi_T_f", "fdi_T_r", "fdi_T_w", "fdi_T_w_fault", "fdi_T_engage",
-                     "fdi_k_latch"), _POSITIVE),
-    **dict.fromkeys(("fdi_r_thr", "fdi_thr2_noise", "fdi_thr2_pair", "fdi_thr2_omega_r",
-                     "fdi_thr2_omega_g_hss", "fdi_var_noise", "fdi_speed_floor",
-                     "fdi_stop_band", "fdi_stop_gap"), _NONNEG),
-    "fdi_rho_lock": (0.0, 1.0, False, False),
-    "fdi_rho_min": "controller_params.rho_hat_1",
-    **dict.fromkeys(("fdi_omega_pd", "fdi_omega_air"), "turbine_params.omega_n_nominal"),
-    **dict.fromkeys(("fdi_zeta_pd", "fdi_zeta_air"), "turbine_params.zeta_nominal"),
-}
 #: the FDI's parameters wtftc sets from a key of a run's [fdi] table: that key's range
 #: (wtftc.config.FDI_KEYS)
 FDI_FROM_CONFIG = {"fdi_delta": "model_uncertainty",
@@ -95,26 +75,23 @@ def _fdi_range(name: str, unit: str, facts: dict, interval: float) -> tuple[tupl
     if name == FDI_INTERVAL:
         return (interval, interval, False, False), (
             f"{interval!r} [s], the call interval the library is exported for")
-    if name not in FDI_OWN_VALID:  # a new FDI parameter: give it a range here
-        raise KeyError(f"the FDI's parameter {name} has no range: add it to FDI_OWN_VALID "
-                       "(wtftc/export/discon_checks.py)")
-    own = FDI_OWN_VALID[name]
-    if isinstance(own, str):
-        group, entry = own.split(".")
-        own, _ = _layout_range(group, entry)
-        return own, f"{_range_text(own, unit)} (as {group}.{entry})"
-    return own, f"{_range_text(own, unit)} (the FDI's own range, docs/discon.md)"
+    own, _ = _layout_range("fdi_params", name)
+    if own is None:  # a new FDI parameter: give it a range in the derivation
+        raise KeyError(f"the FDI's parameter {name} has no valid range: add it to FDI_VALID "
+                       "(derivation/fdi.py) and run make regenerate")
+    return own, f"{_range_text(own, unit)} (the FDI's own range, derivation/fdi.py FDI_VALID)"
 
 
 def checks(rc: config.RunConfig, groups: dict[str, str]) -> dict:
     """What the library checks at its first call, by parameter name: ``ranges`` (low,
     high, low_open, high_open, what is allowed, whether an angle) of every parameter in
     the library's order (``groups``: the layout group of each .IN section, in order),
-    from the layout's ``valid`` ranges (the ones wtftc.config
-    checks) and, for the FDI, :func:`fdi_facts`, :data:`FDI_FROM_CONFIG` and
-    :data:`FDI_OWN_VALID`; ``order``, pairs (low, high) that must increase strictly
-    (wtftc.config.TURBINE_ORDER and every ``*pitch_min`` < ``*pitch_max``); ``one_of``,
-    (name, (a, b), allowed) (the turbine's flags, the control sign); ``envelope``, the
+    from the layout's ``valid`` ranges (the ones wtftc.config checks) and, for the FDI,
+    :func:`fdi_facts`, :data:`FDI_FROM_CONFIG` and the layout's ``valid`` of the FDI's own
+    constants (derivation/fdi.py FDI_VALID); ``order``, pairs (low, high) that must
+    increase strictly (wtftc.config.TURBINE_ORDER and every ``*pitch_min`` <
+    ``*pitch_max``); ``one_of``, (name, (a, b), allowed) (the turbine's flags, the control
+    sign); ``envelope``, the
     reference and the rated speed it must stay near (layout.json envelope, as
     wtftc.config checks the reference)."""
     facts = fdi_facts(rc)
