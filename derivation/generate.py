@@ -543,9 +543,11 @@ def _not_replaceable(outdir: Path) -> str | None:
     """Why ``outdir`` may not be replaced by a new generation, or None: it must be missing,
     empty, or hold only an earlier generation (its manifest.json and the artefacts that
     manifest lists); a folder holding anything else is never touched."""
+    if outdir.is_symlink():
+        return "a symbolic link (give the folder itself)"
     if not outdir.exists():
         return None
-    if not outdir.is_dir() or outdir.is_symlink():
+    if not outdir.is_dir():
         return "not a folder"
     names = {p.name for p in outdir.iterdir()}
     if not names:

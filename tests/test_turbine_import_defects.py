@@ -267,13 +267,22 @@ def test_a_cp_table_of_the_same_name_is_never_replaced_silently(tmp_path, capsys
     other = cp_entry("0.0001")(originals()["cp"].decode()).encode()
     assert other != originals()["cp"]
     second = make_deck(tmp_path / "c", {"cp": other})
-    code, err = _import(second, out / "c.toml", capsys)
-    assert code == 2 and len(err) == 1 and FILES["cp"] in err[0] and "--overwrite" in err[0]
-    assert (table.read_bytes(), table.stat().st_mtime_ns) == kept
-    assert sorted(os.listdir(out)) == sorted([SENTINEL, "a.toml", "b.toml", FILES["cp"]])
-    code, err = _import(second, out / "c.toml", capsys, "--overwrite")
-    assert code == 0, err
-    assert table.read_bytes() == other and not untouched(out, snap)
+    # another turbine's table is never replaced, --overwrite or not (the review reached
+    # the original defect through the --overwrite an earlier message recommended)
+    for extra in ((), ("--overwrite",)):
+        code, err = _import(second, out / "c.toml", capsys, *extra)
+        assert code == 2 and len(err) == 1 and FILES["cp"] in err[0], err
+        assert "a.toml, b.toml uses the one there" in err[0] and "another folder" in err[0]
+        assert (table.read_bytes(), table.stat().st_mtime_ns) == kept
+        assert sorted(os.listdir(out)) == sorted([SENTINEL, "a.toml", "b.toml", FILES["cp"]])
+    # a turbine's own table, used by no other file, is replaced with --overwrite only
+    solo = tmp_path / "solo"
+    assert _import(first, solo / "a.toml", capsys)[0] == 0
+    code, err = _import(second, solo / "a.toml", capsys)
+    assert code == 2 and "--overwrite" in err[0]
+    assert _import(second, solo / "a.toml", capsys, "--overwrite")[0] == 0
+    assert (solo / FILES["cp"]).read_bytes() == other
+    assert not untouched(out, snap)
 
 
 def test_an_existing_turbine_file_is_replaced_only_with_overwrite(tmp_path, capsys):

@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parent.parent
 #: run for long if it did not refuse first (the refusal must come before any work)
 COMMANDS = {
     "run": ["run", "--t-final", "1", "--quiet"],
-    "cases": ["cases", "--t-final", "1", "--quiet"],
+    "cases": ["cases", "--t-final", "21", "--quiet"],
     "compare": ["compare", "--t-final", "25", "--quiet", "--controllers", "pi"],
     "linearize": ["linearize", "--winds", "16", "--quiet"],
     "verify": ["verify", "--points", "1"],
@@ -371,6 +371,16 @@ def test_turbine_tune_never_writes_over_a_users_file(tmp_path, capsys):
     assert first.startswith("# wtftc turbine tune --controller pi")
     assert cli.main([*tune[:-2], "--zeta", "0.8", "--out", str(out)]) == 0  # its own file
     assert out.read_text() != first and "--zeta 0.8" in out.read_text()
+    out.write_text(out.read_text() + "# my comment\n")  # edited since: the user's now
+    edited = out.read_text()
+    assert cli.main(tune) == 2 and "--overwrite" in capsys.readouterr().err
+    assert out.read_text() == edited
+    assert cli.main(["run", "--config", str(out), "--t-final", "0.2", "--quiet", "--out",
+                     str(tmp_path / "r")]) == 0  # what it wrote runs as a configuration
+    (tmp_path / "r" / files.MARKER).unlink()
+    import shutil
+
+    shutil.rmtree(tmp_path / "r")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["gains.toml"]
     data = Path(wtftc.__file__).parent / "data" / "tuned.toml"
     assert cli.main([*tune[:-1], str(data), "--overwrite"]) == 2
@@ -388,3 +398,135 @@ def test_a_listed_file_edited_to_the_same_size_is_the_users(tmp_path):
     with pytest.raises(ConfigError, match="did not write"), _written(out, {"b": "x"}):
         pass
     assert (out / "wtftc_physical.IN").read_text() == "3.0   ! phys_c1\n"
+
+
+# ------------------------------------------------------- found by the hostile review
+
+@pytest.mark.parametrize("command,top", [("cases", ("metrics.md", "metrics.csv")),
+                                         ("compare", ("compare.md", "compare.csv"))])
+def test_a_users_folder_that_looks_like_an_old_result_is_refused(command, top, tmp_path,
+                                                                  capsys):
+    """The review's case: a paper folder with metrics.md and metrics.csv at its top beside
+    a thesis, a data folder and photos, all of kinds wtftc writes: it was deleted."""
+    out = tmp_path / "paper"
+    (out / "data").mkdir(parents=True)
+    (out / "photos").mkdir()
+    for name in top:
+        (out / name).write_text("x")
+    (out / "thesis.md").write_text("chapter 3")
+    (out / "data" / "field_campaign_2019.csv").write_text("1,2")
+    (out / "photos" / "wedding.png").write_bytes(b"\x89PNG")
+    before = _snapshot(out)
+    assert cli.main([*COMMANDS[command], "--out", str(out)]) == 2
+    assert "did not write" in capsys.readouterr().err
+    assert _snapshot(out) == before
+
+
+def _old_run_folder(out: Path) -> None:
+    """A run folder as a wtftc from before the marker wrote it (no .wtftc-written)."""
+    assert cli.main(["run", "--t-final", "0.5", "--quiet", "--out", str(out)]) == 0
+    (out / files.MARKER).unlink()
+
+
+@pytest.mark.parametrize("extra", ["figures/thesis_chapter3.docx", "figures/raw/lab.dat",
+                                   "traces.csv/inner.txt"])
+def test_an_old_run_folder_with_anything_more_is_the_users(extra, tmp_path, capsys):
+    out = tmp_path / "leg"
+    _old_run_folder(out)
+    target = out / extra
+    if target.parent.name == "traces.csv":
+        (out / "traces.csv").unlink()
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_text("mine")
+    before = _snapshot(out)
+    assert cli.main(["run", "--t-final", "0.5", "--quiet", "--out", str(out)]) == 2
+    assert "did not write" in capsys.readouterr().err
+    assert _snapshot(out) == before
+
+
+def test_an_old_run_folder_as_it_was_written_is_replaced(tmp_path):
+    out = tmp_path / "leg"
+    _old_run_folder(out)
+    assert cli.main(["run", "--t-final", "0.5", "--quiet", "--out", str(out)]) == 0
+    assert (out / files.MARKER).is_file()
+
+
+def test_an_empty_folder_added_makes_the_folder_the_users(tmp_path):
+    out = tmp_path / "o"
+    with _written(out, {"a.csv": "1"}):
+        pass
+    (out / "my_notes").mkdir()
+    with pytest.raises(ConfigError, match="did not write"), _written(out, {"b": "x"}):
+        pass
+    assert (out / "my_notes").is_dir()
+
+
+@pytest.mark.parametrize("target", ["run_folder", "empty"])
+def test_an_out_that_is_a_symlink_is_refused_and_left_alone(target, tmp_path, capsys):
+    real = tmp_path / "big" / "run"
+    if target == "run_folder":
+        assert cli.main(["run", "--t-final", "0.5", "--quiet", "--out", str(real)]) == 0
+    else:
+        real.mkdir(parents=True)
+    link = tmp_path / "link_out"
+    link.symlink_to(real)
+    before = _snapshot(real)
+    assert cli.main(["run", "--t-final", "0.5", "--quiet", "--out", str(link)]) == 2
+    assert "symbolic link" in capsys.readouterr().err
+    assert link.is_symlink() and _snapshot(real) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big", "link_out"]
+
+
+def test_an_out_through_dot_dot_is_checked_as_the_folder_it_names(tmp_path, capsys):
+    mine = _user_folder(tmp_path)
+    (mine / "figures").mkdir()
+    assert cli.main([*COMMANDS["run"], "--out", str(mine / "figures" / "..")]) == 2
+    assert "did not write" in capsys.readouterr().err
+    run = tmp_path / "r"
+    assert cli.main(["run", "--t-final", "0.5", "--quiet", "--out", str(run)]) == 0
+    assert cli.main(["run", "--t-final", "0.5", "--quiet", "--out",
+                     str(run / "figures" / "..")]) == 0
+    assert (run / files.MARKER).is_file() and not (run / "figures" / "figures").exists()
+
+
+def test_regenerate_into_a_symlink_loop_is_one_line(tmp_path, monkeypatch, capsys):
+    from derivation import generate
+
+    monkeypatch.setenv("PYTHONHASHSEED", "0")
+    (tmp_path / "loop").symlink_to("loop")
+    assert generate.main([str(tmp_path / "loop")]) == 2
+    err = capsys.readouterr().err
+    assert "symbolic link" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("fake", ["true", "writes_text"])
+def test_export_refuses_a_compiler_that_builds_no_library(fake, tmp_path, capsys):
+    cc = "/bin/true"
+    if fake == "writes_text":
+        cc = str(tmp_path / "fakecc")
+        Path(cc).write_text('#!/bin/sh\nfor a; do [ "$prev" = -o ] && echo text > "$a"; '
+                            'prev=$a; done\nexit 0\n')
+        os.chmod(cc, 0o755)
+    out = tmp_path / "ex"
+    assert cli.main(["export", "discon", "--controller", "pi", "--out", str(out),
+                     "--cc", cc]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("wtftc: error: --cc") and "status 0" in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("argv,field", [
+    (["cases", "--t-final", "1"], "--t-final"),  # was blamed on fault[0].onset_s
+    (["run", "--turbine", "missing.toml"], "there is none"),
+], ids=["cases_short", "turbine_missing"])
+def test_messages_name_what_the_user_gave(argv, field, tmp_path, capsys):
+    assert cli.main([*argv, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert field in err and err.count("\n") == 1, err
+
+
+def test_an_output_rate_with_fewer_than_two_outputs_is_refused():
+    from wtftc import config
+
+    with pytest.raises(ConfigError, match="output_rate_hz.*at least two outputs"):
+        config.make_config({"output_rate_hz": 1e-9, "t_final_s": 1.0})

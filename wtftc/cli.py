@@ -418,11 +418,16 @@ def _cmd_cases(args) -> int:
     from wtftc import config
     from wtftc.campaign import cases
     from wtftc.files import check_out_folder
+    from wtftc.model.faults import DEFAULT_FAULT
 
     over = _run_overrides(args)
     other = over.get("turbine", "nrel5mw") != "nrel5mw"
     plants = tuple(args.plant) if args.plant else ("nrel5mw",) if other else ("nrel5mw",
                                                                              "paper")
+    onset = min(f["onset_s"] for f in DEFAULT_FAULT)
+    if args.t_final is not None and not args.t_final > onset:  # the cases' fixed fault
+        raise ConfigError("--t-final", args.t_final, f"more than {onset:g} s, the onset of "
+                          "the cases' fault (cases 2 and 3)")
     config.make_config({**over, "plant": plants[0]})  # validate before any work
     check_out_folder(args.out, "--out", legacy=cases.is_legacy_cases)
     cases.run_cases(args.out, plants, over, progress=not args.quiet)
@@ -571,10 +576,10 @@ def _turbine_tune(args) -> int:
     tune.check_stable(r, args.omega_n, args.zeta, args.wind)  # an unstable design: exit 2
     if args.out:
         check_new_file(args.out, "--out", args.overwrite, ours=_written_by_tune)  # again
-        write_files_together({args.out: (
-            f"{TUNE_HEADER} --controller {args.controller} --omega-n {args.omega_n:g} "
-            f"--zeta {args.zeta:g} --wind {args.wind:g} --c2-ratio {args.c2_ratio:g}\n"
-            + config.to_toml(r["raw"])).encode()})
+        body = (f"{TUNE_HEADER} --controller {args.controller} --omega-n {args.omega_n:g} "
+                f"--zeta {args.zeta:g} --wind {args.wind:g} --c2-ratio {args.c2_ratio:g}\n"
+                + config.to_toml(r["raw"])).encode()
+        write_files_together({args.out: body + _tune_seal(body)})
         print(f"written: {args.out} (wtftc run --config {args.out})")
     return 0
 
@@ -583,14 +588,25 @@ def _turbine_tune(args) -> int:
 TUNE_HEADER = "# wtftc turbine tune"
 
 
+def _tune_seal(body: bytes) -> bytes:
+    """The last line of a configuration `turbine tune` writes: the sha256 of what it wrote
+    above it, so that a file edited since is told from one it wrote."""
+    import hashlib
+
+    return f"# wtftc sha256 {hashlib.sha256(body).hexdigest()}\n".encode()
+
+
 def _written_by_tune(path: Path) -> bool:
-    """Whether ``path`` is a configuration `turbine tune` wrote (its first line), which a
-    new tuning may replace without --overwrite."""
+    """Whether ``path`` is a configuration `turbine tune` wrote and nobody edited since (its
+    first line and its seal), which a new tuning may replace without --overwrite."""
     try:
         with open(path, "rb") as fh:
-            return fh.read(len(TUNE_HEADER) + 1) == (TUNE_HEADER + " ").encode()
+            data = fh.read(1 << 20)
     except OSError:
         return False
+    body, _, seal = data.rstrip(b"\n").rpartition(b"\n")
+    body += b"\n"
+    return body.startswith((TUNE_HEADER + " ").encode()) and seal + b"\n" == _tune_seal(body)
 
 
 def _add_linearize(sub) -> None:

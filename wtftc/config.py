@@ -626,6 +626,10 @@ def _timing(raw: dict, given: dict | None = None) -> tuple[float, float, int, in
                           "would otherwise end at a time other than the one asked for")
     seed = _seed(raw)
     rate = float(_number(raw, "output_rate_hz", lo=0, hi=1e6))
+    if rate * t_final < 1.0:  # fewer than two outputs: no series to plot or score
+        raise ConfigError("output_rate_hz", raw["output_rate_hz"], f"a rate of at least "
+                          f"1/t_final_s = {1.0 / t_final:.6g} Hz (at least two outputs over "
+                          f"the run's {t_final:g} s)")
     decimate = max(1, int(round(1.0 / (rate * dt))))
     if abs(decimate * dt * rate - 1.0) > 1e-6:
         if "output_rate_hz" in (given or {}):

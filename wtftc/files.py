@@ -137,13 +137,16 @@ def _umask() -> int:
 
 
 def _listing(folder: Path) -> dict[str, str] | None:
-    """Every file under ``folder`` (relative path: "<size> <sha256>"), the marker left out;
-    None when it holds anything but regular files and folders (a symlink, a FIFO...)."""
+    """Every file under ``folder`` (relative path: "<size> <sha256>") and every folder
+    (path with a trailing separator: "folder"), the marker left out; None when it holds
+    anything but regular files and folders (a symlink, a FIFO...)."""
     out: dict[str, str] = {}
     for root, dirs, files in os.walk(folder, followlinks=False):
         for name in dirs:
-            if os.path.islink(os.path.join(root, name)):
+            full = os.path.join(root, name)
+            if os.path.islink(full):
                 return None
+            out[os.path.relpath(full, folder) + os.sep] = "folder"  # an empty one counts
         for name in files:
             full = os.path.join(root, name)
             st = os.lstat(full)
@@ -188,9 +191,9 @@ def check_out_folder(out, option: str = "--out",
     the current folder or one above it, a file, a symlink loop, or a folder holding
     anything wtftc did not write there (``legacy`` recognises folders written before the
     marker existed). Nothing is created."""
-    out = Path(out)
     if not str(out):
         raise ConfigError(option, "", "a folder name")
+    out = Path(os.path.normpath(out))  # r/figures/.. is r: checked as it will be swapped
     try:
         real = out.resolve()
         exists = out.exists()
@@ -199,8 +202,10 @@ def check_out_folder(out, option: str = "--out",
     if real in (Path.cwd().resolve(), *Path.cwd().resolve().parents):
         raise ConfigError(option, str(out), "a folder of its own (not the current folder or "
                           "one that contains it)")
-    if out.is_symlink() and not exists:
-        raise ConfigError(option, str(out), "a folder (this is a dangling symbolic link)")
+    if out.is_symlink():  # swapping would replace the user's link, not its target's files
+        raise ConfigError(option, str(out), "a folder, not a symbolic link (give the folder "
+                          "it points to)" if exists else "a folder (this is a dangling "
+                          "symbolic link)")
     if exists and not out.is_dir():
         raise ConfigError(option, str(out), "a folder (this is a file)")
     if exists and not _replaceable(out, legacy):
@@ -277,8 +282,7 @@ def owned_folder(out, option: str = "--out", command: str = "",
     just before the swap, under a lock on its parent, so a file a user adds meanwhile is
     never deleted. A failure or an interrupt leaves ``out`` as it was and no litter; the
     new folder keeps the mode of the one it replaces (else 0777 minus the umask)."""
-    out = Path(out)
-    check_out_folder(out, option, legacy)
+    out = check_out_folder(out, option, legacy)
     parent = out.parent if str(out.parent) else Path(".")
     made = [p for p in (parent, *parent.parents) if not p.exists()]
     try:

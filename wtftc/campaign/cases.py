@@ -17,7 +17,7 @@ from wtftc.config import CASES, RunConfig, make_config
 from wtftc.errors import ConfigError
 from wtftc.files import owned_folder
 from wtftc.model.faults import Schedule
-from wtftc.results.io import is_legacy_tree, run_folder
+from wtftc.results.io import run_folder
 from wtftc.results.metrics import metrics
 from wtftc.results.tables import write_table
 from wtftc.results.traces import write_outputs
@@ -178,8 +178,10 @@ def run_cases(out_dir: Path, plants=tuple(PLANTS), overrides: dict | None = None
 
 
 def is_legacy_cases(out: Path) -> bool:
-    """A `wtftc cases` folder written before the marker existed."""
-    return is_legacy_tree(out, ("metrics.md", "metrics.csv"))
+    """None is: a tree of many names in a folder without the marker cannot be told from a
+    user's folder that holds such names (a review lost a thesis.md that way), so a folder
+    an older wtftc wrote is refused like any other; remove it, or choose another --out."""
+    return False
 
 
 def _run_all(out_dir: Path, configs: dict, names: dict, sign_rc, first: str,

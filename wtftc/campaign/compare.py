@@ -20,7 +20,7 @@ from wtftc.campaign import cases
 from wtftc.errors import ConfigError
 from wtftc.files import owned_folder
 from wtftc.model import turbine_file
-from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text, is_legacy_tree
+from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text
 from wtftc.results.metrics import metrics
 
 ONSET_S = 20.0
@@ -203,8 +203,10 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
 
 
 def is_legacy_compare(out: Path) -> bool:
-    """A `wtftc compare` folder written before the marker existed."""
-    return is_legacy_tree(out, ("compare.md", "compare.csv"))
+    """None is: a tree of many names in a folder without the marker cannot be told from a
+    user's folder that holds such names (a review lost a thesis.md that way), so a folder
+    an older wtftc wrote is refused like any other; remove it, or choose another --out."""
+    return False
 
 
 def _run_cells(out_dir: Path, configs: dict, progress: bool) -> list[dict]:

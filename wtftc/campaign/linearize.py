@@ -337,7 +337,8 @@ def is_legacy_linearize(out) -> bool:
     """A `wtftc linearize` folder written before the marker existed."""
     from wtftc.results.io import is_legacy_tree
 
-    return is_legacy_tree(out, ("linearize.md", "linearize.csv", "modes.csv"))
+    return is_legacy_tree(out, (r"linearize\.(md|csv|png|pdf)", r"modes\.csv",
+                                r"linear_[0-9.e+-]+mps\.npz"))
 
 
 def _write_linearize(raw: dict, winds, out, progress: bool) -> list[dict]:

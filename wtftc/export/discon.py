@@ -488,6 +488,22 @@ def compile_library(cmd: list[str], cc: str, timeout: float | None = None) -> No
                           + ")")
 
 
+def check_library(lib: Path, cc: str) -> None:
+    """Refuse (naming --cc) a compiler that exits 0 without building the library: no file,
+    not an ELF shared object, or no DISCON symbol in it (read, never loaded)."""
+    data = lib.read_bytes() if lib.is_file() and not lib.is_symlink() else b""
+    if not data:
+        why = "it wrote no library"
+    elif not (data[:4] == b"\x7fELF" and data[16:18] in (b"\x03\x00", b"\x00\x03")):
+        why = f"{lib.name} is not an ELF shared object"
+    elif b"DISCON\x00" not in data:
+        why = f"{lib.name} has no DISCON symbol"
+    else:
+        return
+    raise ConfigError("--cc", cc, f"a C compiler that builds the library (it exited with "
+                      f"status 0, but {why})")
+
+
 def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2") -> None:
     """Generate the C of the library's functions into ``out`` and compile it there."""
     params = parameters(rc)
@@ -506,6 +522,7 @@ def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2") ->
     cmd = [cc, opt, "-std=c99", "-shared", "-fPIC", "-o", str(lib),
            str(out / "wtftc_discon_gen.c"), *(str(out / n) for n in SOURCES), "-lm"]
     compile_library(cmd, cc)
+    check_library(lib, cc)
     write_input(rc, out / f"wtftc_{rc.loop.controller}.IN")
     (out / "servodyn_snippet.txt").write_text(servodyn_snippet(rc.loop.controller,
                                                                rc.control_interval))

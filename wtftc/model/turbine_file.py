@@ -73,9 +73,17 @@ def path_of(turbine: str) -> Path:
     if turbine in BUILTIN:
         return Path(str(importlib.resources.files("wtftc") / "data" / BUILTIN[turbine]))
     path = Path(turbine)
+    what = "a built-in turbine (" + ", ".join(BUILTIN) + ") or the path of a turbine file " \
+        "(.toml; docs/turbines.md)"
+    if path.suffix == ".toml" and not path.is_file():
+        from wtftc.files import check_user_file
+
+        try:  # says why: missing, a folder, a FIFO, a symlink loop...
+            check_user_file(path, "turbine")
+        except ConfigError as exc:
+            raise ConfigError("turbine", turbine, f"{what}; {exc.allowed}") from None
     if path.suffix != ".toml" or not path.is_file():
-        raise ConfigError("turbine", turbine, "a built-in turbine (" + ", ".join(BUILTIN)
-                          + ") or the path of a turbine file (.toml; docs/turbines.md)")
+        raise ConfigError("turbine", turbine, what)
     return path
 
 

@@ -511,6 +511,21 @@ def validate(imp: Imported, text: str, out: Path, check=None) -> None:
             raise _blamed(exc, imp, str(path), out) from None
 
 
+def _tables_users(folder: Path, table: str) -> list[Path]:
+    """The turbine files in ``folder`` whose cp_table is ``table`` (beside them)."""
+    import tomllib
+
+    users = []
+    for t in sorted(folder.glob("*.toml")) if folder.is_dir() else ():
+        try:
+            doc = tomllib.loads(read_user_text(t, "--out", 16 * 1024 * 1024))
+        except (ConfigError, tomllib.TOMLDecodeError):
+            continue
+        if doc.get("cp_table") == table:
+            users.append(t)
+    return users
+
+
 def write(out: Path, imp: Imported, name: str, title: str, header: str = "",
           overwrite: bool = False, check=None) -> tuple[Path, Path]:
     """The turbine file ``out`` (.toml) and beside it a copy of its Cp table, validated
@@ -530,6 +545,12 @@ def write(out: Path, imp: Imported, name: str, title: str, header: str = "",
         return p.stat().st_size == len(imp.cp_bytes) and p.read_bytes() == imp.cp_bytes
 
     files = {check_out(out, overwrite): text.encode("utf-8")}
+    users = [t.name for t in _tables_users(out.parent, table.name) if t.name != out.name]
+    if users and table.is_file() and not same(table):  # --overwrite never reaches it
+        raise ConfigError("--out", str(out), f"a folder where the Cp table {table.name} is "
+                          f"this turbine's alone ({', '.join(sorted(users))} uses the one "
+                          "there, with other values; import into another folder; nothing "
+                          "was written)")
     check_new_file(table, "--out (the Cp table copied beside it)", overwrite, ours=same)
     if not (table.is_file() and same(table)):
         files[table] = imp.cp_bytes

@@ -121,13 +121,20 @@ def check_run_folder(out: Path, option: str = "--out") -> Path:
 
 
 def is_legacy_run_folder(out: Path) -> bool:
-    """A run folder of a wtftc from before the marker: only a run's files, with its
-    metrics.json (checked before the run and again under the lock, just before the swap)."""
-    names = {p.name for p in out.iterdir()}
-    if not names <= RUN_FILES or not all(m in names for m in RUN_MARKERS):
+    """A run folder of a wtftc from before the marker: exactly a run's files, each a regular
+    file by its own name, its figures/ holding only a run's figures, and its metrics.json a
+    run's (checked before the run and again under the lock, just before the swap). Anything
+    else in it (a user's file, folder or link, at any depth) makes it the user's."""
+    top = {p.name: p for p in out.iterdir()}
+    if not set(top) <= RUN_FILES or not all(m in top for m in RUN_MARKERS):
         return False
-    if any(p.is_symlink() for p in out.iterdir()):
-        return False
+    for name, p in top.items():
+        if p.is_symlink() or not (p.is_dir() if name == "figures" else p.is_file()):
+            return False
+    if "figures" in top:
+        for q in top["figures"].iterdir():
+            if q.is_symlink() or not q.is_file() or q.name not in RUN_FIGURES:
+                return False
     try:
         m = json.loads((out / "metrics.json").read_text())
     except (OSError, ValueError):
@@ -135,19 +142,21 @@ def is_legacy_run_folder(out: Path) -> bool:
     return isinstance(m, dict) and {"label", "config", "case"} <= set(m)
 
 
-def is_legacy_tree(out: Path, top: tuple[str, ...]) -> bool:
-    """A folder tree of an older wtftc campaign (cases, compare): the ``top`` files at its
-    top, and nothing anywhere but regular files of the kinds wtftc writes."""
-    if not all((out / n).is_file() for n in top):
-        return False
-    for p in out.rglob("*"):
-        if p.is_symlink() or not (p.is_dir() or (p.is_file() and p.suffix in LEGACY_KINDS)):
+#: the figures `wtftc run` writes (wtftc.campaign.cases.write_run_figures)
+RUN_FIGURES = {f"{n}.{e}" for n in ("rotor_speed", "control", "fault", "fdi")
+               for e in ("png", "pdf")}
+
+
+def is_legacy_tree(out: Path, names: tuple[str, ...]) -> bool:
+    """A folder of an older wtftc command that writes only the files ``names`` (regular
+    expressions of whole names) at its top: exactly such regular files, nothing else."""
+    import re
+
+    for p in out.iterdir():
+        if p.is_symlink() or not p.is_file() \
+                or not any(re.fullmatch(n, p.name) for n in names):
             return False
     return True
-
-
-#: the kinds of file wtftc's campaigns wrote before the marker (tables, traces, figures)
-LEGACY_KINDS = {".md", ".csv", ".parquet", ".json", ".toml", ".png", ".pdf", ".npz"}
 
 
 def write_parquet(path: Path, columns: dict, units: dict) -> None:

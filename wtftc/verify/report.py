@@ -54,9 +54,10 @@ def run_verification(out_dir: Path, n_points: int = 50, seed: int = 0) -> dict:
 
 def is_legacy_verify(out: Path) -> bool:
     """A `wtftc verify` folder written before the marker existed: its three files only."""
-    return {q.name for q in Path(out).iterdir()} == {"summary.json", "summary.md",
-                                                    "alpha_dot_fd.png"} \
-        and not any(q.is_symlink() for q in Path(out).iterdir())
+    from wtftc.results.io import is_legacy_tree
+
+    names = (r"summary\.json", r"summary\.md", r"alpha_dot_fd\.png")
+    return len(list(Path(out).iterdir())) == 3 and is_legacy_tree(Path(out), names)
 
 
 def _check_artefacts(summary: dict) -> None:
