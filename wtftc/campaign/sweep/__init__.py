@@ -14,6 +14,7 @@ The package, one job a module; this one drives Dask (cluster, progress, interrup
 * ``spec``: the sweep file, its validation, the runs and their batches;
 * ``tasks``: one Dask task, runs to rows (what the workers import);
 * ``store``: the results folder, its Parquet dataset and resuming;
+* ``record``: what the sweep wrote there, so all that it may replace;
 * ``summary``: the summary table, figures and a saved run's configuration.
 """
 
@@ -25,6 +26,7 @@ import time
 from pathlib import Path
 
 from wtftc import config
+from wtftc.campaign.sweep.record import check_path
 from wtftc.campaign.sweep.spec import (
     FAULT_TYPES,
     PLANTS,
@@ -50,6 +52,7 @@ from wtftc.campaign.sweep.store import (
 from wtftc.campaign.sweep.summary import show_run, summarize
 from wtftc.campaign.sweep.tasks import run_task
 from wtftc.errors import ConfigError
+from wtftc.files import MAX_TOML_BYTES, read_user_text
 
 __all__ = ["FAULT_TYPES", "METRICS", "PLANTS", "STATUS", "TURBULENCE_CLASSES", "Axis",
            "Interrupted", "Sweep", "batches", "count_status", "expand", "load_sweep",
@@ -129,7 +132,7 @@ def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
 
 
 def _collect(futures: list, out_dir: Path, done: set[str], progress: _Progress,
-             quiet: bool) -> tuple[int, int]:
+             quiet: bool, rec=None) -> tuple[int, int]:
     """Save each task's runs as it finishes; returns (runs saved, tasks lost)."""
     from dask.distributed import as_completed
 
@@ -146,7 +149,7 @@ def _collect(futures: list, out_dir: Path, done: set[str], progress: _Progress,
                       "stay missing: run the same command again to retry them",
                       file=sys.stderr)
             continue
-        rows = _save_batch(out_dir, done, results)
+        rows = _save_batch(out_dir, done, results, rec)
         ran += len(rows)
         progress.update(rows, lost)
     if progress.tty:
@@ -162,26 +165,28 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
     import distributed  # noqa: F401 - Dask is needed: fail before anything is written
 
     sweep_path = Path(sweep_path)
+    check_path(out_dir, "--out")  # a link loop, a dangling link, a file: before any work
     sw = load_sweep(sweep_path)
     runs, dup = expand(sw)
     _check_runs(sw, runs, quiet)
     # a remote scheduler first: one that cannot be reached leaves nothing in out_dir
     client, cluster = _client(scheduler, workers) if scheduler else (None, None)
     try:
-        done, lock, retried = _prepare(out_dir, sw, sweep_path.read_text(), overwrite,
+        text = read_user_text(sweep_path, "SWEEP.toml", MAX_TOML_BYTES)
+        done, lock, retried = _prepare(out_dir, sw, text, overwrite,
                                        retry_failed)
     except BaseException:
         _close(client, cluster)
         raise
     try:
         return _run_todo(sw, runs, dup, done, out_dir, client, cluster,
-                         scheduler, workers, traces, quiet, retried)
+                         scheduler, workers, traces, quiet, retried, lock.record)
     finally:
         release(lock)
 
 
 def _run_todo(sw, runs, dup, done, out_dir, client, cluster, scheduler, workers, traces,
-              quiet, retried: int = 0) -> dict:
+              quiet, retried: int = 0, rec=None) -> dict:
     """The runs of ``runs`` not in ``done``, on Dask, saved into ``out_dir`` as they end."""
     todo = [pt for pt in runs if pt["run_id"] not in done]
     if not quiet:
@@ -210,7 +215,8 @@ def _run_todo(sw, runs, dup, done, out_dir, client, cluster, scheduler, workers,
             print(f"Dask: {scheduler or 'local cluster'}, {n_workers} workers", flush=True)
         futures = [client.submit(run_task, b, traces, pure=False)
                    for b in batches(todo, sw.batch_size)]
-        summary["ran"], summary["lost"] = _collect(futures, out_dir, done, progress, quiet)
+        summary["ran"], summary["lost"] = _collect(futures, out_dir, done, progress, quiet,
+                                                   rec)
     except KeyboardInterrupt:
         raise Interrupted("SIGINT") from None
     finally:

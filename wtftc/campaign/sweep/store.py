@@ -11,14 +11,18 @@ import os
 import platform
 import re
 import socket
+import stat
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from wtftc.campaign.sweep import record
+from wtftc.campaign.sweep.record import LOCK, PART, RECORD, Record
 from wtftc.campaign.sweep.spec import MISMATCH_KEYS, SENSOR_MAGNITUDES, Sweep
 from wtftc.errors import ConfigError
+from wtftc.files import MAX_TOML_BYTES, read_user_text
 
 #: the metrics kept per run: (key of wtftc.results.metrics.metrics, unit)
 METRICS = [("rms_speed_error_rad_s", "rad/s"), ("max_abs_speed_error_rad_s", "rad/s"),
@@ -83,15 +87,53 @@ def schema():
     return pa.schema(fields)
 
 
-def read_results(out_dir: Path):
-    """Every saved run of a results folder as one pyarrow Table (empty if none)."""
+def read_results(out_dir: Path, option: str = "--out"):
+    """Every saved run of a results folder as one pyarrow Table (empty if none). Each
+    batch file is read as a regular file under a cap, and must be the one the sweep
+    recorded (:mod:`record`): a batch damaged, edited or replaced since is refused in one
+    line naming it (remove it, and the sweep runs its batch again)."""
+    import pyarrow as pa
+
+    tables = [table for _, _, table in _batches(Path(out_dir), option)]
+    return pa.concat_tables(tables) if tables else schema().empty_table()
+
+
+def _batches(out_dir: Path, option: str, rec: Record | None = None):
+    """(path relative to ``out_dir``, the file's bytes, its Table) of every batch file."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    parts = sorted((Path(out_dir) / "runs").glob("part-*.parquet"))
-    if not parts:
-        return schema().empty_table()
-    return pa.concat_tables([pq.read_table(p, schema=schema()) for p in parts])
+    runs = out_dir / "runs"
+    try:
+        names = sorted(p.name for p in runs.iterdir()) if not runs.is_symlink() else None
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise ConfigError(option, str(runs), f"a folder of batch files ({exc.strerror})") \
+            from None
+    if names is None:
+        raise ConfigError(option, str(runs), "a folder of the results folder (this is a "
+                          "symbolic link: wtftc never follows one)")
+    if rec is None:
+        rec = Record.open(out_dir, option) if (out_dir / RECORD).exists() else None
+    for name in names:
+        if not PART.fullmatch(name):
+            continue
+        path, rel = runs / name, f"runs/{name}"
+        data = record.read_file(path, option)
+        again = (f"remove it, and `wtftc sweep SWEEP.toml --out {out_dir}` runs its batch "
+                 "again; nothing was written")
+        if rec is not None and rec.exists and not rec.holds(rel, data) and not (
+                rec.reload() and rec.holds(rel, data)):  # written since the record was read
+            raise ConfigError(option, str(path), "a batch file as the sweep wrote it (this "
+                              "one is not: damaged, edited or replaced since; " + again + ")")
+        try:
+            table = pq.read_table(pa.BufferReader(data), schema=schema())
+        except (pa.ArrowException, ValueError, KeyError, OSError) as exc:
+            why = " ".join(str(exc).split())[:200]
+            raise ConfigError(option, str(path), f"a Parquet batch of this sweep (it cannot "
+                              f"be read: {why}; " + again + ")") from None
+        yield rel, data, table
 
 
 def count_status(out_dir: Path) -> dict[str, int]:
@@ -102,27 +144,36 @@ def count_status(out_dir: Path) -> dict[str, int]:
     return counts
 
 
-#: the file a sweep holds in its results folder while it writes there
-LOCK = "sweep.lock"
-
-
 @dataclass
 class Lock:
     """A held results folder: the lock file and its open descriptor (the kernel's lock
     lives as long as the descriptor, and dies with the process)."""
     path: Path
     fd: int
+    record: Record | None = None  # the folder's record, for the writes while it is held
 
 
 def claim(out_dir: Path) -> Lock:
     """Hold ``out_dir`` for this process: an exclusive ``flock`` on its lock file (pid and
     host written in it), or refuse naming the process that holds it. The kernel releases
     the lock when its process ends, however it ends, so a lock is never stale. Two sweeps
-    writing one folder would each save the other's runs again."""
+    writing one folder would each save the other's runs again. A file at the lock's name
+    that is not a lock (a link, a FIFO, a user's text) is refused, untouched."""
     lock = Path(out_dir) / LOCK
     lock.parent.mkdir(parents=True, exist_ok=True)
     for _ in range(5):
-        fd = os.open(lock, os.O_CREAT | os.O_RDWR, 0o644)
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_RDWR | os.O_NOFOLLOW | os.O_NONBLOCK
+                         | os.O_CLOEXEC, 0o644)
+        except OSError as exc:
+            raise ConfigError("--out", str(lock), "a sweep's lock file (it cannot be "
+                              f"opened: {exc.strerror}; move it away)") from None
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode) or st.st_size > 300 or not _LOCK_TEXT.fullmatch(
+                os.pread(fd, 300, 0).decode(errors="replace")):
+            os.close(fd)
+            raise ConfigError("--out", str(lock), "a sweep's lock file (this one is not: "
+                              "wtftc never overwrites it: move it away; nothing was written)")
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -145,6 +196,10 @@ def claim(out_dir: Path) -> Lock:
     raise ConfigError("--out", str(out_dir), f"a folder whose {LOCK} can be held")
 
 
+#: what a lock file holds: nothing yet, or "<pid> <host>"
+_LOCK_TEXT = re.compile(r"(?:\d+ \S+\s*)?")
+
+
 def release(lock: Lock | None) -> None:
     """Give the folder back: remove the lock file (while still holding it, so no one
     holds the removed file), then drop the lock."""
@@ -157,158 +212,151 @@ def _prepare(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool,
              retry_failed: bool = False) -> tuple[set[str], Lock, int]:
     """Create or reopen a results folder and hold it (:func:`claim`); return the run ids
     already saved in it, the lock to :func:`release`, and how many failed runs were
-    dropped to run again (``retry_failed``, :func:`drop_failed`)."""
-    out_dir = Path(out_dir)
-    if out_dir.resolve() in (Path.cwd(), *Path.cwd().parents):
-        raise ConfigError("--out", str(out_dir), "a folder of its own (not the current folder "
-                          "or one that contains it)")
-    _check_folder(out_dir, sw, overwrite)
+    dropped to run again (``retry_failed``, :func:`drop_failed`). Everything is checked
+    before the lock file is made: a folder refused is left as it was."""
+    out_dir = record.check_path(out_dir, "--out")
+    files = record.scan(out_dir, "--out") if out_dir.exists() else []
+    rec = Record.open(out_dir, "--out", files)
+    _check_folder(out_dir, sw, overwrite, rec, files)
     lock = claim(out_dir)
+    lock.record = rec
     try:
-        done = _open(out_dir, sw, sweep_text, overwrite)
-        retried = drop_failed(out_dir) if retry_failed else 0
+        done = _open(out_dir, sw, sweep_text, overwrite, rec, files)
+        retried = drop_failed(out_dir, rec) if retry_failed else 0
         if retried:
-            done = set(read_results(out_dir).column("run_id").to_pylist())
+            done = _saved_ids(out_dir, rec)
         return done, lock, retried
     except BaseException:
         release(lock)
         raise
 
 
-#: what a sweep writes in its results folder, and so all that --overwrite deletes: these
-#: files at the top (the sweep file, its record, the lock, the summary's tables) and, in
-#: runs/, traces/ and figures/, each batch's runs, each run's traces (named by its run
-#: id) and the summary's figures (FIGURES); the hidden temporaries that a killed
-#: sweep's atomic writes left (".<name>.<8 random>", a figure's ".<stem>.<8 random>.<ext>")
-#: are its too. Anything else is a user's.
-SWEEP_FILES = ("sweep.toml", "sweep.json", LOCK, "summary.md", "summary.csv",
-               "summary_cost.csv", "summary_dlc.csv", "summary_tuning.csv")
-#: every figure the summary writes, figures/<name>.png and .pdf (summary._save writes
-#: no other: a name missing here would be taken for a user's file)
-FIGURES = ("rms_speed_error", "overspeed", "detection_delay", "dlc_bins", "dlc21_extremes",
-           "tradeoff_fault_free", "tradeoff_faulted")
-_HEX16 = "[0-9a-f]{16}"
-_TEMP = "[a-z0-9_]{8}"  # tempfile.mkstemp's random part
-
-
-def _sweep_names() -> dict[str | None, re.Pattern]:
-    """Folder (None: the top) → the pattern of the names a sweep writes there."""
-
-    def names(alternatives: str) -> re.Pattern:
-        return re.compile(rf"(?:{alternatives})|\.(?:{alternatives})\.{_TEMP}")
-
-    figures = "|".join(map(re.escape, FIGURES))
-    return {None: names("|".join(map(re.escape, SWEEP_FILES))),
-            "runs": names(rf"part-{_HEX16}\.parquet"),
-            "traces": names(rf"{_HEX16}\.parquet"),
-            "figures": re.compile(rf"(?:{figures})\.(?:png|pdf)|\.(?:{figures})\.{_TEMP}"
-                                  r"\.(?:png|pdf)")}
-
-
-def sweep_contents(out_dir: Path) -> tuple[list[Path], list[Path]]:
-    """(the files a sweep wrote in ``out_dir``, everything else in it). Only regular files
-    of the names a sweep writes (:func:`_sweep_names`) are the sweep's; a symbolic link,
-    a folder, a file of another name is not (never followed, never deleted)."""
-    pattern = _sweep_names()
+def sweep_contents(out_dir: Path, rec: Record | None = None,
+                   option: str = "--out") -> tuple[list[str], list[str]]:
+    """(the files the sweep wrote in ``out_dir``, everything else in it), as paths
+    relative to it (a folder as "<path>/"). The sweep's are those whose content its
+    record lists (a folder without a record: those :func:`record.legacy` recognises), its
+    record, its lock and its folders runs/, traces/, figures/; a symbolic link or special
+    file anywhere is refused (:func:`record.scan`)."""
+    files = record.scan(out_dir, option, folders=True)
+    rec = rec if rec is not None else Record.open(
+        out_dir, option, [f for f in files if not f.endswith("/")])
     ours, other = [], []
-    for child in sorted(Path(out_dir).iterdir()):
-        if child.name in pattern and child.is_dir() and not child.is_symlink():
-            for f in sorted(child.iterdir()):
-                mine = (f.is_file() and not f.is_symlink()
-                        and pattern[child.name].fullmatch(f.name) is not None)
-                (ours if mine else other).append(f)
-        elif child.is_file() and not child.is_symlink() and \
-                pattern[None].fullmatch(child.name):
-            ours.append(child)
-        else:
-            other.append(child)
+    for rel in files:
+        mine = (rel in ("runs/", "traces/", "figures/") or (rel == RECORD and rec.exists)
+                or rel == LOCK or rec.ours(rel))
+        (ours if mine else other).append(rel)
     return ours, other
 
 
-def _open(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool) -> set[str]:
-    from wtftc.results.io import atomic_write_json, atomic_write_text
-
+def _open(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool, rec: Record,
+          files: list[str]) -> set[str]:
+    """Begin or reopen the results folder (held): --overwrite deletes what the record
+    lists; a resume, the temporaries a killed sweep left in runs/ and traces/ (``files``:
+    the folder's files, scanned before it was held; only a sweep, holding it, makes those).
+    Returns the run ids saved."""
     meta = out_dir / "sweep.json"
-    if overwrite and meta.exists():
-        # only what a sweep wrote (its lock kept: held), after _check_folder found nothing
-        # else; a file added since is left where it is, and so is its folder
-        ours, _ = sweep_contents(out_dir)
-        for f in ours:
-            if f.name != LOCK or f.parent != out_dir:
-                f.unlink(missing_ok=True)
+    if overwrite and os.path.lexists(meta):
+        # only what the sweep wrote, each file checked against the record as it goes
+        # (its lock kept: held); a file added since is left where it is, and its folder
+        for rel in record.scan(out_dir, "--out"):
+            if rel not in (LOCK, RECORD):
+                rec.remove(rel)
+        rec.forget()
         for sub in ("runs", "traces", "figures"):
             with contextlib.suppress(OSError):  # absent, or not empty: kept
                 (out_dir / sub).rmdir()
-    (out_dir / "runs").mkdir(parents=True, exist_ok=True)
-    if not meta.exists():
-        atomic_write_text(out_dir / "sweep.toml", sweep_text)
-        atomic_write_json(meta, {"sweep_id": sw.sweep_id, "sweep": json.loads(sw.text),
-                                 "versions": versions(),
-                                 "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")})
-    return set(read_results(out_dir).column("run_id").to_pylist())
+    else:  # what a killed sweep left half-written (its temporaries) goes
+        for rel in files:
+            if rel.startswith(("runs/.", "traces/.")):
+                rec.remove(rel)
+    record.real_subfolder(out_dir, "runs", "--out")
+    if not os.path.lexists(meta):
+        rec.write("sweep.toml", sweep_text.encode())
+        rec.write("sweep.json", (json.dumps(
+            {"sweep_id": sw.sweep_id, "sweep": json.loads(sw.text), "versions": versions(),
+             "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}, indent=1, sort_keys=True)
+            + "\n").encode())
+    return _saved_ids(out_dir, rec)
 
 
-def drop_failed(out_dir: Path) -> int:
+def _saved_ids(out_dir: Path, rec: Record) -> set[str]:
+    return {i for _, _, t in _batches(out_dir, "--out", rec)
+            for i in t.column("run_id").to_pylist()}
+
+
+def drop_failed(out_dir: Path, rec: Record | None = None) -> int:
     """Remove the runs saved as failed (status "failed": the run raised, its cause in the
     row) from the results of ``out_dir``, so that the sweep runs them again; returns how
     many. Each batch file holding one is rewritten without it, atomically under its own
     name, or removed if it held only failed runs: killed midway, a failed run is either
     still saved or missing, and a missing run is run again by any resume. A diverged run
-    is a result (its time, state and cause), not a failure: it stays."""
+    is a result (its time, state and cause), not a failure: it stays. Only a batch file
+    as the sweep wrote it is rewritten (:func:`read_results` refuses any other)."""
     import pyarrow.compute as pc
-    import pyarrow.parquet as pq
 
-    from wtftc.results.io import atomic_write_table
-
+    out_dir = Path(out_dir)
+    rec = rec if rec is not None else Record.open(out_dir, "--out")
     n = 0
-    for part in sorted((Path(out_dir) / "runs").glob("part-*.parquet")):
-        table = pq.read_table(part, schema=schema())
+    for rel, _, table in _batches(out_dir, "--out", rec):  # its names listed first
         failed = pc.fill_null(pc.equal(table.column("status"), "failed"), False)
         k = pc.sum(failed.cast("int64")).as_py() or 0
         if not k:
             continue
         keep = table.filter(pc.invert(failed))
         if keep.num_rows:
-            atomic_write_table(part, keep)
+            rec.write(rel, _parquet_bytes(keep))
         else:
-            part.unlink()
+            rec.remove(rel)
         n += k
     return n
 
 
-def _check_folder(out_dir: Path, sw: Sweep, overwrite: bool) -> None:
+def _parquet_bytes(table) -> bytes:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    buf = pa.BufferOutputStream()
+    pq.write_table(table, buf)
+    return buf.getvalue().to_pybytes()
+
+
+def _check_folder(out_dir: Path, sw: Sweep, overwrite: bool, rec: Record,
+                  files: list[str]) -> None:
     """Refuse a folder that is not this sweep's results folder (unless --overwrite of a
     sweep's results folder); the lock file alone does not make a folder ours. --overwrite
-    deletes only what a sweep wrote (:func:`sweep_contents`): a results folder that also
-    holds anything else is refused whole, nothing deleted."""
+    deletes only what the sweep wrote (:func:`sweep_contents`): a results folder that
+    also holds anything else is refused whole, nothing deleted."""
     meta = out_dir / "sweep.json"
-    if out_dir.exists() and any(c.name != LOCK for c in out_dir.iterdir()):
-        if not meta.exists():  # never removed, even with --overwrite: it is not ours
+    if not os.path.lexists(meta):
+        if any(rel not in (LOCK, RECORD) and not rec.ours(rel) for rel in files):
+            # never removed, even with --overwrite: it is not ours (a folder holding
+            # only what a sweep killed before its sweep.json wrote begins anew)
             raise ConfigError("--out", str(out_dir), "an empty folder or a sweep's results "
                               "folder (this one holds other files; --overwrite removes only "
                               "a sweep's results folder)")
-        if overwrite:
-            _, other = sweep_contents(out_dir)
-            if other:
-                names = ", ".join(str(p.relative_to(out_dir)) for p in other[:3])
-                raise ConfigError("--out", str(out_dir), "a sweep's results folder holding "
-                                  "only what a sweep wrote, for --overwrite to replace (this "
-                                  f"one also holds {len(other)} other: {names}"
-                                  + (", ..." if len(other) > 3 else "") + "; nothing was "
-                                  "deleted: move them away, or --out another folder)")
-        try:
-            if not meta.is_file():
-                raise OSError("not a regular file")
-            old = json.loads(meta.read_text())
-            old["sweep_id"], old["versions"]["generated_manifest_sha256"]  # noqa: B018
-        except (OSError, ValueError, KeyError, TypeError):
-            if not overwrite:
-                raise ConfigError("--out", str(out_dir), "a sweep's results folder with a "
-                                  "readable sweep.json (this one is damaged; --overwrite "
-                                  "discards it)") from None
-            old = None
-        if old is not None:
-            _check_same_sweep(out_dir, old, sw.sweep_id, overwrite)
+        return
+    if overwrite:
+        _, other = sweep_contents(out_dir, rec)
+        if other:
+            names = ", ".join(other[:3])
+            raise ConfigError("--out", str(out_dir), "a sweep's results folder holding "
+                              "only what a sweep wrote, for --overwrite to replace (this "
+                              f"one also holds {len(other)} other: {names}"
+                              + (", ..." if len(other) > 3 else "") + "; files not written "
+                              "by wtftc, or edited since; nothing was deleted: move them "
+                              "away, or --out another folder)")
+    try:
+        old = json.loads(read_user_text(meta, "--out", MAX_TOML_BYTES))
+        old["sweep_id"], old["versions"]["generated_manifest_sha256"]  # noqa: B018
+    except (ConfigError, ValueError, KeyError, TypeError):
+        if not overwrite:
+            raise ConfigError("--out", str(out_dir), "a sweep's results folder with a "
+                              "readable sweep.json (this one is damaged: move it away, or "
+                              "--out another folder)") from None
+        old = None
+    if old is not None:
+        _check_same_sweep(out_dir, old, sw.sweep_id, overwrite)
 
 
 def _check_same_sweep(out_dir: Path, old: dict, sweep_id: str, overwrite: bool) -> None:
@@ -326,26 +374,36 @@ def _check_same_sweep(out_dir: Path, old: dict, sweep_id: str, overwrite: bool) 
                           "--out a new folder")
 
 
-def _save_batch(out_dir: Path, done: set[str], results: list) -> list[dict]:
+def _save_batch(out_dir: Path, done: set[str], results: list,
+                rec: Record | None = None) -> list[dict]:
     """Write one finished task's runs: traces first, then the metrics file that lists
-    them, atomically; runs already saved (a task a dying worker made Dask repeat) are
-    dropped. Returns the rows written."""
+    them, each recorded and written atomically (:meth:`Record.write`); runs already saved
+    (a task a dying worker made Dask repeat) are dropped. Returns the rows written."""
     import pyarrow as pa
 
-    from wtftc.results.io import atomic_write_table, write_parquet
-
+    out_dir = Path(out_dir)
+    rec = rec if rec is not None else Record.open(out_dir, "--out")
     rows = []
     for row, tr in results:
         if row["run_id"] in done:
             continue
         if tr is not None:
-            write_parquet(Path(out_dir) / "traces" / f"{row['run_id']}.parquet",
-                          {k: v for k, (v, _) in tr.items()}, {k: u for k, (_, u) in tr.items()})
+            rec.write(f"traces/{row['run_id']}.parquet", _parquet_bytes(_trace_table(tr)))
         rows.append(row)
     if rows:
         ids = "".join(sorted(r["run_id"] for r in rows))
         name = f"part-{hashlib.sha256(ids.encode()).hexdigest()[:16]}.parquet"
-        atomic_write_table(Path(out_dir) / "runs" / name,
-                           pa.Table.from_pylist(rows, schema=schema()))
+        rec.write(f"runs/{name}", _parquet_bytes(pa.Table.from_pylist(rows, schema=schema())))
         done.update(r["run_id"] for r in rows)
     return rows
+
+
+def _trace_table(tr: dict):
+    """A run's traces ({name: (values, unit)}) as the Table wtftc.results.io.write_parquet
+    makes: units in each field's metadata and in the schema's."""
+    import pyarrow as pa
+
+    units = {k: u for k, (_, u) in tr.items()}
+    fields = [pa.field(n, pa.float64(), metadata={"unit": units[n]}) for n in tr]
+    sch = pa.schema(fields, metadata={"units": json.dumps(units)})
+    return pa.table({n: pa.array(v, pa.float64()) for n, (v, _) in tr.items()}, schema=sch)

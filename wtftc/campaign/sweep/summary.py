@@ -10,10 +10,12 @@ import numpy as np
 
 from wtftc import config
 from wtftc.campaign.compare import CONTROLLERS
-from wtftc.campaign.sweep import dlc, tradeoff
+from wtftc.campaign.sweep import dlc, record, tradeoff
+from wtftc.campaign.sweep.record import FIGURES, Record
 from wtftc.campaign.sweep.spec import FAULT_TYPES, expand, parse_sweep
-from wtftc.campaign.sweep.store import FIGURES, read_results
+from wtftc.campaign.sweep.store import read_results
 from wtftc.errors import ConfigError
+from wtftc.files import MAX_TOML_BYTES
 
 #: the summary table's columns: (header, format of a cell)
 TABLE = [("controller", "{}"), ("fault", "{}"), ("runs", "{}"), ("diverged", "{}"),
@@ -46,15 +48,25 @@ BOXES = [("rms_speed_error_rad_s", "RMS rotor-speed error [rad/s]", "rms_speed_e
 def summarize(out_dir: Path) -> str:
     """The summary table (Markdown, printed) and figures of a results folder:
     summary.md, summary.csv, and under figures/ the distributions of RMS speed error,
-    overspeed and detection delay, per controller and fault type."""
-    from wtftc.results.io import atomic_write_text
+    overspeed and detection delay, per controller and fault type.
 
-    out_dir = Path(out_dir)
-    if not (out_dir / "sweep.json").exists():
-        raise ConfigError("--summary", str(out_dir), "a sweep's results folder (with sweep.json)")
-    meta = json.loads((out_dir / "sweep.json").read_text())
-    rows = read_results(out_dir).to_pylist()
-    n_all = len(expand(parse_sweep(meta["sweep"]))[0])
+    Everything is made in memory first; then, if a file of the same name is there and is
+    not the one a summary wrote (the folder's record, :mod:`record`), nothing is written
+    and the refusal names it. The folder's files are read as regular files under a cap;
+    a symbolic link or a special file anywhere in it is refused, never followed."""
+    out_dir = record.check_path(out_dir, "--summary", must_exist=True)
+    files = record.scan(out_dir, "--summary")
+    if "sweep.json" not in files:
+        raise ConfigError("--summary", str(out_dir), "a sweep's results folder (with "
+                          "sweep.json)")
+    meta = _meta(out_dir)
+    rec = Record.open(out_dir, "--summary", files)
+    rows = read_results(out_dir, "--summary").to_pylist()
+    try:
+        n_all = len(expand(parse_sweep(meta["sweep"]))[0])
+    except ConfigError as exc:
+        raise ConfigError("--summary", str(out_dir / "sweep.json"), "the sweep.json a sweep "
+                          f"wrote (its sweep is refused: {exc})") from None
     lines, csv = _table(rows)
     cost, cost_csv = _cost_table(rows)
     dlc_table = meta["sweep"].get("dlc")
@@ -66,17 +78,32 @@ def summarize(out_dir: Path) -> str:
             + ", ".join(f"{k} {v}" for k, v in meta["versions"].items()) + ".", ""]
     text = "\n".join(head + lines + cost + dlc_lines + tuned_lines + _alarm_rate(rows, meta)
                      + _failures(rows)) + "\n"
-    atomic_write_text(out_dir / "summary.md", text)
-    atomic_write_text(out_dir / "summary.csv", "\n".join(csv) + "\n")
-    atomic_write_text(out_dir / "summary_cost.csv", "\n".join(cost_csv) + "\n")
+    outputs = {"summary.md": text, "summary.csv": "\n".join(csv) + "\n",
+               "summary_cost.csv": "\n".join(cost_csv) + "\n"}
     if dlc_csv:
-        atomic_write_text(out_dir / "summary_dlc.csv", "\n".join(dlc_csv) + "\n")
+        outputs["summary_dlc.csv"] = "\n".join(dlc_csv) + "\n"
     if tuned_csv:
-        atomic_write_text(out_dir / "summary_tuning.csv", "\n".join(tuned_csv) + "\n")
+        outputs["summary_tuning.csv"] = "\n".join(tuned_csv) + "\n"
+    data = {rel: t.encode() for rel, t in outputs.items()}
     if rows:
-        _figures(out_dir, rows)
-        _extra_figures(out_dir, rows, dlc_table, family)
+        _figures(data, rows)
+        _extra_figures(data, rows, dlc_table, family)
+    rec.refuse_unless_ours(data)  # all checked before any is written
+    for rel, content in data.items():
+        rec.write(rel, content)
     return text
+
+
+def _meta(out_dir: Path) -> dict:
+    """The results folder's sweep.json, read as a regular file under a cap."""
+    path = out_dir / "sweep.json"
+    try:
+        meta = json.loads(record.read_file(path, "--summary", MAX_TOML_BYTES))
+        meta["sweep_id"], meta["sweep"].get, meta["versions"].items  # noqa: B018
+    except (ValueError, KeyError, TypeError, AttributeError):
+        raise ConfigError("--summary", str(path), "the sweep.json a sweep wrote (this one "
+                          "is damaged)") from None
+    return meta
 
 
 def _dlc(rows: list[dict], table) -> tuple[list[str], list[str]]:
@@ -88,16 +115,16 @@ def _dlc(rows: list[dict], table) -> tuple[list[str], list[str]]:
     return dlc.section(rows, table)
 
 
-def _extra_figures(out_dir: Path, rows: list[dict], dlc_table, family: bool) -> None:
+def _extra_figures(out: dict, rows: list[dict], dlc_table, family: bool) -> None:
     if dlc_table is not None:
         if dlc.parse_dlc(dlc_table)["case"] == "2.1":
-            _save(dlc.fault_figure(rows, dlc_table), out_dir, "dlc21_extremes")
+            _save(dlc.fault_figure(rows, dlc_table), out, "dlc21_extremes")
         else:
-            _save(dlc.figure(rows), out_dir, "dlc_bins")
+            _save(dlc.figure(rows), out, "dlc_bins")
     if family:
         for faulted, name in ((False, "tradeoff_fault_free"), (True, "tradeoff_faulted")):
             if tradeoff.points(rows, faulted):
-                _save(tradeoff.figure(rows, faulted), out_dir, name)
+                _save(tradeoff.figure(rows, faulted), out, name)
 
 
 def _table(rows: list[dict]) -> tuple[list[str], list[str]]:
@@ -218,7 +245,7 @@ def _failures(rows: list[dict]) -> list[str]:
                    "the dataset's `config_json`)."]
 
 
-def _figures(out_dir: Path, rows: list[dict]) -> None:
+def _figures(out: dict, rows: list[dict]) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -231,10 +258,10 @@ def _figures(out_dir: Path, rows: list[dict]) -> None:
         _boxes(ax, rows, ctrls, faults, key)
         ax.set_ylabel(label)
         ax.set_title(f"{label.split(' [')[0]}: distribution over the sweep's runs", fontsize=9)
-        _save(fig, out_dir, name)
+        _save(fig, out, name)
     fig, ax = plt.subplots(figsize=(7, 4))
     _delays(ax, rows, faults)
-    _save(fig, out_dir, "detection_delay")
+    _save(fig, out, "detection_delay")
 
 
 def _boxes(ax, rows: list[dict], ctrls: list[str], faults: list[str], key: str) -> None:
@@ -281,23 +308,26 @@ def _delays(ax, rows: list[dict], faults: list[str]) -> None:
                  fontsize=9)
 
 
-def _save(fig, out_dir: Path, name: str) -> None:
-    """figures/<name>.png and .pdf; the figure is closed."""
+def _save(fig, out: dict, name: str) -> None:
+    """figures/<name>.png and .pdf, as bytes into ``out``; the figure is closed."""
+    import io
+
     import matplotlib.pyplot as plt
 
-    from wtftc.results.io import atomic_savefig
-
-    if name not in FIGURES:  # a bug: --overwrite would take it for a user's file
-        raise ValueError(f"figure {name!r} is not in wtftc.campaign.sweep.store.FIGURES")
+    if name not in FIGURES:  # a bug: a folder without a record would not know it
+        raise ValueError(f"figure {name!r} is not in wtftc.campaign.sweep.record.FIGURES")
 
     fig.tight_layout()
     for ext in ("png", "pdf"):
-        atomic_savefig(fig, out_dir / "figures" / f"{name}.{ext}", dpi=120)
+        buf = io.BytesIO()
+        fig.savefig(buf, format=ext, dpi=120)
+        out[f"figures/{name}.{ext}"] = buf.getvalue()
     plt.close(fig)
 
 
 def show_run(out_dir: Path, run_id: str) -> str:
     """A saved run's configuration as TOML, for `wtftc run --config`."""
+    out_dir = record.check_path(out_dir, "--out", must_exist=True)
     table = read_results(out_dir)
     for r in table.to_pylist():
         if r["run_id"] == run_id:
