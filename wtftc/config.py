@@ -192,7 +192,8 @@ class RunConfig:
 
     def initial_state(self) -> np.ndarray:
         """The trimmed initial state of the loop (wtftc.sim.trim) at the wind at t = 0."""
-        return trim(self.loop, self.p_ctrl, float(self.wind(0.0)), self.omega_offset)
+        return trim(self.loop, self.p_ctrl, float(self.wind(0.0)), self.omega_offset,
+                    self.yd)
 
     @property
     def control_interval(self) -> float:

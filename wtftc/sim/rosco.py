@@ -205,7 +205,10 @@ class _Discon(integrate.ChunkHook):
         n_g = self.tp["gearbox_ratio"]
         pitch = z0[lay.block(PLANTS[loop.plant]["states"], "beta")]
         self.pitch = np.array(pitch, dtype=float)
-        self.tq_hss = self.tp["gen_torque_rated"] / n_g
+        # the torque at the run's operating point (wtftc.sim.trim: the drivetrain twisted
+        # by it), on the HSS: ROSCO starts from it as the plant does (issue 31)
+        states = PLANTS[loop.plant]["states"]
+        self.tq_hss = self.tp["k_s"] * float(z0[lay.index(states, "theta_s")]) / n_g
         self.state = None
         self.i_omega_g = lay.index(PLANTS[loop.plant]["states"], "omega_g")
         self.i_omega_r = lay.index(PLANTS[loop.plant]["states"], "omega_r")

@@ -17,14 +17,20 @@ from wtftc.sim.rhs import Loop, fdi_params, rhs_function
 def _jacobian(loop: Loop, z0, wind0: float, yd, p_ctrl) -> np.ndarray:
     """The closed-loop Jacobian ∂ż/∂z at z0, fault-free (the continuous loop's states: a
     sampled loop's sensor lags and held command are cut off)."""
-    args = {"z": z0, "wind": wind0, "actuator_faults": nominal_actuator(loop.p_turbine),
+    args = fault_free_args(loop, wind0, yd, p_ctrl)
+    jac = _jacobian_function(loop)
+    args["z"] = np.asarray(z0, dtype=float)[:jac.size1_in("z")]
+    return np.array(jac.call({n: args[n] for n in jac.name_in()})["dz_dot_dz"])
+
+
+def fault_free_args(loop: Loop, wind: float, yd, p_ctrl) -> dict:
+    """The closed-loop right-hand side's inputs but the state: fault-free, exact sensors,
+    nominal actuators, the FDI not used, constant ``wind``."""
+    return {"wind": wind, "actuator_faults": nominal_actuator(loop.p_turbine),
             "sensor_faults": lay.defaults("sensor_faults"),
             "ctrl_fault": lay.defaults("fault_inputs"), "yd": yd, "p_turbine": loop.p_turbine,
             "p_ctrl": p_ctrl, "use_fdi": 0.0, "cp_scale": 1.0, "p_fdi": fdi_params(loop),
             "p_sensors": lay.defaults("sensor_params")}
-    jac = _jacobian_function(loop)
-    args["z"] = np.asarray(z0, dtype=float)[:jac.size1_in("z")]
-    return np.array(jac.call({n: args[n] for n in jac.name_in()})["dz_dot_dz"])
 
 
 def stability_limit(loop: Loop, z0, wind0: float, yd, p_ctrl) -> float:

@@ -2,29 +2,34 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import load
+from wtftc.errors import ConfigError
 from wtftc.model import aero
+from wtftc.model.cp_table import aero_torque, bisect
 from wtftc.model.faults import nominal_actuator
-from wtftc.sim.rhs import PLANTS, Loop, controllers
+from wtftc.sim.rhs import PLANTS, Loop, controllers, rhs_function
+from wtftc.sim.stability import _jacobian_function, fault_free_args
 
 
-def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0) -> np.ndarray:
-    """Initial state: rated speed (plus offset), drivetrain at rest under rated torque,
-    blades at the pitch that balances it at the initial wind ``wind0`` [m/s], a tower
-    bent by the thrust there (derivation/turbine.py ``thrust``); the
-    controller and the FDI at rest on what they measure there.
+def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0,
+         yd: np.ndarray | None = None) -> np.ndarray:
+    """Initial state: the plant at the operating point of the initial wind ``wind0`` [m/s]
+    (:func:`operating_point`: above rated, rated speed (plus offset) and the pitch that
+    balances rated torque; below rated, the torque law's equilibrium at the minimum pitch),
+    the drivetrain twisted by the generator torque there, a tower bent by the thrust there
+    (derivation/turbine.py ``thrust``); the controller and the FDI at rest on what they
+    measure there.
 
-    The paper plant has no generator torque: its balance is T_aero = 0 (paper-notes defect 3).
+    The paper plant has no generator torque: its balance is T_aero = 0 at rated speed
+    (paper-notes defect 3).
     """
     tp = lay.values("turbine_params", loop.p_turbine)
-    omega = tp["omega_g_rated"] + omega_offset
-    loaded = PLANTS[loop.plant]["loaded"]
-    torque = tp["gen_torque_rated"] if loaded else 0.0
-    beta0 = aero.steady_pitch(aero.cp_interpolant(loop.table), omega, torque, wind0,
-                              tp["air_density"], tp["rotor_radius"])
+    omega, torque, beta0 = operating_point(loop, wind0, omega_offset)
     plant = dict.fromkeys(lay.names(PLANTS[loop.plant]["states"]), 0.0)
     plant.update(omega_r=omega, theta_s=torque / tp["k_s"], omega_g=omega,
                  **{f"beta_{j}": beta0 for j in lay.blades()})
@@ -38,9 +43,108 @@ def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0
     sched0 = float(aero.pitch_sensitivity_schedule(loop.table, loop.p_turbine)(beta0))
     init = load(controllers()[loop.controller]["init"])
     xc = np.array(init(meas=meas0, sched=sched0, p_ctrl=p_ctrl)["x_ctrl0"]).ravel()
-    beta_meas = [meas[f"beta_meas_{j}"] for j in lay.blades()]
-    xf = np.array(load("init_fdi")(beta_meas=beta_meas)["x_fdi0"]).ravel()
-    return np.concatenate([list(plant.values()), xc, xf])
+    x = np.concatenate([list(plant.values()), xc])
+    if yd is not None and omega_offset == 0.0 and loop.controller != "external":
+        x = closed_loop_rest(loop, x, wind0, yd, p_ctrl)
+    beta0 = x[lay.block(PLANTS[loop.plant]["states"], "beta")]
+    xf = np.array(load("init_fdi")(beta_meas=beta0)["x_fdi0"]).ravel()
+    return np.concatenate([x, xf])
+
+
+#: Newton's method on the closed loop's ż = 0 stops below this max |ż| [SI] (the
+#: operating points rest to 1e-13 or better: wtftc.campaign.linearize.REST_TOLERANCE)
+REST_TOLERANCE = 1e-9
+
+
+def closed_loop_rest(loop: Loop, x: np.ndarray, wind: float, yd, p_ctrl) -> np.ndarray:
+    """The plant and controller states ``x`` moved to where the continuous closed loop
+    rests in constant ``wind``: Newton's method on ż = 0 with the exact Jacobian, from the
+    plant's operating point with the controller at rest on its measurements. A controller
+    may rest off the plant's point (the physical AFTC's σ-modification leaves rated speed
+    +0.65 % and the pitch 0.11° lower at 25 m/s on the NREL 5-MW). Kept only where it
+    converges near the start (speed within 5 %, pitch within 2°); else ``x`` as given."""
+    loop0 = replace(loop, fdi=False)
+    rhs, jac = rhs_function(loop0), _jacobian_function(loop0)
+    args = {k: v for k, v in fault_free_args(loop0, wind, yd, p_ctrl).items()
+            if k in rhs.name_in()}
+    n = rhs.size1_in("z")
+    z = np.array(x[:n], dtype=float)
+    for _ in range(30):
+        f = np.array(rhs.call({**args, "z": z})["z_dot"]).ravel()
+        if not np.all(np.isfinite(f)):
+            return x
+        if np.abs(f).max() < REST_TOLERANCE:
+            break
+        J = np.array(jac.call({**args, "z": z})["dz_dot_dz"])
+        z = z - np.linalg.lstsq(J, f, rcond=None)[0]
+    else:
+        return x
+    states = PLANTS[loop.plant]["states"]
+    i_w, blk = lay.index(states, "omega_r"), lay.block(states, "beta")
+    if abs(z[i_w] / x[i_w] - 1) > 0.05 or np.max(np.abs(z[blk] - x[blk])) > np.radians(2):
+        return x
+    return np.concatenate([z, x[n:]])
+
+
+def operating_point(loop: Loop, wind: float, omega_offset: float = 0.0) \
+        -> tuple[float, float, float]:
+    """(rotor speed [rad/s], generator torque [N m, LSS], pitch [rad]) where the rotor is
+    at rest in the constant wind ``wind`` [m/s] (issue 31):
+
+    * above rated (the rotor at rated speed and minimum pitch makes at least the torque law's
+      torque there): rated speed plus ``omega_offset``, the torque law's torque, and the
+      pitch that balances it (:func:`wtftc.model.aero.steady_pitch`);
+    * below rated: the pitch at its minimum and the rotor speed where the aerodynamic torque
+      equals the torque law's, the stable equilibrium of the largest speed (regions 1½, 2,
+      2½ of the baseline law; ROSCO's region-2 law k ω² is the same by construction);
+    * no equilibrium with the tip-speed ratio inside the Cp table (below cut-in, or a fixed
+      rated torque the wind cannot carry): a ConfigError naming the wind.
+
+    The paper's unloaded plant balances T_aero = 0 at rated speed, as before.
+    """
+    tp = lay.values("turbine_params", loop.p_turbine)
+    cp_fn = aero.cp_interpolant(loop.table)
+    rho, R = tp["air_density"], tp["rotor_radius"]
+    beta_min = max(tp["pitch_min"], 0.0) if PLANTS[loop.plant]["loaded"] else 0.0
+    rated = tp["omega_g_rated"] + omega_offset
+    if not PLANTS[loop.plant]["loaded"]:
+        return rated, 0.0, aero.steady_pitch(cp_fn, rated, 0.0, wind, rho, R)
+    t_gen = torque_law(loop)
+
+    def excess(w: float) -> float:
+        return aero_torque(float(cp_fn(w * R / wind, beta_min)), w, wind, rho, R) - t_gen(w)
+
+    if excess(rated) >= 0:  # above rated: the pitch carries the excess
+        torque = t_gen(rated)
+        return rated, torque, aero.steady_pitch(cp_fn, rated, torque, wind, rho, R,
+                                                (beta_min, float(loop.table.pitch_rad[-1])))
+    lo = float(loop.table.tsr[0]) * wind / R
+    hi = min(float(loop.table.tsr[-1]) * wind / R, rated)
+    grid = np.linspace(hi, lo, 400) if hi > lo else np.array([])
+    f = np.array([excess(w) for w in grid])
+    # from high speed down: the first crossing from deficit (slows) to excess (speeds up)
+    cross = np.nonzero((f[:-1] < 0) & (f[1:] >= 0))[0]
+    if not len(cross):
+        raise ConfigError("wind", wind, "an initial wind at which the rotor has an operating "
+                          f"point: at {wind:g} m/s no rotor speed up to rated balances the "
+                          "aerodynamic torque against the generator torque law with the tip-"
+                          f"speed ratio inside the Cp table ({loop.table.tsr[0]:g}-"
+                          f"{loop.table.tsr[-1]:g}): below cut-in, or a fixed rated torque "
+                          "(turbine_params.gen_torque_law = 0) the wind cannot carry")
+    k = int(cross[0])
+    w = bisect(lambda x: excess(x) >= 0, float(grid[k + 1]), float(grid[k]))
+    return w, t_gen(w), beta_min
+
+
+def torque_law(loop: Loop):
+    """The generator torque [N m, LSS] the plant's law gives at a steady speed (generated
+    ``generator_torque``); ROSCO commands its own, whose region-2 equilibrium is the
+    baseline law's (ROSCO's VS_Rgn2K is the same k): the baseline law stands in for it."""
+    p = np.array(loop.p_turbine, dtype=float)
+    if loop.controller == "rosco" or loop.controller == "external":
+        p[lay.index("turbine_params", "gen_torque_law")] = 1.0
+    fn = load("generator_torque")
+    return lambda w: float(fn(omega_g=w, p_turbine=p)["T_gen"])
 
 
 def _thrust(loop: Loop, xp: np.ndarray, wind0: float) -> float:
