@@ -192,8 +192,13 @@ class RunConfig:
 
     def initial_state(self) -> np.ndarray:
         """The trimmed initial state of the loop (wtftc.sim.trim) at the wind at t = 0."""
+        rosco = None
+        if self.uses_rosco:  # ROSCO's own laws set its operating point
+            from wtftc.sim.rosco import discon_values
+
+            rosco = discon_values(self.rosco_discon)
         return trim(self.loop, self.p_ctrl, float(self.wind(0.0)), self.omega_offset,
-                    self.yd)
+                    self.yd, rosco)
 
     @property
     def control_interval(self) -> float:

@@ -84,6 +84,12 @@ def discon_path(spec: str) -> Path:
     return Path(spec)
 
 
+def discon_values(spec: str | None = None) -> dict[str, str]:
+    """Key → value text of the turbine's DISCON.IN (``rosco_discon``; default the NREL
+    5-MW's of ROSCO's examples)."""
+    return read_discon(discon_path(spec or NREL5MW_DISCON), "rosco_discon")
+
+
 def retuned_gains(kp: np.ndarray, ki: np.ndarray, retune: tuple) -> tuple:
     """ROSCO's pitch PI gain schedule for another closed-loop target: ``retune`` = (ω_pc,
     ζ_pc, ω_pc0, ζ_pc0), the new target and the one the schedule was tuned for. ROSCO's

@@ -17,7 +17,7 @@ from wtftc.sim.stability import _jacobian_function, fault_free_args
 
 
 def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0,
-         yd: np.ndarray | None = None) -> np.ndarray:
+         yd: np.ndarray | None = None, rosco: dict | None = None) -> np.ndarray:
     """Initial state: the plant at the operating point of the initial wind ``wind0`` [m/s]
     (:func:`operating_point`: above rated, rated speed (plus offset) and the pitch that
     balances rated torque; below rated, the torque law's equilibrium at the minimum pitch),
@@ -29,7 +29,8 @@ def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0
     (paper-notes defect 3).
     """
     tp = lay.values("turbine_params", loop.p_turbine)
-    omega, torque, beta0 = operating_point(loop, wind0, omega_offset)
+    omega, torque, beta0 = (operating_point(loop, wind0, omega_offset) if rosco is None
+                            else rosco_operating_point(loop, wind0, rosco))
     plant = dict.fromkeys(lay.names(PLANTS[loop.plant]["states"]), 0.0)
     plant.update(omega_r=omega, theta_s=torque / tp["k_s"], omega_g=omega,
                  **{f"beta_{j}": beta0 for j in lay.blades()})
@@ -134,6 +135,33 @@ def operating_point(loop: Loop, wind: float, omega_offset: float = 0.0) \
     k = int(cross[0])
     w = bisect(lambda x: excess(x) >= 0, float(grid[k + 1]), float(grid[k]))
     return w, t_gen(w), beta_min
+
+
+def rosco_operating_point(loop: Loop, wind: float, discon: dict) -> tuple[float, float, float]:
+    """(rotor speed [rad/s], generator torque [N m, LSS], pitch [rad]) where ROSCO's own
+    laws rest in the constant ``wind`` (its DISCON.IN's values, ``discon``): below rated,
+    tip-speed-ratio tracking at VS_TSRopt within [VS_MinOMSpd, PC_RefSpd] (VS_ControlMode
+    2) at the fine pitch, PC_FinePit raised to the peak-shaving minimum PS_BldPitchMin at
+    this wind (PS_Mode 1), the torque the aerodynamics then give; above rated, PC_RefSpd
+    and the pitch that balances the rated torque, at least that minimum."""
+    tp = lay.values("turbine_params", loop.p_turbine)
+    cp_fn = aero.cp_interpolant(loop.table)
+    rho, R, n_g = tp["air_density"], tp["rotor_radius"], tp["gearbox_ratio"]
+
+    def num(key: str) -> np.ndarray:
+        return np.array(discon[key].split(), dtype=float)
+
+    rated = float(num("PC_RefSpd")[0]) / n_g
+    beta = float(num("PC_FinePit")[0])
+    if float(num("PS_Mode")[0]) > 0:
+        beta = max(beta, float(np.interp(wind, num("PS_WindSpeeds"), num("PS_BldPitchMin"))))
+    omega = float(np.clip(num("VS_TSRopt")[0] * wind / R, num("VS_MinOMSpd")[0] / n_g, rated))
+    torque = aero_torque(float(cp_fn(omega * R / wind, beta)), omega, wind, rho, R)
+    if torque <= tp["gen_torque_rated"]:
+        return omega, torque, beta
+    torque = tp["gen_torque_rated"]
+    return rated, torque, aero.steady_pitch(cp_fn, rated, torque, wind, rho, R,
+                                            (beta, float(loop.table.pitch_rad[-1])))
 
 
 def torque_law(loop: Loop):

@@ -1,0 +1,146 @@
+"""Every run starts at the operating point of its initial wind (issue 31, item 1).
+
+* The plant's operating point (wtftc.sim.trim.operating_point) against an independent
+  solve: the raw Cp table, bilinear (cp_table.aero_torque_raw, not the loop's spline), the
+  NREL 5-MW baseline torque law written here from Jonkman et al. (2009), section 7.1,
+  and scipy's brentq.
+* Runs at constant winds from 4 to 25 m/s start within 1 % of the rotor speed they settle
+  at and within 0.1° of the pitch, for the PI, the physical AFTC and ROSCO, on the NREL
+  5-MW and the IEA 15-MW (from 6 m/s: at 4 m/s its minimum rotor speed puts the tip-speed
+  ratio beyond its Cp table, which is refused).
+* A wind with no operating point inside the Cp table is refused in one line.
+"""
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.campaign import cases
+from wtftc.errors import ConfigError
+from wtftc.model import aero
+from wtftc.model.cp_table import aero_torque, aero_torque_raw
+from wtftc.sim import trim
+
+
+def _rc(controller: str, turbine: str, wind: float, t_final: float = 1.0,
+        profile: str = "ideal", **extra):
+    raw = {"controller": controller, "turbine": turbine, "profile": profile,
+           "wind": {"kind": "constant", "speed_mps": wind}, "t_final_s": t_final,
+           "output_rate_hz": 10.0, **extra}
+    if controller != "rosco":
+        raw["turbine_params"] = {"gen_torque_law": 1.0}
+    return config.make_config(raw)
+
+
+def _baseline_law(tp: dict, w: float) -> float:
+    """Jonkman et al. (2009), section 7.1, on the LSS: 0 below cut-in; region 1½ linear
+    from cut-in to the start of region 2; k ω² in region 2; region 2½ linear through the
+    synchronous speed ω_rated/(1 + slip) up to rated power at rated speed; P_rated/ω in
+    region 3 (here by speed alone)."""
+    k, w_ci, w_r2 = tp["vs_region2_k"], tp["vs_cut_in_speed"], tp["vs_region2_speed"]
+    w_rated, p_rated = tp["vs_rated_speed"], tp["vs_rated_power"]
+    w_sync = w_rated / (1 + tp["vs_slip"])
+    if w < w_ci:
+        t = 0.0
+    elif w < w_r2:
+        t = k * w_r2**2 * (w - w_ci) / (w_r2 - w_ci)
+    else:
+        t = k * w**2
+    t25 = p_rated / w_rated / (w_rated - w_sync) * (w - w_sync)
+    t = max(t, t25) if w > w_sync else t
+    return min(t, p_rated / w, tp["vs_max_torque"])
+
+
+@pytest.mark.parametrize("turbine,winds", [("nrel5mw", (4, 5, 6, 7, 8, 9, 10, 11)),
+                                           ("iea15mw", (6, 7, 8, 9, 10))])
+def test_below_rated_the_speed_is_the_torque_laws_equilibrium(turbine, winds):
+    rc = _rc("physical", turbine, 8.0)
+    tp = lay.values("turbine_params", rc.loop.p_turbine)
+    table, rho, R = rc.loop.table, tp["air_density"], tp["rotor_radius"]
+    for v in winds:
+        w, torque, beta = trim.operating_point(rc.loop, float(v))
+
+        def excess(x, v=v):
+            return aero_torque_raw(table, x, v, 0.0, rho, R) - _baseline_law(tp, x)
+
+        ref = brentq(excess, 0.5 * w, min(1.5 * w, table.tsr[-1] * v / R * 0.999))
+        assert w == pytest.approx(ref, rel=3e-3), v  # spline against bilinear: 0.3 %
+        assert torque == pytest.approx(_baseline_law(tp, w), rel=1e-9)
+        assert beta == 0.0
+
+
+def test_the_nrel5mw_at_6mps_rests_at_0_828_rad_s():
+    """The issue's own number: 0.828 rad/s at 6 m/s, where every run used to start at
+    1.267 rad/s and spend its first ~30 s decelerating."""
+    w, _, _ = trim.operating_point(_rc("pi", "nrel5mw", 6.0).loop, 6.0)
+    assert w == pytest.approx(0.828, abs=1e-3)
+
+
+@pytest.mark.parametrize("turbine", ["nrel5mw", "iea15mw"])
+def test_above_rated_the_pitch_balances_rated_torque(turbine):
+    rc = _rc("pi", turbine, 16.0)
+    tp = lay.values("turbine_params", rc.loop.p_turbine)
+    cp = aero.cp_interpolant(rc.loop.table)  # the loop's own Cp: checks the solve itself
+    R, rho = tp["rotor_radius"], tp["air_density"]
+    for v in (12.0, 16.0, 20.0, 25.0):
+        w, torque, beta = trim.operating_point(rc.loop, v)
+        assert w == tp["omega_g_rated"] and torque == pytest.approx(_baseline_law(tp, w))
+        def loop_excess(b, w=w, v=v, torque=torque):
+            return aero_torque(float(cp(w * R / v, b)), w, v, rho, R) - torque
+
+        def raw_excess(b, w=w, v=v, torque=torque):
+            return aero_torque_raw(rc.loop.table, w, v, b, rho, R) - torque
+
+        spline = brentq(loop_excess, beta - 0.05, beta + 0.05, xtol=1e-12)
+        assert beta == pytest.approx(spline, abs=1e-8), v
+        ref = brentq(raw_excess, beta - 0.05, beta + 0.05)
+        # the raw table, bilinear: the two interpolations of the table differ by up to
+        # 0.16° of pitch at 25 m/s on the NREL 5-MW (coarse grid, steep Cp)
+        assert np.degrees(beta) == pytest.approx(np.degrees(ref), abs=0.25), v
+
+
+CASES = [(c, t, v) for c in ("pi", "physical", "rosco")
+         for t, winds in (("nrel5mw", (4, 6, 8, 10, 11, 12, 16, 20, 25)),
+                          ("iea15mw", (6, 8, 10, 11, 12, 16, 20, 25)))
+         for v in winds if (c, t, v) != ("rosco", "iea15mw", 6)]
+#: The one run that misses: ROSCO on the IEA 15-MW at 6 m/s, where its minimum speed
+#: (VS_MinOMSpd 0.5236 rad/s) binds, starts there and settles 2.1 % lower (0.5125 rad/s):
+#: ROSCO's own behaviour at that constraint (its setpoint smoother shifts the torque loop's
+#: reference), not a start-up artefact; tested as it is, below.
+
+
+@pytest.mark.parametrize("controller,turbine,wind", CASES)
+def test_a_run_in_constant_wind_starts_where_it_settles(controller, turbine, wind):
+    """30 s in constant wind with exact sensors: the speed at t = 0 within 1 % of the mean
+    over the last 5 s, the pitch within 0.1°. (With the benchmark's sensor noise a loop
+    settles elsewhere: the PI on the IEA 15-MW at 11 m/s 0.5 % below rated with 0.4° less
+    pitch, the noise straddling the corner of the torque law's regions 2½ and 3.)"""
+    rc = _rc(controller, turbine, float(wind), t_final=30.0)
+    res = cases.run(rc, progress=False)
+    assert not res.diverged
+    w = res.column("omega_r")
+    beta = np.degrees(np.mean([res.column(f"beta_{j}") for j in lay.blades()], axis=0))
+    end = res.t >= res.t[-1] - 5.0
+    assert w[0] == pytest.approx(np.mean(w[end]), rel=0.01)
+    assert beta[0] == pytest.approx(np.mean(beta[end]), abs=0.1)
+
+
+def test_below_cut_in_there_is_no_operating_point_and_the_run_is_refused(capsys):
+    from wtftc import cli
+
+    assert cli.main(["run", "--controller", "pi", "--wind", "constant", "--wind-mean", "2",
+                     "--t-final", "1", "--quiet", "--out", "/nonexistent/never"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("wtftc: error: wind = 2") and err.count("\n") == 1, err
+    with pytest.raises(ConfigError, match="operating point"):
+        trim.operating_point(_rc("pi", "iea15mw", 8.0).loop, 4.0)
+
+
+def test_rosco_on_the_iea15mw_at_its_minimum_speed_settles_2_percent_lower():
+    rc = _rc("rosco", "iea15mw", 6.0, t_final=30.0)
+    res = cases.run(rc, progress=False)
+    w = res.column("omega_r")
+    assert w[0] == pytest.approx(0.5236, rel=1e-4)
+    assert np.mean(w[res.t >= 25.0]) == pytest.approx(0.5125, rel=3e-3)
