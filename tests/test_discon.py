@@ -53,10 +53,12 @@ EXACT = {"pitch_noise_deg": 0.0, "rotor_speed_noise_rad_s": 0.0,
 
 def _reference(tmp_path: Path, **over):
     """wtftc's own sampled run (case 4, realistic profile, exact sensors, NTM B at 16 m/s,
-    100 Hz outputs unless ``over`` says otherwise) and the .IN file of its parameters."""
+    100 Hz outputs unless ``over`` says otherwise) and the .IN file of its parameters. The
+    controller starts as the library does, at rest on its first readings ([initial]
+    closed_loop_rest = false), not where the closed loop rests."""
     rc = config.make_config({"case": 4, "profile": "realistic", "output_rate_hz": 100.0,
                              "wind": {"kind": "ntm", "mean_mps": 16.0}, "sensors": EXACT,
-                             **over})
+                             "initial": {"closed_loop_rest": False}, **over})
     infile = discon.write_input(rc, tmp_path / "reference.IN")
     return rc, cases.run(rc, progress=False), infile
 

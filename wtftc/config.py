@@ -130,6 +130,8 @@ class RunConfig:
     wind: object
     faults: list = field(default_factory=list)
     omega_offset: float = 0.0
+    #: start where the closed loop rests ([initial] closed_loop_rest; wtftc.sim.trim)
+    closed_loop_rest: bool = True
     #: the sensors' parameters (layout sensor_params); the plant's turbine parameters and
     #: Cp scale under model mismatch
     p_sensors: np.ndarray = field(default_factory=lambda: lay.defaults("sensor_params"))
@@ -198,7 +200,7 @@ class RunConfig:
 
             rosco = discon_values(self.rosco_discon)
         return trim(self.loop, self.p_ctrl, float(self.wind(0.0)), self.omega_offset,
-                    self.yd, rosco)
+                    self.yd if self.closed_loop_rest else None, rosco)
 
     @property
     def control_interval(self) -> float:
@@ -308,7 +310,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
         raise ConfigError("wind", raw["wind"], "a table with kind = ...")
     wind = wind_from_config(raw["wind"], t_final=t_final, seed=seed)
     faults = _faults(raw, case, t_final)
-    offset = _initial(raw)
+    offset, rest = _initial(raw)
     table = _cp_table(raw, turbine)
     _torque_law(raw, p_turbine, wind, t_final, table[0])
     loop = rhs.Loop(raw["plant"], controller, *table, tuple(float(x) for x in p_turbine),
@@ -318,7 +320,8 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     p_fdi, test_pulse = _fdi(raw, loop, p_sensors, interval * dt)
     return RunConfig(raw=raw, case=case, loop=loop, t_final=t_final, dt=dt, seed=seed,
                      decimate=decimate, reference=ref, p_ctrl=p_ctrl, wind=wind, faults=faults,
-                     omega_offset=offset, p_sensors=p_sensors, p_plant=p_plant,
+                     omega_offset=offset, closed_loop_rest=rest, p_sensors=p_sensors,
+                     p_plant=p_plant,
                      cp_scale=cp_scale, p_fdi=p_fdi, test_pulse=test_pulse,
                      rosco_discon=turbine.rosco_discon, rosco_retune=retune)
 
@@ -583,15 +586,27 @@ def _check_envelope(loop: rhs.Loop, ref: float, offset: float) -> None:
                           f"speed ({rated:.6g} rad/s) that starts the rotor {what}")
 
 
-def _initial(raw: dict) -> float:
-    """The ``[initial]`` table's offset of the rotor speed from its trim [rad/s]."""
+#: the keys of the ``[initial]`` table
+INITIAL_KEYS = ("omega_r_offset_rad_s", "closed_loop_rest")
+
+
+def _initial(raw: dict) -> tuple[float, bool]:
+    """The ``[initial]`` table: the offset of the rotor speed from its trim [rad/s], and
+    whether the plant and the controller start where the closed loop rests (default true;
+    false: the controller at rest on its first measurements, as an exported DISCON library
+    starts at its first call; wtftc.sim.trim)."""
     init = raw.get("initial", {})
     if not isinstance(init, dict):
-        raise ConfigError("initial", init, "a table with omega_r_offset_rad_s")
+        raise ConfigError("initial", init, "a table with " + ", ".join(INITIAL_KEYS))
     for key in init:
-        if key != "omega_r_offset_rad_s":
-            raise ConfigError(f"initial.{key}", init[key], "a known key: omega_r_offset_rad_s")
-    return _finite(init.get("omega_r_offset_rad_s", 0.0), "initial.omega_r_offset_rad_s")
+        if key not in INITIAL_KEYS:
+            raise ConfigError(f"initial.{key}", init[key], "a known key: "
+                              + ", ".join(INITIAL_KEYS))
+    rest = init.get("closed_loop_rest", True)
+    if not isinstance(rest, bool):
+        raise ConfigError("initial.closed_loop_rest", rest, "true or false")
+    return (_finite(init.get("omega_r_offset_rad_s", 0.0), "initial.omega_r_offset_rad_s"),
+            rest)
 
 
 def _controller(name) -> str:
