@@ -13,8 +13,10 @@ for p in (ROOT, ROOT / "tests"):
 
 #: A run of the paper's design (corrected sign, no fault) that diverges for real: a gusty
 #: class-A wind just above rated, found by the robustness campaign (docs/robustness.md,
-#: run 0bd66619d0a10c50). x̂4 passes 1e8 at about 28 s; means 12.4, 12.44 and 12.5 m/s all
-#: diverge between 27.9 and 30.8 s, so the case does not hang on one rounding.
+#: run 0bd66619d0a10c50). Started at its wind's operating point (issue 31), x̂4 passes 1e8
+#: at about 14 s; means 12.4, 12.44 and 12.5 m/s all diverge between 14.1 and 14.6 s
+#: (from rated speed, before: between 27.9 and 30.8 s), so the case does not hang on one
+#: rounding.
 DIVERGING_RUN = {"controller": "paper", "case": 1, "seed": 86762, "t_final_s": 40.0,
                  "wind": {"kind": "ntm", "mean_mps": 12.5, "turbulence_class": "A"},
                  "turbine_params": {"gen_torque_law": 1.0}}

@@ -33,6 +33,11 @@ SCENARIOS = {
     "below": {"controller": "physical", "t_final_s": 8.0,
               "wind": {"kind": "ntm", "mean_mps": 7.0, "turbulence_class": "A"},
               "turbine_params": {"gen_torque_law": 1.0}},
+    # near rated with the torque law: region 2½ and its corner with 3 (a run now starts at
+    # its wind's operating point, issue 31: from rated speed the 7-m/s run swept 2½)
+    "near_rated": {"controller": "physical", "t_final_s": 8.0,
+                   "wind": {"kind": "ntm", "mean_mps": 11.0, "turbulence_class": "A"},
+                   "turbine_params": {"gen_torque_law": 1.0}},
     "low": {"controller": "physical", "t_final_s": 8.0,
             "wind": {"kind": "constant", "speed_mps": 4.5},
             "turbine_params": {"gen_torque_law": 1.0}},
@@ -53,8 +58,8 @@ TURBINE = {
     "pitch_min": ("below", 0.2), "pitch_max": ("above", 0.2),
     "pitch_rate_max": ("above", 0.04), "gen_torque_law": ("above", 1.0),
     "vs_cut_in_speed": ("low", 0.8), "vs_region2_speed": ("low", 1.0),
-    "vs_region2_k": ("below", None), "vs_rated_speed": ("below", None),
-    "vs_slip": ("below", None), "vs_rated_power": ("below", None),
+    "vs_region2_k": ("below", None), "vs_rated_speed": ("near_rated", None),
+    "vs_slip": ("near_rated", None), "vs_rated_power": ("near_rated", None),
     "vs_max_torque": ("above_law", 3.5e6),
     "tower_modal_mass": ("tower", None), "tower_stiffness": ("tower", None),
     "tower_damping_ratio": ("tower", 0.05), "tower_moment_arm": ("tower", None),

@@ -48,8 +48,11 @@ def test_delay_applies_each_command_one_interval_late():
     """With the delay, the plant's pitch responds to the command of the previous
     interval: the delayed run's first interval is driven by the trimmed pitch, so its
     blade does not move, while the undelayed blade follows the first command."""
-    on = _run(control_interval_s=0.01, control_delay=True, t_final_s=1.0)[1]
-    off = _run(control_interval_s=0.01, t_final_s=1.0)[1]
+    # off rated speed by 0.02 rad/s: a run starts where its loop rests (issue 31), and a
+    # command that equals the trimmed pitch would not show the delay
+    kick = {"initial": {"omega_r_offset_rad_s": 0.02}}
+    on = _run(control_interval_s=0.01, control_delay=True, t_final_s=1.0, **kick)[1]
+    off = _run(control_interval_s=0.01, t_final_s=1.0, **kick)[1]
     n = 10
     # the same first command (same state, same samples)
     assert on.column("v_1")[0] == off.column("v_1")[0]

@@ -155,7 +155,12 @@ class NotAtRest(ConfigError):
 def settle(raw: dict, wind: float) -> np.ndarray:
     """The loop's state (plant, controller) after SETTLE_S in constant ``wind``."""
     rc = _run_config(raw, wind, t_final_s=SETTLE_S, output_rate_hz=1.0)
-    res = cases.run(rc, progress=False, keep_states=True)
+    try:
+        res = cases.run(rc, progress=False, keep_states=True)
+    except ConfigError as exc:  # no operating point to start from (wtftc.sim.trim)
+        if exc.field != "wind":
+            raise
+        raise NotAtRest(wind, exc.allowed) from None
     if res.diverged is not None:
         raise NotAtRest(wind, f"a wind at which the {rc.controller} loop comes to rest (it "
                         f"diverged at t = {res.diverged['t_s']:.4g} s while settling: "

@@ -29,6 +29,7 @@ def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0
     (paper-notes defect 3).
     """
     tp = lay.values("turbine_params", loop.p_turbine)
+    aero.schedule_points(loop.table, loop.p_turbine)  # a table with no pitch range: named
     omega, torque, beta0 = (operating_point(loop, wind0, omega_offset) if rosco is None
                             else rosco_operating_point(loop, wind0, rosco))
     plant = dict.fromkeys(lay.names(PLANTS[loop.plant]["states"]), 0.0)
