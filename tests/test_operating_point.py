@@ -132,8 +132,9 @@ def test_below_cut_in_there_is_no_operating_point_and_the_run_is_refused(capsys)
 
     assert cli.main(["run", "--controller", "pi", "--wind", "constant", "--wind-mean", "2",
                      "--t-final", "1", "--quiet", "--out", "/nonexistent/never"]) == 2
-    err = capsys.readouterr().err
+    out, err = capsys.readouterr()
     assert err.startswith("wtftc: error: wind = 2") and err.count("\n") == 1, err
+    assert out == ""  # refused before the run's first line
     with pytest.raises(ConfigError, match="operating point"):
         trim.operating_point(_rc("pi", "iea15mw", 8.0).loop, 4.0)
 

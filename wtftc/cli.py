@@ -404,6 +404,7 @@ def _cmd_run(args) -> int:
 
     rc = config.make_config(tune.resolve(_run_overrides(args)))
     check_run_folder(args.out, "--out")
+    rc.initial_state()  # a wind with no operating point: refused before the first line
     print(f"{rc.label}: case {rc.case} ({config.CASES[rc.case]}) on {rc.plant}, "
           f"{rc.t_final:g} s at dt = {rc.dt:g} s")
     res, table, paths = cases.run_and_write(rc, args.out, progress=not args.quiet)
