@@ -1,5 +1,8 @@
 import os
+import signal
+import stat
 import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 # BLAS on one thread, before numpy loads it, as the wtftc command sets it (wtftc/cli.py)
@@ -20,3 +23,28 @@ for p in (ROOT, ROOT / "tests"):
 DIVERGING_RUN = {"controller": "paper", "case": 1, "seed": 86762, "t_final_s": 40.0,
                  "wind": {"kind": "ntm", "mean_mps": 12.5, "turbulence_class": "A"},
                  "turbine_params": {"gen_torque_law": 1.0}}
+
+
+def snapshot(folder: Path) -> dict:
+    """Every path under folder with its bytes (files) and mode: what 'untouched' means in
+    the tests of the output-folder rule (issue 30)."""
+    out = {".": stat.S_IMODE(folder.stat().st_mode)}
+    for p in sorted(folder.rglob("*")):
+        out[str(p.relative_to(folder))] = (p.read_bytes() if p.is_file() else None,
+                                           stat.S_IMODE(p.lstat().st_mode))
+    return out
+
+
+@contextmanager
+def no_hang(seconds: int = 30):
+    """Fail, not hang, if the block reads a FIFO or a device to exhaustion."""
+    def _alarm(signum, frame):
+        raise AssertionError(f"hung for {seconds} s on a special file")
+
+    old = signal.signal(signal.SIGALRM, _alarm)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)

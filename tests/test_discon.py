@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import snapshot
 from discon_host import SWAP, Host
 
 from bench import rosco_sim
@@ -556,13 +557,6 @@ def test_long_lines_nul_bytes_and_special_files_are_refused_without_hanging(lib,
 
 # ------------------------------------------------------------- issue 30, defects 1, 6, 8
 
-def _snapshot(folder: Path) -> dict:
-    out = {".": stat.S_IMODE(folder.stat().st_mode)}
-    for p in sorted(folder.rglob("*")):
-        out[str(p.relative_to(folder))] = (p.read_bytes() if p.is_file() else None,
-                                           stat.S_IMODE(p.lstat().st_mode))
-    return out
-
 
 def _umask() -> int:
     m = os.umask(0)
@@ -609,10 +603,10 @@ def test_export_never_deletes_a_folder_it_did_not_write(lib, tmp_path, monkeypat
     (edited / "wtftc_physical.IN").write_text(tuned)
     assert tuned != text and len(tuned.encode()) == len(text.encode())
     for out in (mine, added, edited):
-        before = _snapshot(out)
+        before = snapshot(out)
         code = cli.main(["export", "discon", "--controller", "physical", "--out", str(out)])
         assert "did not write" in _one_line_refusal(capsys, code, "--out")
-        assert _snapshot(out) == before
+        assert snapshot(out) == before
     monkeypatch.chdir(mine)
     assert "current folder" in _one_line_refusal(capsys, cli.main(_export_cli("--out", ".")),
                                                  "--out")

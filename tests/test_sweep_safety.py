@@ -12,15 +12,15 @@ from __future__ import annotations
 
 import hashlib
 import os
-import signal
 import stat
-from contextlib import contextmanager
 from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
 
 pytest.importorskip("distributed", reason="Dask: pip install 'wtftc[sweep]'")
+
+from conftest import no_hang  # noqa: E402
 
 from wtftc import cli  # noqa: E402
 from wtftc.campaign import sweep  # noqa: E402
@@ -121,21 +121,6 @@ def _snapshot(folder: Path) -> dict:
 def _one_line(err: str, option: str, value) -> None:
     assert err.startswith(f"wtftc: error: {option} = '{value}' is not allowed: "), err
     assert err.count("\n") == 1 and "Traceback" not in err and "Errno" not in err, err
-
-
-@contextmanager
-def _no_hang(seconds: int = 30):
-    """Fail, not hang, if the block reads a FIFO or a device to exhaustion."""
-    def _alarm(signum, frame):
-        raise AssertionError(f"hung for {seconds} s")
-
-    old = signal.signal(signal.SIGALRM, _alarm)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
 
 
 # ------------------------------------------------------------------------- --overwrite
@@ -457,7 +442,7 @@ def test_special_files_in_the_results_folder_are_refused_unread(special, tmp_pat
     else:
         (out / name).symlink_to("/dev/zero")
     before = _snapshot(out)
-    with _no_hang():
+    with no_hang():
         for args, option in ((["sweep", "--summary", str(out)], "--summary"),
                              (["sweep", str(f), "--out", str(out)], "--out"),
                              (["sweep", str(f), "--out", str(out), "--overwrite"], "--out")):

@@ -25,6 +25,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
+from conftest import no_hang, snapshot
 
 from wtftc import cli, files
 from wtftc.errors import ConfigError
@@ -42,15 +43,6 @@ COMMANDS = {
 }
 
 
-def _snapshot(folder: Path) -> dict:
-    """Every path under folder with its bytes (files) and mode: what 'untouched' means."""
-    out = {".": stat.S_IMODE(folder.stat().st_mode)}
-    for p in sorted(folder.rglob("*")):
-        out[str(p.relative_to(folder))] = (p.read_bytes() if p.is_file() else None,
-                                           stat.S_IMODE(p.lstat().st_mode))
-    return out
-
-
 def _user_folder(tmp_path: Path) -> Path:
     out = tmp_path / "mine"
     (out / "sub").mkdir(parents=True)
@@ -63,13 +55,13 @@ def _user_folder(tmp_path: Path) -> Path:
 @pytest.mark.parametrize("command", sorted(COMMANDS))
 def test_a_folder_holding_a_users_file_is_refused_untouched(command, tmp_path, capsys):
     out = _user_folder(tmp_path)
-    before = _snapshot(out)
+    before = snapshot(out)
     code = cli.main([*COMMANDS[command], "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2, err
     assert err.startswith("wtftc: error: --out") and err.count("\n") == 1, err
     assert "did not write" in err
-    assert _snapshot(out) == before
+    assert snapshot(out) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mine"]  # no partial left
 
 
@@ -128,10 +120,10 @@ def test_a_folder_the_user_changed_is_theirs(change, tmp_path):
         (out / "link").symlink_to("/etc/hostname")
     else:  # the marker alone no longer describes the folder: a user's file is the rest
         (out / "a.csv").unlink()
-    before = _snapshot(out)
+    before = snapshot(out)
     with pytest.raises(ConfigError, match="did not write"), _written(out, {"b": "x"}):
         pass
-    assert _snapshot(out) == before
+    assert snapshot(out) == before
 
 
 def _umask() -> int:
@@ -198,17 +190,17 @@ def test_regenerate_builds_in_a_sibling_and_never_half_rewrites(tmp_path, monkey
     out.mkdir()
     (out / "manifest.json").write_text(json.dumps({"artefacts": {"a.c": "x"}}))
     (out / "a.c").write_text("old")
-    before = _snapshot(out)
+    before = snapshot(out)
 
     def failing(outdir):
         (outdir / "manifest.json").write_text("{}")
-        assert _snapshot(out) == before  # the old folder is untouched while writing
+        assert snapshot(out) == before  # the old folder is untouched while writing
         raise RuntimeError("stop halfway")
 
     monkeypatch.setattr(generate, "write", failing)
     with pytest.raises(RuntimeError, match="halfway"):
         generate.main([str(out)])
-    assert _snapshot(out) == before and sorted(p.name for p in tmp_path.iterdir()) == [
+    assert snapshot(out) == before and sorted(p.name for p in tmp_path.iterdir()) == [
         "generated"]
 
     def complete(outdir):
@@ -221,9 +213,9 @@ def test_regenerate_builds_in_a_sibling_and_never_half_rewrites(tmp_path, monkey
     assert sorted(p.name for p in out.iterdir()) == ["b.c", "manifest.json"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["generated"]
     (out / "notes.md").write_text("mine")
-    before = _snapshot(out)
+    before = snapshot(out)
     assert generate.main([str(out)]) == 2
-    assert _snapshot(out) == before
+    assert snapshot(out) == before
 
 
 # ------------------------------------------------------------------------ special files
@@ -243,21 +235,6 @@ def _special(kind: str, tmp: Path, suffix: str = "") -> Path:
     return p
 
 
-@contextmanager
-def _no_hang(seconds: int = 20):
-    """A FIFO opened for reading blocks for ever: fail the test instead."""
-    def boom(*_):
-        raise TimeoutError("hung on a special file")
-
-    old = signal.signal(signal.SIGALRM, boom)
-    signal.alarm(seconds)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, old)
-
-
 SPECIAL = ["fifo", "dev_zero", "folder", "symlink_loop"]
 #: every file argument of `wtftc run`, as arguments for a path p, and the field it names
 FILE_ARGS = {
@@ -272,7 +249,7 @@ FILE_ARGS = {
 def test_a_special_file_argument_is_refused_unread(arg, kind, tmp_path, capsys):
     make_args, field = FILE_ARGS[arg]
     path = _special(kind, tmp_path, ".toml" if arg == "turbine" else "")
-    with _no_hang():
+    with no_hang():
         code = cli.main(["run", *make_args(path), "--t-final", "0.5", "--quiet",
                          "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
@@ -286,7 +263,7 @@ def test_a_special_file_argument_is_refused_unread(arg, kind, tmp_path, capsys):
 def test_a_special_cp_table_is_refused_unread(kind, tmp_path, capsys):
     cfg = tmp_path / "c.toml"
     cfg.write_text(f'cp_table = "{_special(kind, tmp_path)}"\nt_final_s = 0.5\n')
-    with _no_hang():
+    with no_hang():
         code = cli.main(["run", "--config", str(cfg), "--quiet", "--out",
                          str(tmp_path / "out")])
     err = capsys.readouterr().err
@@ -345,7 +322,7 @@ def test_special_files_in_the_other_commands_are_refused_unread(argv, field, kin
                                                                  capsys):
     path = _special(kind, tmp_path, ".toml")
     args = [a.format(p=path, out=tmp_path / "out") for a in argv]
-    with _no_hang():
+    with no_hang():
         code = cli.main(args)
     err = capsys.readouterr().err
     assert code == 2, err
@@ -416,10 +393,10 @@ def test_a_users_folder_that_looks_like_an_old_result_is_refused(command, top, t
     (out / "thesis.md").write_text("chapter 3")
     (out / "data" / "field_campaign_2019.csv").write_text("1,2")
     (out / "photos" / "wedding.png").write_bytes(b"\x89PNG")
-    before = _snapshot(out)
+    before = snapshot(out)
     assert cli.main([*COMMANDS[command], "--out", str(out)]) == 2
     assert "did not write" in capsys.readouterr().err
-    assert _snapshot(out) == before
+    assert snapshot(out) == before
 
 
 def _old_run_folder(out: Path) -> None:
@@ -438,10 +415,10 @@ def test_an_old_run_folder_with_anything_more_is_the_users(extra, tmp_path, caps
         (out / "traces.csv").unlink()
     target.parent.mkdir(parents=True, exist_ok=True)
     target.write_text("mine")
-    before = _snapshot(out)
+    before = snapshot(out)
     assert cli.main(["run", "--t-final", "0.5", "--quiet", "--out", str(out)]) == 2
     assert "did not write" in capsys.readouterr().err
-    assert _snapshot(out) == before
+    assert snapshot(out) == before
 
 
 def test_an_old_run_folder_as_it_was_written_is_replaced(tmp_path):
@@ -470,10 +447,10 @@ def test_an_out_that_is_a_symlink_is_refused_and_left_alone(target, tmp_path, ca
         real.mkdir(parents=True)
     link = tmp_path / "link_out"
     link.symlink_to(real)
-    before = _snapshot(real)
+    before = snapshot(real)
     assert cli.main(["run", "--t-final", "0.5", "--quiet", "--out", str(link)]) == 2
     assert "symbolic link" in capsys.readouterr().err
-    assert link.is_symlink() and _snapshot(real) == before
+    assert link.is_symlink() and snapshot(real) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["big", "link_out"]
 
 

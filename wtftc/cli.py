@@ -479,8 +479,9 @@ def _add_turbine(sub) -> None:
                    help="the turbine file (.toml); the Cp table is copied beside it. Never "
                         "inside the installed wtftc package")
     i.add_argument("--overwrite", action="store_true",
-                   help="replace an existing turbine file or Cp table of the same name "
-                        "(refused without it; a table with the same bytes is shared)")
+                   help="replace an existing turbine file, or the Cp table of the same "
+                        "name beside it when no other turbine file there uses it (refused "
+                        "without it; a table with the same bytes is shared)")
     s = ts.add_parser("show", help="a turbine's parameters, units and sources")
     s.add_argument("turbine", help=TURBINE_HELP)
     u = ts.add_parser(

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from wtftc.artefacts import layout as lay
-from wtftc.errors import ConfigError
+from wtftc.errors import ConfigError, range_text
 from wtftc.model import tuning, turbine_file
 from wtftc.model.cp_table import nrel5mw_cp_table, read_cp_table
 from wtftc.model.faults import DEFAULT_FAULT, parse_faults
@@ -778,14 +778,6 @@ def _overrides(raw: dict, key: str, group: str) -> dict:
     return out
 
 
-def _range_text(rng: tuple) -> str:
-    lo, hi, lo_open, hi_open, unit = rng
-    if hi == _INF:
-        return f"a number {'>' if lo_open else '>='} {lo:g} [{unit}]"
-    return f"a number in {'(' if lo_open else '['}{lo:.6g}, {hi:.6g}{')' if hi_open else ']'} " \
-           f"[{unit}]"
-
-
 def check_ranges(group: str, vec, key: str) -> dict[str, float]:
     """Refuse a parameter vector of a layout group with a value that is not finite or is
     outside its physical range (layout.json ``valid``): a ConfigError naming
@@ -799,7 +791,7 @@ def check_ranges(group: str, vec, key: str) -> dict[str, float]:
         if name in ranges:
             lo, hi, lo_open, hi_open, _ = ranges[name]
             if val < lo or val > hi or (lo_open and val == lo) or (hi_open and val == hi):
-                raise ConfigError(field, val, _range_text(ranges[name]))
+                raise ConfigError(field, val, range_text(*ranges[name]))
     return vals
 
 

@@ -14,3 +14,18 @@ class ConfigError(ValueError):
         self.field, self.value, self.allowed, self.where = field, value, allowed, where
         loc = f"{where}: " if where else ""
         super().__init__(f"{loc}{field} = {value!r} is not allowed: {allowed}")
+
+
+def range_text(low: float, high: float, low_open: bool, high_open: bool,
+               unit: str = "") -> str:
+    """What a range allows, as every refusal says it: 'a number > 0 [m]', 'a number in
+    [0, 100) [%]', 'a finite number [-]' (an infinite end: unbounded there)."""
+    u = f" [{unit}]" if unit else ""
+    if low == -float("inf") and high == float("inf"):
+        return f"a finite number{u}"
+    if high == float("inf"):
+        return f"a number {'>' if low_open else '>='} {low:g}{u}"
+    if low == -float("inf"):
+        return f"a number {'<' if high_open else '<='} {high:g}{u}"
+    return (f"a number in {'(' if low_open else '['}{low:.6g}, {high:.6g}"
+            f"{')' if high_open else ']'}{u}")

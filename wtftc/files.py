@@ -212,13 +212,19 @@ def check_out_folder(out, option: str = "--out",
         raise ConfigError(option, str(out), "a new folder, an empty one or one that wtftc "
                           "wrote (this one holds files wtftc did not write; nothing was "
                           "written or deleted)")
-    probe = real
+    check_writable_ancestor(real, option, str(out))
+    return out
+
+
+def check_writable_ancestor(path: Path, option: str, given: str) -> None:
+    """Refuse, naming ``option`` and the ``given`` path, a ``path`` whose nearest existing
+    ancestor is not a folder this process may create entries in."""
+    probe = Path(path)
     while not probe.exists():
         probe = probe.parent
     if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
-        raise ConfigError(option, str(out), f"a folder that can be written ({probe} is not "
-                          "a writable folder)")
-    return out
+        raise ConfigError(option, given, f"a folder that can be written ({probe} is not a "
+                          "writable folder)")
 
 
 def _clean_stale(parent: Path, name: str) -> None:

@@ -18,6 +18,7 @@ import math
 
 from wtftc import config
 from wtftc.artefacts import layout as lay
+from wtftc.errors import range_text
 from wtftc.sim import rhs
 
 #: the FDI's parameters wtftc sets from a key of a run's [fdi] table: that key's range
@@ -30,15 +31,7 @@ FDI_INTERVAL = "fdi_T_s"
 
 def _range_text(rng: tuple, unit: str) -> str:
     """What a range allows, in wtftc.config's words."""
-    lo, hi, lo_open, hi_open = rng
-    if lo == -math.inf and hi == math.inf:
-        return f"a finite number [{unit}]"
-    if hi == math.inf:
-        return f"a number {'>' if lo_open else '>='} {lo:g} [{unit}]"
-    if lo == -math.inf:
-        return f"a number {'<' if hi_open else '<='} {hi:g} [{unit}]"
-    return (f"a number in {'(' if lo_open else '['}{lo:.6g}, {hi:.6g}{')' if hi_open else ']'}"
-            f" [{unit}]")
+    return range_text(*rng, unit)
 
 
 def _layout_range(group: str, name: str) -> tuple[tuple | None, str]:

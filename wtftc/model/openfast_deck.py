@@ -31,7 +31,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from wtftc.errors import ConfigError
+from wtftc.errors import ConfigError, range_text
 from wtftc.files import read_user_text
 
 #: the largest deck file read (ElastoDyn files are ~20 kB, a BeamDyn blade ~0.1 MB)
@@ -254,18 +254,6 @@ def number(d: dict, key: str, where: Path, low: float = -math.inf, high: float =
         raise ConfigError(key, v, range_text(low, high, low_open, high_open, unit),
                           where=str(where))
     return v
-
-
-def range_text(low: float, high: float, low_open: bool, high_open: bool,
-               unit: str = "") -> str:
-    """'a number > 0 [m]', 'a number in [0, 100) [%]'."""
-    u = f" [{unit}]" if unit else ""
-    if high == math.inf:
-        return f"a number {'>' if low_open else '>='} {low:g}{u}"
-    if low == -math.inf:
-        return f"a number {'<' if high_open else '<='} {high:g}{u}"
-    return (f"a number in {'(' if low_open else '['}{low:g}, {high:g}"
-            f"{')' if high_open else ']'}{u}")
 
 
 def numbers(d: dict, key: str, where: Path, low: float = -math.inf,

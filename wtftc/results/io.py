@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from wtftc.errors import ConfigError
-from wtftc.files import check_out_folder, owned_folder
+from wtftc.files import check_out_folder, check_writable_ancestor, owned_folder
 
 #: what makes a folder a wtftc run folder, which a new run may replace as a whole
 RUN_MARKERS = ("config.toml", "metrics.json")
@@ -85,12 +85,7 @@ def ensure_writable_dir(path: Path, option: str = "--out", create: bool = True) 
     if path.exists() and not path.is_dir():
         raise ConfigError(option, str(path), "a folder (this is a file)")
     if not create:
-        probe = path
-        while not probe.exists():
-            probe = probe.parent
-        if not probe.is_dir() or not os.access(probe, os.W_OK | os.X_OK):
-            raise ConfigError(option, str(path), f"a folder that can be written ({probe} is "
-                              "not a writable folder)")
+        check_writable_ancestor(path, option, str(path))
         return path
     try:
         path.mkdir(parents=True, exist_ok=True)

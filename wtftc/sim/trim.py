@@ -167,10 +167,11 @@ def rosco_operating_point(loop: Loop, wind: float, discon: dict) -> tuple[float,
 
 def torque_law(loop: Loop):
     """The generator torque [N m, LSS] the plant's law gives at a steady speed (generated
-    ``generator_torque``); ROSCO commands its own, whose region-2 equilibrium is the
-    baseline law's (ROSCO's VS_Rgn2K is the same k): the baseline law stands in for it."""
+    ``generator_torque``); an external controller commands its own torque (its plant's law
+    is 0: wtftc.export.in_loop), and the baseline law stands in for it (ROSCO has its own
+    point, :func:`rosco_operating_point`)."""
     p = np.array(loop.p_turbine, dtype=float)
-    if loop.controller == "rosco" or loop.controller == "external":
+    if loop.controller == "external":
         p[lay.index("turbine_params", "gen_torque_law")] = 1.0
     fn = load("generator_torque")
     return lambda w: float(fn(omega_g=w, p_turbine=p)["T_gen"])
