@@ -145,3 +145,12 @@ def test_rosco_on_the_iea15mw_at_its_minimum_speed_settles_2_percent_lower():
     w = res.column("omega_r")
     assert w[0] == pytest.approx(0.5236, rel=1e-4)
     assert np.mean(w[res.t >= 25.0]) == pytest.approx(0.5125, rel=3e-3)
+
+
+def test_closed_loop_rest_is_a_boolean_and_false_keeps_the_controllers_own_start():
+    with pytest.raises(ConfigError, match="initial.closed_loop_rest"):
+        config.make_config({"initial": {"closed_loop_rest": "yes"}})
+    on = _rc("physical", "nrel5mw", 25.0).initial_state()
+    off = _rc("physical", "nrel5mw", 25.0, initial={"closed_loop_rest": False}).initial_state()
+    # the physical AFTC rests off the plant's point at 25 m/s: +0.65 % speed (see above)
+    assert on[0] == pytest.approx(1.0065 * off[0], rel=1e-3)
