@@ -71,12 +71,20 @@ def closed_loop_rest(loop: Loop, x: np.ndarray, wind: float, yd, p_ctrl) -> np.n
             if k in rhs.name_in()}
     n = rhs.size1_in("z")
     z = np.array(x[:n], dtype=float)
+    best, stalled = np.inf, 0
     for _ in range(30):
         f = np.array(rhs.call({**args, "z": z})["z_dot"]).ravel()
         if not np.all(np.isfinite(f)):
             return x
-        if np.abs(f).max() < REST_TOLERANCE:
+        size = np.abs(f).max()
+        if size < REST_TOLERANCE:
             break
+        # a loop that does not rest (the paper's design above rated) stops Newton early:
+        # three steps without halving the residual (each step costs a Jacobian)
+        stalled = 0 if size < 0.5 * best else stalled + 1
+        best = min(best, size)
+        if stalled >= 3:
+            return x
         J = np.array(jac.call({**args, "z": z})["dz_dot_dz"])
         z = z - np.linalg.lstsq(J, f, rcond=None)[0]
     else:
