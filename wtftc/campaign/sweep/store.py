@@ -128,12 +128,31 @@ def _batches(out_dir: Path, option: str, rec: Record | None = None):
             raise ConfigError(option, str(path), "a batch file as the sweep wrote it (this "
                               "one is not: damaged, edited or replaced since; " + again + ")")
         try:
-            table = pq.read_table(pa.BufferReader(data), schema=schema())
+            table = _conform(pq.ParquetFile(pa.BufferReader(data)).read(use_threads=False))
         except (pa.ArrowException, ValueError, KeyError, OSError) as exc:
             why = " ".join(str(exc).split())[:200]
             raise ConfigError(option, str(path), f"a Parquet batch of this sweep (it cannot "
                               f"be read: {why}; " + again + ")") from None
         yield rel, data, table
+
+
+def _conform(table):
+    """``table`` in the sweep's schema: its columns in the schema's order and types, one
+    the schema has and the file lacks (a batch of an older wtftc) as nulls, one the schema
+    lacks dropped. The file was read on this thread alone (ParquetFile, no thread pool):
+    ``pq.read_table`` reads a buffer through Arrow's datasets, whose pool can hold the
+    last reference to the Python bytes until interpreter exit, and dropping it then
+    aborted the process ("terminate called without an active exception", 1 exit in 40
+    on a loaded machine; tests/test_sweep.py's resumable sweeps caught it)."""
+    import pyarrow as pa
+
+    cols = []
+    for field in schema():
+        if field.name in table.column_names:
+            cols.append(table.column(field.name).cast(field.type))
+        else:
+            cols.append(pa.nulls(table.num_rows, field.type))
+    return pa.Table.from_arrays(cols, schema=schema())
 
 
 def count_status(out_dir: Path) -> dict[str, int]:
