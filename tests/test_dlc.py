@@ -27,27 +27,86 @@ def test_the_rayleigh_bins_cover_the_year_and_have_its_mean():
     assert dlc.bin_probability(10.0, 2.0, 10.0) == pytest.approx(hand, rel=1e-12)
 
 
-def test_the_lifetime_figures_of_two_bins_by_hand():
-    bins = {8.0: {"shaft_torque_damage_per_10min": 6.0e26, "mean_electrical_power_W": 2.0e6,
+def _rayleigh_bin_by_hand(lo: float, hi: float, mean: float) -> float:
+    """exp(−π/4 (lo/V)²) − exp(−π/4 (hi/V)²): F(hi) − F(lo) written out."""
+    return math.exp(-math.pi / 4 * (lo / mean) ** 2) - math.exp(-math.pi / 4 * (hi / mean) ** 2)
+
+
+def _two_bins() -> dict:
+    return {8.0: {"shaft_torque_damage_per_10min": 6.0e26, "mean_electrical_power_W": 2.0e6,
                   "pitch_adc": 0.1, "shaft_torque_del_1hz_Nm": 1.0},
             16.0: {"shaft_torque_damage_per_10min": 2.4e27, "mean_electrical_power_W": 5.0e6,
                    "pitch_adc": 0.4, "shaft_torque_del_1hz_Nm": 1.0}}
+
+
+def test_the_lifetime_figures_of_two_bins_by_hand():
+    """MLife's route written out (issue 31): each bin's 10 minutes extrapolated to a 20-year
+    design life by T_L p_b / 600 s (availability 1), the lifetime DEL the range whose
+    T_L × 1 Hz cycles do that damage, over calendar time (no division by Σp); the AEP
+    over 8760 h."""
+    bins = _two_bins()
     table = dlc.parse_dlc({"annual_mean_mps": 10.0, "bin_width_mps": 2.0})
-    p8, p16 = (float(dlc.bin_probability(v, 2.0, 10.0)) for v in (8.0, 16.0))
+    p8 = _rayleigh_bin_by_hand(7.0, 9.0, 10.0)       # 0.1512…
+    p16 = _rayleigh_bin_by_hand(15.0, 17.0, 10.0)    # 0.0675…
     life = dlc.lifetime(bins, table, 4.0)
-    share = p8 + p16
-    assert life["share_of_year"] == pytest.approx(share, rel=1e-12)
-    assert life["lifetime_shaft_del_1hz_Nm"] == pytest.approx(
-        ((p8 * 6.0e26 + p16 * 2.4e27) / 600.0 / share) ** 0.25, rel=1e-12)
-    assert life["aep_Wh"] == pytest.approx(8766.0 * (p8 * 2.0e6 + p16 * 5.0e6), rel=1e-12)
-    assert life["weighted_pitch_adc"] == pytest.approx((p8 * 0.1 + p16 * 0.4) / share)
+    assert life["share_of_year"] == pytest.approx(p8 + p16, rel=1e-12)
+    design_life_s = 20 * 8760 * 3600.0
+    damage_life = sum(design_life_s * p / 600.0 * d for p, d in ((p8, 6.0e26), (p16, 2.4e27)))
+    mlife_del = (damage_life / (design_life_s * 1.0)) ** (1 / 4)
+    assert life["lifetime_shaft_del_1hz_Nm"] == pytest.approx(mlife_del, rel=1e-12)
+    # the old, Σp-normalised figure was larger by (1/Σp)^(1/m) (Σp 0.219: this is 0.68 of it)
+    old = mlife_del / (p8 + p16) ** (1 / 4)
+    assert life["lifetime_shaft_del_1hz_Nm"] < 0.7 * old
+    assert life["aep_Wh"] == pytest.approx(8760.0 * (p8 * 2.0e6 + p16 * 5.0e6), rel=1e-12)
+    # the ADC is a duty cycle: the mean over the bins' time (Σp-normalised), stated
+    assert life["weighted_pitch_adc"] == pytest.approx((p8 * 0.1 + p16 * 0.4) / (p8 + p16))
     # without a tower (the nrel5mw plant) there is no tower figure; with one, its own m
     assert life["lifetime_tower_del_1hz_Nm"] is None
     bins[8.0]["tower_base_damage_per_10min"] = 3.0e24
     bins[16.0]["tower_base_damage_per_10min"] = 9.0e24
     tower = dlc.lifetime(bins, table, 4.0, 3.0)["lifetime_tower_del_1hz_Nm"]
-    assert tower == pytest.approx(((p8 * 3.0e24 + p16 * 9.0e24) / 600.0 / share) ** (1 / 3),
-                                  rel=1e-12)
+    assert tower == pytest.approx(((p8 * 3.0e24 + p16 * 9.0e24) / 600.0) ** (1 / 3), rel=1e-12)
+
+
+def test_a_bin_without_damage_adds_nothing_to_the_lifetime_del():
+    """MLife counts the wind outside the simulated bins as no damage: a bin of zero damage
+    and zero power leaves the DEL and the AEP where they were (the old Σp normalisation
+    would have lowered the DEL by spreading the damage over more of the year)."""
+    table = dlc.parse_dlc({})
+    calm = {"shaft_torque_damage_per_10min": 0.0, "mean_electrical_power_W": 0.0,
+            "pitch_adc": 0.0, "shaft_torque_del_1hz_Nm": 0.0}
+    two, three = (dlc.lifetime(b, table, 4.0) for b in (_two_bins(), {4.0: calm, **_two_bins()}))
+    assert three["share_of_year"] > two["share_of_year"]
+    assert three["lifetime_shaft_del_1hz_Nm"] == pytest.approx(
+        two["lifetime_shaft_del_1hz_Nm"], rel=1e-12)
+    assert three["aep_Wh"] == pytest.approx(two["aep_Wh"], rel=1e-12)
+
+
+def test_ratios_between_controllers_over_the_same_bins_do_not_depend_on_the_normalisation():
+    """Over the same bins, Σp cancels in a ratio: MLife's calendar-time DEL and the old
+    Σp-normalised DEL give one ratio, and 8760 h or 8766 h one AEP difference; against()
+    reports it."""
+    table = dlc.parse_dlc({})
+    p8, p16 = _rayleigh_bin_by_hand(7.0, 9.0, 10.0), _rayleigh_bin_by_hand(15.0, 17.0, 10.0)
+    a = _two_bins()
+    a[8.0] = {**a[8.0], "shaft_torque_damage_per_10min": 3.0e26}      # half below rated
+    a[16.0] = {**a[16.0], "mean_electrical_power_W": 5.1e6}
+    damage_a, damage_b = p8 * 3.0e26 + p16 * 2.4e27, p8 * 6.0e26 + p16 * 2.4e27
+    mlife = (damage_a / 600.0) ** 0.25 / (damage_b / 600.0) ** 0.25
+    normalised = ((damage_a / 600.0 / (p8 + p16)) ** 0.25
+                  / (damage_b / 600.0 / (p8 + p16)) ** 0.25)
+    assert mlife == pytest.approx(normalised, rel=1e-14)
+    energy_a, energy_b = p8 * 2.0e6 + p16 * 5.1e6, p8 * 2.0e6 + p16 * 5.0e6
+    assert 8760.0 * energy_a / (8760.0 * energy_b) == pytest.approx(
+        8766.0 * energy_a / (8766.0 * energy_b), rel=1e-14)
+    life_a, life_b = dlc.lifetime(a, table, 4.0), dlc.lifetime(_two_bins(), table, 4.0)
+    assert life_a["lifetime_shaft_del_1hz_Nm"] / life_b["lifetime_shaft_del_1hz_Nm"] \
+        == pytest.approx(mlife, rel=1e-12)
+    row = next(ln for ln in dlc.against({"rosco": _two_bins(), "pi": a}, table, 4.0, 4.0)
+               if ln.startswith("| pi |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert float(cells[2]) == pytest.approx(mlife, abs=0.005)
+    assert float(cells[5]) == pytest.approx(100 * (energy_a / energy_b - 1), abs=0.005)
 
 
 @pytest.mark.parametrize("table, field", [
@@ -81,6 +140,11 @@ annual_mean_mps = 8.5
     sweep.run_sweep(path, out, workers=1, quiet=True)
     text = sweep.summarize(out)
     assert "## DLC 1.2: lifetime-weighted (Rayleigh, annual mean 8.5 m/s" in text
+    # the section says how much of the year the bins cover, and each number's convention
+    covered = _rayleigh_bin_by_hand(7.0, 9.0, 8.5) + _rayleigh_bin_by_hand(15.0, 17.0, 8.5)
+    assert f"The simulated bins (8, 16 m/s) cover Σp = {covered:.3f} of the year" in text
+    assert "lifetime shaft DEL 1 Hz, m = 4 (MLife: calendar time, bins outside 0) [MN m]" in text
+    assert "AEP (8760 h, bins outside 0) [GWh]" in text
     rows = list(csv.DictReader((out / "summary_dlc.csv").open()))
     assert [float(r["mean_wind_mps"]) for r in rows] == [8.0, 16.0]
     for r in rows:

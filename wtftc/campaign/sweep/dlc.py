@@ -12,14 +12,31 @@ A sweep file's ``[dlc]`` table asks for it:
 
 The probability of bin b is p_b = F(v_b + w/2) − F(v_b − w/2), F(v) = 1 − exp(−π/4
 (v / V_ave)²) (IEC 61400-1, 6.3.1.1). Then, per controller, with D_b the mean over the
-bin's seeds of the shaft's damage per 10 minutes and P_b their mean electrical power:
+bin's seeds of the shaft's damage per 10 minutes (Σ n_i S_i^m, wtftc/results/loads.py)
+and P_b their mean electrical power:
 
-    lifetime DEL at 1 Hz = (Σ_b p_b D_b / 600 s)^(1/m) / (Σ_b p_b)^(1/m)
-    AEP = 8766 h × Σ_b p_b P_b
+    lifetime DEL at 1 Hz = (Σ_b p_b D_b / 600 s)^(1/m)                      (MLife)
+    AEP = 8760 h × Σ_b p_b P_b                                              (pCrunch's year)
 
-The DEL is the damage rate of the time the turbine produces power, at an equivalent
-frequency of 1 Hz (normalized by Σ_b p_b, the share of the year the bins cover); the AEP
-counts the bins only (no energy outside them).
+The DEL follows NREL's MLife (Hayman, MLife Theory Manual v1.00, 2012): each bin's damage
+is extrapolated to the design life T_L by the factor T_L p_b a / 600 s (a the
+availability, here 1; it scales the AEP too), and the lifetime DEL is the constant range
+whose T_L × f_eq cycles (f_eq = 1 Hz) do that damage. T_L cancels, leaving the line
+above: a damage rate over calendar time, in which the wind outside the simulated bins
+does no damage (it is not spread over them). The AEP takes the year as 365 × 24 = 8760 h,
+as pCrunch does (NREL's Python successor to MLife, ``compute_aep``), and counts no energy
+outside the bins. Two departures from pCrunch, stated: it scales its case probabilities
+to sum to 1 over the simulated cases; p_b here are the Rayleigh bins' own shares of the
+year, Σ_b p_b ≤ 1 (``share_of_year``, printed beside the figures); and its weighted DEL
+is Σ prob × DEL, a mean of the DELs, where the DEL here is MLife's, from the summed
+damage.
+
+Before issue 31 the DEL was divided by (Σ_b p_b)^(1/m) (the damage rate of the covered
+time only) and the year was 8766 h. Between two controllers over the same bins (what
+``against`` compares) the division cancels: their ratios are the same either way.
+
+The weighted pitch ADC is a duty cycle, so it stays a mean over the bins' time:
+Σ_b p_b ADC_b / Σ_b p_b.
 """
 
 from __future__ import annotations
@@ -36,7 +53,8 @@ DLC_KEYS = {"case": ("1.2", "2.1"), "annual_mean_mps": (1.0, 30.0),
             "bin_width_mps": (0.1, 10.0), "overspeed_trip": (1.0, 2.0)}
 DEFAULTS = {"case": "1.2", "annual_mean_mps": 10.0, "bin_width_mps": 2.0,
             "overspeed_trip": 1.2}
-HOURS_PER_YEAR = 8766.0
+HOURS_PER_YEAR = 8760.0   # 365 × 24 h, pCrunch's year (module docstring)
+AVAILABILITY = 1.0        # MLife's availability factor a (module docstring)
 
 
 def parse_dlc(table) -> dict:
@@ -104,14 +122,16 @@ def lifetime(bins: dict, dlc: dict, m: float, m_tower: float = 4.0) -> dict:
         return np.array([b[key] for b in bins.values()], dtype=float)
 
     def life_del(key, mm):
+        # MLife: damage over calendar time, none outside the bins (no division by Σp)
         if any(b.get(key) is None for b in bins.values()):
             return None
-        return float((p @ col(key) / 600.0 / share) ** (1.0 / mm))
+        return float((AVAILABILITY * (p @ col(key)) / 600.0) ** (1.0 / mm))
 
     return {"bins": len(winds), "share_of_year": share,
             "lifetime_shaft_del_1hz_Nm": life_del("shaft_torque_damage_per_10min", m),
             "lifetime_tower_del_1hz_Nm": life_del("tower_base_damage_per_10min", m_tower),
-            "aep_Wh": float(HOURS_PER_YEAR * (p @ col("mean_electrical_power_W"))),
+            "aep_Wh": float(HOURS_PER_YEAR * AVAILABILITY
+                            * (p @ col("mean_electrical_power_W"))),
             "weighted_pitch_adc": float(p @ col("pitch_adc") / share)}
 
 
@@ -122,12 +142,25 @@ def section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
     # the Wöhler exponents of every sweep run: the [loads] defaults (a sweep has no [loads])
     m, m_tower = (LOADS_KEYS[k][0] for k in ("shaft_wohler_exponent", "tower_wohler_exponent"))
     bins = per_bin(rows)
+    # the bins the campaign simulated, whether or not every controller kept them
+    simulated = sorted({round(r["mean_wind_mps"], 6) for r in rows
+                        if r["fault_type"] == "none"})
+    covered = float(np.sum(bin_probability(simulated, dlc["bin_width_mps"],
+                                           dlc["annual_mean_mps"])))
     lines = ["", f"## DLC {dlc['case']}: lifetime-weighted (Rayleigh, annual mean "
              f"{dlc['annual_mean_mps']:g} m/s, bins of {dlc['bin_width_mps']:g} m/s; "
              "docs/loads.md)", "",
-             "| controller | runs used (of fault-free) | bins | share of the year [-] | "
-             f"lifetime shaft DEL 1 Hz, m = {m:g} [MN m] | lifetime tower-base DEL 1 Hz, "
-             f"m = {m_tower:g} [MN m] | AEP [GWh] | weighted pitch ADC [-] |",
+             f"The simulated bins ({', '.join(f'{v:g}' for v in simulated)} m/s) cover "
+             f"Σp = {covered:.3f} of the year; a controller's own Σp (below) leaves out the "
+             "bins it lost. Lifetime DELs follow MLife: the damage over calendar time, none "
+             "outside the bins (availability 1), not divided by Σp. The AEP takes the year "
+             "as 8760 h (pCrunch) and counts no energy outside the bins. The weighted ADC "
+             "is the mean over the bins' time (Σp-normalised).", "",
+             "| controller | runs used (of fault-free) | bins | share of the year Σp [-] | "
+             f"lifetime shaft DEL 1 Hz, m = {m:g} (MLife: calendar time, bins outside 0) "
+             f"[MN m] | lifetime tower-base DEL 1 Hz, m = {m_tower:g} (MLife: calendar "
+             "time, bins outside 0) [MN m] | AEP (8760 h, bins outside 0) [GWh] | "
+             "weighted pitch ADC (mean over the bins, ÷ Σp) [-] |",
              "|---|---|---|---|---|---|---|---|"]
     keys = ("shaft_torque_del_1hz_Nm", "shaft_torque_damage_per_10min",
             "tower_base_del_1hz_Nm", "tower_base_damage_per_10min", "pitch_adc",
@@ -165,9 +198,13 @@ def against(bins: dict, dlc: dict, m: float, m_tower: float, ref: str = "rosco")
     weighted ADC, and the AEP's difference."""
     if ref not in bins or len(bins) < 2:
         return []
-    lines = ["", f"Against {ref}, over the bins both kept:", "",
-             f"| controller | bins in common | shaft DEL / {ref} [-] | tower-base DEL / "
-             f"{ref} [-] | weighted ADC / {ref} [-] | AEP vs {ref} [%] |",
+    lines = ["", f"Against {ref}, over the bins both kept (over the same bins the ratios do "
+             "not depend on the normalisation: MLife's calendar-time DEL and the "
+             "Σp-normalised one give the same ratio, and the AEP's difference does not "
+             "depend on the hours a year):", "",
+             f"| controller | bins in common | lifetime shaft DEL / {ref} (MLife) [-] | "
+             f"lifetime tower-base DEL / {ref} (MLife) [-] | weighted ADC / {ref} [-] | "
+             f"AEP (8760 h) vs {ref} [%] |",
              "|---|---|---|---|---|---|"]
     for c, cb in bins.items():
         common = sorted(set(cb) & set(bins[ref]))
