@@ -54,6 +54,7 @@ def test_diverging_run_exits_3_with_time_and_state(tmp_path):
     cfg.write_text(f'controller = "paper"\ncase = 1\nseed = {DIVERGING_RUN["seed"]}\n'
                    f'[wind]\nkind = "ntm"\nmean_mps = {w["mean_mps"]}\n'
                    f'turbulence_class = "{w["turbulence_class"]}"\n'
+                   f'rotor_radius_m = {w["rotor_radius_m"]}\n'
                    '[turbine_params]\ngen_torque_law = 1.0\n')
     p = wtftc("run", "--config", cfg, "--t-final", 40, "--out", tmp_path / "d", "--quiet")
     assert p.returncode == 3

@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from wtftc import config
 from wtftc.campaign import sweep
 from wtftc.campaign.sweep import dlc
 from wtftc.errors import ConfigError
@@ -166,11 +167,16 @@ def test_the_sweeps_rotor_radius_is_one_number(value):
 
 
 def test_the_sweeps_rotor_radius_reaches_every_runs_wind_and_only_then():
+    """Without it a sweep's runs keep the hub-height point, and say so (rotor_radius_m = 0:
+    since issue 31 a run's NTM is otherwise its turbine's rotor average), added after the
+    run id is taken (the ids of earlier sweeps: tests/test_families.py's digest)."""
     base = {"controllers": ["pi"], "wind": {"mean_mps": [8.0, 12.0]}}
     plain, _ = sweep.expand(sweep.parse_sweep(base))
     rotor, _ = sweep.expand(sweep.parse_sweep(
         {**base, "wind": {**base["wind"], "rotor_radius_m": 63.0}}))
-    assert all("rotor_radius_m" not in r["config"]["wind"] for r in plain)
+    assert all(r["config"]["wind"]["rotor_radius_m"] == 0.0 for r in plain)
+    assert "rotor_radius_m" not in config.make_config(
+        plain[0]["config"]).wind.describe()["parameters"]  # the point series
     assert all(r["config"]["wind"]["rotor_radius_m"] == 63.0 for r in rotor)
     assert {r["run_id"] for r in plain}.isdisjoint(r["run_id"] for r in rotor)
 

@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
+from conftest import NTM_POINT as NTM
 
 from wtftc import config
 from wtftc.campaign import cases
 from wtftc.results.metrics import metrics
-
-NTM = {"kind": "ntm", "turbulence_class": "B"}
 
 
 def _run(**over):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import NTM_POINT as NTM
 
 from wtftc import config
 from wtftc.artefacts import layout as lay
@@ -15,8 +16,6 @@ from wtftc.sim import fdi
 
 scipy_stats = pytest.importorskip("scipy.stats")  # a dev dependency (pyproject: dev)
 signal = pytest.importorskip("scipy.signal")
-
-NTM = {"kind": "ntm", "turbulence_class": "B"}
 
 
 @pytest.mark.parametrize("nu", [3.0, 3.5, 6.0, 11.0, 50.0])

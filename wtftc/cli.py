@@ -133,6 +133,10 @@ def _add_run(sub) -> None:
     r.add_argument("--wind", help="wind kind: constant, steps, paper_random, ntm, eog, file")
     r.add_argument("--wind-mean", type=float, help="mean/constant wind speed [m/s]")
     r.add_argument("--wind-file", type=Path, help="OpenFAST .hh/.wnd or CSV (time_s, speed_mps)")
+    r.add_argument("--wind-radius", type=float, metavar="METERS",
+                   help="ntm: the radius [m] of the rotor disk the turbulence is averaged "
+                        "over (default: the turbine's rotor radius, the rotor-effective wind; "
+                        "0: the hub-height point, docs/wind.md)")
     r.add_argument("--fault", choices=("default", "none"),
                    help="default: blade 1 locked, blades 2-3 ρ = 0.5 from 20 s (cases 2, 3)")
     r.add_argument("--t-final", type=float, help="simulated time [s] (default 60)")
@@ -289,8 +293,9 @@ def _run_overrides(args) -> dict:
         if val is not None:
             cfg[key] = val
     wind = dict(cfg.get("wind", {})) if isinstance(cfg.get("wind"), dict) else cfg.get("wind")
+    radius = getattr(args, "wind_radius", None)
     if getattr(args, "wind", None) or getattr(args, "wind_mean", None) is not None \
-            or getattr(args, "wind_file", None):
+            or getattr(args, "wind_file", None) or radius is not None:
         wind = {} if not isinstance(wind, dict) else wind
         if args.wind:
             wind = {"kind": args.wind}
@@ -301,6 +306,9 @@ def _run_overrides(args) -> dict:
             kind = wind.get("kind", "paper_random")
             wind.setdefault("kind", kind)
             wind["speed_mps" if kind in ("constant", "steps") else "mean_mps"] = args.wind_mean
+        if radius is not None:
+            wind.setdefault("kind", "paper_random")  # the default kind: it refuses the field
+            wind["rotor_radius_m"] = radius
         cfg["wind"] = wind
     if getattr(args, "control_delay", False):
         cfg["control_delay"] = True

@@ -306,9 +306,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     retune = _rosco(raw, turbine)
     p_ctrl, p_turbine = _parameters(raw, controller, turbine)
     ref = _reference(raw, p_turbine)
-    if not isinstance(raw["wind"], dict):
-        raise ConfigError("wind", raw["wind"], "a table with kind = ...")
-    wind = wind_from_config(raw["wind"], t_final=t_final, seed=seed)
+    wind = wind_from_config(_wind_table(raw, p_turbine), t_final=t_final, seed=seed)
     faults = _faults(raw, case, t_final)
     offset, rest = _initial(raw)
     table = _cp_table(raw, turbine)
@@ -324,6 +322,19 @@ def make_config(cfg: dict | None = None) -> RunConfig:
                      p_plant=p_plant,
                      cp_scale=cp_scale, p_fdi=p_fdi, test_pulse=test_pulse,
                      rosco_discon=turbine.rosco_discon, rosco_retune=retune)
+
+
+def _wind_table(raw: dict, p_turbine: np.ndarray) -> dict:
+    """The [wind] table, an NTM's ``rotor_radius_m`` filled in when not given: the run's
+    turbine's rotor radius, the rotor-effective wind (docs/wind.md), as the load campaigns
+    run it; ``rotor_radius_m = 0`` keeps the hub-height point. Written into ``raw``, so
+    that the saved configuration says which it was and re-runs to the same wind."""
+    if not isinstance(raw["wind"], dict):
+        raise ConfigError("wind", raw["wind"], "a table with kind = ...")
+    if raw["wind"].get("kind") == "ntm" and "rotor_radius_m" not in raw["wind"]:
+        radius = lay.values("turbine_params", p_turbine)["rotor_radius"]  # [m]
+        raw["wind"] = {**raw["wind"], "rotor_radius_m": radius}
+    return raw["wind"]
 
 
 #: the [rosco] table: ROSCO's pitch PI retuned to this closed-loop target (docs/compare.md)

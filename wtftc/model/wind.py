@@ -20,6 +20,9 @@ Kinds (fields, units and defaults in ``docs/wind.md``):
 - ``ntm``: IEC 61400-1 ed. 3 normal turbulence model (6.3.1.3), longitudinal component at
   hub height, Kaimal spectrum (Annex B), synthesized by random phases and an inverse FFT
   (Shinozuka's spectral representation, as TurbSim does at a single point); see below.
+  ``rotor_radius_m`` > 0 averages it over a rotor disk of that radius (rotor_average_gain);
+  0, the default here, keeps the hub-height point. A run's configuration fills in its
+  turbine's rotor radius when none is given (wtftc.config: the rotor-effective wind).
 - ``eog``: IEC 61400-1 ed. 3 extreme operating gust (6.3.2.2), closed form.
 - ``file``: an OpenFAST InflowWind uniform wind file (``.hh``/``.wnd``/anything not ``.csv``)
   or a CSV with a header ``time_s,speed_mps``; linear in time, held outside the range.
@@ -61,6 +64,7 @@ from pathlib import Path
 
 import numpy as np
 
+from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError
 from wtftc.files import read_user_bytes
 
@@ -358,12 +362,20 @@ def _paper_random(p, f, t_final, seed) -> SampledWind:
                                 "run_std_mps": float(v[run].std())})
 
 
+def rotor_radius_max_m() -> float:
+    """The largest ``rotor_radius_m`` [m]: the largest rotor radius a turbine may have (the
+    layout's range of turbine_params rotor_radius, derivation/layout.py), so that a run's
+    default, its turbine's own radius (wtftc.config), is never refused."""
+    entry = next(e for e in lay.layout()["turbine_params"] if e["name"] == "rotor_radius")
+    return float(entry["valid"]["max"])
+
+
 def _ntm(p, f, t_final, seed) -> SampledWind:
     mean = _speed(p["mean_mps"], f["mean_mps"])
     tc = _choice(p["turbulence_class"], f["turbulence_class"], tuple(I_REF))
     dt = _number(p["dt_s"], f["dt_s"], lo=0.0, hi=1.0, unit=" [s]")
-    radius = _number(p["rotor_radius_m"], f["rotor_radius_m"], lo=0.0, hi=200.0, lo_open=False,
-                     unit=" [m] (0: the hub-height point)")
+    radius = _number(p["rotor_radius_m"], f["rotor_radius_m"], lo=0.0, hi=rotor_radius_max_m(),
+                     lo_open=False, unit=" [m] (0: the hub-height point)")
     sig = sigma1(mean, tc)
     lu = KAIMAL_LU_OVER_LAMBDA1 * LAMBDA1_M
     n = _grid(max(NTM_MIN_PERIOD_S, t_final + SYNTH_MARGIN_S), dt, f["dt_s"])

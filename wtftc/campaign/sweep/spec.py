@@ -376,14 +376,16 @@ def _check_size(mode: str, samples: int | None, axes: list[Axis], twins: bool = 
 
 def _rotor_radius(raw: dict) -> float | None:
     """[wind] rotor_radius_m: every run's NTM averaged over a rotor disk of that radius
-    (wtftc.model.wind.rotor_average_gain), one value for the sweep, not an axis."""
+    (wtftc.model.wind.rotor_average_gain), one value for the sweep, not an axis; without
+    it (or 0) the hub-height point, unlike a single run's default (docs/wind.md)."""
     tab = raw.get("wind", {})
     value = tab.get("rotor_radius_m") if isinstance(tab, dict) else None
     if value is None:
         return None
-    if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= 200:
-        raise ConfigError("wind.rotor_radius_m", value, "one number in [0, 200] [m] for every "
-                          "run (0: the hub-height point), not an axis")
+    top = wind.rotor_radius_max_m()
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0 <= value <= top:
+        raise ConfigError("wind.rotor_radius_m", value, f"one number in [0, {top:g}] [m] for "
+                          "every run (0: the hub-height point), not an axis")
     return float(value)
 
 
@@ -456,6 +458,10 @@ def _point(sw: Sweep, values: dict) -> dict:
         cfg["mismatch"] = mismatch
     run_id = hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]
     cfg["label"] = f"sweep-{run_id}"
+    if not sw.rotor_radius:  # a sweep without one keeps the hub-height point, said, as a
+        # run's NTM now takes its turbine's rotor by default (wtftc.config); after the id:
+        # the run ids of earlier sweeps
+        cfg["wind"]["rotor_radius_m"] = 0.0
     twin = {"twin_onset_s": float(values["twin_onset_s"])} if values.get("twin_onset_s") \
         is not None else {}
     return {"run_id": run_id, **p, "config": cfg, **twin}

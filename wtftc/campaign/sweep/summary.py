@@ -331,5 +331,9 @@ def show_run(out_dir: Path, run_id: str) -> str:
     table = read_results(out_dir)
     for r in table.to_pylist():
         if r["run_id"] == run_id:
-            return config.to_toml(json.loads(r["config_json"]))
+            cfg = json.loads(r["config_json"])
+            if cfg["wind"].get("kind") == "ntm":  # a sweep saved before a run's NTM took
+                # its turbine's rotor by default (wtftc.config) ran the hub-height point
+                cfg["wind"].setdefault("rotor_radius_m", 0.0)
+            return config.to_toml(cfg)
     raise ConfigError("--show", run_id, f"the run id of a run saved in {out_dir}")
