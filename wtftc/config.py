@@ -192,6 +192,11 @@ class RunConfig:
         """The first fault's onset [s], or None without a fault."""
         return min((f.onset_s for f in self.faults), default=None)
 
+    @property
+    def transient(self) -> tuple[float, str]:
+        """The start-up window left out of the metrics [s], and why (transient_window)."""
+        return transient_window(self.raw, self.t_final, first_event(self.faults, self.wind))
+
     def initial_state(self) -> np.ndarray:
         """The trimmed initial state of the loop (wtftc.sim.trim) at the wind at t = 0."""
         rosco = None
@@ -308,6 +313,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     ref = _reference(raw, p_turbine)
     wind = wind_from_config(_wind_table(raw, p_turbine), t_final=t_final, seed=seed)
     faults = _faults(raw, case, t_final)
+    transient_window(raw, t_final, first_event(faults, wind))
     offset, rest = _initial(raw)
     table = _cp_table(raw, turbine)
     _torque_law(raw, p_turbine, wind, t_final, table[0])
@@ -374,7 +380,49 @@ LOADS_KEYS = {"shaft_wohler_exponent": (4.0, 1.0, 20.0, "the shaft's Wöhler exp
               "reversal_hysteresis_deg": (0.1, 0.0, 10.0, "the turn-back a pitch reversal "
                                                           "needs [deg]"),
               "tower_wohler_exponent": (4.0, 1.0, 20.0, "the tower base's Wöhler exponent m "
-                                                        "of its damage-equivalent load")}
+                                                        "of its damage-equivalent load"),
+              # None: the default window, transient_window's
+              "transient_s": (None, 0.0, 36000.0, "the start-up left out of every metric "
+                                                  "[s]")}
+
+#: the default start-up window left out of the metrics (docs/loads.md "The start-up
+#: window"): 30 s, NREL's practice with FAST (30 s of 630-s runs discarded); a quarter of a
+#: run shorter than 120 s; cut to the first fault's onset where that comes sooner
+TRANSIENT_S = 30.0
+
+
+def first_event(faults: list, wind) -> tuple[float, str] | None:
+    """The first thing a run is about, (time [s], what): a fault's onset, an EOG's start or
+    a step of the wind; None for a wind and faults that have no moment."""
+    events = [(f.onset_s, "the first fault's onset") for f in faults]
+    if getattr(wind, "kind", None) == "eog":
+        events.append((float(wind.start_s), "the gust's start"))
+    if getattr(wind, "kind", None) == "steps" and len(wind.times):
+        events.append((float(wind.times[0]), "the wind's first step"))
+    return min(events, default=None)
+
+
+def transient_window(raw: dict, t_final: float, event: tuple[float, str] | None
+                     ) -> tuple[float, str]:
+    """The start-up left out of every metric [s] and why it is that long: ``[loads]
+    transient_s`` as given, which must end before the run does and not after its first
+    event (first_event: a fault, a gust or a step inside it would go unscored); else
+    TRANSIENT_S, a quarter of a run shorter than 120 s, cut to the event where that comes
+    sooner."""
+    given = loads_options(raw)["transient_s"]
+    if given is not None:
+        if given >= t_final:
+            raise ConfigError("loads.transient_s", given, f"a start-up window shorter than "
+                              f"the run (t_final_s = {t_final:g} s): something left to score")
+        if event is not None and given > event[0]:
+            raise ConfigError("loads.transient_s", given, f"at most {event[1]}, {event[0]:g} s "
+                              "(a window over it would leave it unscored)")
+        return float(given), "[loads] transient_s"
+    window, why = min(TRANSIENT_S, t_final / 4), ("the default, 30 s" if t_final >= 120
+                                                  else "the default, a quarter of the run")
+    if event is not None and event[0] < window:
+        return float(event[0]), f"cut to {event[1]} ({why} would cover it)"
+    return float(window), why
 
 
 def loads_options(raw: dict) -> dict:
@@ -387,6 +435,9 @@ def loads_options(raw: dict) -> dict:
             raise ConfigError(f"loads.{key}", table[key], "a known key: " + ", ".join(LOADS_KEYS))
     out = {}
     for key, (default, lo, hi, what) in LOADS_KEYS.items():
+        if table.get(key, default) is None:
+            out[key] = None
+            continue
         x = _finite(table.get(key, default), f"loads.{key}")
         if not lo <= x <= hi:
             raise ConfigError(f"loads.{key}", table[key], f"{what}: a number in [{lo:g}, {hi:g}]")

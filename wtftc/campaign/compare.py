@@ -88,6 +88,9 @@ COLUMNS = [
     ("tower_base_del_1hz_Nm", "tower-base DEL 1 Hz [MN m]", "{:.2f}"),
     ("pitch_adc", "pitch ADC [-]", "{:.3f}"),
     ("pitch_reversals", "pitch reversals [-]", "{:.0f}"),
+    # WEIS's avg_pitch_travel and pitch_duty_cycle by what they are (docs/loads.md)
+    ("pitch_travel_rate_deg_s", "pitch travel rate [deg/s]", "{:.3f}"),
+    ("pitch_reversals_per_s", "pitch reversals [1/s]", "{:.3f}"),
     ("rms_speed_error_own_above_rated_rad_s", "RMS ω error, own ref., above rated [rad/s]",
      "{:.4f}"),
     ("rms_speed_error_own_below_rated_rad_s", "RMS ω error, own ref., below rated [rad/s]",

@@ -26,9 +26,28 @@ TEN_MINUTES_S = 600.0
 REVERSAL_HYSTERESIS = np.radians(0.1)
 
 
+def turning_points(series: np.ndarray) -> np.ndarray:
+    """The series' first value, its local extrema (a plateau counted once) and its last
+    value: all that rainflow counting and the play operator of :func:`reversals` see (both
+    are rate-independent: between two extrema the series is monotone). A series at 1 kHz
+    shrinks some hundredfold, and the Python loops that follow run over the extrema only."""
+    x = np.asarray(series, dtype=float)
+    if x.size < 3:
+        return x
+    s = np.sign(np.diff(x))
+    moving = np.flatnonzero(s)  # steps that change the value
+    if moving.size == 0:
+        return x[[0, -1]]
+    turn = moving[1:][s[moving[1:]] != s[moving[:-1]]]  # a step against the last one
+    return np.concatenate([x[:1], x[turn], x[-1:]])
+
+
 def damage_sum(series: np.ndarray, m: float) -> float:
     """Σ n_i S_i^m over the series' rainflow cycles (ranges S_i, counts n_i: 0.5 or 1)."""
-    x = np.asarray(series, dtype=float)
+    full = np.asarray(series, dtype=float)
+    x = turning_points(full)
+    if x.size < 3:  # a monotone series: the package counts its half cycle on 3 points
+        x = full     # or more only (none on 2), so it gets the series itself
     if x.size < 2:
         return 0.0
     return float(sum(n * s**m for s, n in rainflow.count_cycles(x)))
@@ -58,7 +77,7 @@ def reversals(beta: np.ndarray, hysteresis: float = REVERSAL_HYSTERESIS) -> int:
     """How often the pitch turns back by more than ``hysteresis`` (rad): the direction
     changes of the series through a play (backlash) operator of that width, which keeps
     x − h ≤ y ≤ x and so ignores jitter smaller than h."""
-    x = np.asarray(beta, dtype=float)
+    x = turning_points(beta)
     if x.size < 2:
         return 0
     y, direction, count = x[0], 0, 0
@@ -73,14 +92,25 @@ def reversals(beta: np.ndarray, hysteresis: float = REVERSAL_HYSTERESIS) -> int:
 
 def pitch_duty(beta: np.ndarray, dt: float, rate_max: float,
                hysteresis: float = REVERSAL_HYSTERESIS) -> dict:
-    """The pitch actuator's duty: the actuator duty cycle (ADC, the mean |β̇| over the rate
-    limit, as ROSCO's and WEIS's studies score it), travel and reversals, the blades'
-    mean. ``beta``: (samples, blades) in rad at the interval ``dt``."""
+    """The pitch actuator's duty, the blades' mean (``beta``: (samples, blades) in rad at
+    the interval ``dt``):
+
+    - ``adc``: the actuator duty cycle, the mean |β̇| over the rate limit, as TU Delft's
+      IPC studies define it (Hummel, Kober & Mulders, Wind Energ. Sci. 2025,
+      doi:10.5194/wes-2024-153) [-];
+    - ``travel_rate_deg_s``: the mean |β̇| itself, what WEIS reports as
+      ``avg_pitch_travel`` (its output declares deg/s) [deg/s];
+    - ``travel_deg``: the angle each blade travelled [deg];
+    - ``reversals``: each blade's turns back by more than the hysteresis (:func:`reversals`);
+      per second it is WEIS's ``pitch_duty_cycle`` (declared deg/s there, a count per
+      second in fact) [-].
+    """
     b = np.atleast_2d(np.asarray(beta, dtype=float))
     if b.shape[0] < 2:
-        return {"adc": 0.0, "travel_deg": 0.0, "reversals": 0.0}
+        return {"adc": 0.0, "travel_rate_deg_s": 0.0, "travel_deg": 0.0, "reversals": 0.0}
     steps = np.abs(np.diff(b, axis=0))
     return {"adc": float(np.mean(steps) / dt / rate_max),
+            "travel_rate_deg_s": float(np.degrees(np.mean(steps) / dt)),
             "travel_deg": float(np.degrees(np.mean(np.sum(steps, axis=0)))),
             "reversals": float(np.mean([reversals(b[:, j], hysteresis)
                                         for j in range(b.shape[1])]))}

@@ -5,7 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 TABLE_COLUMNS = [
-    ("label", "run", "{}"), ("rms_speed_error_rad_s", "RMS ω error [rad/s]", "{:.4f}"),
+    ("label", "run", "{}"), ("transient_s", "scored from [s]", "{:g}"),
+    ("rms_speed_error_rad_s", "RMS ω error [rad/s]", "{:.4f}"),
     ("max_abs_speed_error_rad_s", "max abs ω error [rad/s]", "{:.4f}"),
     ("rms_speed_error_after_fault_rad_s", "RMS after fault [rad/s]", "{:.4f}"),
     ("settling_time_s", "settled within ±1 % from [s]", "{:.1f}"),
@@ -23,7 +24,7 @@ TABLE_COLUMNS = [
 def _cell(m: dict, key: str, fmt: str | None) -> str:
     v = m.get(key)
     if key == "mean_electrical_power_W":
-        return f"{v / 1e6:.2f}"
+        return "—" if v is None else f"{v / 1e6:.2f}"
     if key == "shaft_torque_del_1hz_Nm":
         return f"{v / 1e6:.3f}"
     if key == "tower_base_del_1hz_Nm":

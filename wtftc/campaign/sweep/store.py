@@ -33,6 +33,10 @@ METRICS = [("rms_speed_error_rad_s", "rad/s"), ("max_abs_speed_error_rad_s", "ra
            # what the regulation cost (issue 18, docs/loads.md)
            ("shaft_torque_del_1hz_Nm", "N m"), ("shaft_torque_damage_per_10min", "(N m)^m"),
            ("shaft_torque_max_abs_Nm", "N m"), ("pitch_adc", "-"), ("pitch_reversals", "-"),
+           # WEIS's avg_pitch_travel and pitch_duty_cycle, by what they are (issue 31)
+           ("pitch_travel_rate_deg_s", "deg/s"), ("pitch_reversals_per_s", "1/s"),
+           # the start-up left out of every metric, and the rate they were computed at
+           ("transient_s", "s"), ("metrics_rate_hz", "Hz"),
            ("rms_speed_error_own_above_rated_rad_s", "rad/s"),
            ("rms_speed_error_own_below_rated_rad_s", "rad/s"), ("time_above_1p1_rated_s", "s"),
            # on the tower plant (None on the others)

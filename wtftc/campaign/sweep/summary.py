@@ -34,6 +34,8 @@ COST = [("shaft DEL 1 Hz median [MN m]", "shaft_torque_del_1hz_Nm", 50, 1e-6, "{
         ("tower-base moment max [MN m]", "tower_base_max_abs_Nm", 100, 1e-6, "{:.1f}"),
         ("pitch ADC median [-]", "pitch_adc", 50, 1.0, "{:.3f}"),
         ("pitch reversals median [-]", "pitch_reversals", 50, 1.0, "{:.0f}"),
+        ("pitch reversals median [1/s]", "pitch_reversals_per_s", 50, 1.0, "{:.3f}"),
+        ("pitch travel rate median [deg/s]", "pitch_travel_rate_deg_s", 50, 1.0, "{:.3f}"),
         ("RMS ω error, own reference, above rated, median [rad/s]",
          "rms_speed_error_own_above_rated_rad_s", 50, 1.0, "{:.4f}"),
         ("RMS ω error, own reference, below rated, median [rad/s]",

@@ -11,7 +11,7 @@ from wtftc import config
 from wtftc.campaign import cases, tune
 from wtftc.campaign.compare import CONTROLLERS
 from wtftc.campaign.sweep.store import METRICS
-from wtftc.results.metrics import metrics
+from wtftc.results.metrics import metrics, speed_series
 from wtftc.sim import rhs
 
 
@@ -87,7 +87,8 @@ def _run_points(points: list[dict], traces: bool) -> list[tuple[dict, dict | Non
             continue
         if pt.get("twin_onset_s") is not None:  # a fault-free twin: scored over the
             # window its faulty twin is scored over after the fault (sweep fault_free_twins)
-            e = res.column("omega_r")[res.t >= pt["twin_onset_s"]] - rc.reference
+            t, w = speed_series(res)
+            e = w[t >= pt["twin_onset_s"]] - rc.reference
             m["rms_speed_error_after_fault_rad_s"] = float(np.sqrt(np.mean(e**2))) \
                 if e.size else None
         status = "diverged" if res.diverged else "ok"
