@@ -698,12 +698,20 @@ def _wait_for(path: Path, seconds: float = 120.0) -> int:
 
 
 def test_a_compiler_past_its_timeout_is_killed_with_its_children(tmp_path):
+    """The compiler's group is sent SIGKILL at the timeout. A signal is delivered when its
+    process next runs, so on a loaded machine the child may still be running a moment
+    after the export has returned (seen once in CI): it must be gone within 10 s, as in
+    the test of an interrupted export below."""
     cc, pidfile = _fake_compiler(tmp_path)
     start = time.monotonic()
     with pytest.raises(config.ConfigError, match="within 1 s") as exc:
         discon.compile_library([str(cc)], str(cc), timeout=1.0)
     assert exc.value.field == "--cc" and time.monotonic() - start < 30
-    assert not _alive(_wait_for(pidfile))
+    child = _wait_for(pidfile)
+    deadline = time.monotonic() + 10
+    while _alive(child) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _alive(child)
 
 
 def test_an_interrupted_export_leaves_no_compiler_and_no_folder(tmp_path):
