@@ -51,9 +51,14 @@ def rotor_speed(run, out: Path, name: str, paper_fig: str) -> list[Path]:
     ax.set_ylabel("rotor speed [rad/s]")
     ax.grid(alpha=0.3)
     _onset_line(ax, run["onset"])
+    t0 = m.get("transient_s") or 0.0
+    if t0 > 0:  # the start-up the metrics leave out (issue 31, docs/loads.md)
+        ax.axvspan(float(res.t[0]), t0, color="0.85", zorder=0,
+                   label=f"start-up, not scored (first {t0:g} s)")
     ax.legend(loc="best", fontsize=8)
     ax.set_title(_title(run, f"{paper_fig}: rotor speed, RMS error "
-                              f"{m['rms_speed_error_rad_s']:.3g} rad/s"), fontsize=9)
+                              f"{m['rms_speed_error_rad_s']:.3g} rad/s from {t0:g} s"),
+                 fontsize=9)
     return _save(fig, out, name)
 
 
