@@ -255,10 +255,12 @@ PAPER_TABLE1 = {"K_obs": (1.0, 1.0, 5.0, 5.0)}
 
 #: the operating envelope of a run (ours): a rotor beyond ``overspeed`` × rated speed has
 #: run away (the campaign's largest peak that recovered was 1.27 × rated; an overspeed
-#: protection trips near 1.2-1.3 ×), and one below ``stall`` × rated has stalled (the
-#: NREL 5-MW's cut-in rotor speed is 0.57 × rated): either run is recorded as lost at the
-#: first step outside, with the reason (wtftc.sim.integrate.divergence)
-ENVELOPE = {"overspeed_over_rated": 2.0, "stall_under_rated": 0.3}
+#: protection trips near 1.2-1.3 ×), and one below ``stall`` × rated has stalled: either
+#: run is recorded as lost at the first step outside, with the reason
+#: (wtftc.sim.integrate.divergence). The stall floor sits below every controller's own
+#: speed range: ROSCO's minimum rotor speed for the NREL 5-MW (VS_MinOMSpd, 0.357 rad/s)
+#: is 0.28 × rated, and a floor of 0.3 × ended ROSCO's normal runs at 4 m/s (issue 31)
+ENVELOPE = {"overspeed_over_rated": 2.0, "stall_under_rated": 0.2}
 
 #: the pitch actuator's dynamics under the hydraulic faults, at full severity (Odgaard,
 #: Stoustrup, Kinnaert 2013): the plant's fault inputs are built from these
