@@ -36,7 +36,7 @@ class Signals:
 def signals(rc: RunConfig, res: integrate.Result, t0: float) -> Signals:
     """The run's metric series from ``t0`` on (Signals)."""
     tp = lay.values("turbine_params", rc.p_plant if rc.p_plant is not None else rc.p_turbine)
-    full = res.full is not None and len(res.full) > 1
+    full = res.every_step
     if full:
         t, dt, col, rate = np.arange(len(res.full)) * res.dt, res.dt, res.state, "simulation"
         omega_g = col("omega_g")
@@ -120,9 +120,7 @@ def _rms(x: np.ndarray) -> float | None:
 
 def speed_series(res: integrate.Result) -> tuple[np.ndarray, np.ndarray]:
     """The rotor speed and its times: at every step where the run kept its states."""
-    if res.full is not None and len(res.full) > 1:
-        return np.arange(len(res.full)) * res.dt, res.state("omega_r")
-    return res.t, res.column("omega_r")
+    return res.series("omega_r")
 
 
 def _settling_time(rc: RunConfig, res: integrate.Result) -> float | None:
@@ -251,10 +249,7 @@ _UNSEEN: tuple[str, ...] = ()
 
 def _latch(res: integrate.Result, j: int) -> tuple[np.ndarray, np.ndarray]:
     """Blade j's actuator latch and its times: at every step where the run kept it."""
-    name = f"fdi_latch_{j}"
-    if res.full is not None and len(res.full) > 1 and name in res.full_names:
-        return np.arange(len(res.full)) * res.dt, res.state(name)
-    return res.t, res.column(name)
+    return res.series(f"fdi_latch_{j}")
 
 
 def _first(t: np.ndarray, latch: np.ndarray) -> float | None:

@@ -433,6 +433,18 @@ class Result:
         """One state of METRIC_STATES at every step (row i at t = i dt)."""
         return self.full[:, self.full_names.index(name)]
 
+    @property
+    def every_step(self) -> bool:
+        """Whether the run kept METRIC_STATES at every step (``full``)."""
+        return self.full is not None and len(self.full) > 1
+
+    def series(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(times [s], values) of ``name``: the state at every step where the run kept it
+        (``full``), else the output column of that name at the output times."""
+        if self.every_step and name in self.full_names:
+            return np.arange(len(self.full)) * self.dt, self.state(name)
+        return self.t, self.column(name)
+
 
 #: the states the metrics read at the simulation rate (wtftc.results.metrics: issue 31,
 #: an output rate of 10 Hz lowered the shaft DEL by 5.4 %): the rotor and generator speeds,
