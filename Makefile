@@ -4,12 +4,13 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: help setup regenerate check-generated test lint run verify bench clean
+.PHONY: help setup openfast regenerate check-generated test lint run verify bench clean
 
 help:
 	@echo "make run              set up, then the paper's three cases on both plants into results/"
 	@echo "make verify           set up, check generated/, verify the generated controller code"
-	@echo "make test             set up, run the whole test suite"
+	@echo "make test             set up, get OpenFAST, run the whole test suite"
+	@echo "make openfast         get OpenFAST 5.0.0 and TurbSim into wtftc's cache (docs/openfast.md)"
 	@echo "make regenerate       rebuild generated/ from derivation/ (SymPy -> CasADi)"
 	@echo "make check-generated  fail with a diff if generated/ is stale"
 	@echo "make bench            set up, time the closed loop through every method (out/bench/)"
@@ -33,13 +34,18 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP)
 
+# OpenFAST 5.0.0 and TurbSim, the second engine (docs/openfast.md): found, or installed
+# into wtftc's cache from the prebuilt archive, or built from source
+openfast: setup
+	$(VENV)/bin/wtftc openfast get
+
 regenerate: setup
 	$(PY) -m derivation.generate generated
 
 check-generated: setup
 	$(PY) -m derivation.check_generated
 
-test: setup
+test: setup openfast
 	$(PY) -m pytest -q
 
 lint: setup

@@ -29,3 +29,9 @@ def range_text(low: float, high: float, low_open: bool, high_open: bool,
         return f"a number {'<' if high_open else '<='} {high:g}{u}"
     return (f"a number in {'(' if low_open else '['}{low:.6g}, {high:.6g}"
             f"{')' if high_open else ']'}{u}")
+
+
+class EngineError(RuntimeError):
+    """An external program wtftc runs (OpenFAST, TurbSim) is missing, cannot be installed
+    or failed: one line saying what and how to get it. The CLI prints it without a
+    traceback and exits with code 4."""

@@ -1,0 +1,1 @@
+"""OpenFAST as wtftc's second engine (issue 32): getting the programs (``install``)."""
