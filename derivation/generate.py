@@ -267,6 +267,15 @@ def build_turbine() -> list[ca.Function]:
         out.append(_function(name, {"x_plant": x, "v": v, "wind": wind, "cp": cp,
                                     "actuator_faults": af, "p_turbine": p_t}, outs))
     out += _build_tower(common, p_t, v, wind, cp, af)
+    # the pitch actuators alone (the actuator rows of the plants above): OpenFAST's
+    # plant-side actuator library integrates them (wtftc.openfast.plant_library)
+    n_b = lay.N_BLADES
+    xa = _vec("x_actuator", 2 * n_b)
+    tr = Translator({**common, **_named(xa, lay.NREL_STATES[3:3 + 2 * n_b])})
+    out.append(_function("pitch_actuator",
+                         {"x_actuator": xa, "v": v, "actuator_faults": af, "p_turbine": p_t},
+                         {"x_actuator_dot": ca.vertcat(*[tr(e) for e in
+                                                         turbine.pitch_actuator_rhs()])}))
     # the generator torque law alone, on the generator speed (LSS) a controller measures:
     # the torque demand of an exported controller library (wtftc export discon)
     w_g = ca.SX.sym("omega_g")

@@ -181,6 +181,20 @@ def limited_actuator(b, w, u, wn, zt, b_min, b_max, r_max) -> list[sp.Expr]:
     return [rate, acc]
 
 
+def pitch_actuator_rhs() -> list[sp.Expr]:
+    """[β̇_1..3, β̈_1..3] of the three pitch actuators alone, exactly the actuator rows of
+    :func:`nrel5mw_rhs` (and the tower plant's): the plant-side actuator library that
+    OpenFAST runs (wtftc.openfast, issue 32) integrates these, so that a fault acts there
+    as it does in wtftc's own plant."""
+    rates, accels = [], []
+    for j in range(N_BLADES):
+        rate, acc = limited_actuator(beta[j], beta_rate[j], commanded_input(j), omega_n[j],
+                                     zeta[j], pitch_min, pitch_max, pitch_rate_max)
+        rates.append(rate)
+        accels.append(acc)
+    return rates + accels
+
+
 def nrel5mw_rhs(w: sp.Expr = wind) -> list[sp.Expr]:
     """Two-mass drivetrain on the LSS with generator torque, and 2nd-order actuators.
 
@@ -199,13 +213,7 @@ def nrel5mw_rhs(w: sp.Expr = wind) -> list[sp.Expr]:
         omega_r - omega_g,
         (k_s * theta_s + d_s * (omega_r - omega_g) - generator_torque()) / J_g,
     ]
-    rates, accels = [], []
-    for j in range(N_BLADES):
-        rate, acc = limited_actuator(beta[j], beta_rate[j], commanded_input(j), omega_n[j],
-                                     zeta[j], pitch_min, pitch_max, pitch_rate_max)
-        rates.append(rate)
-        accels.append(acc)
-    return out + rates + accels
+    return out + pitch_actuator_rhs()
 
 
 def tower_rhs() -> list[sp.Expr]:

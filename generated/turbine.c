@@ -39,6 +39,7 @@ extern "C" {
 #define casadi_f6 CASADI_PREFIX(f6)
 #define casadi_f7 CASADI_PREFIX(f7)
 #define casadi_f8 CASADI_PREFIX(f8)
+#define casadi_f9 CASADI_PREFIX(f9)
 #define casadi_fabs CASADI_PREFIX(fabs)
 #define casadi_fmax CASADI_PREFIX(fmax)
 #define casadi_fmin CASADI_PREFIX(fmin)
@@ -1078,8 +1079,233 @@ CASADI_SYMBOL_EXPORT int rotor_inflow_work_bytes(casadi_int *sz_arg, casadi_int*
   return 0;
 }
 
-/* generator_torque:(omega_g,p_turbine[29])->(T_gen) */
+/* pitch_actuator:(x_actuator[6],v[3],actuator_faults[15],p_turbine[29])->(x_actuator_dot[6]) */
 static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16, a17, a18;
+  a00=arg[3]? arg[3][15] : 0;
+  a01=arg[0]? arg[0][0] : 0;
+  a02=(a00<=a01);
+  a03=0.;
+  a04=arg[3]? arg[3][16] : 0;
+  a05=arg[0]? arg[0][3] : 0;
+  a06=(-a04);
+  a07=casadi_fmax(a05,a06);
+  a07=casadi_fmin(a04,a07);
+  a08=(a03<a07);
+  a02=(a02&&a08);
+  a08=arg[3]? arg[3][14] : 0;
+  a09=(a01<=a08);
+  a10=(a07<a03);
+  a09=(a09&&a10);
+  a02=(a02||a09);
+  a02=(!a02);
+  a02=(a02?a07:0);
+  if (res[0]!=0) res[0][0]=a02;
+  a02=arg[0]? arg[0][1] : 0;
+  a07=(a00<=a02);
+  a09=arg[0]? arg[0][4] : 0;
+  a10=casadi_fmax(a09,a06);
+  a10=casadi_fmin(a04,a10);
+  a11=(a03<a10);
+  a07=(a07&&a11);
+  a11=(a02<=a08);
+  a12=(a10<a03);
+  a11=(a11&&a12);
+  a07=(a07||a11);
+  a07=(!a07);
+  a07=(a07?a10:0);
+  if (res[0]!=0) res[0][1]=a07;
+  a07=arg[0]? arg[0][2] : 0;
+  a10=(a00<=a07);
+  a11=arg[0]? arg[0][5] : 0;
+  a12=casadi_fmax(a11,a06);
+  a12=casadi_fmin(a04,a12);
+  a13=(a03<a12);
+  a10=(a10&&a13);
+  a13=(a07<=a08);
+  a14=(a12<a03);
+  a13=(a13&&a14);
+  a10=(a10||a13);
+  a10=(!a10);
+  a10=(a10?a12:0);
+  if (res[0]!=0) res[0][2]=a10;
+  a10=(a04<=a05);
+  a12=arg[2]? arg[2][9] : 0;
+  a13=(a05*a12);
+  a14=arg[2]? arg[2][12] : 0;
+  a13=(a13*a14);
+  a14=(2.*a13);
+  a12=casadi_sq(a12);
+  a15=arg[2]? arg[2][3] : 0;
+  a16=arg[2]? arg[2][6] : 0;
+  a17=arg[2]? arg[2][0] : 0;
+  a18=arg[1]? arg[1][0] : 0;
+  a17=(a17*a18);
+  a16=(a16-a17);
+  a15=(a15*a16);
+  a15=(a15+a17);
+  a15=casadi_fmax(a08,a15);
+  a15=casadi_fmin(a00,a15);
+  a15=(a15-a01);
+  a12=(a12*a15);
+  a14=(a14-a12);
+  a15=(a14<a03);
+  a10=(a10&&a15);
+  a05=(a05<=a06);
+  a14=(a03<a14);
+  a05=(a05&&a14);
+  a10=(a10||a05);
+  a10=(!a10);
+  a05=-2.;
+  a13=(a05*a13);
+  a12=(a12+a13);
+  a10=(a10?a12:0);
+  if (res[0]!=0) res[0][3]=a10;
+  a10=(a04<=a09);
+  a12=arg[2]? arg[2][10] : 0;
+  a13=(a09*a12);
+  a14=arg[2]? arg[2][13] : 0;
+  a13=(a13*a14);
+  a14=(2.*a13);
+  a12=casadi_sq(a12);
+  a15=arg[2]? arg[2][4] : 0;
+  a01=arg[2]? arg[2][7] : 0;
+  a17=arg[2]? arg[2][1] : 0;
+  a16=arg[1]? arg[1][1] : 0;
+  a17=(a17*a16);
+  a01=(a01-a17);
+  a15=(a15*a01);
+  a15=(a15+a17);
+  a15=casadi_fmax(a08,a15);
+  a15=casadi_fmin(a00,a15);
+  a15=(a15-a02);
+  a12=(a12*a15);
+  a14=(a14-a12);
+  a15=(a14<a03);
+  a10=(a10&&a15);
+  a09=(a09<=a06);
+  a14=(a03<a14);
+  a09=(a09&&a14);
+  a10=(a10||a09);
+  a10=(!a10);
+  a13=(a05*a13);
+  a12=(a12+a13);
+  a10=(a10?a12:0);
+  if (res[0]!=0) res[0][4]=a10;
+  a04=(a04<=a11);
+  a10=arg[2]? arg[2][11] : 0;
+  a12=(a11*a10);
+  a13=arg[2]? arg[2][14] : 0;
+  a12=(a12*a13);
+  a13=(2.*a12);
+  a10=casadi_sq(a10);
+  a09=arg[2]? arg[2][5] : 0;
+  a14=arg[2]? arg[2][8] : 0;
+  a15=arg[2]? arg[2][2] : 0;
+  a02=arg[1]? arg[1][2] : 0;
+  a15=(a15*a02);
+  a14=(a14-a15);
+  a09=(a09*a14);
+  a09=(a09+a15);
+  a08=casadi_fmax(a08,a09);
+  a00=casadi_fmin(a00,a08);
+  a00=(a00-a07);
+  a10=(a10*a00);
+  a13=(a13-a10);
+  a00=(a13<a03);
+  a04=(a04&&a00);
+  a11=(a11<=a06);
+  a03=(a03<a13);
+  a11=(a11&&a03);
+  a04=(a04||a11);
+  a04=(!a04);
+  a05=(a05*a12);
+  a10=(a10+a05);
+  a04=(a04?a10:0);
+  if (res[0]!=0) res[0][5]=a04;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int pitch_actuator(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f4(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int pitch_actuator_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void pitch_actuator_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void pitch_actuator_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void pitch_actuator_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int pitch_actuator_n_in(void) { return 4;}
+
+CASADI_SYMBOL_EXPORT casadi_int pitch_actuator_n_out(void) { return 1;}
+
+CASADI_SYMBOL_EXPORT casadi_real pitch_actuator_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* pitch_actuator_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x_actuator";
+    case 1: return "v";
+    case 2: return "actuator_faults";
+    case 3: return "p_turbine";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* pitch_actuator_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "x_actuator_dot";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* pitch_actuator_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    case 1: return casadi_s1;
+    case 2: return casadi_s3;
+    case 3: return casadi_s4;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* pitch_actuator_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s0;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int pitch_actuator_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 4;
+  if (sz_res) *sz_res = 1;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int pitch_actuator_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 4*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 1*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* generator_torque:(omega_g,p_turbine[29])->(T_gen) */
+static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9;
   a0=arg[1]? arg[1][17] : 0;
   a1=arg[1]? arg[1][24] : 0;
@@ -1131,7 +1357,7 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int generator_torque(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f4(arg, res, iw, w, mem);
+  return casadi_f5(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int generator_torque_checkout(void) {
@@ -1204,7 +1430,7 @@ CASADI_SYMBOL_EXPORT int generator_torque_work_bytes(casadi_int *sz_arg, casadi_
 }
 
 /* aero_operating_point:(x_plant[6],wind,p_turbine[29])->(tsr,beta_mean) */
-static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=arg[0]? arg[0][0] : 0;
   a1=arg[2]? arg[2][6] : 0;
@@ -1226,7 +1452,7 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int aero_operating_point(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f5(arg, res, iw, w, mem);
+  return casadi_f6(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int aero_operating_point_checkout(void) {
@@ -1303,7 +1529,7 @@ CASADI_SYMBOL_EXPORT int aero_operating_point_work_bytes(casadi_int *sz_arg, cas
 }
 
 /* aero_torque_sensitivity:(x_plant[6],wind,cp,dcp_dbeta,p_turbine[29])->(T_aero,dT_dbeta) */
-static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7;
   a0=5.0000000000000000e-01;
   a1=3.1415926535897931e+00;
@@ -1334,7 +1560,7 @@ static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int aero_torque_sensitivity(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f6(arg, res, iw, w, mem);
+  return casadi_f7(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int aero_torque_sensitivity_checkout(void) {
@@ -1415,7 +1641,7 @@ CASADI_SYMBOL_EXPORT int aero_torque_sensitivity_work_bytes(casadi_int *sz_arg, 
 }
 
 /* sensors:(true_signals[10],x_lag[10],noise[10],sensor_faults[50],p_sensors[40])->(meas[10],x_lag_dot[10]) */
-static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
@@ -1859,7 +2085,7 @@ static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int sensors(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f7(arg, res, iw, w, mem);
+  return casadi_f8(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int sensors_checkout(void) {
@@ -1940,7 +2166,7 @@ CASADI_SYMBOL_EXPORT int sensors_work_bytes(casadi_int *sz_arg, casadi_int* sz_r
 }
 
 /* virtual_sensors:(readings[10],excluded[10],p_sensors[40],gearbox_ratio)->(meas[5]) */
-static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f9(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21;
   a00=arg[2]? arg[2][0] : 0;
@@ -2241,7 +2467,7 @@ static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int virtual_sensors(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f8(arg, res, iw, w, mem);
+  return casadi_f9(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int virtual_sensors_checkout(void) {
