@@ -1,5 +1,5 @@
 """A minimal DISCON host for the tests: the records ServoDyn fills, one call
-(wtftc.export.in_loop.Library, whose ``record`` returns aviFAIL and the message too), and
+(wtftc.campaign.in_loop.Library, whose ``record`` returns aviFAIL and the message too), and
 the fuzz driver of tests/test_discon_fuzz.py (``python tests/discon_host.py LIB CASES
 RESULTS``: every case's calls in this process, its result one JSON line, written as it
 goes so that a crash names its case)."""
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from wtftc.export.in_loop import SWAP, Library
+from wtftc.campaign.in_loop import SWAP, Library
 
 #: the byte avcMSG is filled with before a call: what is still there was not written
 CANARY = 0xA5

@@ -220,12 +220,12 @@ ROSCO_REASON = rosco_sim.available()
 def test_the_library_drives_the_plant_as_the_controller_does_inside_wtftc(lib, tmp_path,
                                                                           closed_loop, via):
     """Issue 16's goal: the exported physical AFTC driving wtftc's NREL 5-MW plant every
-    10 ms (wtftc.export.in_loop), called through plain ctypes or through ROSCO's own
+    10 ms (wtftc.campaign.in_loop), called through plain ctypes or through ROSCO's own
     ControllerInterface, against the same controller in wtftc's own sampled loop, 60 s
     of NTM B at 16 m/s with the default fault (case 4): the rotor speed within 1e-4 rad/s
     all along. The differences: float32 records, and the torque demand held over the
     interval where wtftc's plant evaluates its torque law continuously."""
-    from wtftc.export import in_loop
+    from wtftc.campaign import in_loop
 
     ref, infile = closed_loop
     res = in_loop.run(lib / "libwtftc_physical.so", infile, CLOSED_LOOP, discon.CONTROL_DT,

@@ -176,7 +176,7 @@ def rosco_operating_point(loop: Loop, wind: float, discon: dict) -> tuple[float,
 def torque_law(loop: Loop):
     """The generator torque [N m, LSS] the plant's law gives at a steady speed (generated
     ``generator_torque``); an external controller commands its own torque (its plant's law
-    is 0: wtftc.export.in_loop), and the baseline law stands in for it (ROSCO has its own
+    is 0: wtftc.campaign.in_loop), and the baseline law stands in for it (ROSCO has its own
     point, :func:`rosco_operating_point`)."""
     p = np.array(loop.p_turbine, dtype=float)
     if loop.controller == "external":
