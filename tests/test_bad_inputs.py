@@ -132,7 +132,7 @@ CASES = [
          cfg="[turbine_params]\ngen_torque = [4180074.35, 1]\n"),
     Case("reference-beyond-envelope", "reference_rad_s", cfg="reference_rad_s = 9.0\n"),
     Case("offset-stalls-at-start", "initial.omega_r_offset_rad_s",
-         cfg="[initial]\nomega_r_offset_rad_s = -0.95\n"),
+         cfg="[initial]\nomega_r_offset_rad_s = -1.1\n"),
     Case("ctrl-told-fault", "controller_params.lock_hat_2",  # was accepted and ignored
          cfg="[controller_params]\nlock_hat_2 = 1.0\n"),
     Case("ctrl-gain-zero", "controller_params.phys_c1",
