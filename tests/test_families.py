@@ -44,8 +44,8 @@ def test_the_private_discon_copy_carries_the_retuned_schedule(tmp_path):
                     if "!" in ln and ln.split("!", 1)[1].split()[0] == key)
         return np.array(line.split("!")[0].split(), float)
 
-    same = rosco._discon_copy(tmp_path, retune=(0.6, 0.7, 0.6, 0.7)).read_text()
-    fast = rosco._discon_copy(tmp_path, retune=(1.2, 0.7, 0.6, 0.7)).read_text()
+    same = rosco.discon_copy(tmp_path, retune=(0.6, 0.7, 0.6, 0.7)).read_text()
+    fast = rosco.discon_copy(tmp_path, retune=(1.2, 0.7, 0.6, 0.7)).read_text()
     for key in ("PC_GS_KP", "PC_GS_KI"):
         assert gains(same, key) == pytest.approx(gains(src, key), rel=1e-9)
     assert gains(fast, "PC_GS_KI") == pytest.approx(4 * gains(src, "PC_GS_KI"), rel=1e-9)

@@ -174,6 +174,11 @@ def _add_run(sub) -> None:
                         "continuous time (default of the ideal profile)")
     r.add_argument("--control-delay", action="store_true",
                    help="apply each command one control interval late")
+    r.add_argument("--engine", choices=("wtftc", "openfast"),
+                   help="wtftc (default): wtftc's own plants; openfast: OpenFAST 5.0 with "
+                        "the turbine's deck, the controller as a DISCON library behind "
+                        "wtftc's pitch actuator and sensors (needs --profile realistic; the "
+                        "case is kept in OUT/openfast/; docs/openfast.md)")
     r.add_argument("--out", type=Path, default=Path("out/run"),
                    help="output folder (default: out/run under the current folder)")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -307,7 +312,7 @@ def _run_overrides(args) -> dict:
     simple = {"case": "case", "plant": "plant", "controller": "controller",
               "t_final": "t_final_s", "dt": "dt_s", "seed": "seed", "sign": "control_sign",
               "profile": "profile", "control_interval": "control_interval_s",
-              "turbine": "turbine"}
+              "turbine": "turbine", "engine": "engine"}
     for attr, key in simple.items():
         val = getattr(args, attr, None)
         if val is not None:

@@ -33,13 +33,23 @@ TOP_KEYS = {"case", "plant", "controller", "t_final_s", "dt_s", "seed", "output_
             "control_sign", "reference_rad_s", "cp_table", "wind", "fault", "controller_params",
             "turbine_params", "initial", "label", "profile", "control_interval_s",
             "control_delay", "sensors", "mismatch", "fdi", "turbine", "loads", "rosco",
-            "tuning"}
+            "tuning", "engine"}
 
 DEFAULTS = {
     "case": 1, "plant": "nrel5mw", "controller": "paper", "t_final_s": 60.0, "dt_s": 1e-3,
     "seed": 0, "output_rate_hz": 50.0, "control_sign": -1,
     "wind": {"kind": "paper_random"}, "profile": "ideal", "control_delay": False,
+    "engine": "wtftc",
 }
+
+#: the engines a run can be simulated in: wtftc's own plants, or OpenFAST 5.0 through
+#: ServoDyn with wtftc's plant-side actuator, fault and sensor library (docs/openfast.md)
+ENGINES = ("wtftc", "openfast")
+#: the keys that describe wtftc's own plant, which OpenFAST's deck replaces
+OPENFAST_REFUSED = {"plant": "the plant is the turbine's OpenFAST deck (openfast_deck)",
+                    "mismatch": "the plant is OpenFAST's deck: there is no model mismatch "
+                                "to set", "control_delay": "OpenFAST calls the controller "
+                                "library itself"}
 
 #: measurement profiles (docs/sensors.md): what a run's controller sees unless the
 #: configuration says otherwise. "ideal": continuous time, exact sensors (the paper's
@@ -291,6 +301,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
         raise ConfigError("case", case, "1 (no fault), 2 (fault, controller unaware), "
                           "3 (fault known to eq (49)) or 4 (fault detected by wtftc's FDI)")
     raw["case"] = case = int(case)  # a NumPy integer too
+    _engine(raw, cfg)
     if not isinstance(raw["plant"], str) or raw["plant"] not in rhs.PLANTS:
         raise ConfigError("plant", raw["plant"], "one of " + ", ".join(
             f"{k} ({v['doc']})" for k, v in rhs.PLANTS.items()))
@@ -494,6 +505,28 @@ def _fdi(raw: dict, loop: rhs.Loop, p_sensors: np.ndarray,
     return fdi.run_params(rhs.fdi_params(loop), p_sensors, interval,
                           vals["target_false_alarms_per_hour"], vals["model_uncertainty"],
                           vals["rate_limited_uncertainty"]), pulse
+
+
+def _engine(raw: dict, given: dict) -> None:
+    """The engine: OpenFAST refuses the keys of wtftc's own plant and needs a controller
+    it can call every control interval; its operating point is the tower plant's."""
+    engine = raw["engine"]
+    if not isinstance(engine, str) or engine not in ENGINES:
+        raise ConfigError("engine", engine, "wtftc (its own plants) or openfast (OpenFAST "
+                          "5.0 through ServoDyn: docs/openfast.md)")
+    if engine != "openfast":
+        return
+    for key, why in OPENFAST_REFUSED.items():
+        if key in given:
+            raise ConfigError(key, given[key], f"no {key} with engine = openfast: {why}")
+    raw["plant"] = "tower"
+    if raw["case"] == ORACLE_CASE:
+        raise ConfigError("case", 3, "1, 2 or 4 with engine = openfast (case 3 tells eq (49) "
+                          "the fault inside wtftc's loop; a DISCON library is not told)")
+    if raw.get("profile", "ideal") == "ideal" and not given.get("control_interval_s"):
+        raise ConfigError("profile", raw.get("profile", "ideal"), "realistic with engine = "
+                          "openfast (or a control_interval_s > 0): OpenFAST calls the "
+                          "controller as a library every control interval")
 
 
 def _profile(raw: dict, given: dict) -> None:

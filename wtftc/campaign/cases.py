@@ -27,8 +27,13 @@ from wtftc.sim.rhs import PLANTS
 from wtftc.sim.sampled import sampled_state
 
 
-def run(rc: RunConfig, progress: bool = True, keep_states: bool = False) -> Result:
-    """One run of ``rc``: the compiled loop, or ROSCO driving it."""
+def run(rc: RunConfig, progress: bool = True, keep_states: bool = False,
+        openfast_dir: Path | None = None) -> Result:
+    """One run of ``rc``: the compiled loop, or ROSCO driving it; with engine = openfast,
+    OpenFAST with the case written into ``openfast_dir`` (a temporary folder, removed
+    after, when None)."""
+    if rc.raw.get("engine") == "openfast":
+        return _run_openfast(rc, openfast_dir, progress)
     if not rc.uses_rosco:
         return run_batch([rc], progress=progress, keep_states=keep_states)[0]
     from wtftc.sim import rosco
@@ -43,6 +48,20 @@ def run(rc: RunConfig, progress: bool = True, keep_states: bool = False) -> Resu
                   "fault_resolved": res.schedule.describe() if res.schedule else [],
                   "rosco": {"version": rosco.ROSCO_VERSION, "control_dt_s": rosco.CONTROL_DT}}
     return res
+
+
+def _run_openfast(rc: RunConfig, folder: Path | None, progress: bool) -> Result:
+    import tempfile
+
+    from wtftc.openfast import engine
+
+    if rc.uses_rosco and (rc.told_fault or rc.uses_fdi):
+        raise ConfigError("case", rc.case, "1 or 2 with controller = rosco (ROSCO has no "
+                          "fault accommodation)")
+    if folder is not None:
+        return engine.run(rc, folder, progress)
+    with tempfile.TemporaryDirectory(prefix="wtftc-openfast-") as tmp:
+        return engine.run(rc, Path(tmp), progress)
 
 
 def run_batch(rcs: list[RunConfig], threads: int = 1, progress: bool = True,
@@ -119,7 +138,7 @@ def run_and_write(rc: RunConfig, out_dir: Path, progress: bool = True):
     written (results.io.run_folder): never a mix of two runs, never a stale file."""
     out_dir = Path(out_dir)
     with run_folder(out_dir) as tmp:
-        res = run(rc, progress=progress)
+        res = run(rc, progress=progress, openfast_dir=tmp / "openfast")
         m = metrics(rc, res)
         paths = write_outputs(tmp, rc, res, m)
         paths += write_run_figures(tmp, rc, res, m)

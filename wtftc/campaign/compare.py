@@ -161,14 +161,15 @@ def variant_config(controller: str, faults: list | None, wind: dict, t_final: fl
 
 
 def _row(controller, fault, wind, m) -> dict:
-    delays = [b.get("detection_delay_s") for b in m["fdi"]["blades"].values()
+    fdi = m["fdi"] or {"blades": {}, "false_alarms": []}  # None: no FDI ran (ROSCO in OpenFAST)
+    delays = [b.get("detection_delay_s") for b in fdi["blades"].values()
               if b.get("detection_delay_s") is not None]
     row = {"controller": controller, "fault": fault, "wind": wind,
            **{k: m.get(k) for k, _, _ in COLUMNS if k not in COMPUTED},
            "detection_delay_s": min(delays) if delays and CONTROLLERS[controller].uses_fdi
            else None,
            "diverged_at_s": m["diverged"]["t_s"] if m["diverged"] else None,
-           "false_alarms": len(m["fdi"]["false_alarms"])}
+           "false_alarms": len(fdi["false_alarms"]) if m["fdi"] else None}
     return row
 
 

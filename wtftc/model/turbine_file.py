@@ -58,6 +58,10 @@ class Turbine:
     #: schedule was tuned for (its tuning YAML's ``omega_pc``, ``zeta_pc``): what lets a
     #: run retune it (``[rosco]``, wtftc.sim.rosco.retuned_gains)
     rosco_tuning: tuple | None = None
+    #: the turbine's OpenFAST deck, its main ``.fst`` (``--engine openfast``,
+    #: wtftc.openfast): relative to the turbine file, or ``rosco:<path>`` in the rosco
+    #: package's tree, as ``rosco_discon``
+    openfast_deck: str | None = None
 
     def vector(self) -> np.ndarray:
         """The parameters in the layout's turbine_params order."""
@@ -126,10 +130,15 @@ def parse(text: str, path: Path, cp_must_exist: bool = True) -> Turbine:
             raise ConfigError("cp_table", doc["cp_table"], f"a Cp_Ct_Cq file ({cp}: "
                               f"{exc.allowed}; relative paths are from the turbine file's "
                               "folder)", where=where) from None
-    if rosco is not None and not rosco.startswith("rosco:") and not Path(rosco).is_absolute():
-        rosco = str(path.parent / rosco)
+    deck = doc.get("openfast_deck")
+    if deck is not None and (not isinstance(deck, str) or not deck.endswith(".fst")):
+        raise ConfigError("openfast_deck", deck, "the path of the turbine's OpenFAST main "
+                          "input file (.fst; relative to the turbine file, or rosco:<path in "
+                          "the rosco package's tree>)", where=where)
+    rosco, deck = (s if s is None or s.startswith("rosco:") or Path(s).is_absolute()
+                   else str(path.parent / s) for s in (rosco, deck))
     return Turbine(doc["name"], doc["title"], where, values, sources, str(cp), rosco,
-                   _rosco_tuning(doc.get("rosco_tuning"), where))
+                   _rosco_tuning(doc.get("rosco_tuning"), where), deck)
 
 
 def _params(params, where: str) -> tuple[dict, dict]:
@@ -185,13 +194,15 @@ def _entry(params: dict, name: str, unit: str, where: str) -> tuple[float, str]:
 
 
 def text(name: str, title: str, cp_table: str, values: dict, sources: dict,
-         header: str = "", rosco_discon: str | None = None) -> str:
+         header: str = "", rosco_discon: str | None = None,
+         openfast_deck: str | None = None) -> str:
     """A turbine file's text: every turbine parameter on one line, in the layout's order
     (every string a TOML string whatever it holds: :func:`toml_string`)."""
     lines = [f"# {_comment(ln)}".rstrip() for ln in header.splitlines()] + [
         f"name = {toml_string(name)}", f"title = {toml_string(title)}",
         f"cp_table = {toml_string(cp_table)}",
         *([f"rosco_discon = {toml_string(rosco_discon)}"] if rosco_discon else []),
+        *([f"openfast_deck = {toml_string(openfast_deck)}"] if openfast_deck else []),
         "", "[params]"]
     for e in lay.layout()["turbine_params"]:
         n = e["name"]

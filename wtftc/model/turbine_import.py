@@ -70,6 +70,7 @@ class Imported:
     cp_bytes: bytes
     table: CpTable
     discon: Path
+    fst: Path | None = None  # the deck read: the turbine file's openfast_deck
 
 
 # ------------------------------------------------------------------------------ the deck
@@ -414,7 +415,7 @@ def import_turbine(fst: Path, discon: Path | None = None) -> Imported:
                        f"J_r + J_g = {total:.6g} by {100 * (g['WE_Jtot'] / total - 1):+.1f} %")
     _defaults(values, sources)
     raw, table = _cp(cp, discon)
-    return Imported(values, sources, origins, cp, raw, table, discon)
+    return Imported(values, sources, origins, cp, raw, table, discon, Path(fst))
 
 
 # ------------------------------------------------------------------------------ writing
@@ -461,7 +462,8 @@ def render(imp: Imported, name: str, title: str, header: str = "") -> str:
     _text_arg(title, "--title", None, f"one line of 1-{MAX_TITLE} printable characters")
     cp_name = _utf8(Path(imp.cp.name), "PerfFileName")
     return turbine_file.text(name, title, cp_name, imp.values, imp.sources, header,
-                             _utf8(imp.discon.resolve(), "DLL_InFile"))
+                             _utf8(imp.discon.resolve(), "DLL_InFile"),
+                             _utf8(imp.fst.resolve(), "--openfast") if imp.fst else None)
 
 
 def _blamed(exc: ConfigError, imp: Imported, tmp: str, out: Path) -> ConfigError:

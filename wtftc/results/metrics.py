@@ -21,7 +21,9 @@ class Signals:
 
     ``rate``: "simulation" or "output"; ``dt``: their interval [s]; ``t0``: the window's end,
     the first time scored [s]. The shaft torque is k_s θ_s + d_s (ω_r − ω_g) (eq (6)); the
-    tower base's moment k_t x_t h (derivation/turbine.py), None without a tower."""
+    tower base's moment k_t x_t h (derivation/turbine.py), None without a tower; a run in
+    OpenFAST carries both as OpenFAST computes them (``shaft_torque``, ``tower_moment``:
+    ElastoDyn's RotTorq and TwrBsMyt, wtftc.openfast.engine)."""
 
     t: np.ndarray
     dt: float
@@ -45,9 +47,14 @@ def signals(rc: RunConfig, res: integrate.Result, t0: float) -> Signals:
         omega_g = res.column("omega_g_hss") / tp["gearbox_ratio"]
     keep = t >= t0 - 1e-9 * max(1.0, t0)
     w = col("omega_r")
-    shaft = tp["k_s"] * col("theta_s") + tp["d_s"] * (w - omega_g)
+    if full and "shaft_torque" in res.full_names:  # OpenFAST's own (wtftc.openfast)
+        shaft = col("shaft_torque")
+    else:
+        shaft = tp["k_s"] * col("theta_s") + tp["d_s"] * (w - omega_g)
     tower = None
-    if full and "tower_x" in res.full_names:
+    if full and "tower_moment" in res.full_names:
+        tower = col("tower_moment")
+    elif full and "tower_x" in res.full_names:
         tower = tp["tower_stiffness"] * col("tower_x") * tp["tower_moment_arm"]
     elif not full and "M_tower" in res.names:
         tower = res.column("M_tower")
@@ -80,7 +87,7 @@ def metrics(rc: RunConfig, res: integrate.Result) -> dict:
     scored = res.t >= t0 - 1e-9 * max(1.0, t0)
     m = {
         "label": rc.label, "case": rc.case, "case_doc": CASES[rc.case], "plant": rc.plant,
-        "fdi": fdi_report(rc, res),
+        "fdi": fdi_report(rc, res) if _has_fdi(res) else None,
         "controller": rc.raw["controller"], "control_sign": rc.raw["control_sign"],
         # the measurements (docs/sensors.md): the profile and what it resolved to
         "profile": rc.raw.get("profile", "ideal"),
@@ -199,6 +206,12 @@ def own_speed_errors(rc: RunConfig, sig: Signals) -> tuple:
         return float(np.sqrt(np.mean(e[sel] ** 2))) if sel.any() else None
 
     return rms(above), rms(~above)
+
+def _has_fdi(res: integrate.Result) -> bool:
+    """Whether the run recorded wtftc's FDI: not a run in OpenFAST of a controller library
+    without it (ROSCO), whose FDI columns are NaN."""
+    return "fdi_latch_1" in res.names and not np.all(np.isnan(res.column("fdi_latch_1")))
+
 
 def fdi_report(rc: RunConfig, res: integrate.Result) -> dict:
     """Detection, isolation, classification and estimation of wtftc's FDI, per fault and

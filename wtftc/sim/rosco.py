@@ -107,7 +107,7 @@ def _retuned_line(line: str, key: str, values: dict, retune: tuple) -> str:
     return "   ".join(f"{g:.6e}" for g in gains[key]) + "   ! " + line.split("!", 1)[1]
 
 
-def _discon_copy(tmp: Path, spec: str = NREL5MW_DISCON, retune: tuple | None = None) -> Path:
+def discon_copy(tmp: Path, spec: str = NREL5MW_DISCON, retune: tuple | None = None) -> Path:
     """The turbine's DISCON.IN with logging off and the Cp file by absolute path (resolved
     against the DISCON.IN's folder when relative, as ROSCO does); with ``retune``, its
     pitch gain schedule for another closed-loop target (:func:`retuned_gains`)."""
@@ -295,7 +295,7 @@ def _interface(tmp: Path, pitch_deg: float, init_state: dict, discon: str = NREL
                 self.avrSWAP[26], self.avrSWAP[22] = s["ws"], s["gen_torque"]
             super().call_discon()
 
-    ci = _InitState(rosco.discon_lib_path, param_filename=str(_discon_copy(tmp, discon, retune)),
+    ci = _InitState(rosco.discon_lib_path, param_filename=str(discon_copy(tmp, discon, retune)),
                     DT=CONTROL_DT, pitch=pitch_deg, sim_name=str(tmp / "wtftc"),
                     avr_size=2000)
     if ci.aviFAIL.value < 0:
@@ -382,7 +382,7 @@ class _CompiledDiscon(_Discon):
 
     def _open(self, tmp: Path, pitch_deg: float, init_state: dict, discon: str,
               retune: tuple | None) -> None:
-        param, sim = str(_discon_copy(tmp, discon, retune)), str(tmp / "wtftc")
+        param, sim = str(discon_copy(tmp, discon, retune)), str(tmp / "wtftc")
         record = _first_record(pitch_deg, init_state, param, sim)
         fail = self.lib.wtftc_discon_open(
             str(discon_library()).encode(), param.encode(), sim.encode(),

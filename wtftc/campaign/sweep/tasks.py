@@ -27,7 +27,8 @@ def _row(pt: dict, status: str, m: dict | None = None, cause: str | None = None,
                 **{k: None for k, _ in METRICS}})
     if m is not None:
         row.update({k: m.get(k) for k, _ in METRICS})
-        fdi = m["fdi"]
+    fdi = m["fdi"] if m is not None else None  # None: no FDI ran (ROSCO in OpenFAST)
+    if fdi is not None:
         delays = [b["detection_delay_s"] for b in fdi["blades"].values()
                   if b.get("detection_delay_s") is not None]
         if CONTROLLERS[pt["controller"]].uses_fdi and pt["fault_type"] != "none":

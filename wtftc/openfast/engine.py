@@ -1,0 +1,273 @@
+"""A run in OpenFAST (``--engine openfast``, issue 32; ours).
+
+:func:`run` writes the case (wtftc.openfast.case) into ``folder``, builds or finds the
+controller library (ROSCO's ``libdiscon.so`` with the turbine's DISCON.IN, or the run's
+controller exported as wtftc exports it, ``wtftc export discon``), runs OpenFAST there
+and reads its binary output and the plant library's records back into an
+:class:`wtftc.sim.integrate.Result` with the native engine's output columns, so that the
+same metrics, traces and figures follow. A column OpenFAST has no counterpart of (the
+drivetrain's twist, Cp, the controller's internal signals) is NaN.
+
+Units at the edge: OpenFAST reports rpm, degrees and kN(m); everything here is SI.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+
+from wtftc.artefacts import layout as lay
+from wtftc.errors import ConfigError, EngineError
+from wtftc.model import turbine_file
+from wtftc.model.faults import Schedule
+from wtftc.openfast import case as ofcase
+from wtftc.openfast import install, plant_library
+from wtftc.sim import integrate, rhs
+from wtftc.sim.rhs import PLANTS
+
+RPM = math.pi / 30
+#: how the native output columns are filled from OpenFAST's channels: name → (channel,
+#: scale to SI)
+FROM_OUTB = {"omega_r": ("RotSpeed", RPM), "beta_1": ("BldPitch1", math.pi / 180),
+             "beta_2": ("BldPitch2", math.pi / 180), "beta_3": ("BldPitch3", math.pi / 180),
+             "wind": ("Wind1VelX", 1.0), "tower_x": ("TTDspFA", 1.0),
+             "M_tower": ("TwrBsMyt", 1e3), "thrust": ("RotThrust", 1e3)}
+#: the FDI channels a wtftc library logs (wtftc.export.discon.LOGGED, per blade)
+LOGGED = ("latch", "rho_hat", "c_hat")
+
+
+def deck_of(rc) -> Path:
+    """The run's turbine's OpenFAST deck (its main file)."""
+    tb = turbine_file.load(rc.raw.get("turbine", turbine_file.DEFAULT))
+    if not tb.openfast_deck:
+        raise ConfigError("turbine", rc.raw.get("turbine", turbine_file.DEFAULT),
+                          "a turbine whose file names its OpenFAST deck (openfast_deck = "
+                          "\"<main>.fst\"; docs/openfast.md) with engine = openfast")
+    if tb.openfast_deck.startswith("rosco:"):
+        from wtftc.sim.rosco import discon_path
+
+        return discon_path(tb.openfast_deck)
+    return Path(tb.openfast_deck)
+
+
+def controller_library(rc, folder: Path) -> tuple[Path, Path]:
+    """(library, its input file) of the run's controller, in ``folder``: ROSCO's with the
+    turbine's DISCON.IN (retuned as the run says), or the run's controller exported."""
+    folder.mkdir(parents=True, exist_ok=True)
+    if rc.uses_rosco:
+        from wtftc.sim import rosco
+
+        return rosco.discon_library(), rosco.discon_copy(folder, rc.rosco_discon
+                                                         or rosco.NREL5MW_DISCON,
+                                                         rc.rosco_retune)
+    from wtftc.export import discon
+
+    if rc.controller not in discon.exportable():
+        raise ConfigError("controller", rc.controller, "rosco or one of "
+                          + ", ".join(discon.exportable()) + " with engine = openfast")
+    discon.build(rc, folder)
+    return (folder / f"libwtftc_{rc.controller}.so",
+            folder / f"wtftc_{rc.controller}.IN")
+
+
+def interval_of(rc) -> float:
+    """The controller library's call interval [s]: the run's control interval (ROSCO's
+    own, 5 ms, for controller = rosco)."""
+    return rc.control_interval or float(rc.raw["control_interval_s"])
+
+
+def prepare(rc, folder: Path) -> ofcase.Case:
+    """The case of ``rc`` written into ``folder`` (the run folder's ``openfast/``)."""
+    if any(float(rc.p_sensors[lay.index("sensor_params", n)]) > 0
+           for n in lay.names("sensor_params") if n.startswith("lag_")):
+        raise ConfigError("sensors", rc.raw.get("sensors"), "no sensor lag with engine = "
+                          "openfast (the plant library's sensors have none)")
+    fst = ofcase.copy_deck(deck_of(rc), folder)
+    dt, dll_dt = ofcase.steps(interval_of(rc))
+    ofcase.set_values(fst, {"TMax": f"{rc.t_final:.9g}", "DT": f"{dt:.9g}",
+                            "OutFileFmt": "2", "DT_Out": '"default"', "Echo": "False"})
+    ed = ofcase.module_file(fst, "EDFile")
+    z0 = rc.initial_state()
+    states = PLANTS["tower"]["states"]
+    ofcase.initial_conditions(ed, z0[lay.index(states, "omega_r")],
+                              z0[lay.block(states, "beta")], z0[lay.index(states, "tower_x")])
+    ofcase.set_outlist(ed, ofcase.ELASTODYN_CHANNELS)
+    inflow = ofcase.module_file(fst, "InflowFile")
+    ofcase.write_wind(folder / "wtftc_wind.uni", rc.t_final, rc.wind)
+    ofcase.set_values(inflow, {"WindType": "2", "Filename_Uni": '"wtftc_wind.uni"',
+                               "RefHt_Uni": ofcase.get_value(inflow, "RefHt")})
+    lib, infile = controller_library(rc, folder / "controller")
+    records = folder / "wtftc_plant_records.bin"
+    settings = plant_library.Settings(lib, infile, records, rc.p_turbine, rc.p_sensors,
+                                      rc.faults if rc.faults else ())
+    n_calls = int(round(rc.t_final / dll_dt)) + 2
+    settings.noise = folder / "wtftc_noise.bin"
+    settings.noise_columns = plant_library.noise_table(
+        rc.seed, n_calls, dll_dt, Schedule(list(rc.faults), tuple(rc.p_turbine))
+        if rc.faults else None, settings.noise)
+    plant_in = settings.write(folder / "wtftc_plant.in")
+    ofcase.set_values(ofcase.module_file(fst, "ServoFile"), {
+        "DLL_FileName": f'"{plant_library.build()}"', "DLL_InFile": f'"{plant_in}"',
+        "DLL_DT": f"{dll_dt:.9g}", "Ptch_Cntrl": "1"})
+    return ofcase.Case(folder, fst, dt, dll_dt, plant_in, records)
+
+
+#: what OpenFAST prints when a run ends well
+NORMAL_END = "OpenFAST terminated normally"
+
+
+def simulate(case: ofcase.Case, progress: bool = True) -> tuple[float, str | None]:
+    """OpenFAST on the case, in its folder (its screen output in ``openfast.log``):
+    (wall time [s], None) when it ends normally, else OpenFAST's own message, one line.
+    Ctrl-C stops OpenFAST with it."""
+    exe = install.require().openfast
+    log = case.folder / "openfast.log"
+    t0 = time.perf_counter()
+    with open(log, "w") as out:
+        proc = subprocess.Popen([str(exe), case.fst.name], cwd=case.folder, stdout=out,
+                                stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                start_new_session=True)
+        try:
+            proc.wait()
+        except BaseException:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+            raise
+    wall = time.perf_counter() - t0
+    text = log.read_text(errors="replace")
+    if NORMAL_END in text and proc.returncode == 0:
+        return wall, None
+    return wall, abort_message(text, proc.returncode)
+
+
+def abort_message(text: str, code: int) -> str:
+    """OpenFAST's reason for stopping, on one line, from its screen output."""
+    lines = [ln.strip() for ln in text.replace("\r", "\n").splitlines() if ln.strip()]
+    picked = [ln for ln in lines if re.search(r"error|abort|strike|wtftc|fail|invalid",
+                                              ln, re.IGNORECASE)
+              and "Aborting OpenFAST" not in ln]
+    why = " ".join((picked or lines[-3:])[-3:])
+    return f"OpenFAST stopped (exit code {code}): {why}"[:600]
+
+
+def read_outb(path: Path) -> dict[str, np.ndarray]:
+    """OpenFAST's binary output as channel → series (openfast-io's FASTOutputFile)."""
+    from openfast_io.FAST_output_reader import FASTOutputFile
+
+    try:
+        f = FASTOutputFile(str(path))
+    except (OSError, ValueError, IndexError) as exc:
+        raise EngineError(f"OpenFAST's output {path} cannot be read: {exc}") from None
+    return {n: f.data[:, i].astype(float) for i, n in enumerate(f.info["attribute_names"])}
+
+
+def _held(t_rec: np.ndarray, x: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """A series recorded at the calls ``t_rec``, held until the next call, at times ``t``."""
+    i = np.searchsorted(t_rec, t + 1e-9, side="right") - 1
+    return x[np.clip(i, 0, len(x) - 1)]
+
+
+def _fine(rc, ch: dict, rec: dict) -> tuple[np.ndarray, dict]:
+    """The metric series at every OpenFAST step (Result.full): the rotor and generator
+    speeds, the blades, the low-speed shaft's torque and the tower base's moment as
+    OpenFAST computes them, the FDI's latches as the library logged them."""
+    t = ch["Time"]
+    n_g = rc.param("gearbox_ratio")
+    fine = {"omega_r": ch["RotSpeed"] * RPM, "omega_g": ch["GenSpeed"] * RPM / n_g,
+            **{f"beta_{j}": np.radians(ch[f"BldPitch{j}"]) for j in lay.blades()},
+            "tower_x": ch["TTDspFA"], "shaft_torque": ch["RotTorq"] * 1e3,
+            "tower_moment": ch["TwrBsMyt"] * 1e3}
+    for j in lay.blades():
+        if f"latch_{j}" in rec:
+            fine[f"fdi_latch_{j}"] = _held(rec["t"], rec[f"latch_{j}"], t)
+    return t, fine
+
+
+def _named_records(rc, rec: dict) -> dict:
+    """The records with the controller's logged channels named (a wtftc library logs the
+    FDI's latch, ρ̂ and ĉ per blade; ROSCO logs none)."""
+    n_log = sum(k.startswith("logged_") for k in rec)
+    if rc.loop.fdi and n_log == len(LOGGED) * lay.n_blades():
+        k = 1
+        for what in LOGGED:
+            for j in lay.blades():
+                rec[f"{what}_{j}"] = rec.pop(f"logged_{k}")
+                k += 1
+    return rec
+
+
+def _outputs(rc, ch: dict, rec: dict, rows: np.ndarray, names: list[str]) -> np.ndarray:
+    """The native engine's output columns at the rows ``rows`` of OpenFAST's output; NaN
+    where OpenFAST has no counterpart."""
+    t = ch["Time"][rows]
+    n_g, eta = rc.param("gearbox_ratio"), rc.param("gen_efficiency")
+    col = {k: ch[c][rows] * s for k, (c, s) in FROM_OUTB.items()}
+    col.update(omega_g_hss=ch["GenSpeed"][rows] * RPM, T_gen=ch["GenTq"][rows] * 1e3 * n_g,
+               P_gen=ch["GenPwr"][rows] * 1e3 / eta,  # the metrics multiply by η
+               omega_r_meas=_held(rec["t"], rec["read_omega_r"], t))
+    for j in lay.blades():
+        col[f"beta_meas_{j}"] = _held(rec["t"], rec[f"read_beta_{j}"], t)
+        col[f"v_{j}"] = col[f"pitch_cmd_{j}"] = _held(rec["t"], rec[f"v_{j}"], t)
+        for what in LOGGED:
+            if f"{what}_{j}" in rec:
+                col[f"fdi_{what}_{j}"] = _held(rec["t"], rec[f"{what}_{j}"], t)
+    out = np.full((len(rows), len(names)), np.nan)
+    for i, n in enumerate(names):
+        if n in col:
+            out[:, i] = col[n]
+    return out
+
+
+def result(rc, case: ofcase.Case, wall: float, abort: str | None) -> integrate.Result:
+    """The run as a Result with the native engine's columns; an abort of OpenFAST, or the
+    rotor leaving wtftc's envelope, is a lost run (``diverged``) ending there."""
+    if not case.outb.is_file():
+        raise EngineError(abort or f"OpenFAST wrote no output ({case.outb})")
+    ch = read_outb(case.outb)
+    missing = [c for c in (*ofcase.ELASTODYN_CHANNELS, *ofcase.OTHER_CHANNELS, "Time")
+               if c not in ch]
+    if missing:
+        raise EngineError(f"{case.outb} lacks the channel(s) {', '.join(missing)}: the "
+                          "deck's AeroDyn, InflowWind or ServoDyn OutList must have them")
+    rec = _named_records(rc, plant_library.read_records(case.records))
+    t, fine = _fine(rc, ch, rec)
+    env = integrate.Envelope.of(rc.loop)
+    w = fine["omega_r"]
+    out_of = np.nonzero((w > env.high) | (w < env.low))[0]
+    end = int(out_of[0]) + 1 if len(out_of) else len(t)
+    diverged = None
+    if len(out_of) or abort:
+        reason = env.reason(float(w[end - 1])) if len(out_of) else abort
+        diverged = {"t_s": float(t[end - 1]), "reason": reason, "last_finite_state": {
+            k: float(v[end - 1]) for k, v in fine.items()}}
+    t = t[:end]
+    fine = {k: v[:end] for k, v in fine.items()}
+    every = max(1, int(round(rc.decimate * rc.dt / case.dt)))
+    rows = np.arange(0, end, every)
+    names = [n for n, _ in rhs.output_spec(rc.controller, rc.loop.fdi, rc.plant)]
+    return integrate.Result(
+        t=t[rows], outputs=_outputs(rc, ch, rec, rows, names), z_final=np.array([]),
+        diverged=diverged, wall_s=wall, steps=int(round(t[-1] / rc.dt)),
+        full=np.column_stack(list(fine.values())), full_names=list(fine), dt=case.dt,
+        schedule=Schedule(list(rc.faults), tuple(rc.p_turbine)) if rc.faults else None,
+        names=names)
+
+
+def run(rc, folder: Path, progress: bool = True) -> integrate.Result:
+    """``rc`` in OpenFAST, its case and outputs in ``folder``."""
+    case = prepare(rc, Path(folder))
+    wall, abort = simulate(case, progress)
+    res = result(rc, case, wall, abort)
+    res.config = {**rc.raw, "wind_resolved": rc.wind.describe(),
+                  "fault_resolved": res.schedule.describe() if res.schedule else [],
+                  "openfast": {"version": install.VERSION, "dt_s": case.dt,
+                               "dll_dt_s": case.dll_dt, "wall_s": wall,
+                               "case": str(case.fst)}}
+    return res
