@@ -50,6 +50,8 @@ OPENFAST_REFUSED = {"plant": "the plant is the turbine's OpenFAST deck (openfast
                     "mismatch": "the plant is OpenFAST's deck: there is no model mismatch "
                                 "to set", "control_delay": "OpenFAST calls the controller "
                                 "library itself"}
+#: the values of those keys a saved OpenFAST run writes (config.toml), accepted back
+OPENFAST_ACCEPTED = {"plant": ("tower",), "mismatch": ({},), "control_delay": (False,)}
 
 #: measurement profiles (docs/sensors.md): what a run's controller sees unless the
 #: configuration says otherwise. "ideal": continuous time, exact sensors (the paper's
@@ -517,7 +519,8 @@ def _engine(raw: dict, given: dict) -> None:
     if engine != "openfast":
         return
     for key, why in OPENFAST_REFUSED.items():
-        if key in given:
+        # what a saved run's config.toml holds is accepted back: the engine's own values
+        if key in given and given[key] not in OPENFAST_ACCEPTED.get(key, ()):
             raise ConfigError(key, given[key], f"no {key} with engine = openfast: {why}")
     raw["plant"] = "tower"
     if raw["case"] == ORACLE_CASE:

@@ -504,8 +504,10 @@ def check_library(lib: Path, cc: str) -> None:
                       f"status 0, but {why})")
 
 
-def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2") -> None:
-    """Generate the C of the library's functions into ``out`` and compile it there."""
+def write_sources(rc: config.RunConfig, out: Path) -> list[Path]:
+    """The library's C sources in ``out``: the generated functions, the headers of its
+    parameters and checks, and the hand-written interface (the compiled library depends
+    on these files only; the parameter values are the .IN's)."""
     params = parameters(rc)
     cg = ca.CodeGenerator("wtftc_discon_gen.c", {"with_header": False, "verbose": False})
     cg.add(step_function(rc))
@@ -518,10 +520,25 @@ def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2") ->
         discon_checks.header(rc, _groups(rc.loop.controller)))
     for name in SOURCES:
         shutil.copy(HERE / name, out / name)
+    return [out / "wtftc_discon_gen.c", out / "wtftc_discon_meta.h",
+            out / "wtftc_discon_checks.h", *(out / n for n in SOURCES)]
+
+
+def compile_command(out: Path, controller: str, cc: str = "gcc", opt: str = "-O2",
+                    lib: Path | None = None) -> list:
+    """The compiler command that builds the library (``lib``, default
+    ``out/libwtftc_<controller>.so``) from the sources write_sources wrote into ``out``."""
+    lib = lib if lib is not None else out / f"libwtftc_{controller}.so"
+    return [cc, opt, "-std=c99", "-shared", "-fPIC", "-o", str(lib),
+            str(out / "wtftc_discon_gen.c"),
+            *(str(out / n) for n in SOURCES), "-lm"]
+
+
+def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2") -> None:
+    """Generate the C of the library's functions into ``out`` and compile it there."""
+    write_sources(rc, out)
     lib = out / f"libwtftc_{rc.loop.controller}.so"
-    cmd = [cc, opt, "-std=c99", "-shared", "-fPIC", "-o", str(lib),
-           str(out / "wtftc_discon_gen.c"), *(str(out / n) for n in SOURCES), "-lm"]
-    compile_library(cmd, cc)
+    compile_library(compile_command(out, rc.loop.controller, cc, opt), cc)
     check_library(lib, cc)
     write_input(rc, out / f"wtftc_{rc.loop.controller}.IN")
     (out / "servodyn_snippet.txt").write_text(servodyn_snippet(rc.loop.controller,

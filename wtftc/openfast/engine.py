@@ -72,9 +72,41 @@ def controller_library(rc, folder: Path) -> tuple[Path, Path]:
     if rc.controller not in discon.exportable():
         raise ConfigError("controller", rc.controller, "rosco or one of "
                           + ", ".join(discon.exportable()) + " with engine = openfast")
-    discon.build(rc, folder)
-    return (folder / f"libwtftc_{rc.controller}.so",
-            folder / f"wtftc_{rc.controller}.IN")
+    return _cached_library(rc, folder), discon.write_input(
+        rc, folder / f"wtftc_{rc.controller}.IN")
+
+
+def _cached_library(rc, folder: Path) -> Path:
+    """The run's controller library, its sources written into ``folder`` and compiled
+    once per distinct sources into wtftc's cache (a campaign compiles each controller
+    once; the parameter values are the .IN's)."""
+    import hashlib
+    import shutil
+    import tempfile
+
+    from wtftc.artefacts.loader import cache_dir, compiler
+    from wtftc.export import discon
+
+    sources = discon.write_sources(rc, folder)
+    key = hashlib.sha256(b"".join(p.read_bytes() for p in sources)).hexdigest()[:20]
+    name = f"libwtftc_{rc.controller}.so"
+    cached = cache_dir() / f"discon-{key}" / name
+    if not cached.is_file():
+        cc = compiler() or "gcc"
+        cached.parent.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=".discon-", dir=cached.parent.parent))
+        try:
+            discon.compile_library(discon.compile_command(folder, rc.controller, cc,
+                                                          lib=tmp / name), cc)
+            discon.check_library(tmp / name, cc)
+            try:
+                tmp.rename(cached.parent)
+            except OSError:  # another run built it first
+                pass
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
+    shutil.copy2(cached, folder / name)
+    return folder / name
 
 
 def interval_of(rc) -> float:
@@ -148,13 +180,15 @@ def simulate(case: ofcase.Case, progress: bool = True) -> tuple[float, str | Non
 
 
 def abort_message(text: str, code: int) -> str:
-    """OpenFAST's reason for stopping, on one line, from its screen output."""
-    lines = [ln.strip() for ln in text.replace("\r", "\n").splitlines() if ln.strip()]
-    picked = [ln for ln in lines if re.search(r"error|abort|strike|wtftc|fail|invalid",
-                                              ln, re.IGNORECASE)
-              and "Aborting OpenFAST" not in ln]
-    why = " ".join((picked or lines[-3:])[-3:])
-    return f"OpenFAST stopped (exit code {code}): {why}"[:600]
+    """OpenFAST's reason for stopping, on one line, from its screen output: the lines from
+    its first error line on (a message wraps over several), bells and blanks dropped."""
+    text = re.sub(r"[\x00-\x08\x0b-\x1f]", " ", text.replace("\r", "\n"))
+    lines = [ln.strip() for ln in text.split("\n") if ln.strip()]
+    first = next((i for i, ln in enumerate(lines)
+                  if re.search(r"error|abort|strike|wtftc|fail|invalid", ln, re.IGNORECASE)),
+                 max(0, len(lines) - 3))
+    why = " ".join(ln for ln in lines[first:first + 4] if "Aborting OpenFAST" not in ln)
+    return f"OpenFAST stopped (exit code {code}): {' '.join(why.split())}"[:600]
 
 
 def read_outb(path: Path) -> dict[str, np.ndarray]:

@@ -1,0 +1,197 @@
+"""OpenFAST as wtftc's second engine (issue 32): short runs of the NREL 5-MW deck of
+ROSCO's examples through wtftc's plant library (`make test` gets OpenFAST first)."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from wtftc import config
+from wtftc.artefacts.loader import compiler
+from wtftc.cli import main
+from wtftc.errors import EngineError
+from wtftc.openfast import engine
+from wtftc.openfast.case import get_value
+
+T_FINAL = 20.0
+WIND = {"kind": "constant", "speed_mps": 16.0}
+
+
+@pytest.fixture(scope="module")
+def rosco_run(tmp_path_factory) -> Path:
+    """ROSCO fault-free at 16 m/s, 20 s, through `wtftc run --engine openfast`."""
+    out = tmp_path_factory.mktemp("of") / "rosco"
+    code = main(["run", "--engine", "openfast", "--controller", "rosco", "--profile",
+                 "realistic", "--wind", "constant", "--wind-mean", "16", "--t-final",
+                 str(T_FINAL), "--fault", "none", "--quiet", "--out", str(out)])
+    assert code == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def runaway(tmp_path_factory):
+    """The physical AFTC with wtftc's FDI (case 4), blade 1 running away to fine pitch at
+    10 s, 16 m/s, 20 s."""
+    rc = config.make_config({"engine": "openfast", "profile": "realistic",
+                             "controller": "physical", "case": 4, "t_final_s": T_FINAL,
+                             "wind": WIND, "fault": [{"type": "runaway", "blade": 1,
+                                                      "onset_s": 10.0, "target_deg": 0.0}]})
+    from wtftc.campaign import cases
+    from wtftc.results.metrics import metrics
+
+    res = cases.run(rc, progress=False, openfast_dir=tmp_path_factory.mktemp("of") / "phys")
+    return rc, res, metrics(rc, res)
+
+
+def test_a_run_writes_the_native_files_and_a_case_a_user_can_rerun(rosco_run):
+    for name in ("metrics.json", "traces.csv", "traces.parquet", "config.toml",
+                 "figures/rotor_speed.png", "openfast/NREL-5MW.fst",
+                 "openfast/NREL-5MW.outb", "openfast/wtftc_plant.in",
+                 "openfast/wtftc_wind.uni", "openfast/openfast.log"):
+        assert (rosco_run / name).is_file(), name
+    fst = rosco_run / "openfast" / "NREL-5MW.fst"
+    assert float(get_value(fst, "TMax")) == T_FINAL
+    servo = fst.parent / get_value(fst, "ServoFile")
+    dt, dll_dt = float(get_value(fst, "DT")), float(get_value(servo, "DLL_DT"))
+    assert dll_dt / dt == pytest.approx(round(dll_dt / dt), abs=1e-9)
+    m = json.loads((rosco_run / "metrics.json").read_text())
+    assert m["diverged"] is None and m["fdi"] is None  # ROSCO carries no FDI
+
+
+def test_the_metrics_equal_an_independent_computation_from_the_outb(rosco_run):
+    """The RMS speed error and the mean power from OpenFAST's own channels, read here
+    with openfast-io and NumPy, after the start-up window the run recorded."""
+    from openfast_io.FAST_output_reader import FASTOutputFile
+
+    m = json.loads((rosco_run / "metrics.json").read_text())
+    f = FASTOutputFile(str(rosco_run / "openfast" / "NREL-5MW.outb"))
+    ch = {n: f.data[:, i] for i, n in enumerate(f.info["attribute_names"])}
+    keep = ch["Time"] >= m["transient_s"] - 1e-9
+    err = ch["RotSpeed"][keep] * math.pi / 30 - m["reference_rad_s"]
+    assert m["rms_speed_error_rad_s"] == pytest.approx(np.sqrt(np.mean(err**2)), rel=1e-9)
+    # the mean power is read from the outputs, at the output rate (docs/loads.md: within
+    # 4e-6 of the simulation rate's on wtftc's plant)
+    assert m["mean_electrical_power_W"] == pytest.approx(np.mean(ch["GenPwr"][keep]) * 1e3,
+                                                         rel=2e-5)
+    # ROSCO holds the NREL 5-MW near rated at 16 m/s: within 1 % on average, 5 MW ± 2 %
+    assert abs(np.mean(err)) < 0.01 * m["reference_rad_s"]
+    assert m["mean_electrical_power_W"] == pytest.approx(5.0e6, rel=0.02)
+
+
+def test_the_run_starts_at_its_operating_point(rosco_run):
+    """The deck's initial rotor speed, pitch and tower-top displacement are the run's
+    operating point (issue 31: ROSCO's own laws on wtftc's Cp table). OpenFAST's own
+    steady pitch at 16 m/s is about 1° lower (flexible blades, BEM: docs/openfast.md), so
+    ROSCO moves the pitch by that much and the rotor speed dips 3 % while it does."""
+    from openfast_io.FAST_output_reader import FASTOutputFile
+
+    from wtftc.artefacts import layout as lay
+    from wtftc.sim.rhs import PLANTS
+
+    rc = config.make_config(config.load_toml(rosco_run / "config.toml", "config"))
+    z0, states = rc.initial_state(), PLANTS["tower"]["states"]
+    ed = rosco_run / "openfast" / "NRELOffshrBsline5MW_Onshore_ElastoDyn.dat"
+    assert float(get_value(ed, "RotSpeed")) * math.pi / 30 == pytest.approx(
+        z0[lay.index(states, "omega_r")], rel=1e-8)
+    assert math.radians(float(get_value(ed, "BlPitch(2)"))) == pytest.approx(
+        z0[lay.index(states, "beta_2")], rel=1e-8)
+    assert float(get_value(ed, "TTDspFA")) == pytest.approx(
+        z0[lay.index(states, "tower_x")], rel=1e-8)
+    f = FASTOutputFile(str(rosco_run / "openfast" / "NREL-5MW.outb"))
+    ch = {n: f.data[:, i] for i, n in enumerate(f.info["attribute_names"])}
+    first = ch["Time"] <= 2.0
+    assert np.ptp(ch["BldPitch1"][first]) < 2.0
+    assert np.ptp(ch["RotSpeed"][first]) < 0.05 * ch["RotSpeed"][0]  # measured 3.3 %
+
+
+def test_the_physical_aftc_isolates_a_runaway_in_openfast(runaway):
+    rc, res, m = runaway
+    assert res.diverged is None
+    fault = m["fdi"]["faults"][0]
+    assert fault["detected"] and fault["isolated_blade"] == 1
+    assert 0 < fault["detection_delay_s"] < 2.0
+    assert m["fdi"]["false_alarms"] == []
+    # blade 1 ends at fine pitch, where the runaway drives it (the actuator library)
+    assert math.degrees(res.column("beta_1")[-1]) < 0.5
+    assert m["overspeed_peak_over_rated"] < 1.1
+
+
+def test_the_runaway_acts_in_the_actuator_library_not_in_the_controller(runaway):
+    """Blade 1 leaves the controller's demand at the onset: the library's actuator obeys
+    the fault; blades 2 and 3 follow their demands."""
+    rc, res, m = runaway
+    t = res.t
+    after = (t > 12.0) & (t < t[-1])  # the last call (iStatus -1) closes the library
+    gap = np.degrees(np.abs(res.column("v_1") - res.column("beta_1")))
+    assert gap[after].min() > 1.0
+    for j in (2, 3):  # behind their demands only by the actuator's lag and rate limit
+        lag = np.degrees(np.abs(res.column(f"v_{j}") - res.column(f"beta_{j}")))[after]
+        assert np.median(lag) < 1.0 and lag.max() < 5.0
+
+
+def test_an_openfast_abort_is_a_lost_run_with_openfasts_message(tmp_path):
+    """A controller library that fails at 2 s: OpenFAST stops, the run is lost there and
+    its reason is OpenFAST's message, which carries the library's."""
+    src = tmp_path / "failing.c"
+    src.write_text('#include <string.h>\nvoid DISCON(float *s, int *fail, char *in, '
+                   'char *out, char *msg) { s[46] = 40000.0f; s[41] = s[42] = s[43] = '
+                   '0.2f; *fail = 0; if (s[1] > 2.0f) { *fail = -1; strcpy(msg, '
+                   '"scripted failure"); } }\n')
+    lib = tmp_path / "libfailing.so"
+    subprocess.run([compiler(), "-shared", "-fPIC", "-o", str(lib), str(src)], check=True)
+    rc = config.make_config({"engine": "openfast", "profile": "realistic",
+                             "controller": "pi", "case": 1, "t_final_s": 6.0, "wind": WIND})
+    case = engine.prepare(rc, tmp_path / "case")
+    text = case.plant_settings.read_text().replace(
+        f"controller_library {(case.folder / 'controller' / 'libwtftc_pi.so').resolve()}",
+        f"controller_library {lib}")
+    case.plant_settings.write_text(text)
+    wall, abort = engine.simulate(case, progress=False)
+    assert abort is not None and "scripted failure" in abort
+    if case.outb.is_file():  # OpenFAST wrote what it had: the run is lost at ~2 s
+        res = engine.result(rc, case, wall, abort)
+        assert res.diverged["reason"] == abort and res.diverged["t_s"] <= 2.1
+
+
+def test_a_missing_openfast_is_one_line_and_exit_code_4(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("OPENFAST", str(tmp_path / "no" / "openfast"))
+    code = main(["run", "--engine", "openfast", "--controller", "rosco", "--profile",
+                 "realistic", "--wind", "constant", "--wind-mean", "16", "--t-final", "5",
+                 "--fault", "none", "--quiet", "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 4 and err.count("\n") == 1 and "OPENFAST=" in err
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("over, field", [
+    ({"plant": "nrel5mw"}, "plant"),
+    ({"mismatch": {"J_r": 1.1}}, "mismatch"),
+    ({"case": 3}, "case"),
+    ({"profile": "ideal"}, "profile"),
+    ({"engine": "fast"}, "engine"),
+])
+def test_keys_without_meaning_in_openfast_are_refused_naming_them(over, field):
+    cfg = {"engine": "openfast", "profile": "realistic", "controller": "physical",
+           "case": 1, "wind": WIND, **over}
+    with pytest.raises(config.ConfigError) as exc:
+        config.make_config(cfg)
+    assert exc.value.field == field
+
+
+def test_a_deck_error_is_one_line_naming_openfasts_complaint(tmp_path):
+    """A deck whose ElastoDyn file has a word where a number belongs."""
+    rc = config.make_config({"engine": "openfast", "profile": "realistic",
+                             "controller": "pi", "case": 1, "t_final_s": 2.0, "wind": WIND})
+    case = engine.prepare(rc, tmp_path / "case")
+    ed = case.fst.parent / get_value(case.fst, "EDFile")
+    ed.write_text(ed.read_text().replace("TipRad", "TipRad", 1).replace(
+        get_value(ed, "TipRad") + " ", "sixty-three ", 1))
+    wall, abort = engine.simulate(case, progress=False)
+    assert abort is not None and "while trying to read TipRad" in abort and "\n" not in abort
+    with pytest.raises(EngineError, match="TipRad"):  # no output: nothing to score
+        engine.result(rc, case, wall, abort)
