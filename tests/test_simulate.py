@@ -97,14 +97,15 @@ def test_case3_is_not_worse_than_case2():
 def test_sign_as_written_pitches_the_wrong_way_and_stalls_the_rotor():
     """Paper-notes defect 2: with the control direction as written the law pitches the wrong
     way, toward feather, while the rotor is below its reference; the rotor slows until it
-    leaves the operating envelope (below 0.3 × rated: stalled), where the run is recorded
-    as lost, with the reason. (Before the operating envelope it ran on to 90° of pitch and
-    a rotor at a fraction of rated, reported as not diverged.)"""
+    leaves the operating envelope (below 0.2 × rated: stalled; 23.4 s), where the run is
+    recorded as lost, with the reason. (Before the operating envelope it ran on to 90° of
+    pitch and a rotor at a fraction of rated, reported as not diverged; with the floor at
+    0.3 × rated it was lost at 7.2 s.)"""
     rc, res, m = _run(control_sign=1, t_final_s=30.0,
                       turbine_params={"gen_torque_law": 0.0})  # the paper's fixed torque
     lost = m["diverged"]
     assert lost is not None and "the rotor stalled" in lost["reason"], lost
-    assert 5.0 < lost["t_s"] < 10.0
+    assert 15.0 < lost["t_s"] < 30.0
     assert res.t[-1] <= lost["t_s"] and np.all(np.isfinite(res.outputs))
     beta = np.degrees(res.column("beta_1"))
     assert beta[-1] > beta[0] + 30.0  # toward feather, away from the power it needs
