@@ -33,7 +33,7 @@ TOP_KEYS = {"case", "plant", "controller", "t_final_s", "dt_s", "seed", "output_
             "control_sign", "reference_rad_s", "cp_table", "wind", "fault", "controller_params",
             "turbine_params", "initial", "label", "profile", "control_interval_s",
             "control_delay", "sensors", "mismatch", "fdi", "turbine", "loads", "rosco",
-            "tuning", "engine"}
+            "tuning", "engine", "openfast"}
 
 DEFAULTS = {
     "case": 1, "plant": "nrel5mw", "controller": "paper", "t_final_s": 60.0, "dt_s": 1e-3,
@@ -50,6 +50,9 @@ OPENFAST_REFUSED = {"plant": "the plant is the turbine's OpenFAST deck (openfast
                     "mismatch": "the plant is OpenFAST's deck: there is no model mismatch "
                                 "to set", "control_delay": "OpenFAST calls the controller "
                                 "library itself"}
+#: how an OpenFAST run gets a turbulent wind ([openfast] wind): TurbSim's full field, or
+#: the series wtftc's own plant gets, uniform over the rotor
+OPENFAST_WINDS = ("turbsim", "uniform")
 #: the values of those keys a saved OpenFAST run writes (config.toml), accepted back
 OPENFAST_ACCEPTED = {"plant": ("tower",), "mismatch": ({},), "control_delay": (False,)}
 
@@ -517,12 +520,23 @@ def _engine(raw: dict, given: dict) -> None:
         raise ConfigError("engine", engine, "wtftc (its own plants) or openfast (OpenFAST "
                           "5.0 through ServoDyn: docs/openfast.md)")
     if engine != "openfast":
+        if "openfast" in given:
+            raise ConfigError("openfast", given["openfast"], "no [openfast] table with "
+                              "engine = wtftc")
         return
     for key, why in OPENFAST_REFUSED.items():
         # what a saved run's config.toml holds is accepted back: the engine's own values
         if key in given and given[key] not in OPENFAST_ACCEPTED.get(key, ()):
             raise ConfigError(key, given[key], f"no {key} with engine = openfast: {why}")
     raw["plant"] = "tower"
+    table = raw.get("openfast", {})
+    if not isinstance(table, dict) or set(table) - {"wind"}:
+        raise ConfigError("openfast", table, "a table with the key wind")
+    raw["openfast"] = {"wind": table.get("wind", "turbsim")}
+    if raw["openfast"]["wind"] not in OPENFAST_WINDS:
+        raise ConfigError("openfast.wind", raw["openfast"]["wind"], "turbsim (NTM and ETM "
+                          "winds as TurbSim full fields, the default) or uniform (the "
+                          "series wtftc's own plant gets, uniform over the rotor)")
     if raw["case"] == ORACLE_CASE:
         raise ConfigError("case", 3, "1, 2 or 4 with engine = openfast (case 3 tells eq (49) "
                           "the fault inside wtftc's loop; a DISCON library is not told)")

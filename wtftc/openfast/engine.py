@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 import os
 import re
+import shutil
 import signal
 import subprocess
 import time
@@ -28,7 +29,7 @@ from wtftc.errors import ConfigError, EngineError
 from wtftc.model import turbine_file
 from wtftc.model.faults import Schedule
 from wtftc.openfast import case as ofcase
-from wtftc.openfast import install, plant_library
+from wtftc.openfast import install, plant_library, turbsim
 from wtftc.sim import integrate, rhs
 from wtftc.sim.rhs import PLANTS
 
@@ -81,7 +82,6 @@ def _cached_library(rc, folder: Path) -> Path:
     once per distinct sources into wtftc's cache (a campaign compiles each controller
     once; the parameter values are the .IN's)."""
     import hashlib
-    import shutil
     import tempfile
 
     from wtftc.artefacts.loader import cache_dir, compiler
@@ -109,6 +109,25 @@ def _cached_library(rc, folder: Path) -> Path:
     return folder / name
 
 
+def _wind(rc, inflow: Path, folder: Path) -> None:
+    """InflowWind's wind: a TurbSim full field for an NTM wind (``[openfast] wind =
+    "turbsim"``, the default: the run's mean at hub height, class and seed), else the run's
+    series as a uniform wind file."""
+    desc = rc.wind.describe()
+    hub = float(ofcase.get_value(inflow, "RefHt"))
+    if desc["kind"] == "ntm" and rc.raw["openfast"]["wind"] == "turbsim":
+        par = desc["parameters"]
+        bts = turbsim.generate(turbsim.Field(
+            float(par["mean_mps"]), str(par["turbulence_class"]), int(desc["seed"] or 0),
+            hub, rc.param("rotor_radius"), rc.t_final))
+        shutil.copy2(bts, folder / "wtftc_wind.bts")
+        ofcase.set_values(inflow, {"WindType": "3", "FileName_BTS": '"wtftc_wind.bts"'})
+        return
+    ofcase.write_wind(folder / "wtftc_wind.uni", rc.t_final, rc.wind)
+    ofcase.set_values(inflow, {"WindType": "2", "Filename_Uni": '"wtftc_wind.uni"',
+                               "RefHt_Uni": f"{hub:g}"})
+
+
 def interval_of(rc) -> float:
     """The controller library's call interval [s]: the run's control interval (ROSCO's
     own, 5 ms, for controller = rosco)."""
@@ -131,10 +150,7 @@ def prepare(rc, folder: Path) -> ofcase.Case:
     ofcase.initial_conditions(ed, z0[lay.index(states, "omega_r")],
                               z0[lay.block(states, "beta")], z0[lay.index(states, "tower_x")])
     ofcase.set_outlist(ed, ofcase.ELASTODYN_CHANNELS)
-    inflow = ofcase.module_file(fst, "InflowFile")
-    ofcase.write_wind(folder / "wtftc_wind.uni", rc.t_final, rc.wind)
-    ofcase.set_values(inflow, {"WindType": "2", "Filename_Uni": '"wtftc_wind.uni"',
-                               "RefHt_Uni": ofcase.get_value(inflow, "RefHt")})
+    _wind(rc, ofcase.module_file(fst, "InflowFile"), folder)
     lib, infile = controller_library(rc, folder / "controller")
     records = folder / "wtftc_plant_records.bin"
     settings = plant_library.Settings(lib, infile, records, rc.p_turbine, rc.p_sensors,
@@ -184,9 +200,13 @@ def abort_message(text: str, code: int) -> str:
     its first error line on (a message wraps over several), bells and blanks dropped."""
     text = re.sub(r"[\x00-\x08\x0b-\x1f]", " ", text.replace("\r", "\n"))
     lines = [ln.strip() for ln in text.split("\n") if ln.strip()]
-    first = next((i for i, ln in enumerate(lines)
-                  if re.search(r"error|abort|strike|wtftc|fail|invalid", ln, re.IGNORECASE)),
-                 max(0, len(lines) - 3))
+    # OpenFAST's errors name their routine's path (FAST_Solution0:...:Routine: message)
+    first = next((i for i, ln in enumerate(lines) if re.match(r"[A-Za-z_0-9]+:[A-Za-z_0-9]+:",
+                                                              ln)), None)
+    if first is None:
+        first = next((i for i, ln in enumerate(lines) if re.search(
+            r"error|abort|strike|wtftc|fail|invalid", ln, re.IGNORECASE)),
+            max(0, len(lines) - 3))
     why = " ".join(ln for ln in lines[first:first + 4] if "Aborting OpenFAST" not in ln)
     return f"OpenFAST stopped (exit code {code}): {' '.join(why.split())}"[:600]
 
