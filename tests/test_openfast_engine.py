@@ -195,3 +195,30 @@ def test_a_deck_error_is_one_line_naming_openfasts_complaint(tmp_path):
     assert abort is not None and "while trying to read TipRad" in abort and "\n" not in abort
     with pytest.raises(EngineError, match="TipRad"):  # no output: nothing to score
         engine.result(rc, case, wall, abort)
+
+
+def test_ntm_in_openfast_is_a_turbsim_field_made_once_and_shared(tmp_path):
+    """An NTM run reads TurbSim's full field (class B, the run's seed and mean at hub
+    height); a second run with the same inputs reuses the cached field."""
+    from wtftc.openfast import turbsim
+
+    rc = config.make_config({"engine": "openfast", "profile": "realistic",
+                             "controller": "rosco", "case": 1, "t_final_s": T_FINAL,
+                             "fault": [], "seed": 3,
+                             "wind": {"kind": "ntm", "mean_mps": 16.0}})
+    from wtftc.campaign import cases
+    from wtftc.results.metrics import metrics
+
+    res = cases.run(rc, progress=False, openfast_dir=tmp_path / "a")
+    inflow = tmp_path / "a" / "NRELOffshrBsline5MW_InflowWind.dat"
+    assert get_value(inflow, "WindType") == "3"
+    field = turbsim.Field(16.0, "B", 3, 90.0, 63.0, T_FINAL)
+    assert "3            RandSeed1" in field.input_text()
+    made = turbsim.field_path(field)
+    assert made.is_file() and (tmp_path / "a" / "wtftc_wind.bts").read_bytes() == \
+        made.read_bytes()
+    stamp = made.stat().st_mtime_ns
+    assert turbsim.generate(field) == made and made.stat().st_mtime_ns == stamp
+    wind = res.column("wind")
+    assert res.diverged is None and 14.0 < wind.mean() < 18.0 and wind.std() > 0.5
+    assert metrics(rc, res)["mean_electrical_power_W"] > 4.5e6
