@@ -376,6 +376,15 @@ float) set aviFAIL = -1 with a message in avcMSG; the host keeps running. No cal
 aviFAIL = 0 with a demand that is not finite.
 The controller's states advance at the call interval as in wtftc's sampled loop; the
 FDI runs inside and feeds the accommodation (wtftc's case 4). Details: docs/discon.md.
+
+THE PITCH ACTUATOR. The controller and its FDI are designed for the benchmark's pitch
+actuator between the demand and the blade: a second order (omega_n_nominal,
+zeta_nominal in the .IN: 11.11 rad/s and 0.6 for the NREL 5-MW) with a rate limit
+(pitch_rate_max, 8 deg/s) and the position limits. OpenFAST's decks have none: ElastoDyn
+applies the demand directly. In such a host this library, as exported, is unstable and its
+FDI raises alarms on every blade (measured in OpenFAST 5.0.0, issue 32). Put the actuator
+in: wtftc runs OpenFAST with its plant-side actuator library between ServoDyn and this
+library (`wtftc run --engine openfast`, docs/openfast.md).
 """
 
 
