@@ -222,3 +222,23 @@ def test_ntm_in_openfast_is_a_turbsim_field_made_once_and_shared(tmp_path):
     wind = res.column("wind")
     assert res.diverged is None and 14.0 < wind.mean() < 18.0 and wind.std() > 0.5
     assert metrics(rc, res)["mean_electrical_power_W"] > 4.5e6
+
+
+def test_compare_runs_its_matrix_in_openfast(tmp_path, capsys):
+    """`wtftc compare --engine openfast`: every cell's OpenFAST case under its folder, one
+    table; a variant told the fault is refused under a fault, naming it."""
+    out = tmp_path / "cmp"
+    code = main(["compare", "--engine", "openfast", "--controllers", "rosco", "pi",
+                 "--faults", "none", "--winds", "ntm_B_16", "--t-final", "10", "--quiet",
+                 "--out", str(out)])
+    assert code == 0
+    for c in ("rosco", "pi"):
+        assert (out / "ntm_B_16" / "none" / c / "openfast" / "NREL-5MW.outb").is_file()
+    rows = (out / "compare.csv").read_text().splitlines()
+    assert len(rows) == 3 and rows[1].split(",")[2] == "rosco"
+    assert rows[1].endswith(",") and rows[2].endswith(",0")  # ROSCO has no FDI; the PI's
+    capsys.readouterr()
+    code = main(["compare", "--engine", "openfast", "--controllers", "paper", "--faults",
+                 "runaway", "--winds", "ntm_B_16", "--out", str(tmp_path / "no")])
+    err = capsys.readouterr().err
+    assert code == 2 and "controllers = 'paper'" in err and not (tmp_path / "no").exists()

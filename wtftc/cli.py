@@ -207,6 +207,11 @@ def _add_compare(sub) -> None:
     k.add_argument("--profile", choices=("realistic", "ideal"), default="realistic",
                    help="realistic (default): 100 Hz sampled control, the benchmark's sensor "
                         "noise; ideal: continuous time, exact sensors (docs/sensors.md)")
+    k.add_argument("--engine", choices=("wtftc", "openfast"), default="wtftc",
+                   help="wtftc (default): wtftc's tower plant; openfast: OpenFAST 5.0 on the "
+                        "turbine's deck, each cell's case under <wind>/<fault>/<controller>/"
+                        "openfast/ (the variants told the fault are left out; "
+                        "docs/openfast.md)")
     k.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
@@ -479,7 +484,8 @@ def _cmd_compare(args) -> int:
     check_out_folder(args.out, "--out", legacy=compare.is_legacy_compare)
     compare.run_compare(args.out, args.controllers, args.faults, args.winds,
                                t_final=args.t_final, seed=args.seed, progress=not args.quiet,
-                               profile=args.profile, turbine=args.turbine)
+                               profile=args.profile, turbine=args.turbine,
+                               engine=args.engine)
     print((args.out / "compare.md").read_text(), end="")
     print(f"written under {args.out}/: compare.md, compare.csv, compare.png, "
           "<wind>/<fault>/<controller>/{config.toml,metrics.json}")

@@ -123,7 +123,8 @@ PLANT = "tower"
 
 
 def cell_config(controller: str, fault: str, wind: str, t_final: float, dt: float,
-                seed: int, profile: str = PROFILE, turbine: str | None = None) -> dict:
+                seed: int, profile: str = PROFILE, turbine: str | None = None,
+                engine: str = "wtftc") -> dict:
     """One cell's run configuration, on the tower plant. The turbulent wind is the
     rotor-effective one (averaged over the turbine's rotor disk: docs/wind.md). On a
     turbine other than the NREL 5-MW the gust of ``eog_rated`` comes at that turbine's
@@ -137,7 +138,8 @@ def cell_config(controller: str, fault: str, wind: str, t_final: float, dt: floa
         tab = {**tab, "rotor_radius_m": t.values["rotor_radius"]}
     cfg = variant_config(controller, FAULTS[fault], tab, t_final, dt, seed,
                          label=f"{wind}/{fault}/{controller}", profile=profile)
-    return cfg | {"plant": PLANT} | ({"turbine": turbine} if turbine else {})
+    where = {"plant": PLANT} if engine == "wtftc" else {"engine": engine}
+    return cfg | where | ({"turbine": turbine} if turbine else {})
 
 
 def variant_config(controller: str, faults: list | None, wind: dict, t_final: float,
@@ -175,10 +177,13 @@ def _row(controller, fault, wind, m) -> dict:
 
 def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_final=60.0,
                 dt=1e-3, seed=0, progress=True, profile: str = PROFILE,
-                turbine: str | None = None) -> list[dict]:
+                turbine: str | None = None, engine: str = "wtftc") -> list[dict]:
     from wtftc.sim import rosco
 
     ctrl_names = _check("controllers", controllers, CONTROLLERS)
+    fault_names = _check("faults", faults, FAULTS)
+    if engine == "openfast" and any(FAULTS[f] is not None for f in fault_names):
+        _without_oracles(ctrl_names, bool(controllers))
     reason = rosco.available()
     if reason and "rosco" in ctrl_names:
         if controllers and "rosco" in controllers:
@@ -190,17 +195,16 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
         print(f"note: {turbine}'s turbine file names no DISCON.IN for ROSCO (rosco_discon); "
               "the matrix runs without it", flush=True)
         ctrl_names.remove("rosco")
-    fault_names = _check("faults", faults, FAULTS)
     wind_names = _check("winds", winds, WINDS)
     if t_final <= ONSET_S and any(FAULTS[f] is not None for f in fault_names):
         raise ConfigError("t-final", t_final, f"more than {ONSET_S:g} s, the faults' onset "
                           "(or --faults none)")
     # validate every cell before running any
     configs = {(w, f, c): config.make_config(cell_config(c, f, w, t_final, dt, seed, profile,
-                                                                turbine))
+                                                                turbine, engine))
                for w in wind_names for f in fault_names for c in ctrl_names}
     with owned_folder(out_dir, "--out", command="compare", legacy=is_legacy_compare) as tmp:
-        rows = _run_cells(tmp, configs, progress)
+        rows = _run_cells(tmp, configs, progress, engine == "openfast")
         write_compare_table(tmp, rows)
         figure(tmp, rows, ctrl_names, fault_names, wind_names)
     return rows
@@ -213,15 +217,30 @@ def is_legacy_compare(out: Path) -> bool:
     return False
 
 
-def _run_cells(out_dir: Path, configs: dict, progress: bool) -> list[dict]:
+def _without_oracles(names: list[str], asked: bool) -> None:
+    """OpenFAST runs no oracle (case 3: eq (49) told the fault inside wtftc's loop): such
+    variants are refused when asked for, else left out of the matrix with a note."""
+    oracles = [c for c in names if CONTROLLERS[c].fault_case == ORACLE_CASE]
+    if oracles and asked:
+        raise ConfigError("controllers", ",".join(oracles), "variants OpenFAST can run "
+                          "under a fault: not those told the fault (case 3: "
+                          + ", ".join(oracles) + ")")
+    if oracles:
+        print("note: with --engine openfast the matrix runs without the variants told the "
+              "fault (" + ", ".join(oracles) + ")", flush=True)
+    names[:] = [c for c in names if c not in oracles]
+
+
+def _run_cells(out_dir: Path, configs: dict, progress: bool,
+               openfast: bool = False) -> list[dict]:
     rows = []
     n = len(configs)
     for k, ((w, f, c), rc) in enumerate(configs.items(), 1):
         if progress:
             print(f"[{k}/{n}] {w} / {f} / {c}", flush=True)
-        res = cases.run(rc, progress=False)
-        m = metrics(rc, res)
         d = Path(out_dir) / w / f / c
+        res = cases.run(rc, progress=False, openfast_dir=d / "openfast" if openfast else None)
+        m = metrics(rc, res)
         atomic_write_json(d / "metrics.json", m)
         atomic_write_text(d / "config.toml", config.to_toml(rc.raw))
         rows.append(_row(c, f, w, m))
@@ -236,19 +255,24 @@ def _fmt(v, fmt, key=""):
     return "—" if v is None else fmt.format(v / 1e6 if key in MEGA else v)
 
 
+def _alarms(row: dict, none: str) -> str:
+    """The false alarms of a row; ``none`` where no FDI ran (ROSCO in OpenFAST)."""
+    return none if row["false_alarms"] is None else str(row["false_alarms"])
+
+
 def write_compare_table(out_dir: Path, rows: list[dict]) -> str:
     head = ["wind", "fault", "controller"] + [h for _, h, _ in COLUMNS] + ["false alarms"]
     md = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         md.append("| " + " | ".join([r["wind"], r["fault"], r["controller"]]
                                     + [_fmt(r[k], f, k) for k, _, f in COLUMNS]
-                                    + [str(r["false_alarms"])]) + " |")
+                                    + [_alarms(r, "—")]) + " |")
     csv = [",".join(["wind", "fault", "controller"] + [k for k, _, _ in COLUMNS]
                     + ["false_alarms"])]
     for r in rows:
         csv.append(",".join([r["wind"], r["fault"], r["controller"]]
                             + ["" if r[k] is None else f"{r[k]:.6g}" for k, _, _ in COLUMNS]
-                            + [str(r["false_alarms"])]))
+                            + [_alarms(r, "")]))
     text = "\n".join(md) + "\n"
     atomic_write_text(Path(out_dir) / "compare.md", text)
     atomic_write_text(Path(out_dir) / "compare.csv", "\n".join(csv) + "\n")
