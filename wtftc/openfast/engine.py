@@ -140,6 +140,7 @@ def prepare(rc, folder: Path) -> ofcase.Case:
            for n in lay.names("sensor_params") if n.startswith("lag_")):
         raise ConfigError("sensors", rc.raw.get("sensors"), "no sensor lag with engine = "
                           "openfast (the plant library's sensors have none)")
+    folder = Path(folder).resolve()  # OpenFAST runs in it: every path it reads absolute
     fst = ofcase.copy_deck(deck_of(rc), folder)
     dt, dll_dt = ofcase.steps(interval_of(rc))
     ofcase.set_values(fst, {"TMax": f"{rc.t_final:.9g}", "DT": f"{dt:.9g}",
@@ -272,6 +273,9 @@ def _outputs(rc, ch: dict, rec: dict, rows: np.ndarray, names: list[str]) -> np.
         for what in LOGGED:
             if f"{what}_{j}" in rec:
                 col[f"fdi_{what}_{j}"] = _held(rec["t"], rec[f"{what}_{j}"], t)
+    # the library logs no u0: the mean of the blade demands stands for the mean pitch command
+    col["u0"] = np.mean([col[f"v_{j}"] for j in lay.blades()], axis=0)
+    col["y_d"] = np.full(len(rows), rc.reference)
     out = np.full((len(rows), len(names)), np.nan)
     for i, n in enumerate(names):
         if n in col:

@@ -411,7 +411,7 @@ void DISCON(float *avrSWAP, int *aviFAIL, char *accINFILE, char *avcOUTNAME, cha
         memcpy(infile, accINFILE, (size_t)n);
         infile[n] = 0;
         if (open_plant(s, infile, err, sizeof err)) {
-            fail(aviFAIL, avcMSG, s, "%s%.0f", err, 0);
+            fail(aviFAIL, avcMSG, s, "%s", err, 0);
             fprintf(stderr, "wtftc plant library: %s\n", err);
             release();
             return;
@@ -443,7 +443,7 @@ void DISCON(float *avrSWAP, int *aviFAIL, char *accINFILE, char *avcOUTNAME, cha
     double true_q[NQ] = {(double)s[20], (double)s[19], plant->x[0], plant->x[1], plant->x[2]};
     double read[NQ];
     if (readings(true_q, read, err, sizeof err)) {
-        fail(aviFAIL, avcMSG, s, "%s%.0f", err, 0);
+        fail(aviFAIL, avcMSG, s, "%s", err, 0);
         return;
     }
     s[20] = (float)read[0];
