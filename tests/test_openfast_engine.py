@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 from pathlib import Path
 
@@ -24,13 +25,19 @@ WIND = {"kind": "constant", "speed_mps": 16.0}
 
 @pytest.fixture(scope="module")
 def rosco_run(tmp_path_factory) -> Path:
-    """ROSCO fault-free at 16 m/s, 20 s, through `wtftc run --engine openfast`."""
-    out = tmp_path_factory.mktemp("of") / "rosco"
-    code = main(["run", "--engine", "openfast", "--controller", "rosco", "--profile",
-                 "realistic", "--wind", "constant", "--wind-mean", "16", "--t-final",
-                 str(T_FINAL), "--fault", "none", "--quiet", "--out", str(out)])
+    """ROSCO fault-free at 16 m/s, 20 s, through `wtftc run --engine openfast`, with a
+    relative --out (OpenFAST runs in another folder: every path it reads must hold)."""
+    base = tmp_path_factory.mktemp("of")
+    here = os.getcwd()
+    os.chdir(base)
+    try:
+        code = main(["run", "--engine", "openfast", "--controller", "rosco", "--profile",
+                     "realistic", "--wind", "constant", "--wind-mean", "16", "--t-final",
+                     str(T_FINAL), "--fault", "none", "--quiet", "--out", "rosco"])
+    finally:
+        os.chdir(here)
     assert code == 0
-    return out
+    return base / "rosco"
 
 
 @pytest.fixture(scope="module")
