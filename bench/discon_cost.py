@@ -58,7 +58,7 @@ def _rosco(harness: Path, tmp: Path, repeats: int) -> float | None:
 
     if rosco.available() is not None:
         return None
-    infile = rosco._discon_copy(tmp)
+    infile = rosco.discon_copy(tmp)
     lib, _ = rosco._import()
     # ROSCO reads records up to 1018 (Ext_Interface = 1): a larger swap array
     return _time(harness, Path(lib.discon_lib_path), infile, discon.CONTROL_DT, 3000,

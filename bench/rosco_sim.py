@@ -212,7 +212,7 @@ def run(wind, t_final: float, dt: float = SIM_DT, turb=None):
         try:
             t0 = time.perf_counter()
             ci = _with_init_state(ControllerInterface)(
-                rosco.discon_lib_path, param_filename=str(_rosco._discon_copy(Path(tmp))),
+                rosco.discon_lib_path, param_filename=str(_rosco.discon_copy(Path(tmp))),
                 DT=dt, pitch=pitch0, sim_name=str(Path(tmp) / "sim"), avr_size=2000,
                 init_state=(turb.rated_rotor_speed, float(ws[0]), turb.rated_torque, turb.Ng))
             setup = time.perf_counter() - t0
