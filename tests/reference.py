@@ -500,6 +500,16 @@ def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
                                                   strict=True)}
         vals["omega_g"] = float(_flat(args, "omega_g")[0])
         return {"T_gen": pair("tgen", [turbine.generator_torque()], vals)}
+    if name == "pitch_actuator":  # derivation/turbine.py pitch_actuator_rhs, in SymPy
+        vals = {e.name: float(x) for e, x in zip(dlay.TURBINE_PARAMS, _flat(args, "p_turbine"),
+                                                  strict=True)}
+        vals.update({e.name: float(x) for e, x in zip(
+            dlay.NREL_STATES[3:3 + 2 * dlay.N_BLADES], _flat(args, "x_actuator"),
+            strict=True)})
+        vals.update({s.name: float(x) for s, x in zip(
+            turbine.ACTUATOR_FAULTS, _flat(args, "actuator_faults"), strict=True)})
+        vals.update({f"v_{j + 1}": float(x) for j, x in enumerate(_flat(args, "v"))})
+        return {"x_actuator_dot": pair("actuator", turbine.pitch_actuator_rhs(), vals)}
     if name.startswith("turbine_") or name in ("aero_operating_point", "rotor_inflow"):
         return turbine_reference(name, args)
     if name == "lyapunov":
