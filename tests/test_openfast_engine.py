@@ -249,3 +249,17 @@ def test_compare_runs_its_matrix_in_openfast(tmp_path, capsys):
                  "runaway", "--winds", "ntm_B_16", "--out", str(tmp_path / "no")])
     err = capsys.readouterr().err
     assert code == 2 and "controllers = 'paper'" in err and not (tmp_path / "no").exists()
+
+
+def test_the_abort_message_is_the_last_error_unwrapped():
+    """OpenFAST's screen output: a warning routed like an error first, then the error,
+    wrapped at 98 characters mid-word; the reason is the error, whole, on one line."""
+    head = "FAST_Solution:FAST_UpdateStates:Solver_Step:FAST_UpdateStates:SrvD_UpdateStates:"
+    log = "\n".join([
+        " OpenFAST", "", " " + head + "DLL_controller_cal", " l:Using last calculated values "
+        "from DLL. Warning will not be displayed again.", "",
+        " " + head + "DLL_controller_cal", " l:scripted failure", "",
+        " OpenFAST encountered an error at simulation time 2.01 of 6 seconds.",
+        " Simulation error level: FATAL ERROR", "", "  Aborting OpenFAST."])
+    assert engine.abort_message(log, 1) == ("OpenFAST stopped (exit code 1): " + head
+                                             + "DLL_controller_call:scripted failure")

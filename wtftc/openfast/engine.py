@@ -170,6 +170,8 @@ def prepare(rc, folder: Path) -> ofcase.Case:
 
 #: what OpenFAST prints when a run ends well
 NORMAL_END = "OpenFAST terminated normally"
+#: the width at which OpenFAST wraps a message, breaking a word that does not fit
+WRAP = 98
 
 
 def simulate(case: ofcase.Case, progress: bool = True) -> tuple[float, str | None]:
@@ -201,14 +203,24 @@ def abort_message(text: str, code: int) -> str:
     its first error line on (a message wraps over several), bells and blanks dropped."""
     text = re.sub(r"[\x00-\x08\x0b-\x1f]", " ", text.replace("\r", "\n"))
     lines = [ln.strip() for ln in text.split("\n") if ln.strip()]
-    # OpenFAST's errors name their routine's path (FAST_Solution0:...:Routine: message)
-    first = next((i for i, ln in enumerate(lines) if re.match(r"[A-Za-z_0-9]+:[A-Za-z_0-9]+:",
-                                                              ln)), None)
+    # OpenFAST's messages name their routine's path (FAST_Solution0:...:Routine: message);
+    # a warning can come first, the error that stopped it is the last one
+    paths = [i for i, ln in enumerate(lines) if re.match(r"[A-Za-z_0-9]+:[A-Za-z_0-9]+:", ln)]
+    first = paths[-1] if paths else None
     if first is None:
         first = next((i for i, ln in enumerate(lines) if re.search(
             r"error|abort|strike|wtftc|fail|invalid", ln, re.IGNORECASE)),
             max(0, len(lines) - 3))
-    why = " ".join(ln for ln in lines[first:first + 4] if "Aborting OpenFAST" not in ln)
+    block = []
+    for ln in lines[first:first + 4]:
+        if block and re.match(r"OpenFAST encountered|Aborting OpenFAST", ln):
+            break
+        block.append(ln)
+    why = ""
+    for k, ln in enumerate(block):  # OpenFAST wraps its messages at 98 characters,
+        cut = k and len(block[k - 1]) >= WRAP  # mid-word where a word is longer
+        why += ("" if cut else " ") + ln
+    why = why.strip()
     return f"OpenFAST stopped (exit code {code}): {' '.join(why.split())}"[:600]
 
 
