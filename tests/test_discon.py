@@ -56,18 +56,23 @@ def _reference(tmp_path: Path, **over):
     """wtftc's own sampled run (case 4, realistic profile, exact sensors, NTM B at 16 m/s,
     100 Hz outputs unless ``over`` says otherwise) and the .IN file of its parameters. The
     controller starts as the library does, at rest on its first readings ([initial]
-    closed_loop_rest = false), not where the closed loop rests."""
+    closed_loop_rest = false), not where the closed loop rests. The .IN is for a host with
+    the benchmark actuator (demand_rate_limit = 0), as wtftc's plant is."""
     rc = config.make_config({"case": 4, "profile": "realistic", "output_rate_hz": 100.0,
                              "wind": {"kind": "ntm", "mean_mps": 16.0}, "sensors": EXACT,
                              "initial": {"closed_loop_rest": False}, **over})
-    infile = discon.write_input(rc, tmp_path / "reference.IN")
+    infile = discon.write_input(rc, tmp_path / "reference.IN", demand_rate_limit=0)
     return rc, cases.run(rc, progress=False), infile
 
 
 def _replay(host: Host, res, first_log: int = 0) -> tuple[float, dict]:
     """Call the library at every output of ``res`` (one per control interval) with the
     readings the loop read there: the largest difference of its pitch demands from the
-    loop's, relative to max(1, |v|), and the last call's result."""
+    loop's, relative to max(1, |v|), and the last call's result. The loop's demand is
+    taken within the turbine's pitch range, as its actuator takes it (commanded_input) and
+    the library writes it."""
+    ref = config.make_config({})
+    lo, hi = ref.param("pitch_min"), ref.param("pitch_max")
     worst, got = 0.0, {}
     for k, t in enumerate(res.t):
         def read(n, k=k):
@@ -75,7 +80,7 @@ def _replay(host: Host, res, first_log: int = 0) -> tuple[float, dict]:
         got = host.call(0 if k == 0 else 1, t, read("omega_r"), read("omega_g_hss"),
                         [read(f"beta_meas_{j}") for j in (1, 2, 3)], first_log=first_log)
         assert got["fail"] == 0, got["msg"]
-        v = np.array([res.column(f"v_{j}")[k] for j in (1, 2, 3)])
+        v = np.clip([res.column(f"v_{j}")[k] for j in (1, 2, 3)], lo, hi)
         worst = max(worst, float(np.abs(got["pitch"] - v).max() / max(1.0, np.abs(v).max())))
     return worst, got
 
@@ -106,6 +111,40 @@ def test_the_library_commands_what_the_sampled_loop_commands(lib, tmp_path):
     assert out["log"][3] == pytest.approx(0.0, abs=0.1)
     assert out["log"][4:6] == pytest.approx([0.5, 0.5], abs=0.05)
     assert host.call(-1, 30.0, *RATED, [0.2] * 3)["fail"] == 0
+
+
+def test_for_a_host_without_an_actuator_the_demands_are_rate_and_position_limited(
+        lib, tmp_path):
+    """Issue 32 item 6: the same replay as above (physical AFTC, NTM B 16 m/s, the default
+    fault at 20 s) with the .IN's demand_rate_limit = 1 (the export's default, for a host
+    whose blades follow the demand): every demand within [pitch_min, pitch_max] and
+    within pitch_rate_max x 10 ms of the last (float32 rounding aside), while the loop's own
+    demand moved faster than that in 1.3 % of the intervals with these exact sensors (35 %
+    with the realistic profile's noise): the limit binds. With 0 (the reference above) the
+    demands are the loop's."""
+    rc, res, _ = _reference(tmp_path, controller="physical", t_final_s=30.0)
+    infile = discon.write_input(rc, tmp_path / "host_without_actuator.IN")
+    assert "demand_rate_limit" in infile.read_text() and \
+        discon.write_input(rc, tmp_path / "a.IN", demand_rate_limit=0).read_text() != \
+        infile.read_text()
+    host = Host(lib / "libwtftc_physical.so", infile)
+    step = rc.param("pitch_rate_max") * discon.CONTROL_DT
+    lo, hi = rc.param("pitch_min"), rc.param("pitch_max")
+    demands = []
+    for k, t in enumerate(res.t):
+        def read(n, k=k):
+            return float(res.column(f"sensor_{n}_m1")[k])
+        out = host.call(0 if k == 0 else 1, t, read("omega_r"), read("omega_g_hss"),
+                        [read(f"beta_meas_{j}") for j in (1, 2, 3)])
+        assert out["fail"] == 0, out["msg"]
+        demands.append(out["pitch"])
+    d = np.array(demands)
+    assert np.all(d >= lo - 1e-7) and np.all(d <= hi + 1e-7)
+    assert np.abs(np.diff(d, axis=0)).max() <= step * (1 + 1e-5) + 1e-6
+    v = np.column_stack([res.column(f"v_{j}") for j in (1, 2, 3)])
+    assert np.mean(np.abs(np.diff(v, axis=0)) > step) > 0.005
+    assert np.abs(d - v).max() > step  # the host got a different, slower demand
+    host.call(-1, 30.0, *RATED, [0.2] * 3)
 
 
 def test_call_sequence_writes_the_records_and_a_second_first_call_restarts(lib):
@@ -621,7 +660,7 @@ def test_export_replaces_its_own_folder_whole_keeping_its_mode(lib, tmp_path, mo
     assert stat.S_IMODE(lib.stat().st_mode) == 0o777 & ~_umask()
     assert files.written_by_wtftc(lib)
 
-    def copy_build(rc, out, cc="gcc", opt="-O2"):
+    def copy_build(rc, out, cc="gcc", opt="-O2", demand_rate_limit=1):
         for p in lib.iterdir():
             if p.name != files.MARKER:
                 shutil.copy(p, out / p.name)

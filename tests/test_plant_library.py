@@ -206,3 +206,45 @@ def test_a_sensor_fault_and_the_noise_reach_the_controller(tmp_path, scripted):
     err = noisy["read_omega_r"] - (1.2 + 0.01 * noisy["t"])
     assert 0.004 < np.std(err) < 0.01  # the mean of two sensors of σ 0.01: σ/√2
     assert np.array_equal(noisy["read_omega_r"], again["read_omega_r"])
+
+
+def test_export_with_actuator_puts_the_plant_library_beside_the_controller(tmp_path,
+                                                                           monkeypatch):
+    """Issue 32 item 6: `export discon --with-actuator` (here the PI, built at -O0) adds
+    libwtftc_plant.so and its settings, every path relative to them, and the ServoDyn lines
+    name the plant library. Called as ServoDyn calls it from another folder (OpenFAST runs
+    in the deck's), it loads the controller beside it, writes its records there, and the
+    blades move no faster than the turbine's pitch_rate_max while the controller's own
+    .IN leaves the rate to the actuator (demand_rate_limit 0)."""
+    from tests.discon_host import Host
+    from wtftc.export import discon
+
+    out = discon.export("pi", tmp_path / "exp", opt="-O0", with_actuator=pl.add_to_export)
+    names = {p.name for p in out.iterdir()}
+    assert {pl.LIBRARY, pl.SETTINGS, "libwtftc_pi.so", "wtftc_pi.IN"} <= names
+    settings = (out / pl.SETTINGS).read_text()
+    assert "controller_library libwtftc_pi.so" in settings and str(tmp_path) not in settings
+    assert f'"{pl.LIBRARY}"' in (out / "servodyn_snippet.txt").read_text()
+    assert "demand_rate_limit" in (out / "wtftc_pi.IN").read_text()
+    infile = (out / "wtftc_pi.IN").read_text()
+    assert [ln.split()[1] for ln in infile.splitlines()
+            if ln.startswith("demand_rate_limit")] == ["0.0"]
+    elsewhere = tmp_path / "deck"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    host = Host(out / pl.LIBRARY, out / pl.SETTINGS)
+    rate = lay.defaults("turbine_params")[lay.index("turbine_params", "pitch_rate_max")]
+    pitch = np.full(3, 0.20)
+    blades = []
+    for k in range(200):  # 2 s at 1.15 x rated rotor speed: the PI pitches to feather
+        got = host.call(0 if k == 0 else 1, k * INTERVAL, 1.15 * 1.26711,
+                        1.15 * 1.26711 * 97.0, pitch)
+        assert got["fail"] == 0, got["msg"]
+        pitch = np.asarray(got["pitch"], dtype=float)
+        blades.append(pitch)
+    host.call(-1, 2.0, 1.26711, 1.26711 * 97.0, pitch)
+    b = np.array(blades)
+    assert np.ptp(b[:, 0]) > 0.05  # the blades moved
+    assert np.abs(np.diff(b, axis=0)).max() <= rate * INTERVAL * (1 + 1e-5) + 1e-6
+    records = pl.read_records(out / pl.RECORDS)
+    assert len(records["t"]) >= 199 and not list(elsewhere.iterdir())

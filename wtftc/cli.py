@@ -296,15 +296,26 @@ def _add_export(sub) -> None:
     e.add_argument("--interval", type=float, default=0.01,
                    help="the call interval DLL_DT [s] the library is built for (default "
                         "0.01, a multiple of 0.001 in (0, 1])")
+    e.add_argument("--with-actuator", action="store_true",
+                   help="also emit libwtftc_plant.so, the benchmark pitch actuator the "
+                        "controller is designed for, for a host without one (OpenFAST's "
+                        "decks): ServoDyn calls it and it calls the controller")
 
 
 def _cmd_export(args) -> int:
     from wtftc.export import discon
 
-    out = discon.export(args.controller, args.out, cc=args.cc, interval=args.interval)
+    hook = None
+    if args.with_actuator:
+        from wtftc.openfast import plant_library
+
+        hook = plant_library.add_to_export
+    out = discon.export(args.controller, args.out, cc=args.cc, interval=args.interval,
+                        with_actuator=hook)
     cp = [discon.cp_file_name(discon.run_config(args.controller, args.interval).loop.table)] \
         if discon.needs_cp(args.controller) else []
-    files = [f"libwtftc_{args.controller}.so", f"wtftc_{args.controller}.IN", *cp,
+    plant = [plant_library.LIBRARY, plant_library.SETTINGS] if args.with_actuator else []
+    files = [f"libwtftc_{args.controller}.so", f"wtftc_{args.controller}.IN", *cp, *plant,
              "servodyn_snippet.txt", "README.txt"]
     print(f"written under {out}/: {', '.join(files)} (call interval {args.interval:g} s)")
     return 0

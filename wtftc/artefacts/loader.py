@@ -26,6 +26,7 @@ import subprocess
 import sys
 import tempfile
 import warnings
+from collections.abc import Callable
 from functools import cache
 from pathlib import Path
 
@@ -297,6 +298,28 @@ def compile_cached(c_path: Path, cc: str, flags: tuple[str, ...] = CFLAGS) -> Pa
     """The verified .so of c_path: from the cache, rebuilt there if damaged, compiled once
     if missing. Raises CompileError (naming CC or WTFTC_CACHE) where that is impossible."""
     return _build(c_path, cc, flags, None)
+
+
+def built_once(folder: Path, name: str, make: Callable[[Path], None]) -> Path:
+    """``folder/name``, built by ``make(tmp)`` into a fresh hidden folder beside ``folder``
+    the first time and renamed into place whole (never half-built; a concurrent builder's
+    folder, renamed first, is taken as it is): a library of several sources compiled once
+    per key (``folder`` names the key) into wtftc's cache."""
+    out = Path(folder) / name
+    if out.is_file():
+        return out
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}-", dir=folder.parent))
+    try:
+        make(tmp)
+        try:
+            tmp.rename(folder)
+        except OSError:  # another process built it first
+            if not out.is_file():
+                raise
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return out
 
 
 def compiled_library(c_path: Path, flags: tuple[str, ...] = CFLAGS,

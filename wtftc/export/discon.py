@@ -45,6 +45,7 @@ import shutil
 import signal
 import subprocess
 import threading
+from collections.abc import Callable
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
@@ -82,6 +83,23 @@ SCHED_MAX = 100
 SCHED_LEN = 1 + 3 * (SCHED_MAX - 1)
 #: the .IN key naming the Cp_Ct_Cq file (ROSCO's DISCON.IN key of the same file)
 CP_KEY = "PerfFileName"
+
+
+#: the library's own settings after the layout's parameters: not the controller's, the
+#: host's (what the library does with its demands before it writes them)
+INTERFACE_SECTION = "interface"
+#: demand_rate_limit: 1, the demands' rate is limited to pitch_rate_max as well as their
+#: position to [pitch_min, pitch_max] (a host whose blades follow the demand directly,
+#: as ElastoDyn's do: the export's default); 0, position only (a host with the benchmark
+#: actuator, whose own rate limit the controller and the FDI are designed for: wtftc's
+#: plant library in OpenFAST, wtftc's own plants)
+DEMAND_RATE_LIMIT = discon_checks.DEMAND_RATE_LIMIT
+
+
+def _interface_params(demand_rate_limit: int) -> list[tuple[str, float, str, str]]:
+    return [(DEMAND_RATE_LIMIT, float(demand_rate_limit), "-",
+             "1: demands rate-limited to pitch_rate_max (a host with no pitch actuator); 0: "
+             "position limits only (a host with the benchmark actuator; docs/discon.md)")]
 
 
 def _groups(controller: str) -> dict[str, str]:
@@ -157,15 +175,18 @@ def run_config(controller: str, interval: float = CONTROL_DT) -> config.RunConfi
                           f"{exc.allowed}") from None
 
 
-def parameters(rc: config.RunConfig) -> list[tuple[str, float, str, str]]:
-    """(name, value, unit, source) of every parameter, in the library's order."""
+def parameters(rc: config.RunConfig, demand_rate_limit: int = 1
+               ) -> list[tuple[str, float, str, str]]:
+    """(name, value, unit, source) of every parameter, in the library's order: the
+    layout's (the controller's, the FDI's, the sensors', the turbine's, the reference),
+    then the library's own settings (:data:`DEMAND_RATE_LIMIT`)."""
     values = {"controller": rc.p_ctrl, "fdi_params": rc.p_fdi, "sensor_params": rc.p_sensors,
               "turbine_params": rc.p_turbine, "reference": rc.yd}
     out = []
     for section, group in _groups(rc.loop.controller).items():
         for e, v in zip(lay.layout()[group], values[section], strict=True):
             out.append((e["name"], float(v), e["unit"], e.get("doc", "")))
-    return out
+    return out + _interface_params(demand_rate_limit)
 
 
 def _split(p: ca.SX, controller: str) -> dict[str, ca.SX]:
@@ -283,6 +304,7 @@ def _meta_header(rc: config.RunConfig, params: list) -> str:
     fs = sched_functions(loop.controller)
     work = {k: max(getattr(f, f"sz_{k}")() for f in fs) for k in ("arg", "res", "iw", "w")}
     names = ",\n    ".join(f'"{n}"' for n, *_ in params)
+    names_list = [n for n, *_ in params]
     logged = [f"fdi_{k}_{j}" for k in LOGGED for j in lay.blades()] if loop.fdi else []
     return f"""/* wtftc export discon: the sizes and parameter names of {loop.controller} */
 #define WTFTC_CONTROLLER "{loop.controller}"
@@ -303,6 +325,11 @@ def _meta_header(rc: config.RunConfig, params: list) -> str:
 #define WTFTC_SCHED_W {work["w"]}
 #define WTFTC_MAX_IN_BYTES {files.MAX_TOML_BYTES}LL
 #define WTFTC_MAX_CP_BYTES {files.MAX_TABLE_BYTES}LL
+/* the demands' limits (the turbine's) and the library's rate-limit setting, by index */
+#define WTFTC_PITCH_MIN {names_list.index("pitch_min")}
+#define WTFTC_PITCH_MAX {names_list.index("pitch_max")}
+#define WTFTC_PITCH_RATE_MAX {names_list.index("pitch_rate_max")}
+#define WTFTC_DEMAND_RATE_LIMIT {names_list.index(DEMAND_RATE_LIMIT)}
 static const char *const WTFTC_PARAM_NAMES[WTFTC_N_PARAMS] = {{
     {names}
 }};
@@ -327,18 +354,22 @@ def input_file(rc: config.RunConfig, params: list, cp_file: str = CP_FILE) -> st
     section = None
     groups = _groups(rc.loop.controller)
     owner = {e["name"]: s for s, g in groups.items() for e in lay.layout()[g]}
+    groups = groups | {INTERFACE_SECTION: "the library's own"}
     for name, value, unit, doc in params:
-        if owner[name] != section:
-            section = owner[name]
+        if owner.get(name, INTERFACE_SECTION) != section:
+            section = owner.get(name, INTERFACE_SECTION)
             lines += ["", f"! --- {section} ({groups[section]}) ---"]
         lines.append(f"{name:<28s} {value!r:>24s}  ! {unit} - {doc}".rstrip())
     return "\n".join(lines) + "\n"
 
 
-def servodyn_snippet(controller: str, interval: float = CONTROL_DT) -> str:
-    """The ServoDyn lines a user pastes (OpenFAST ServoDyn input file, v3.x)."""
-    lib, infile = f"libwtftc_{controller}.so", f"wtftc_{controller}.IN"
-    return f"""! ServoDyn lines for libwtftc_{controller}.so (paste over the same keys)
+def servodyn_snippet(controller: str, interval: float = CONTROL_DT,
+                     lib: str | None = None, infile: str | None = None) -> str:
+    """The ServoDyn lines a user pastes (OpenFAST ServoDyn input file, v3.x): ServoDyn
+    calls ``lib`` with ``infile`` (default: the controller's library and .IN)."""
+    lib = lib or f"libwtftc_{controller}.so"
+    infile = infile or f"wtftc_{controller}.IN"
+    return f"""! ServoDyn lines for {lib} (paste over the same keys)
 ---------------------- PITCH CONTROL -------------------------------------------
           5   PCMode       - Pitch control mode {{5: Bladed-style DLL}} (switch)
 ---------------------- GENERATOR AND TORQUE CONTROL ----------------------------
@@ -381,10 +412,16 @@ THE PITCH ACTUATOR. The controller and its FDI are designed for the benchmark's 
 actuator between the demand and the blade: a second order (omega_n_nominal,
 zeta_nominal in the .IN: 11.11 rad/s and 0.6 for the NREL 5-MW) with a rate limit
 (pitch_rate_max, 8 deg/s) and the position limits. OpenFAST's decks have none: ElastoDyn
-applies the demand directly. In such a host this library, as exported, is unstable and its
-FDI raises alarms on every blade (measured in OpenFAST 5.0.0, issue 32). Put the actuator
-in: wtftc runs OpenFAST with its plant-side actuator library between ServoDyn and this
-library (`wtftc run --engine openfast`, docs/openfast.md).
+applies the demand directly. Without an actuator this controller was unstable in
+OpenFAST 5.0.0 and its FDI raised alarms on every blade (issue 32), its demands reaching
+-179 to 712 deg. So the library limits what it writes: every demand within
+pitch_min..pitch_max, and, with demand_rate_limit = 1 in the .IN (the default), within
+pitch_rate_max x DLL_DT of the last one, the rate the missing actuator would have
+allowed. That keeps the blades in range; it does not make the design right for such a
+host. Put the actuator in: `wtftc export discon --with-actuator` adds
+libwtftc_plant.so, wtftc's plant-side pitch actuator (its settings in wtftc_plant.in),
+which ServoDyn calls instead and which calls this library (demand_rate_limit = 0 then);
+`wtftc run --engine openfast` runs OpenFAST so (docs/openfast.md).
 """
 
 
@@ -421,11 +458,12 @@ def cp_file_name(table: CpTable) -> str:
     return Path(table.source).name if Path(table.source).suffix else CP_FILE
 
 
-def write_input(rc: config.RunConfig, path: Path) -> Path:
+def write_input(rc: config.RunConfig, path: Path, demand_rate_limit: int = 1) -> Path:
     """The .IN file of ``rc``'s parameters at ``path``, and beside it the Cp file it names
-    when the controller needs one."""
+    when the controller needs one. ``demand_rate_limit``: 1 for a host without a pitch
+    actuator (the default), 0 for one with the benchmark actuator (:data:`DEMAND_RATE_LIMIT`)."""
     cp = cp_file_name(rc.loop.table)
-    path.write_text(input_file(rc, parameters(rc), cp), encoding="utf-8")
+    path.write_text(input_file(rc, parameters(rc, demand_rate_limit), cp), encoding="utf-8")
     if needs_cp(rc.loop.controller):
         _write_table(rc.loop.table, path.parent / cp)
     return path
@@ -543,13 +581,14 @@ def compile_command(out: Path, controller: str, cc: str = "gcc", opt: str = "-O2
             *(str(out / n) for n in SOURCES), "-lm"]
 
 
-def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2") -> None:
+def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2",
+          demand_rate_limit: int = 1) -> None:
     """Generate the C of the library's functions into ``out`` and compile it there."""
     write_sources(rc, out)
     lib = out / f"libwtftc_{rc.loop.controller}.so"
     compile_library(compile_command(out, rc.loop.controller, cc, opt), cc)
     check_library(lib, cc)
-    write_input(rc, out / f"wtftc_{rc.loop.controller}.IN")
+    write_input(rc, out / f"wtftc_{rc.loop.controller}.IN", demand_rate_limit)
     (out / "servodyn_snippet.txt").write_text(servodyn_snippet(rc.loop.controller,
                                                                rc.control_interval))
     logged = ", ".join(f"fdi_{k}_{j}" for k in LOGGED for j in lay.blades()) \
@@ -595,14 +634,21 @@ def _earlier_export(folder: Path) -> bool:
 
 
 def export(controller: str, out_dir: Path, cc: str = "gcc", opt: str = "-O2",
-           interval: float = CONTROL_DT) -> Path:
+           interval: float = CONTROL_DT,
+           with_actuator: Callable[[config.RunConfig, Path], None] | None = None) -> Path:
     """Build the library of ``controller`` into ``out_dir`` as a whole (wtftc.files.
     owned_folder): in a hidden folder beside it, swapped in when every file is written.
     ``out_dir`` may be new, empty, or a folder an export wrote and nobody changed since
     (its marker; or :func:`_earlier_export`); anything else is refused in one line naming
-    --out, nothing touched."""
+    --out, nothing touched.
+
+    ``with_actuator`` (``export discon --with-actuator``: wtftc.openfast.plant_library.
+    add_to_export) adds the plant-side actuator library the controller is designed for;
+    the .IN then leaves the demands' rate to that actuator (demand_rate_limit = 0)."""
     rc = run_config(controller, interval)
     with files.owned_folder(out_dir, "--out", command="export discon",
                             legacy=_earlier_export) as tmp:
-        build(rc, tmp, cc, opt)
+        build(rc, tmp, cc, opt, demand_rate_limit=0 if with_actuator else 1)
+        if with_actuator is not None:
+            with_actuator(rc, tmp)
     return Path(out_dir).resolve()

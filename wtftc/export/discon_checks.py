@@ -25,6 +25,8 @@ from wtftc.sim import rhs
 #: (wtftc.config.FDI_KEYS)
 FDI_FROM_CONFIG = {"fdi_delta": "model_uncertainty",
                    "fdi_delta_rate_limited": "rate_limited_uncertainty"}
+#: the library's own setting, after the layout's parameters (wtftc.export.discon)
+DEMAND_RATE_LIMIT = "demand_rate_limit"
 #: the FDI's parameter that is the call interval (wtftc.sim.fdi.run_params sets it so)
 FDI_INTERVAL = "fdi_T_s"
 
@@ -98,12 +100,15 @@ def checks(rc: config.RunConfig, groups: dict[str, str]) -> dict:
                 rng = rng or (-math.inf, math.inf, True, True)
                 text = _range_text(rng, unit)
             ranges.append((name, *rng, text, unit == "rad" and math.isfinite(rng[1])))
+    ranges.append((DEMAND_RATE_LIMIT, 0.0, 1.0, False, False, "0 or 1", False))
     names = [r[0] for r in ranges]
     order = list(config.TURBINE_ORDER)
     order += [(n, n.replace("pitch_min", "pitch_max")) for n in names
               if n.endswith("pitch_min") and n.replace("pitch_min", "pitch_max") in names
               and (n, n.replace("pitch_min", "pitch_max")) not in order]
     one_of = [(f, (0.0, 1.0), "0 or 1 (docs/running.md)") for f in config.TURBINE_FLAGS]
+    one_of.append((DEMAND_RATE_LIMIT, (0.0, 1.0), "0 (a host with the benchmark pitch "
+                   "actuator) or 1 (a host without one; docs/discon.md)"))
     if "control_sign" in names:  # wtftc.config._control_sign
         one_of.append(("control_sign", (-1.0, 1.0), "-1 (corrected, default) or +1 (as "
                        "written, stalls the rotor: paper-notes defect 2)"))

@@ -7,8 +7,10 @@
  *          #2 time, #3 interval, #4/#33/#34 blade pitch [rad], #20 generator speed
  *          [rad/s, HSS], #21 rotor speed [rad/s], #28 Ptch_Cntrl (must be 1: individual
  *          pitch), #50 accINFILE length, #63 first logging record;
- *   write: #42-#44 pitch demands [rad], #45 = #42, #47 generator torque demand [N m,
- *          HSS], #35 = 1, #36 = 0, #55 = #56 = 0, #65 = logged channels.
+ *   write: #42-#44 pitch demands [rad] (within pitch_min..pitch_max, and rate-limited
+ *          to pitch_rate_max when demand_rate_limit = 1: limit_demands), #45 = #42, #47
+ *          generator torque demand [N m, HSS], #35 = 1, #36 = 0, #55 = #56 = 0, #65 =
+ *          logged channels.
  * Every error sets aviFAIL < 0 with a NUL-terminated message in avcMSG and returns; the
  * host is never crashed and no record is written from a half-read state. avcMSG gets at
  * most #49 bytes, its NUL included (ServoDyn: its message length + 1); nothing when #49
@@ -55,6 +57,7 @@ typedef struct {
     double x_ctrl[WTFTC_N_CTRL];
     double x_fdi[WTFTC_N_FDI > 0 ? WTFTC_N_FDI : 1];
     double sched[WTFTC_SCHED_LEN]; /* the ∂T/∂β schedule's runtime table (discon.py) */
+    double last[3];     /* the demands written at the last call [rad] (the rate limit) */
     double *w;          /* CasADi work arrays, sized for the larger of the two functions */
     casadi_int *iw;
     const casadi_real **arg;
@@ -438,6 +441,9 @@ static int first_call(float *avrSWAP, const char *accINFILE, char *err, size_t n
     }
     double rd[WTFTC_N_READINGS];
     if (readings(avrSWAP, rd, err, n_err) != 0) return -1;
+    /* the rate limit starts from where the blades are (#4, #33, #34) */
+    instance->last[0] = avrSWAP[3], instance->last[1] = avrSWAP[32],
+    instance->last[2] = avrSWAP[33];
     instance->arg[0] = rd;
     instance->arg[1] = instance->p;
     instance->arg[2] = instance->sched;
@@ -457,6 +463,28 @@ static int first_call(float *avrSWAP, const char *accINFILE, char *err, size_t n
         }
     }
     return 0;
+}
+
+/* The demands as the host gets them: within the turbine's [pitch_min, pitch_max], and,
+ * with demand_rate_limit = 1 (a host whose blades follow the demand: no actuator), within
+ * pitch_rate_max x the interval of the last call's. The controller and its FDI keep the
+ * demand they computed: with the benchmark actuator in the host the position limit is
+ * the one wtftc's plant applies to the actuator's input (derivation/turbine.py,
+ * commanded_input); without one, the rate limit is what the missing actuator would have
+ * limited (docs/discon.md). */
+static void limit_demands(double *pitch)
+{
+    const double *p = instance->p;
+    double lo = p[WTFTC_PITCH_MIN], hi = p[WTFTC_PITCH_MAX];
+    double step = p[WTFTC_PITCH_RATE_MAX] * WTFTC_DT;
+    for (int k = 0; k < 3; k++) {
+        double v = pitch[k];
+        if (p[WTFTC_DEMAND_RATE_LIMIT] != 0.0) {
+            double a = instance->last[k] - step, b = instance->last[k] + step;
+            v = v < a ? a : v > b ? b : v;
+        }
+        pitch[k] = v < lo ? lo : v > hi ? hi : v;
+    }
 }
 
 /* Whether v converts to a finite float (beyond FLT_MAX the conversion is undefined in C,
@@ -509,6 +537,8 @@ static int step(float *avrSWAP, char *err, size_t n_err)
         }
     memcpy(instance->x_ctrl, xc, sizeof xc);
     memcpy(instance->x_fdi, xf, sizeof(double) * WTFTC_N_FDI);
+    limit_demands(pitch);
+    memcpy(instance->last, pitch, sizeof instance->last);
     avrSWAP[41] = (float)pitch[0];
     avrSWAP[42] = (float)pitch[1];
     avrSWAP[43] = (float)pitch[2];

@@ -73,8 +73,9 @@ def controller_library(rc, folder: Path) -> tuple[Path, Path]:
     if rc.controller not in discon.exportable():
         raise ConfigError("controller", rc.controller, "rosco or one of "
                           + ", ".join(discon.exportable()) + " with engine = openfast")
+    # the plant library puts the benchmark actuator in: no rate limit on the demands
     return _cached_library(rc, folder), discon.write_input(
-        rc, folder / f"wtftc_{rc.controller}.IN")
+        rc, folder / f"wtftc_{rc.controller}.IN", demand_rate_limit=0)
 
 
 def _cached_library(rc, folder: Path) -> Path:
@@ -82,30 +83,21 @@ def _cached_library(rc, folder: Path) -> Path:
     once per distinct sources into wtftc's cache (a campaign compiles each controller
     once; the parameter values are the .IN's)."""
     import hashlib
-    import tempfile
 
-    from wtftc.artefacts.loader import cache_dir, compiler
+    from wtftc.artefacts.loader import built_once, cache_dir, compiler
     from wtftc.export import discon
 
     sources = discon.write_sources(rc, folder)
     key = hashlib.sha256(b"".join(p.read_bytes() for p in sources)).hexdigest()[:20]
     name = f"libwtftc_{rc.controller}.so"
-    cached = cache_dir() / f"discon-{key}" / name
-    if not cached.is_file():
-        cc = compiler() or "gcc"
-        cached.parent.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=".discon-", dir=cached.parent.parent))
-        try:
-            discon.compile_library(discon.compile_command(folder, rc.controller, cc,
-                                                          lib=tmp / name), cc)
-            discon.check_library(tmp / name, cc)
-            try:
-                tmp.rename(cached.parent)
-            except OSError:  # another run built it first
-                pass
-        finally:
-            shutil.rmtree(tmp, ignore_errors=True)
-    shutil.copy2(cached, folder / name)
+    cc = compiler() or "gcc"
+
+    def make(tmp: Path) -> None:
+        discon.compile_library(discon.compile_command(folder, rc.controller, cc,
+                                                      lib=tmp / name), cc)
+        discon.check_library(tmp / name, cc)
+
+    shutil.copy2(built_once(cache_dir() / f"discon-{key}", name, make), folder / name)
     return folder / name
 
 

@@ -207,6 +207,20 @@ static int read_settings(const char *path, char *err, size_t n_err)
         }
     }
     fclose(f);
+    /* a relative path is the settings file's folder's (an export's files lie together) */
+    const char *slash = strrchr(path, '/');
+    int dir_len = slash ? (int)(slash - path) + 1 : 0;
+    char *paths[] = {plant->lib_path, plant->ctrl_infile, plant->records_path,
+                     plant->noise_path};
+    for (size_t i = 0; i < sizeof paths / sizeof *paths; i++) {
+        char joined[PATH_LEN];
+        if (!paths[i][0] || paths[i][0] == '/' || dir_len == 0) continue;
+        if (snprintf(joined, PATH_LEN, "%.*s%s", dir_len, path, paths[i]) >= PATH_LEN) {
+            snprintf(err, n_err, "%s: the path '%s' is too long beside it", path, paths[i]);
+            return -1;
+        }
+        memcpy(paths[i], joined, PATH_LEN);
+    }
     if (!plant->lib_path[0] || !plant->records_path[0]) {
         snprintf(err, n_err, "%s names no controller_library or no records file", path);
         return -1;
@@ -293,10 +307,10 @@ static void actuator_step(double t)
         plant->x[i] += h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
 }
 
-/* A lock "wherever the blade is" whose onset falls in [t0, t1) takes its blade's angle
- * at t0, the start of the control interval that holds it (as wtftc's sampled loop binds
- * it: Schedule.bind_current_angles). */
-static void bind_locks(double t0, double t1)
+/* A lock "wherever the blade is" whose onset falls before t1, the end of the control
+ * interval that starts now, takes its blade's angle now, at the start of that interval
+ * (as wtftc's sampled loop binds it: Schedule.bind_current_angles). */
+static void bind_locks(double t1)
 {
     for (int k = 0; k < plant->n_faults; k++) {
         Fault *q = &plant->faults[k];
@@ -305,7 +319,6 @@ static void bind_locks(double t0, double t1)
             q->bound = 1;
         }
     }
-    (void)t0;
 }
 
 /* The readings handed to the controller: every quantity's two sensors through wtftc's
@@ -431,7 +444,7 @@ void DISCON(float *avrSWAP, int *aviFAIL, char *accINFILE, char *avcOUTNAME, cha
     }
     double t = plant->t0 + (plant->step + n) * plant->dt_a;
     if (plant->actuator_on) {
-        bind_locks(plant->t0 + plant->step * plant->dt_a, t);
+        bind_locks(t);
         for (long i = 0; i < n; i++)
             actuator_step(plant->t0 + (plant->step + i) * plant->dt_a);
     } else if (status != 0) {

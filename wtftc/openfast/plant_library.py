@@ -17,7 +17,6 @@ import hashlib
 import math
 import os
 import shutil
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +25,7 @@ import casadi as ca
 import numpy as np
 
 from wtftc.artefacts import layout as lay
-from wtftc.artefacts.loader import cache_dir, compiler, load, manifest
+from wtftc.artefacts.loader import built_once, cache_dir, compiler, load, manifest
 from wtftc.errors import EngineError
 from wtftc.model.faults import HYDRAULIC, Fault, Schedule
 
@@ -78,37 +77,55 @@ def _key() -> str:
 def build() -> Path:
     """``libwtftc_plant.so``, compiled into wtftc's cache once per source and generated
     code (a fresh folder renamed into place: never half-built)."""
-    folder = cache_dir() / f"plant_library-{_key()}"
-    lib = folder / "libwtftc_plant.so"
-    if lib.is_file():
-        return lib
     cc = compiler()
     if cc is None:
         raise EngineError("the plant library needs a C compiler: set CC or install gcc")
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=".plant-", dir=folder.parent))
-    try:
+
+    def make(tmp: Path) -> None:
+        from wtftc.export.discon import compile_library
+
         cg = ca.CodeGenerator("wtftc_plant_gen.c", {"with_header": False, "verbose": False})
         for name, new in FUNCTIONS.items():
             cg.add(_renamed(name, new))
         cg.generate(str(tmp) + "/")
         (tmp / "wtftc_plant_meta.h").write_text(_meta_header())
         shutil.copy(SOURCE, tmp / SOURCE.name)
-        from wtftc.export.discon import compile_library
-
         compile_library([cc, "-O2", "-std=c99", "-shared", "-fPIC", "-fvisibility=hidden", "-o",
-                         str(tmp / lib.name), str(tmp / "wtftc_plant_gen.c"),
+                         str(tmp / LIBRARY), str(tmp / "wtftc_plant_gen.c"),
                          str(tmp / SOURCE.name), "-ldl", "-lm"], cc)
-        try:
-            tmp.rename(folder)
-        except OSError:  # another process built it first
-            if not lib.is_file():
-                raise
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return lib
+
+    return built_once(cache_dir() / f"plant_library-{_key()}", LIBRARY, make)
 
 
+#: the files `wtftc export discon --with-actuator` adds beside the controller's
+LIBRARY, SETTINGS, RECORDS = "libwtftc_plant.so", "wtftc_plant.in", "wtftc_plant_records.bin"
+
+
+def add_to_export(rc, folder: Path) -> None:
+    """`wtftc export discon --with-actuator`: the plant library and its settings beside an
+    exported controller in ``folder`` (wtftc.export.discon.export calls this before the
+    folder is swapped in). ServoDyn calls the plant library, which calls the controller:
+    the turbine's benchmark actuator (rc's turbine parameters), no fault (a ``fault`` line
+    added by hand adds one: docs/discon.md), sensors exact (no noise table). Its records
+    go to ``wtftc_plant_records.bin`` beside the settings; every path is relative to them."""
+    from wtftc.export import discon
+
+    c = rc.loop.controller
+    shutil.copy2(build(), folder / LIBRARY)
+    Settings(folder / f"libwtftc_{c}.so", folder / f"wtftc_{c}.IN", folder / RECORDS,
+             rc.p_turbine, rc.p_sensors, beside=True).write(folder / SETTINGS)
+    (folder / "servodyn_snippet.txt").write_text(
+        discon.servodyn_snippet(c, rc.control_interval, LIBRARY, SETTINGS))
+    with open(folder / "README.txt", "a", encoding="utf-8") as f:
+        f.write(f"""
+WITH THE ACTUATOR (--with-actuator). {LIBRARY} is wtftc's plant-side pitch actuator
+library: ServoDyn calls it (servodyn_snippet.txt), it reads {SETTINGS}, passes the
+readings to libwtftc_{c}.so and drives each blade through the benchmark actuator (the
+turbine parameters in {SETTINGS}: omega_n, zeta, rate and position limits), integrated
+at {ACTUATOR_DT:g} s inside each call. Sensors: exact. Faults: none; a line
+'fault <blade 1-3> <1 loss of effectiveness|2 lock|3 hydraulic> <onset s> <end s> <ramp s>
+<rho|angle rad|omega_n> <0|0|zeta>' adds one. Each call appends a row to {RECORDS}.
+""")
 def _numbers(values) -> str:
     return " ".join(repr(float(v)) for v in np.asarray(values, dtype=float).ravel())
 
@@ -148,13 +165,18 @@ class Settings:
     noise_columns: int = 0
     actuator: bool = True
     actuator_dt: float = ACTUATOR_DT
+    #: name the files by their names only: they lie beside the settings file (an export)
+    beside: bool = False
+
+    def _path(self, p: Path) -> str:
+        return Path(p).name if self.beside else str(Path(p).resolve())
 
     def text(self) -> str:
         sf0 = Schedule([], tuple(self.p_turbine)).sensor(np.zeros(1))[:, 0]
         lines = ["# wtftc plant-side actuator, fault and sensor library (wtftc.openfast)",
-                 f"controller_library {Path(self.controller_library).resolve()}",
-                 f"controller_infile {Path(self.controller_infile).resolve()}",
-                 f"records {Path(self.records).resolve()}",
+                 f"controller_library {self._path(self.controller_library)}",
+                 f"controller_infile {self._path(self.controller_infile)}",
+                 f"records {self._path(self.records)}",
                  f"actuator {int(self.actuator)}",
                  f"actuator_dt {self.actuator_dt!r}",
                  f"p_turbine {_numbers(self.p_turbine)}",
@@ -162,7 +184,7 @@ class Settings:
                  f"sensor_faults {_numbers(sf0)}",
                  *fault_lines(self.faults, self.p_turbine)]
         if self.noise is not None:
-            lines += [f"noise {Path(self.noise).resolve()}",
+            lines += [f"noise {self._path(self.noise)}",
                       f"noise_columns {self.noise_columns}"]
         return "\n".join(lines) + "\n"
 
