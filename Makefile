@@ -54,7 +54,7 @@ lint: setup
 run: setup
 	$(VENV)/bin/wtftc cases --out results
 
-bench: setup
+bench: setup openfast
 	$(PY) -m bench --out out/bench
 
 verify: setup check-generated

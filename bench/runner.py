@@ -797,12 +797,15 @@ def run(out: Path, loops: list[str] | None = None, quick: bool = False) -> list[
     reports = [bench_loop(name, quick, cache=out / "cache") for name in loops]
     from bench import rosco_loop
     from bench.discon_cost import call_costs
+    from bench.openfast_cost import rows as engine_rows
 
     log("ROSCO in the loop ...")
     rosco = rosco_loop.rows(quick)
     extra = {"date": time.strftime("%Y-%m-%d %H:%M"), "machine": machine(),
              "generated functions": len(layout_json()["functions"]), **build,
              **call_costs(repeats=2 if quick else 5)}
+    log("the engines: OpenFAST and wtftc's tower plant, one scenario ...")
+    extra.update(engine_rows(repeats=1 if quick else 3))
     text = markdown(reports, extra, (rosco_loop.markdown(rosco), goals(
         reports, rosco[0] if rosco else None, build)))
     atomic_write_text(out / "bench.md", text)
