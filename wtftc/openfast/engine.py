@@ -138,11 +138,14 @@ def prepare(rc, folder: Path) -> ofcase.Case:
     ofcase.set_values(fst, {"TMax": f"{rc.t_final:.9g}", "DT": f"{dt:.9g}",
                             "OutFileFmt": "2", "DT_Out": '"default"', "Echo": "False"})
     ed = ofcase.module_file(fst, "EDFile")
+    ofcase.clamp_fixed_bottom(fst, ed)
     z0 = rc.initial_state()
     states = PLANTS["tower"]["states"]
     ofcase.initial_conditions(ed, z0[lay.index(states, "omega_r")],
                               z0[lay.block(states, "beta")], z0[lay.index(states, "tower_x")])
     ofcase.set_outlist(ed, ofcase.ELASTODYN_CHANNELS)
+    for module in (ed, ofcase.module_file(fst, "AeroFile")):
+        ofcase.no_node_outputs(module)
     _wind(rc, ofcase.module_file(fst, "InflowFile"), folder)
     lib, infile = controller_library(rc, folder / "controller")
     records = folder / "wtftc_plant_records.bin"
