@@ -15,7 +15,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError, range_text
-from wtftc.model import tuning, turbine_file
+from wtftc.model import tuning, turbine_file, wind_field
 from wtftc.model.cp_table import nrel5mw_cp_table, read_cp_table
 from wtftc.model.faults import DEFAULT_FAULT, parse_faults
 from wtftc.model.wind import wind_from_config
@@ -328,6 +328,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     p_ctrl, p_turbine = _parameters(raw, controller, turbine)
     ref = _reference(raw, p_turbine)
     wind = wind_from_config(_wind_table(raw, p_turbine), t_final=t_final, seed=seed)
+    wind = _turbsim_wind(wind, turbine, p_turbine, t_final)
     faults = _faults(raw, case, t_final)
     transient_window(raw, t_final, first_event(faults, wind))
     offset, rest = _initial(raw)
@@ -344,6 +345,35 @@ def make_config(cfg: dict | None = None) -> RunConfig:
                      p_plant=p_plant,
                      cp_scale=cp_scale, p_fdi=p_fdi, test_pulse=test_pulse,
                      rosco_discon=turbine.rosco_discon, rosco_retune=retune)
+
+
+def openfast_deck(turbine: turbine_file.Turbine) -> Path | None:
+    """The turbine's OpenFAST deck (its main file; ``rosco:`` names one in ROSCO's
+    wheel), None when its file names none."""
+    if not turbine.openfast_deck:
+        return None
+    if turbine.openfast_deck.startswith("rosco:"):
+        from wtftc.sim.rosco import discon_path
+
+        return discon_path(turbine.openfast_deck)
+    return Path(turbine.openfast_deck)
+
+
+def _turbsim_wind(wind, turbine: turbine_file.Turbine, p_turbine: np.ndarray, t_final: float):
+    """An NTM with ``field = "turbsim"`` read from TurbSim's field, the very one the
+    OpenFAST engine runs on (the same wtftc.model.wind_field.turbsim_field); any other
+    wind as it is."""
+    desc = wind.describe()
+    if desc["parameters"].get("field") != "turbsim":
+        return wind
+    deck = openfast_deck(turbine)
+    if deck is None:
+        raise ConfigError("wind.field", "turbsim", "a turbine whose file names its OpenFAST "
+                          "deck (openfast_deck: the field's hub height is its InflowWind "
+                          "RefHt), or field = \"spectral\"")
+    radius = lay.values("turbine_params", p_turbine)["rotor_radius"]  # [m] the grid's size
+    return wind_field.field_wind(wind_field.turbsim_field(desc, deck, radius, t_final), desc,
+                                 t_final)
 
 
 def _wind_table(raw: dict, p_turbine: np.ndarray) -> dict:

@@ -69,6 +69,10 @@ from wtftc.errors import ConfigError
 from wtftc.files import read_user_bytes
 
 KINDS = ("constant", "steps", "paper_random", "ntm", "eog", "file")
+#: where an NTM comes from ([wind] field): wtftc's own synthesis at one point (filtered
+#: over the rotor), or read from TurbSim's full field, the one OpenFAST's engine uses
+#: (wtftc.config resolves it: wtftc.model.wind_field)
+NTM_FIELDS = ("spectral", "turbsim")
 
 #: IEC 61400-1 reference turbulence intensity I_ref by turbulence category (A+ is ed. 4)
 I_REF = {"A+": 0.18, "A": 0.16, "B": 0.14, "C": 0.12}
@@ -86,7 +90,8 @@ _FIELDS = {
     "constant": {"speed_mps": 12.0},
     "steps": {"speed_mps": 12.0, "steps": None},
     "paper_random": {"mean_mps": 12.0, "std_mps": 1.0, "cutoff_hz": 0.1},
-    "ntm": {"mean_mps": 12.0, "turbulence_class": "B", "dt_s": 0.05, "rotor_radius_m": 0.0},
+    "ntm": {"mean_mps": 12.0, "turbulence_class": "B", "dt_s": 0.05, "rotor_radius_m": 0.0,
+            "field": "spectral"},
     "eog": {"mean_mps": 11.4, "start_s": 20.0, "turbine_class": "I", "turbulence_class": "B",
             "rotor_diameter_m": 126.0},
     "file": {"path": None},
@@ -376,6 +381,7 @@ def _ntm(p, f, t_final, seed) -> SampledWind:
     dt = _number(p["dt_s"], f["dt_s"], lo=0.0, hi=1.0, unit=" [s]")
     radius = _number(p["rotor_radius_m"], f["rotor_radius_m"], lo=0.0, hi=rotor_radius_max_m(),
                      lo_open=False, unit=" [m] (0: the hub-height point)")
+    field = _choice(p["field"], f["field"], NTM_FIELDS)
     sig = sigma1(mean, tc)
     lu = KAIMAL_LU_OVER_LAMBDA1 * LAMBDA1_M
     n = _grid(max(NTM_MIN_PERIOD_S, t_final + SYNTH_MARGIN_S), dt, f["dt_s"])
@@ -397,7 +403,8 @@ def _ntm(p, f, t_final, seed) -> SampledWind:
     run = t <= t_final
     return SampledWind("ntm", t, v, seed=seed,
                        parameters={"mean_mps": mean, "turbulence_class": tc, "dt_s": dt}
-                       | ({"rotor_radius_m": radius} if radius > 0 else {}),
+                       | ({"rotor_radius_m": radius} if radius > 0 else {})
+                       | ({"field": field} if field != "spectral" else {}),
                        derived={"standard": "IEC 61400-1 ed. 3, 6.3.1.3 NTM; Annex B Kaimal",
                                 "I_ref": I_REF[tc], "sigma1_mps": sig, "Lambda1_m": LAMBDA1_M,
                                 "L_u_m": lu, "synthesis_period_s": period,

@@ -25,9 +25,11 @@ from pathlib import Path
 import numpy as np
 
 from wtftc.artefacts import layout as lay
+from wtftc.config import openfast_deck
 from wtftc.errors import ConfigError, EngineError
 from wtftc.model import turbine_file
 from wtftc.model.faults import Schedule
+from wtftc.model.wind_field import turbsim_field
 from wtftc.openfast import case as ofcase
 from wtftc.openfast import install, plant_library, turbsim
 from wtftc.sim import integrate, rhs
@@ -46,16 +48,12 @@ LOGGED = ("latch", "rho_hat", "c_hat")
 
 def deck_of(rc) -> Path:
     """The run's turbine's OpenFAST deck (its main file)."""
-    tb = turbine_file.load(rc.raw.get("turbine", turbine_file.DEFAULT))
-    if not tb.openfast_deck:
+    deck = openfast_deck(turbine_file.load(rc.raw.get("turbine", turbine_file.DEFAULT)))
+    if deck is None:
         raise ConfigError("turbine", rc.raw.get("turbine", turbine_file.DEFAULT),
                           "a turbine whose file names its OpenFAST deck (openfast_deck = "
                           "\"<main>.fst\"; docs/openfast.md) with engine = openfast")
-    if tb.openfast_deck.startswith("rosco:"):
-        from wtftc.sim.rosco import discon_path
-
-        return discon_path(tb.openfast_deck)
-    return Path(tb.openfast_deck)
+    return deck
 
 
 def controller_library(rc, folder: Path) -> tuple[Path, Path]:
@@ -103,15 +101,14 @@ def _cached_library(rc, folder: Path) -> Path:
 
 def _wind(rc, inflow: Path, folder: Path) -> None:
     """InflowWind's wind: a TurbSim full field for an NTM wind (``[openfast] wind =
-    "turbsim"``, the default: the run's mean at hub height, class and seed), else the run's
-    series as a uniform wind file."""
+    "turbsim"``, the default: the run's mean at hub height, class and seed; the field a
+    native run with ``[wind] field = "turbsim"`` reads), else the run's series as a
+    uniform wind file."""
     desc = rc.wind.describe()
     hub = float(ofcase.get_value(inflow, "RefHt"))
     if desc["kind"] == "ntm" and rc.raw["openfast"]["wind"] == "turbsim":
-        par = desc["parameters"]
-        bts = turbsim.generate(turbsim.Field(
-            float(par["mean_mps"]), str(par["turbulence_class"]), int(desc["seed"] or 0),
-            hub, rc.param("rotor_radius"), rc.t_final))
+        bts = turbsim.generate(turbsim_field(desc, deck_of(rc), rc.param("rotor_radius"),
+                                             rc.t_final))
         shutil.copy2(bts, folder / "wtftc_wind.bts")
         ofcase.set_values(inflow, {"WindType": "3", "FileName_BTS": '"wtftc_wind.bts"'})
         return

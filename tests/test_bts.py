@@ -1,0 +1,118 @@
+"""TurbSim full fields read back (issue 32 item 4): wtftc's own reader of the `.bts` format
+against TurbSim's own hub-point file, its one-line refusals, and a native run that reads
+the very field (the same cached file) the OpenFAST engine runs on (docs/openfast.md,
+docs/wind.md)."""
+
+import dataclasses
+import math
+import subprocess
+
+import numpy as np
+import pytest
+
+from wtftc import config
+from wtftc.errors import ConfigError, EngineError
+from wtftc.model import wind_field as wf
+from wtftc.openfast import engine, install, turbsim
+
+#: a short class-B field at 16 m/s on the NREL 5-MW (13 x 13 points, 144.9 m wide)
+FIELD = wf.Field(16.0, "B", 11, 90.0, 63.0, 10.0)
+NATIVE = {"t_final_s": 10.0, "seed": 5,
+          "wind": {"kind": "ntm", "mean_mps": 16.0, "field": "turbsim"}}
+
+
+@pytest.fixture(scope="module")
+def made(tmp_path_factory):
+    """TurbSim run on FIELD's input with its formatted hub-point file on (WrFHHTP: the
+    hub's u, v, w to 1 mm/s, written from the same arrays as the .bts)."""
+    folder = tmp_path_factory.mktemp("turbsim")
+    text = FIELD.input_text().replace("False        WrFHHTP", "True         WrFHHTP")
+    assert text != FIELD.input_text()
+    (folder / "field.inp").write_text(text)
+    subprocess.run([str(install.require().turbsim), "field.inp"], cwd=folder, check=True,
+                   capture_output=True, stdin=subprocess.DEVNULL)
+    return folder
+
+
+def test_the_reader_gives_turbsims_own_hub_point_series(made):
+    """The hub point of the grid (y = 0, z = 90 m, read bilinearly) is TurbSim's `.dat`
+    series of u, v, w within the two roundings: the file's 3 decimals and half the int16
+    quantum (1/slope) of the .bts."""
+    ff = wf.read_bts(made / "field.bts")
+    dat = np.loadtxt(made / "field.dat", skiprows=4)  # Time U Uh Ut V W ...
+    n_t = math.ceil((10.0 + 144.9 / 16.0) / 0.05)  # TurbSim: UsableTime + width / uhub
+    assert ff.u.shape == (n_t, 13, 13) and not ff.periodic and len(dat) == n_t
+    assert ff.hub_height_m == 90.0 and ff.mean_mps == 16.0
+    assert np.allclose(ff.y, np.linspace(-72.45, 72.45, 13), atol=1e-4)
+    assert ff.z[6] == pytest.approx(90.0, abs=1e-4) and ff.z_tower[0] == ff.z[0]
+    assert np.allclose(ff.t, dat[:, 0], atol=1e-6)
+    for k, (field, col) in enumerate(((ff.u, 1), (ff.v, 4), (ff.w, 5))):
+        tol = 0.0005 + 0.5 / ff.slope[k] + 1e-5
+        assert np.abs(field[:, 6, 6] - dat[:, col]).max() <= tol
+    assert np.abs(wf.rotor_series(ff, 0.0) - dat[:, 1]).max() <= 0.0005 + 0.5 / ff.slope[0] + 1e-5
+    assert ff.time_shift_s == pytest.approx(72.45 / 16.0, abs=1e-5)
+
+
+def test_a_cut_or_foreign_file_is_refused_in_one_line(made, tmp_path):
+    cut = tmp_path / "cut.bts"
+    raw = (made / "field.bts").read_bytes()
+    for data, what in ((raw[:-100], "cut short"), (raw[:40], "header"),
+                       (b"\x09\x00" + raw[2:], "file ID 9")):
+        cut.write_bytes(data)
+        with pytest.raises(EngineError) as exc:
+            wf.read_bts(cut)
+        assert str(cut) in str(exc.value) and what in str(exc.value)
+        assert "\n" not in str(exc.value)
+
+
+def test_the_rotor_average_weighs_the_disk_by_area():
+    """u = z² [m/s] on a 1-m grid: the disk's mean is hub² + R²/4 (∫z² dA / πR²), plus at
+    most the bilinear interpolant's excess dz²/4; u linear in y and z averages to the hub's."""
+    y = np.arange(-40.0, 40.5, 1.0)
+    z = 90.0 + y
+    yy, zz = np.meshgrid(y, z)
+    base = wf.FullField(None, False, np.zeros(1), y, z, None, None, None, 16.0, 90.0,
+                        np.zeros(0), None, None, None, (1.0, 1.0, 1.0), "")
+    quad = dataclasses.replace(base, u=(zz**2)[None])
+    mean = wf.rotor_series(quad, 30.0)[0]
+    assert 0 <= mean - (90.0**2 + 30.0**2 / 4) <= 0.25
+    lin = dataclasses.replace(base, u=(3.0 + 0.1 * yy - 0.05 * (zz - 90.0))[None])
+    assert wf.rotor_series(lin, 30.0)[0] == pytest.approx(3.0, abs=1e-12)
+    with pytest.raises(ConfigError, match="wind.rotor_radius_m"):
+        wf.rotor_series(quad, 41.0)
+
+
+def test_a_native_run_reads_the_openfast_engines_field():
+    """`[wind] field = "turbsim"` on wtftc's plant: the same cached .bts an OpenFAST run of
+    the same mean, class, seed, turbine and length makes, read as the rotor sees it: the
+    disk average (the turbine's 63 m by default) or the hub point, InflowWind's time
+    shift of half the grid's width over uhub."""
+    path = turbsim.make_field(NATIVE)
+    of = config.make_config({**NATIVE, "engine": "openfast", "profile": "realistic",
+                             "wind": {"kind": "ntm", "mean_mps": 16.0}})
+    assert wf.field_path(wf.turbsim_field(of.wind.describe(), engine.deck_of(of),
+                                          of.param("rotor_radius"), of.t_final)) == path
+    ff = wf.read_bts(path)
+    t = np.linspace(0.0, 10.0, 401)
+    for radius in (63.0, 0.0):
+        rc = config.make_config({**NATIVE, "wind": {**NATIVE["wind"], "rotor_radius_m": radius}})
+        assert rc.wind.describe()["source"] == str(path)
+        expected = np.interp(t + ff.time_shift_s, ff.t, wf.rotor_series(ff, radius))
+        assert np.allclose(rc.wind(t), expected, rtol=0, atol=1e-12)  # t ± shift: round-off
+    from wtftc.campaign import cases
+
+    res = cases.run(config.make_config(NATIVE), progress=False)
+    assert np.allclose(res.column("wind"), np.interp(res.t + ff.time_shift_s, ff.t,
+                                                     wf.rotor_series(ff, 63.0)), atol=1e-12)
+
+
+def test_the_field_key_is_refused_naming_it(tmp_path, monkeypatch):
+    for table, what in (({**NATIVE["wind"], "field": "pyconturb"}, '"spectral", "turbsim"'),
+                        ({"kind": "constant", "field": "turbsim"}, "no such field")):
+        with pytest.raises(ConfigError, match="wind.field") as exc:
+            config.make_config({**NATIVE, "wind": table})
+        assert what in str(exc.value)
+    monkeypatch.setenv("WTFTC_CACHE", str(tmp_path))  # an empty cache: not made yet
+    with pytest.raises(ConfigError, match="not there yet") as exc:
+        config.make_config(NATIVE)
+    assert "\n" not in str(exc.value)
