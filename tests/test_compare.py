@@ -74,8 +74,22 @@ def test_the_matrix_has_every_actuator_fault_type_and_names_the_fdi_variants():
     assert set(compare.FAULTS) == {"none", *ACTUATOR_FAULT_TYPES}
     assert all(tabs[0]["type"] == f for f, tabs in compare.FAULTS.items() if tabs)
     assert [c for c, v in compare.CONTROLLERS.items() if v.uses_fdi] == [
-        "physical_fdi", "drivetrain_fdi"]
+        "physical_fdi", "drivetrain_fdi", "paper_fdi"]
     assert "FDI" in config.CASES[compare.FDI_CASE]
     cfg = compare.cell_config("physical_fdi", "lock", "ntm_B_16", 30.0, 1e-3, 0)
     assert (cfg["controller"], cfg["case"]) == ("physical", compare.FDI_CASE)
     assert compare.cell_config("physical_fdi", "none", "ntm_B_16", 30.0, 1e-3, 0)["case"] == 1
+
+
+def test_the_paper_with_wtftcs_fdi_runs_on_the_native_engine(tmp_path):
+    """paper_fdi (case 4: eq (49) fed by wtftc's FDI, no oracle) in a steady 20 m/s,
+    blade 1 running away to fine pitch at 20 s: the FDI finds it."""
+    out = tmp_path / "cmp"
+    p = wtftc("compare", "--out", out, "--controllers", "paper_fdi", "--faults", "runaway",
+              "--winds", "steady_20", "--t-final", 24, "--quiet")
+    assert p.returncode == 0, p.stderr
+    m = json.loads((out / "steady_20" / "runaway" / "paper_fdi" / "metrics.json").read_text())
+    assert (m["controller"], m["case"]) == ("paper", 4) and m["fdi"]["ran"]
+    assert m["fdi"]["faults"][0]["detected"] and m["fdi"]["faults"][0]["isolated_blade"] == 1
+    row = (out / "compare.csv").read_text().splitlines()[1].split(",")
+    assert row[:3] == ["steady_20", "runaway", "paper_fdi"] and row[-3] != ""  # a delay

@@ -195,7 +195,10 @@ def _add_compare(sub) -> None:
                     "wind (paper_random_12, ntm_B_16, eog_rated) and writes compare.md, "
                     "compare.csv, compare.png/pdf, and each cell's config.toml and "
                     "metrics.json under <out>/<wind>/<fault>/<controller>/ (re-run one with "
-                    "wtftc run --config). ROSCO needs the optional extra: "
+                    "wtftc run --config). Named only: the variant paper_fdi (the paper's "
+                    "design fed by wtftc's FDI) and the winds steady_16, steady_20, ntm_B_12. "
+                    "With --engine openfast the cells are Dask tasks (a local cluster of "
+                    "--workers processes, or --scheduler's). ROSCO needs the optional extra: "
                     "pip install 'wtftc[rosco]'.")
     k.add_argument("--out", type=Path, default=Path("results/compare"), help="output folder")
     k.add_argument("--controllers", nargs="+", help="subset of controllers")
@@ -212,6 +215,12 @@ def _add_compare(sub) -> None:
                         "turbine's deck, each cell's case under <wind>/<fault>/<controller>/"
                         "openfast/ (the variants told the fault are left out; "
                         "docs/openfast.md)")
+    k.add_argument("--workers", type=_positive_int,
+                   help="the cells as Dask tasks on a local cluster of this many processes "
+                        f"(default with --engine openfast: the cores, {os.cpu_count()}; "
+                        "without it the cells run one after the other)")
+    k.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="the cells as Dask tasks on an existing cluster")
     k.add_argument("--quiet", action="store_true", help="no progress lines")
 
 
@@ -241,6 +250,11 @@ def _add_sweep(sub) -> None:
                         f"{os.cpu_count()})")
     w.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="run on an existing Dask cluster instead of a local one")
+    w.add_argument("--engine", choices=("wtftc", "openfast"),
+                   help="every run's engine (default: the sweep file's engine key, else "
+                        "wtftc); openfast: OpenFAST 5.0 on the turbine's deck, one run a "
+                        "task, each run's case kept in <out>/openfast/<run id>/ "
+                        "(docs/openfast.md)")
     w.add_argument("--traces", action="store_true",
                    help="also save each run's traces, <out>/traces/<run id>.parquet")
     w.add_argument("--overwrite", action="store_true",
@@ -414,7 +428,7 @@ def _cmd_sweep(args) -> int:
         done = sweep.run_sweep(args.sweep_file, out, workers=args.workers,
                                scheduler=args.scheduler, traces=args.traces,
                                overwrite=args.overwrite, quiet=args.quiet,
-                               retry_failed=args.retry_failed)
+                               retry_failed=args.retry_failed, engine=args.engine)
     except sweep.Interrupted as exc:
         n = sweep.read_results(out).num_rows
         print(f"\nwtftc sweep: interrupted ({exc}); {n} finished runs are saved in {out}; "
@@ -496,7 +510,8 @@ def _cmd_compare(args) -> int:
     compare.run_compare(args.out, args.controllers, args.faults, args.winds,
                                t_final=args.t_final, seed=args.seed, progress=not args.quiet,
                                profile=args.profile, turbine=args.turbine,
-                               engine=args.engine)
+                               engine=args.engine, workers=args.workers,
+                               scheduler=args.scheduler)
     print((args.out / "compare.md").read_text(), end="")
     print(f"written under {args.out}/: compare.md, compare.csv, compare.png, "
           "<wind>/<fault>/<controller>/{config.toml,metrics.json}")

@@ -3,12 +3,15 @@
 Every cell is one run of :mod:`wtftc.campaign.cases`; its exact configuration
 (`config.toml`) and metrics (`metrics.json`) are written to
 ``<out>/<wind>/<fault>/<controller>/`` so that any cell re-runs alone with
-``wtftc run --config <that config.toml>``.
+``wtftc run --config <that config.toml>``. The cells run one after the other in this
+process, or as Dask tasks (:func:`run_cell`; OpenFAST's, or asked with ``--workers`` or
+``--scheduler``): the same table either way.
 """
 
 from __future__ import annotations
 
 import copy
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,12 +19,12 @@ import numpy as np
 
 from wtftc import config
 from wtftc.artefacts import layout as lay
-from wtftc.campaign import cases
+from wtftc.campaign import cases, cluster
 from wtftc.errors import ConfigError
 from wtftc.files import owned_folder
 from wtftc.model import turbine_file
 from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text
-from wtftc.results.metrics import metrics
+from wtftc.results.metrics import fdi_ran, metrics
 
 ONSET_S = 20.0
 #: the cases a variant runs in under a fault (config.CASES)
@@ -63,6 +66,9 @@ CONTROLLERS = {
 CONTROLLERS |= {f"{c}_fdi": Variant(c, FDI_CASE, reg["doc"] + ", with wtftc's own FDI")
                 for c, reg in lay.layout()["controllers"].items()
                 if "checks" in reg and all(v.controller != c for v in CONTROLLERS.values())}
+#: the paper's design with wtftc's FDI feeding its accommodation (issue 32's measured matrix)
+CONTROLLERS["paper_fdi"] = Variant("paper", FDI_CASE, "Bakhshi & Alfi, corrected sign, eq "
+                                   "(49) fed by wtftc's own FDI (no oracle)")
 #: the matrix's faults from ONSET_S: each pitch actuator fault type of model/faults.py (the
 #: one list; tests/test_compare.py checks that none is missing), in the table's order, with
 #: its blade and magnitude (the hydraulic faults at full severity, their default)
@@ -75,7 +81,14 @@ WINDS = {
     "paper_random_12": {"kind": "paper_random"},
     "ntm_B_16": {"kind": "ntm", "mean_mps": 16.0, "turbulence_class": "B"},
     "eog_rated": {"kind": "eog", "mean_mps": 11.4, "start_s": 30.0},
+    "steady_16": {"kind": "constant", "speed_mps": 16.0},
+    "steady_20": {"kind": "constant", "speed_mps": 20.0},
+    "ntm_B_12": {"kind": "ntm", "mean_mps": 12.0, "turbulence_class": "B"},
 }
+#: the matrix of a bare `wtftc compare`: what it was before issue 32's measured matrix
+#: added paper_fdi and the steady and 12-m/s winds, which run when named (docs/compare.md)
+DEFAULT_CONTROLLERS = tuple(c for c in CONTROLLERS if c != "paper_fdi")
+DEFAULT_WINDS = ("paper_random_12", "ntm_B_16", "eog_rated")
 COLUMNS = [
     ("rms_speed_error_rad_s", "RMS ω error [rad/s]", "{:.4f}"),
     ("max_abs_speed_error_rad_s", "max abs ω error [rad/s]", "{:.4f}"),
@@ -104,8 +117,8 @@ COLUMNS = [
 COMPUTED = ("detection_delay_s", "diverged_at_s")
 
 
-def _check(kind: str, names, allowed: dict) -> list[str]:
-    names = list(names) if names else list(allowed)
+def _check(kind: str, names, allowed: dict, default=None) -> list[str]:
+    names = list(names) if names else list(default or allowed)
     for n in names:
         if n not in allowed:
             raise ConfigError(kind, n, "one of " + ", ".join(allowed))
@@ -163,24 +176,29 @@ def variant_config(controller: str, faults: list | None, wind: dict, t_final: fl
 
 
 def _row(controller, fault, wind, m) -> dict:
-    fdi = m["fdi"] or {"blades": {}, "false_alarms": []}  # None: no FDI ran (ROSCO in OpenFAST)
-    delays = [b.get("detection_delay_s") for b in fdi["blades"].values()
-              if b.get("detection_delay_s") is not None]
+    ran = fdi_ran(m["fdi"])  # not ROSCO in OpenFAST: its library has no FDI
+    delays = [b.get("detection_delay_s") for b in m["fdi"]["blades"].values()
+              if b.get("detection_delay_s") is not None] if ran else []
     row = {"controller": controller, "fault": fault, "wind": wind,
            **{k: m.get(k) for k, _, _ in COLUMNS if k not in COMPUTED},
            "detection_delay_s": min(delays) if delays and CONTROLLERS[controller].uses_fdi
            else None,
            "diverged_at_s": m["diverged"]["t_s"] if m["diverged"] else None,
-           "false_alarms": len(fdi["false_alarms"]) if m["fdi"] else None}
+           "false_alarms": len(m["fdi"]["false_alarms"]) if ran else None}
     return row
 
 
 def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_final=60.0,
                 dt=1e-3, seed=0, progress=True, profile: str = PROFILE,
-                turbine: str | None = None, engine: str = "wtftc") -> list[dict]:
+                turbine: str | None = None, engine: str = "wtftc",
+                workers: int | None = None, scheduler: str | None = None) -> list[dict]:
+    """The matrix into ``out_dir``; its rows. Runs in OpenFAST are Dask tasks, on a local
+    cluster of ``workers`` processes (default: the cores) or on ``scheduler``'s; the
+    native engine's cells run in this process unless ``workers`` or ``scheduler`` is
+    given."""
     from wtftc.sim import rosco
 
-    ctrl_names = _check("controllers", controllers, CONTROLLERS)
+    ctrl_names = _check("controllers", controllers, CONTROLLERS, DEFAULT_CONTROLLERS)
     fault_names = _check("faults", faults, FAULTS)
     if engine == "openfast" and any(FAULTS[f] is not None for f in fault_names):
         _without_oracles(ctrl_names, bool(controllers))
@@ -195,18 +213,34 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
         print(f"note: {turbine}'s turbine file names no DISCON.IN for ROSCO (rosco_discon); "
               "the matrix runs without it", flush=True)
         ctrl_names.remove("rosco")
-    wind_names = _check("winds", winds, WINDS)
+    wind_names = _check("winds", winds, WINDS, DEFAULT_WINDS)
     if t_final <= ONSET_S and any(FAULTS[f] is not None for f in fault_names):
         raise ConfigError("t-final", t_final, f"more than {ONSET_S:g} s, the faults' onset "
                           "(or --faults none)")
     # validate every cell before running any
-    configs = {(w, f, c): config.make_config(cell_config(c, f, w, t_final, dt, seed, profile,
-                                                                turbine, engine))
-               for w in wind_names for f in fault_names for c in ctrl_names}
-    with owned_folder(out_dir, "--out", command="compare", legacy=is_legacy_compare) as tmp:
-        rows = _run_cells(tmp, configs, progress, engine == "openfast")
-        write_compare_table(tmp, rows)
-        figure(tmp, rows, ctrl_names, fault_names, wind_names)
+    cells = {(w, f, c): cell_config(c, f, w, t_final, dt, seed, profile, turbine, engine)
+             for w in wind_names for f in fault_names for c in ctrl_names}
+    configs = {key: config.make_config(raw) for key, raw in cells.items()}
+    dask = _on_dask(engine, workers, scheduler)
+    if engine == "openfast":
+        from wtftc.openfast import install
+
+        install.require()  # one line, before any folder is made
+    # the cluster before the folder: a scheduler that cannot be reached leaves none
+    cl, local = cluster.client(scheduler, workers or os.cpu_count() or 1) if dask \
+        else (None, None)
+    try:
+        with owned_folder(out_dir, "--out", command="compare",
+                          legacy=is_legacy_compare) as tmp:
+            if cl is not None:
+                rows = _run_cells_on_dask(tmp, cells, configs, progress,
+                                          engine == "openfast", cl)
+            else:
+                rows = _run_cells(tmp, configs, progress, engine == "openfast")
+            write_compare_table(tmp, rows)
+            figure(tmp, rows, ctrl_names, fault_names, wind_names)
+    finally:
+        cluster.close(cl, local)
     return rows
 
 
@@ -231,8 +265,28 @@ def _without_oracles(names: list[str], asked: bool) -> None:
     names[:] = [c for c in names if c not in oracles]
 
 
+def run_cell(raw: dict, case_dir: str | None = None) -> dict:
+    """One cell (``raw``: its configuration, :func:`cell_config`): its metrics. A run in
+    OpenFAST keeps its case in ``case_dir`` when the cell's folder is there (a Dask worker
+    that cannot see it runs the case in a temporary folder); the native engine writes none.
+    Dask's workers import this function by its module's path."""
+    rc = config.make_config(raw)
+    where = Path(case_dir) if case_dir and Path(case_dir).parent.is_dir() else None
+    return metrics(rc, cases.run(rc, progress=False, openfast_dir=where))
+
+
+def _write_cell(out_dir: Path, key: tuple, rc, m: dict) -> dict:
+    """A finished cell's metrics.json and config.toml; its row of the table."""
+    w, f, c = key
+    d = Path(out_dir) / w / f / c
+    atomic_write_json(d / "metrics.json", m)
+    atomic_write_text(d / "config.toml", config.to_toml(rc.raw))
+    return _row(c, f, w, m)
+
+
 def _run_cells(out_dir: Path, configs: dict, progress: bool,
                openfast: bool = False) -> list[dict]:
+    """The cells one after the other in this process."""
     rows = []
     n = len(configs)
     for k, ((w, f, c), rc) in enumerate(configs.items(), 1):
@@ -240,11 +294,62 @@ def _run_cells(out_dir: Path, configs: dict, progress: bool,
             print(f"[{k}/{n}] {w} / {f} / {c}", flush=True)
         d = Path(out_dir) / w / f / c
         res = cases.run(rc, progress=False, openfast_dir=d / "openfast" if openfast else None)
-        m = metrics(rc, res)
-        atomic_write_json(d / "metrics.json", m)
-        atomic_write_text(d / "config.toml", config.to_toml(rc.raw))
-        rows.append(_row(c, f, w, m))
+        rows.append(_write_cell(out_dir, (w, f, c), rc, metrics(rc, res)))
     return rows
+
+
+def _on_dask(engine: str, workers: int | None, scheduler: str | None) -> bool:
+    """Whether the cells are Dask tasks: OpenFAST's (one after the other, with a note,
+    where Dask is not installed), or asked for with --workers or --scheduler."""
+    dask = engine == "openfast" or workers is not None or scheduler is not None
+    if dask and scheduler is None:
+        try:
+            import distributed  # noqa: F401
+        except ImportError:
+            if engine != "openfast" or workers is not None:
+                raise ConfigError("--workers", workers, "Dask installed: pip install "
+                                  "'wtftc[sweep]' (dask and distributed)") from None
+            print("note: Dask is not installed (pip install 'wtftc[sweep]'): the cells run "
+                  "one after the other", flush=True)
+            return False
+    return dask
+
+
+def _run_cells_on_dask(out_dir: Path, cells: dict, configs: dict, progress: bool,
+                       openfast: bool, cl) -> list[dict]:
+    """Each cell a Dask task (:func:`run_cell`), its files written here as it ends; the
+    rows in the matrix's order, as :func:`_run_cells` gives them. A cell that raises stops
+    the matrix with its error, as it does run in this process."""
+    import time
+
+    from dask.distributed import as_completed
+
+    dirs = {key: Path(out_dir).resolve().joinpath(*key) for key in cells}
+    for d in dirs.values():
+        d.mkdir(parents=True, exist_ok=True)
+    rows, pending, t0 = {}, set(cells), time.time()
+
+    def tick():  # the runs in OpenFAST, every 30 s
+        running = cluster.in_flight([dirs[k] / "openfast" for k in list(pending)], t0)
+        if running:
+            print(f"[compare] {len(rows)}/{len(cells)} cells done; "
+                  + cluster.describe(running), flush=True)
+
+    watcher = cluster.Watcher(tick, 30.0)
+    try:
+        futures = {cl.submit(run_cell, raw, str(dirs[key] / "openfast") if openfast
+                             else None, pure=False): key for key, raw in cells.items()}
+        if progress and openfast:
+            watcher.start()
+        for fut in as_completed(list(futures)):
+            key = futures[fut]
+            rows[key] = _write_cell(out_dir, key, configs[key], fut.result())
+            pending.discard(key)
+            if progress:
+                print(f"[{len(rows)}/{len(cells)}] {' / '.join(key)}", flush=True)
+    finally:
+        watcher.stop()
+    return [rows[key] for key in cells]
 
 
 #: the columns shown in the Markdown table in MW and MN m (the CSV keeps W and N m)

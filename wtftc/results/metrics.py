@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,7 +88,7 @@ def metrics(rc: RunConfig, res: integrate.Result) -> dict:
     scored = res.t >= t0 - 1e-9 * max(1.0, t0)
     m = {
         "label": rc.label, "case": rc.case, "case_doc": CASES[rc.case], "plant": rc.plant,
-        "fdi": fdi_report(rc, res) if _has_fdi(res) else None,
+        "fdi": fdi_report(rc, res),
         "controller": rc.raw["controller"], "control_sign": rc.raw["control_sign"],
         # the measurements (docs/sensors.md): the profile and what it resolved to
         "profile": rc.raw.get("profile", "ideal"),
@@ -213,9 +214,22 @@ def _has_fdi(res: integrate.Result) -> bool:
     return "fdi_latch_1" in res.names and not np.all(np.isnan(res.column("fdi_latch_1")))
 
 
+def fdi_ran(report: dict | None) -> bool:
+    """Whether a run's FDI report (:func:`fdi_report`, metrics.json's ``"fdi"``) says that
+    wtftc's FDI ran; a metrics.json written before ``ran`` holds null where none ran."""
+    return report is not None and bool(report.get("ran", True))
+
+
+#: the report of a run without wtftc's FDI: nothing detected, nothing to judge
+NO_FDI = {"ran": False, "blades": {}, "false_alarms": [], "faults": [],
+          "isolation_correct": None}
+
+
 def fdi_report(rc: RunConfig, res: integrate.Result) -> dict:
     """Detection, isolation, classification and estimation of wtftc's FDI, per fault and
-    per blade, and its false alarms with their times.
+    per blade, and its false alarms with their times. ``ran`` says whether the FDI ran at
+    all: a run in OpenFAST of a controller library without it (ROSCO) has none, and its
+    report is :data:`NO_FDI` (no blades, faults or false alarms; isolation None).
 
     An actuator fault (lock, loss of effectiveness, pressure drop, air in oil) on blade j
     should raise blade j's actuator latch after its onset and no other; the estimates are
@@ -225,11 +239,13 @@ def fdi_report(rc: RunConfig, res: integrate.Result) -> dict:
     fault, are false alarms; an actuator latch on a blade whose pitch sensor failed is a
     misclassification (its fault's ``correct`` is false).
     """
+    if not _has_fdi(res):
+        return copy.deepcopy(NO_FDI)
     t = res.t
     faults = res.schedule.faults if res.schedule is not None else rc.faults  # angles bound
     faulty = {f.blade: f for f in faults if TYPES[f.type].acts_on == "actuator"}
     sensed = {f.blade: f for f in faults if TYPES[f.type].signal == "pitch"}
-    out = {"blades": {}, "false_alarms": [], "isolation_correct": True}
+    out = {"ran": True, "blades": {}, "false_alarms": [], "isolation_correct": True}
     first = {j: _first(*_latch(res, j)) for j in lay.blades()}
     for j in lay.blades():
         b = _blade_estimates(res, j)

@@ -7,7 +7,8 @@ configuration follows from it deterministically, with a stable run id (a hash of
 configuration). Runs go to Dask in batches (one task each); every finished batch is
 written at once, atomically, as one Parquet file of the results folder's dataset
 ``runs/``, so that an interrupted sweep loses no finished run and the same command
-resumes with what is missing. docs/sweep.md.
+resumes with what is missing. With ``engine = "openfast"`` every run is a task of its own,
+its OpenFAST case kept in the results folder's ``openfast/<run id>/``. docs/sweep.md.
 
 The package, one job a module; this one drives Dask (cluster, progress, interruption):
 
@@ -22,11 +23,13 @@ from __future__ import annotations
 
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
 from wtftc import config
-from wtftc.campaign.sweep.record import check_path
+from wtftc.campaign import cluster
+from wtftc.campaign.sweep.record import CASES, check_path
 from wtftc.campaign.sweep.spec import (
     FAULT_TYPES,
     PLANTS,
@@ -65,43 +68,66 @@ class _Progress:
     def __init__(self, total: int, already: int, quiet: bool):
         self.total, self.already, self.quiet = total, already, quiet
         self.counts = dict.fromkeys(STATUS, 0)
+        self.lost = 0
         self.t0 = time.perf_counter()
+        self.since = time.time()  # (wall clock: the case folders' logs written since)
         self.tty = sys.stderr.isatty()
+        #: the runs in OpenFAST now: (simulated, total) seconds each (cluster.in_flight)
+        self.running: list[tuple[float, float]] = []
+        self.lock = threading.Lock()  # the watcher's thread prints too
 
     def update(self, rows: list[dict], lost: int = 0, end: bool = False) -> None:
-        for r in rows:
-            self.counts[r["status"]] += 1
-        if self.quiet:
-            return
+        with self.lock:
+            for r in rows:
+                self.counts[r["status"]] += 1
+            self.lost = lost
+            if not self.quiet:
+                self._print(end)
+
+    def show_running(self, running: list[tuple[float, float]]) -> None:
+        """The runs in flight, from the watcher's thread: a line now (a terminal's is
+        rewritten)."""
+        with self.lock:
+            self.running = running
+            if not self.quiet and (running or self.tty):
+                self._print(False)
+
+    def _print(self, end: bool) -> None:
         n = sum(self.counts.values())
-        left = self.total - self.already - n - lost
+        left = self.total - self.already - n - self.lost
         wall = time.perf_counter() - self.t0
-        eta = f"{left * wall / n:.0f} s" if n else "?"
+        # a run in flight counts by the share it has simulated (OpenFAST's long runs)
+        part = sum(t / total for t, total in self.running)
+        eta = f"{(left - part) * wall / (n + part):.0f} s" if n + part > 0 else "?"
         line = (f"[sweep] {self.already + n}/{self.total} runs: {self.counts['ok']} ok, "
                 f"{self.counts['diverged']} diverged, {self.counts['failed']} failed"
-                + (f", {lost} lost" if lost else "")
-                + f", {left} remaining, {n / max(wall, 1e-9):.2f} runs/s, ETA {eta}")
+                + (f", {self.lost} lost" if self.lost else "")
+                + f", {left} remaining"
+                + (f" ({cluster.describe(self.running)})" if self.running else "")
+                + f", {n / max(wall, 1e-9):.2f} runs/s, ETA {eta}")
         if self.tty and not end:
             print("\r" + line, end="", file=sys.stderr, flush=True)
         else:
             print(("\r" if self.tty else "") + line, file=sys.stderr, flush=True)
 
 
-def _client(scheduler: str | None, workers: int):
-    import logging
+#: how often the runs in flight are looked at [s]: on a terminal, and in a log
+WATCH_TTY_S, WATCH_LOG_S = 2.0, 30.0
 
-    from dask.distributed import Client, LocalCluster
 
-    if scheduler:
-        try:
-            return Client(scheduler, timeout="10s"), None
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise ConfigError("--scheduler", scheduler, "the address of a running Dask "
-                              f"scheduler, tcp://HOST:PORT ({type(exc).__name__}: {exc})"
-                              ) from None
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=":0", silence_logs=logging.ERROR)
-    return Client(cluster), cluster
+def _watch(progress: _Progress, case_root: Path, todo: list[dict], done: set[str]):
+    """A thread that shows the OpenFAST runs in flight (their case folders' logs) every
+    few seconds; it shows nothing where no run keeps a case (the native engine)."""
+    ids = [pt["run_id"] for pt in todo]
+
+    def tick():
+        if case_root.is_dir():
+            present = {p.name for p in case_root.iterdir()}
+            progress.show_running(cluster.in_flight(
+                [case_root / i for i in ids if i in present and i not in done],
+                progress.since))
+
+    return cluster.Watcher(tick, WATCH_TTY_S if progress.tty else WATCH_LOG_S)
 
 
 class Interrupted(Exception):
@@ -122,6 +148,10 @@ def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
         reason = rosco.available()
         if reason:
             raise ConfigError("controllers", "rosco", reason)
+    if sw.engine == "openfast":  # OpenFAST itself, in one line (exit code 4)
+        from wtftc.openfast import install
+
+        install.require()
     skipped = [c for c in sw.raw.get("optional_controllers", [])
                if c not in sw.axis("controllers").values]
     if skipped and not quiet:
@@ -159,33 +189,34 @@ def _collect(futures: list, out_dir: Path, done: set[str], progress: _Progress,
 
 def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str | None = None,
               traces: bool = False, overwrite: bool = False, quiet: bool = False,
-              retry_failed: bool = False) -> dict:
+              retry_failed: bool = False, engine: str | None = None) -> dict:
     """Run (or resume) a sweep into out_dir; returns counts of what this call did.
-    ``retry_failed``: the runs saved as failed (they raised) are run again, not kept."""
+    ``retry_failed``: the runs saved as failed (they raised) are run again, not kept.
+    ``engine`` (``--engine``): every run's engine, where the sweep file names none."""
     import distributed  # noqa: F401 - Dask is needed: fail before anything is written
 
     sweep_path = Path(sweep_path)
     check_path(out_dir, "--out")  # a link loop, a dangling link, a file: before any work
-    sw = load_sweep(sweep_path)
+    sw = load_sweep(sweep_path, engine)
     runs, dup = expand(sw)
     _check_runs(sw, runs, quiet)
     # a remote scheduler first: one that cannot be reached leaves nothing in out_dir
-    client, cluster = _client(scheduler, workers) if scheduler else (None, None)
+    client, local = cluster.client(scheduler, workers) if scheduler else (None, None)
     try:
         text = read_user_text(sweep_path, "SWEEP.toml", MAX_TOML_BYTES)
         done, lock, retried = _prepare(out_dir, sw, text, overwrite,
                                        retry_failed)
     except BaseException:
-        _close(client, cluster)
+        cluster.close(client, local)
         raise
     try:
-        return _run_todo(sw, runs, dup, done, out_dir, client, cluster,
+        return _run_todo(sw, runs, dup, done, out_dir, client, local,
                          scheduler, workers, traces, quiet, retried, lock.record)
     finally:
         release(lock)
 
 
-def _run_todo(sw, runs, dup, done, out_dir, client, cluster, scheduler, workers, traces,
+def _run_todo(sw, runs, dup, done, out_dir, client, local, scheduler, workers, traces,
               quiet, retried: int = 0, rec=None) -> dict:
     """The runs of ``runs`` not in ``done``, on Dask, saved into ``out_dir`` as they end."""
     todo = [pt for pt in runs if pt["run_id"] not in done]
@@ -193,13 +224,14 @@ def _run_todo(sw, runs, dup, done, out_dir, client, cluster, scheduler, workers,
         print(f"sweep {sw.sweep_id} ({sw.mode}): {len(runs)} runs"
               + (f" ({dup} duplicate draws dropped)" if dup else "")
               + (f", {len(runs) - len(todo)} already in {out_dir}" if len(todo) < len(runs)
-                 else "") + f", {len(todo)} to run in batches of {sw.batch_size}"
+                 else "") + f", {len(todo)} to run "
+              + (f"in batches of {sw.batch_size}" if sw.batch_size > 1 else "one a task")
               + (f" ({retried} that had failed, run again: --retry-failed)" if retried
                  else ""), flush=True)
     summary = {"runs": len(runs), "already": len(runs) - len(todo), "ran": 0, "lost": 0,
                "retried": retried}
     if not todo:
-        _close(client, cluster)
+        cluster.close(client, local)
         return summary
     progress = _Progress(len(runs), len(runs) - len(todo), quiet)
 
@@ -207,26 +239,25 @@ def _run_todo(sw, runs, dup, done, out_dir, client, cluster, scheduler, workers,
         raise Interrupted(signal.Signals(signum).name)
 
     old = signal.signal(signal.SIGTERM, _stop)
+    # where a run in OpenFAST keeps its case, absolute: the workers run elsewhere
+    case_root = Path(out_dir).resolve() / CASES
+    watcher = _watch(progress, case_root, todo, done)
     try:
         if client is None:
-            client, cluster = _client(None, workers)
+            client, local = cluster.client(None, workers)
         if not quiet:
             n_workers = len(client.scheduler_info()["workers"])
             print(f"Dask: {scheduler or 'local cluster'}, {n_workers} workers", flush=True)
-        futures = [client.submit(run_task, b, traces, pure=False)
+        futures = [client.submit(run_task, b, traces, str(case_root), pure=False)
                    for b in batches(todo, sw.batch_size)]
+        if not quiet:
+            watcher.start()
         summary["ran"], summary["lost"] = _collect(futures, out_dir, done, progress, quiet,
                                                    rec)
     except KeyboardInterrupt:
         raise Interrupted("SIGINT") from None
     finally:
+        watcher.stop()
         signal.signal(signal.SIGTERM, old)
-        _close(client, cluster)
+        cluster.close(client, local)
     return summary
-
-
-def _close(client, cluster) -> None:
-    if client is not None:
-        client.close()
-    if cluster is not None:
-        cluster.close()

@@ -47,6 +47,8 @@ MAX_RECORD_BYTES = 1 << 30
 MAX_PART_BYTES = 256 * 1024 * 1024
 #: the file a sweep holds in its results folder while it writes there
 LOCK = "sweep.lock"
+#: the folder of the runs' OpenFAST cases, <this>/<run id>/ (engine = "openfast")
+CASES = "openfast"
 #: the files a sweep (and its summary) writes at the top of its results folder
 SWEEP_FILES = ("sweep.toml", "sweep.json", LOCK, "summary.md", "summary.csv",
                "summary_cost.csv", "summary_dlc.csv", "summary_tuning.csv")
@@ -359,6 +361,24 @@ class Record:
                 pass
             raise
         return path
+
+    def adopt(self, folder_rel: str) -> int:
+        """Record every file of the folder ``folder_rel`` as the sweep's, with the content
+        it holds now: a run's OpenFAST case, written in place by OpenFAST and wtftc's
+        case writer on a worker (its absolute paths keep it where it was made), recorded
+        when its run is saved. A symbolic link or a special file there is refused
+        (:func:`scan`). Returns how many files."""
+        folder = self.folder / folder_rel
+        lines = []
+        for rel in scan(folder, self.option):
+            size_sha = _sha256_of(folder / rel)
+            if size_sha is not None:
+                path = os.path.join(folder_rel, rel)
+                self._add(path, *size_sha)
+                lines.append(_line(path, *size_sha))
+        if lines:
+            self._append("".join(lines))
+        return len(lines)
 
     def remove(self, rel: str) -> bool:
         """Delete the file at ``rel`` if it is the sweep's; whether it was."""

@@ -22,7 +22,7 @@ from wtftc.sim import rhs
 
 TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "output_rate_hz",
             "batch_size", "controllers", "optional_controllers", "plants", "wind", "fault",
-            "profile", "mismatch", "fault_free_twins", "turbine", "dlc", "tuning"}
+            "profile", "mismatch", "fault_free_twins", "turbine", "dlc", "tuning", "engine"}
 #: the [mismatch] table's keys: the plant's factors against the controllers' model
 #: (config.MISMATCH), each an axis like any other (1.0: none)
 MISMATCH_KEYS = tuple(config.MISMATCH)
@@ -107,6 +107,8 @@ class Sweep:
     turbine: str | None = None
     #: every run's NTM averaged over a rotor disk of this radius [m] (None: the point)
     rotor_radius: float | None = None
+    #: the engine every run is simulated in (config.ENGINES): wtftc's plants, or OpenFAST
+    engine: str = "wtftc"
 
     @property
     def sweep_id(self) -> str:
@@ -212,6 +214,7 @@ def _check_top(raw: dict) -> tuple[str, int | None]:
 
 def _settings(raw: dict) -> dict:
     """The settings every run shares, with their defaults: Sweep's fields by name."""
+    engine = _engine(raw)
     return {
         "sampling_seed": _check_value("sampling_seed", raw.get("sampling_seed", 0), "int",
                                       lo=0),
@@ -221,13 +224,47 @@ def _settings(raw: dict) -> dict:
                            lo_open=True),
         "output_rate_hz": _check_value("output_rate_hz", raw.get("output_rate_hz", 10.0),
                                        "float", lo=0, hi=1e6, lo_open=True),
+        # an OpenFAST run is a process of its own: one run a task
         "batch_size": _check_value("batch_size", raw.get("batch_size", 8), "int", lo=1,
-                                   hi=10000),
+                                   hi=10000) if engine == "wtftc" else 1,
         "profile": _profile(raw.get("profile", PROFILE)),
         "fault_free_twins": _twins(raw.get("fault_free_twins", False), raw),
         "turbine": _turbine(raw.get("turbine")),
         "rotor_radius": _rotor_radius(raw),
+        "engine": engine,
     }
+
+
+def _engine(raw: dict) -> str:
+    """The engine of every run (config.ENGINES), and, with OpenFAST, the keys that mean
+    nothing there refused in one line each, before any run is listed (config refuses
+    them per run: a sweep would fail every one of its runs the same way)."""
+    engine = raw.get("engine", "wtftc")
+    if not isinstance(engine, str) or engine not in config.ENGINES:
+        raise ConfigError("engine", engine, "one of " + ", ".join(config.ENGINES)
+                          + " (docs/openfast.md)")
+    if engine == "wtftc":
+        return engine
+    for key, why, accepted in (
+            ("plants", config.OPENFAST_REFUSED["plant"], ()),
+            ("mismatch", config.OPENFAST_REFUSED["mismatch"], ()),
+            # (1: what its sweep.json says, read back by --summary)
+            ("batch_size", "each OpenFAST run is a process of its own, one Dask task each",
+             (1,))):
+        if key in raw and raw[key] not in accepted:
+            raise ConfigError(key, raw[key], f"no {key} with engine = openfast: {why}")
+    if raw.get("profile", PROFILE) == "ideal":
+        raise ConfigError("profile", "ideal", "realistic with engine = openfast: OpenFAST "
+                          "calls the controller as a library every control interval")
+    told = [c for c in _listed(raw.get("controllers"))
+            if c in CONTROLLERS and CONTROLLERS[c].fault_case == config.ORACLE_CASE]
+    fault = raw.get("fault", {})
+    if told and any(t != "none" for t in _listed(
+            fault.get("type", "none") if isinstance(fault, dict) else "none")):
+        raise ConfigError("controllers", told, "variants OpenFAST can run under a fault: "
+                          "not those told the fault (case 3: eq (49) told the fault inside "
+                          "wtftc's loop; a DISCON library is not told)")
+    return engine
 
 
 def _turbine(name) -> str | None:
@@ -286,11 +323,19 @@ def _controllers(raw: dict, mode: str) -> Axis:
     return ctrl
 
 
-def _axes(raw: dict, wind_tab: dict, fault_tab: dict, mode: str, t_final: float) -> list[Axis]:
+def _listed(v) -> list:
+    """A sweep file's value as the list of its values (a scalar: one)."""
+    return v if isinstance(v, list) else [v]
+
+
+def _axes(raw: dict, wind_tab: dict, fault_tab: dict, mode: str, t_final: float,
+          engine: str = "wtftc") -> list[Axis]:
     """Every axis, in the order of a run's values (controllers and plants first: CROSSED)."""
     return [
         _controllers(raw, mode),
-        _axis("plants", raw.get("plants", "nrel5mw"), "str", mode, choices=PLANTS),
+        # with OpenFAST the plant is the turbine's deck: the column says "openfast"
+        _axis("plants", raw.get("plants", "nrel5mw"), "str", mode, choices=PLANTS)
+        if engine == "wtftc" else Axis("plants", values=("openfast",)),
         _axis("wind.mean_mps", wind_tab.get("mean_mps", 16.0), "float", mode, lo=3.0,
               hi=40.0),
         _axis("wind.turbulence_class", wind_tab.get("turbulence_class", "B"), "str", mode,
@@ -399,22 +444,34 @@ def parse_sweep(raw: dict) -> Sweep:
         raise ConfigError("controllers", None, "a list of controller variants: "
                           + ", ".join(CONTROLLERS))
     wind_tab, fault_tab = _tables(raw)
-    axes = _axes(raw, wind_tab, fault_tab, mode, settings["t_final"])
+    axes = _axes(raw, wind_tab, fault_tab, mode, settings["t_final"], settings["engine"])
     _check_together({a.key: a for a in axes}, settings["t_final"])
     _check_size(mode, samples, axes, settings["fault_free_twins"])
-    canonical = json.dumps({**raw, "mode": mode, "sampling_seed": settings["sampling_seed"],
+    # (engine = "wtftc" is the default: absent, the ids of earlier sweeps)
+    canonical = json.dumps({**{k: v for k, v in raw.items() if k != "engine"}, "mode": mode,
+                            "sampling_seed": settings["sampling_seed"],
                             "t_final_s": settings["t_final"], "dt_s": settings["dt"],
                             "output_rate_hz": settings["output_rate_hz"],
                             "batch_size": settings["batch_size"],
                             "profile": settings["profile"]}
                            | ({"turbine": settings["turbine"]} if settings["turbine"] else {})
+                           | ({"engine": settings["engine"]} if settings["engine"] != "wtftc"
+                              else {})
                            | ({"fault_free_twins": True} if settings["fault_free_twins"]
                               else {}), sort_keys=True)
     return Sweep(raw=raw, text=canonical, mode=mode, samples=samples, axes=axes, **settings)
 
 
-def load_sweep(path: Path) -> Sweep:
-    return parse_sweep(config.load_toml(Path(path), "SWEEP.toml"))
+def load_sweep(path: Path, engine: str | None = None) -> Sweep:
+    """The sweep file at ``path``; ``engine`` (``--engine``): every run's engine, where the
+    file names none or the same."""
+    raw = config.load_toml(Path(path), "SWEEP.toml")
+    if engine is not None:
+        if raw.get("engine", engine) != engine:
+            raise ConfigError("--engine", engine, f"the sweep file's engine, {raw['engine']} "
+                              "(or leave --engine out)")
+        raw = {**raw, "engine": engine}
+    return parse_sweep(raw)
 
 
 # ---------------------------------------------------------------------------- the runs
@@ -448,7 +505,9 @@ def _point(sw: Sweep, values: dict) -> dict:
         wind_tab["rotor_radius_m"] = sw.rotor_radius
     cfg = variant_config(p["controller"], fault_tabs, wind_tab, sw.t_final, sw.dt, p["seed"],
                          "", profile=sw.profile)
-    cfg.update(plant=p["plant"], output_rate_hz=sw.output_rate_hz)
+    # OpenFAST's plant is the turbine's deck (config: engine = "openfast")
+    cfg.update({"plant": p["plant"]} if sw.engine == "wtftc" else {"engine": sw.engine},
+               output_rate_hz=sw.output_rate_hz)
     if sw.turbine:  # (absent: the run ids of earlier sweeps)
         cfg["turbine"] = sw.turbine
     _tuning(sw, values, p, cfg)

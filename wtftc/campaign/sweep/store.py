@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from wtftc.campaign.sweep import record
-from wtftc.campaign.sweep.record import LOCK, PART, RECORD, Record
+from wtftc.campaign.sweep.record import CASES, LOCK, PART, RECORD, Record
 from wtftc.campaign.sweep.spec import MISMATCH_KEYS, SENSOR_MAGNITUDES, Sweep
 from wtftc.errors import ConfigError
 from wtftc.files import MAX_TOML_BYTES, read_user_text
@@ -266,8 +266,9 @@ def sweep_contents(out_dir: Path, rec: Record | None = None,
         out_dir, option, [f for f in files if not f.endswith("/")])
     ours, other = [], []
     for rel in files:
-        mine = (rel in ("runs/", "traces/", "figures/") or (rel == RECORD and rec.exists)
-                or rel == LOCK or rec.ours(rel))
+        mine = (rel in ("runs/", "traces/", "figures/", CASES + "/")
+                or (rel.startswith(CASES + "/") and rel.endswith("/"))  # a case's folders
+                or (rel == RECORD and rec.exists) or rel == LOCK or rec.ours(rel))
         (ours if mine else other).append(rel)
     return ours, other
 
@@ -286,7 +287,9 @@ def _open(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool, rec: Recor
             if rel not in (LOCK, RECORD):
                 rec.remove(rel)
         rec.forget()
-        for sub in ("runs", "traces", "figures"):
+        cases = [rel for rel in record.scan(out_dir, "--out", folders=True)
+                 if rel.startswith(CASES + "/") and rel.endswith("/")]
+        for sub in [*sorted(cases, reverse=True), CASES, "runs", "traces", "figures"]:
             with contextlib.suppress(OSError):  # absent, or not empty: kept
                 (out_dir / sub).rmdir()
     else:  # what a killed sweep left half-written (its temporaries) goes
@@ -379,12 +382,20 @@ def _check_folder(out_dir: Path, sw: Sweep, overwrite: bool, rec: Record,
                               "--out another folder)") from None
         old = None
     if old is not None:
-        _check_same_sweep(out_dir, old, sw.sweep_id, overwrite)
+        _check_same_sweep(out_dir, old, sw.sweep_id, overwrite, sw.engine)
 
 
-def _check_same_sweep(out_dir: Path, old: dict, sweep_id: str, overwrite: bool) -> None:
-    """A results folder resumes only the same sweep file on the same generated code."""
+def _check_same_sweep(out_dir: Path, old: dict, sweep_id: str, overwrite: bool,
+                      engine: str = "wtftc") -> None:
+    """A results folder resumes only the same sweep file, in the same engine, on the same
+    generated code."""
     now = versions()
+    was = old.get("sweep", {}).get("engine", "wtftc") if isinstance(old.get("sweep"), dict) \
+        else "wtftc"
+    if old["sweep_id"] != sweep_id and was != engine and not overwrite:
+        raise ConfigError("--out", str(out_dir), f"the results folder of a sweep in {engine}: "
+                          f"this one's runs are in {was} (resume it with --engine {was}); "
+                          "pass --overwrite to discard those results, or --out a new folder")
     if old["sweep_id"] != sweep_id and not overwrite:
         raise ConfigError("--out", str(out_dir), "the results folder of the same sweep "
                           "file: it holds sweep " + old["sweep_id"] + ", this file is "
@@ -399,9 +410,10 @@ def _check_same_sweep(out_dir: Path, old: dict, sweep_id: str, overwrite: bool) 
 
 def _save_batch(out_dir: Path, done: set[str], results: list,
                 rec: Record | None = None) -> list[dict]:
-    """Write one finished task's runs: traces first, then the metrics file that lists
-    them, each recorded and written atomically (:meth:`Record.write`); runs already saved
-    (a task a dying worker made Dask repeat) are dropped. Returns the rows written."""
+    """Write one finished task's runs: traces first (and a run's OpenFAST case, recorded as
+    it is), then the metrics file that lists them, each recorded and written atomically
+    (:meth:`Record.write`); runs already saved (a task a dying worker made Dask repeat)
+    are dropped. Returns the rows written."""
     import pyarrow as pa
 
     out_dir = Path(out_dir)
@@ -412,6 +424,8 @@ def _save_batch(out_dir: Path, done: set[str], results: list,
             continue
         if tr is not None:
             rec.write(f"traces/{row['run_id']}.parquet", _parquet_bytes(_trace_table(tr)))
+        if (out_dir / CASES / row["run_id"]).is_dir():  # a run in OpenFAST: its case
+            rec.adopt(f"{CASES}/{row['run_id']}")
         rows.append(row)
     if rows:
         ids = "".join(sorted(r["run_id"] for r in rows))

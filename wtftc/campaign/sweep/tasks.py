@@ -1,9 +1,11 @@
-"""One Dask task: a batch of runs of one compiled loop, each to a row of the dataset (and,
-asked, its traces). Workers import :func:`run_task` by this module's path."""
+"""One Dask task: a batch of runs of one compiled loop, or one run in OpenFAST, each to a
+row of the dataset (and, asked, its traces). Workers import :func:`run_task` by this
+module's path."""
 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -11,7 +13,7 @@ from wtftc import config
 from wtftc.campaign import cases, tune
 from wtftc.campaign.compare import CONTROLLERS
 from wtftc.campaign.sweep.store import METRICS
-from wtftc.results.metrics import metrics, speed_series
+from wtftc.results.metrics import fdi_ran, metrics, speed_series
 from wtftc.sim import rhs
 
 
@@ -27,8 +29,8 @@ def _row(pt: dict, status: str, m: dict | None = None, cause: str | None = None,
                 **{k: None for k, _ in METRICS}})
     if m is not None:
         row.update({k: m.get(k) for k, _ in METRICS})
-    fdi = m["fdi"] if m is not None else None  # None: no FDI ran (ROSCO in OpenFAST)
-    if fdi is not None:
+    fdi = m["fdi"] if m is not None else None
+    if fdi_ran(fdi):  # (not ROSCO in OpenFAST: its library has no FDI)
         delays = [b["detection_delay_s"] for b in fdi["blades"].values()
                   if b.get("detection_delay_s") is not None]
         if CONTROLLERS[pt["controller"]].uses_fdi and pt["fault_type"] != "none":
@@ -48,20 +50,33 @@ def _row(pt: dict, status: str, m: dict | None = None, cause: str | None = None,
     return row
 
 
-def run_task(points: list[dict], traces: bool = False) -> list[tuple[dict, dict | None]]:
+def run_task(points: list[dict], traces: bool = False, case_root: str | None = None
+             ) -> list[tuple[dict, dict | None]]:
     """One Dask task: run ``points`` (one compiled loop) and return (row, traces) each.
 
     A run that diverges is a result (status "diverged", with its time, state and cause);
     one that raises is recorded as "failed" with the exception, and the others still run.
+    ``case_root``: the results folder's ``openfast/``, where a run in OpenFAST keeps its
+    case, ``<case_root>/<run id>/`` (a worker that cannot see the results folder runs it
+    in a temporary folder instead; a run in wtftc's own plants writes none).
     """
     import warnings
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # accuracy warnings would flood the workers' logs
-        return _run_points(points, traces)
+        return _run_points(points, traces, case_root)
 
 
-def _run_points(points: list[dict], traces: bool) -> list[tuple[dict, dict | None]]:
+def case_folder(case_root: str | None, run_id: str) -> Path | None:
+    """Where run ``run_id`` keeps its OpenFAST case: under ``case_root`` when this worker
+    sees the results folder that holds it (its sweep.json), else None (a temporary)."""
+    if case_root is None or not (Path(case_root).parent / "sweep.json").is_file():
+        return None
+    return Path(case_root) / run_id
+
+
+def _run_points(points: list[dict], traces: bool, case_root: str | None = None
+                ) -> list[tuple[dict, dict | None]]:
     rcs, out = [], []
     for pt in points:
         try:
@@ -81,7 +96,8 @@ def _run_points(points: list[dict], traces: bool) -> list[tuple[dict, dict | Non
             out.append((_row(pt, "failed", cause=rc), None))
             continue
         try:
-            res = results.get(id(rc)) or cases.run(rc, progress=False)
+            res = results.get(id(rc)) or cases.run(
+                rc, progress=False, openfast_dir=case_folder(case_root, pt["run_id"]))
             m = metrics(rc, res)
         except Exception as exc:  # noqa: BLE001
             out.append((_row(pt, "failed", cause=f"{type(exc).__name__}: {exc}"), None))
