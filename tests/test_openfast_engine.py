@@ -265,3 +265,32 @@ def test_the_abort_message_is_the_last_error_unwrapped():
         " Simulation error level: FATAL ERROR", "", "  Aborting OpenFAST."])
     assert engine.abort_message(log, 1) == ("OpenFAST stopped (exit code 1): " + head
                                              + "DLL_controller_call:scripted failure")
+
+
+@pytest.mark.parametrize("controller", ["rosco", "pi"])
+def test_the_case_reruns_by_hand_after_its_folder_is_moved(tmp_path, controller):
+    """Item 3: `wtftc run --engine openfast` keeps a case a user can rerun by hand. The run
+    folder is written beside its final name and renamed into place, and a user may move
+    it: every path the case holds is relative to it but the plant library's (wtftc's
+    cache). Run again by hand in a moved copy, OpenFAST ends normally and writes the same
+    rotor speed."""
+    from wtftc.openfast import install
+
+    out = tmp_path / "run"
+    code = main(["run", "--engine", "openfast", "--controller", controller, "--profile",
+                 "realistic", "--wind", "constant", "--wind-mean", "16", "--t-final", "2",
+                 "--fault", "none", "--quiet", "--out", str(out)])
+    assert code == 0
+    moved = tmp_path / "elsewhere" / "moved"
+    moved.parent.mkdir()
+    out.rename(moved)
+    case = moved / "openfast"
+    fst = next(case.glob("*.fst"))
+    first = engine.read_outb(fst.with_suffix(".outb"))["RotSpeed"]
+    fst.with_suffix(".outb").unlink()
+    done = subprocess.run([str(install.require().openfast), fst.name], cwd=case,
+                          capture_output=True, text=True)
+    assert done.returncode == 0 and engine.NORMAL_END in done.stdout, done.stdout[-600:]
+    again = engine.read_outb(fst.with_suffix(".outb"))["RotSpeed"]
+    assert np.array_equal(first, again)
+    assert str(tmp_path / "run") not in (case / "wtftc_plant.in").read_text()

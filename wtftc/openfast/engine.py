@@ -146,16 +146,20 @@ def prepare(rc, folder: Path) -> ofcase.Case:
     _wind(rc, ofcase.module_file(fst, "InflowFile"), folder)
     lib, infile = controller_library(rc, folder / "controller")
     records = folder / "wtftc_plant_records.bin"
+    # every path of the case relative to it, so that it reruns by hand once moved (the
+    # run folder is written beside its final name and renamed into place)
     settings = plant_library.Settings(lib, infile, records, rc.p_turbine, rc.p_sensors,
-                                      rc.faults if rc.faults else ())
+                                      rc.faults if rc.faults else (), base=folder)
     n_calls = int(round(rc.t_final / dll_dt)) + 2
     settings.noise = folder / "wtftc_noise.bin"
     settings.noise_columns = plant_library.noise_table(
         rc.seed, n_calls, dll_dt, Schedule(list(rc.faults), tuple(rc.p_turbine))
         if rc.faults else None, settings.noise)
     plant_in = settings.write(folder / "wtftc_plant.in")
-    ofcase.set_values(ofcase.module_file(fst, "ServoFile"), {
-        "DLL_FileName": f'"{plant_library.build()}"', "DLL_InFile": f'"{plant_in}"',
+    servo = ofcase.module_file(fst, "ServoFile")
+    ofcase.set_values(servo, {
+        "DLL_FileName": f'"{plant_library.build()}"',
+        "DLL_InFile": f'"{os.path.relpath(plant_in, servo.parent)}"',
         "DLL_DT": f"{dll_dt:.9g}", "Ptch_Cntrl": "1"})
     return ofcase.Case(folder, fst, dt, dll_dt, plant_in, records)
 

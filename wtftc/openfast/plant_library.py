@@ -113,7 +113,7 @@ def add_to_export(rc, folder: Path) -> None:
     c = rc.loop.controller
     shutil.copy2(build(), folder / LIBRARY)
     Settings(folder / f"libwtftc_{c}.so", folder / f"wtftc_{c}.IN", folder / RECORDS,
-             rc.p_turbine, rc.p_sensors, beside=True).write(folder / SETTINGS)
+             rc.p_turbine, rc.p_sensors, base=folder).write(folder / SETTINGS)
     (folder / "servodyn_snippet.txt").write_text(
         discon.servodyn_snippet(c, rc.control_interval, LIBRARY, SETTINGS))
     with open(folder / "README.txt", "a", encoding="utf-8") as f:
@@ -165,11 +165,15 @@ class Settings:
     noise_columns: int = 0
     actuator: bool = True
     actuator_dt: float = ACTUATOR_DT
-    #: name the files by their names only: they lie beside the settings file (an export)
-    beside: bool = False
+    #: the folder the settings file lies in when the files under it are to be named
+    #: relative to it (a case or an export that can be moved whole); None: absolute
+    base: Path | None = None
 
     def _path(self, p: Path) -> str:
-        return Path(p).name if self.beside else str(Path(p).resolve())
+        p = Path(p).resolve()
+        if self.base is not None and p.is_relative_to(Path(self.base).resolve()):
+            return os.path.relpath(p, Path(self.base).resolve())
+        return str(p)
 
     def text(self) -> str:
         sf0 = Schedule([], tuple(self.p_turbine)).sensor(np.zeros(1))[:, 0]
