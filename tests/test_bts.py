@@ -116,3 +116,36 @@ def test_the_field_key_is_refused_naming_it(tmp_path, monkeypatch):
     with pytest.raises(ConfigError, match="not there yet") as exc:
         config.make_config(NATIVE)
     assert "\n" not in str(exc.value)
+
+
+def test_an_openfast_run_starts_from_its_own_field_and_every_command_makes_it(
+        tmp_path, monkeypatch, capsys):
+    """With engine = openfast and TurbSim's wind (the defaults), the configuration reads
+    the same field for the operating point it starts from (`[wind] field` becomes
+    "turbsim"); "spectral" there is refused in one line. `wtftc run --wind-field turbsim`
+    makes the field first, into an empty cache, and the run's wind is the field's."""
+    from wtftc.cli import main
+
+    found = install.require()  # named, so that the empty cache below still finds it
+    monkeypatch.setenv("OPENFAST", str(found.openfast))
+    monkeypatch.setenv("TURBSIM", str(found.turbsim))
+    monkeypatch.setenv("WTFTC_CACHE", str(tmp_path / "cache"))
+    of = {**NATIVE, "engine": "openfast", "profile": "realistic",
+          "wind": {"kind": "ntm", "mean_mps": 16.0}}
+    assert turbsim.needs_field(of) and not turbsim.needs_field(
+        {**of, "openfast": {"wind": "uniform"}})
+    with pytest.raises(ConfigError, match="not there yet"):
+        config.make_config(of)  # the field is not made by the configuration
+    with pytest.raises(ConfigError, match="wind.field") as exc:
+        config.make_config({**of, "wind": {**of["wind"], "field": "spectral"}})
+    assert "uniform" in str(exc.value) and "\n" not in str(exc.value)
+    out = tmp_path / "run"
+    assert main(["run", "--controller", "pi", "--profile", "realistic", "--wind", "ntm",
+                 "--wind-mean", "16", "--wind-field", "turbsim", "--t-final",
+                 str(NATIVE["t_final_s"]), "--seed", str(NATIVE["seed"]), "--quiet", "--out",
+                 str(out)]) == 0
+    rc = config.make_config(of)  # now made: the OpenFAST run's own configuration reads it
+    assert rc.raw["wind"]["field"] == "turbsim"
+    saved = config.load_toml(out / "config.toml")
+    assert saved["wind"]["field"] == "turbsim"
+    assert rc.wind.describe()["source"] == config.make_config(saved).wind.describe()["source"]

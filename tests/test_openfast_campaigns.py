@@ -72,8 +72,10 @@ def test_a_sweep_in_openfast_on_two_workers_keeps_each_case_and_resumes(tmp_path
         assert r["rms_speed_error_rad_s"] == pytest.approx(
             _outb_rms(case, r["transient_s"], rc.reference), rel=1e-9)
         servo = case / get_value(case / "NREL-5MW.fst", "ServoFile")
-        settings = Path(get_value(servo, "DLL_InFile").strip('"'))
-        assert settings.is_file() and settings.parent == case.resolve()  # reruns by hand
+        named = get_value(servo, "DLL_InFile").strip('"')
+        settings = servo.parent / named  # relative to ServoDyn's file: reruns when moved
+        assert not Path(named).is_absolute() and settings.is_file()
+        assert settings.resolve().parent == case.resolve()
         assert f'"path":"openfast/{r["run_id"]}/NREL-5MW.outb"' in record
     stamp = (out / "openfast" / rows["rosco"]["run_id"] / "NREL-5MW.outb").stat().st_mtime_ns
 

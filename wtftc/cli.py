@@ -125,6 +125,22 @@ TURBINE_HELP = ("a built-in turbine (nrel5mw, the default; iea15mw) or a turbine
                 "path (.toml; docs/turbines.md)")
 
 
+def _add_wind_arguments(r) -> None:
+    """`wtftc run`'s wind options (docs/wind.md)."""
+    r.add_argument("--wind", help="wind kind: constant, steps, paper_random, ntm, eog, file")
+    r.add_argument("--wind-mean", type=float, help="mean/constant wind speed [m/s]")
+    r.add_argument("--wind-file", type=Path, help="OpenFAST .hh/.wnd or CSV (time_s, speed_mps)")
+    r.add_argument("--wind-radius", type=float, metavar="METERS",
+                   help="ntm: the radius [m] of the rotor disk the turbulence is averaged "
+                        "over (default: the turbine's rotor radius, the rotor-effective wind; "
+                        "0: the hub-height point, docs/wind.md)")
+    r.add_argument("--wind-field", choices=("spectral", "turbsim"),
+                   help="ntm: spectral (wtftc's own synthesis, the default on wtftc's "
+                        "plant) or turbsim (read from the TurbSim full field OpenFAST runs "
+                        "in, made first: the engines then share their wind; the default "
+                        "with --engine openfast)")
+
+
 def _add_run(sub) -> None:
     r = sub.add_parser(
         "run", help="simulate one case: traces, metrics, figures and a config you can re-run",
@@ -150,13 +166,7 @@ def _add_run(sub) -> None:
                    "paper (eqs (1)-(4), unloaded)")
     r.add_argument("--controller", help=_controller_help())
     r.add_argument("--turbine", help=TURBINE_HELP)
-    r.add_argument("--wind", help="wind kind: constant, steps, paper_random, ntm, eog, file")
-    r.add_argument("--wind-mean", type=float, help="mean/constant wind speed [m/s]")
-    r.add_argument("--wind-file", type=Path, help="OpenFAST .hh/.wnd or CSV (time_s, speed_mps)")
-    r.add_argument("--wind-radius", type=float, metavar="METERS",
-                   help="ntm: the radius [m] of the rotor disk the turbulence is averaged "
-                        "over (default: the turbine's rotor radius, the rotor-effective wind; "
-                        "0: the hub-height point, docs/wind.md)")
+    _add_wind_arguments(r)
     r.add_argument("--fault", choices=("default", "none"),
                    help="default: blade 1 locked, blades 2-3 ρ = 0.5 from 20 s (cases 2, 3)")
     r.add_argument("--t-final", type=float, help="simulated time [s] (default 60)")
@@ -349,8 +359,9 @@ def _run_overrides(args) -> dict:
             cfg[key] = val
     wind = dict(cfg.get("wind", {})) if isinstance(cfg.get("wind"), dict) else cfg.get("wind")
     radius = getattr(args, "wind_radius", None)
+    field = getattr(args, "wind_field", None)
     if getattr(args, "wind", None) or getattr(args, "wind_mean", None) is not None \
-            or getattr(args, "wind_file", None) or radius is not None:
+            or getattr(args, "wind_file", None) or radius is not None or field:
         wind = {} if not isinstance(wind, dict) else wind
         if args.wind:
             wind = {"kind": args.wind}
@@ -364,6 +375,9 @@ def _run_overrides(args) -> dict:
         if radius is not None:
             wind.setdefault("kind", "paper_random")  # the default kind: it refuses the field
             wind["rotor_radius_m"] = radius
+        if field:
+            wind.setdefault("kind", "paper_random")  # the default kind: it refuses the field
+            wind["field"] = field
         cfg["wind"] = wind
     if getattr(args, "control_delay", False):
         cfg["control_delay"] = True
@@ -463,9 +477,12 @@ def _cmd_verify(args) -> int:
 def _cmd_run(args) -> int:
     from wtftc import config
     from wtftc.campaign import cases, tune
+    from wtftc.openfast.turbsim import ensure_field
     from wtftc.results.io import check_run_folder
 
-    rc = config.make_config(tune.resolve(_run_overrides(args)))
+    raw = tune.resolve(_run_overrides(args))
+    ensure_field(raw)  # a TurbSim field the run reads, made first
+    rc = config.make_config(raw)
     check_run_folder(args.out, "--out")
     rc.initial_state()  # a wind with no operating point: refused before the first line
     print(f"{rc.label}: case {rc.case} ({config.CASES[rc.case]}) on {rc.plant}, "

@@ -567,6 +567,16 @@ def _engine(raw: dict, given: dict) -> None:
         raise ConfigError("openfast.wind", raw["openfast"]["wind"], "turbsim (NTM and ETM "
                           "winds as TurbSim full fields, the default) or uniform (the "
                           "series wtftc's own plant gets, uniform over the rotor)")
+    wind = raw.get("wind")
+    if raw["openfast"]["wind"] == "turbsim" and isinstance(wind, dict) \
+            and wind.get("kind") == "ntm":
+        # OpenFAST reads TurbSim's field: the operating point it starts from is read from
+        # the same field (wtftc.model.wind_field), not from wtftc's own synthesis
+        if wind.get("field", "turbsim") != "turbsim":
+            raise ConfigError("wind.field", wind["field"], '"turbsim" with engine = openfast '
+                              "(OpenFAST reads TurbSim's field; [openfast] wind = "
+                              '"uniform" gives it wtftc\'s own series instead)')
+        raw["wind"] = {**wind, "field": "turbsim"}
     if raw["case"] == ORACLE_CASE:
         raise ConfigError("case", 3, "1, 2 or 4 with engine = openfast (case 3 tells eq (49) "
                           "the fault inside wtftc's loop; a DISCON library is not told)")

@@ -23,6 +23,7 @@ from wtftc.campaign import cases, cluster
 from wtftc.errors import ConfigError
 from wtftc.files import owned_folder
 from wtftc.model import turbine_file
+from wtftc.openfast.turbsim import ensure_field
 from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text
 from wtftc.results.metrics import fdi_ran, metrics
 
@@ -220,6 +221,8 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
     # validate every cell before running any
     cells = {(w, f, c): cell_config(c, f, w, t_final, dt, seed, profile, turbine, engine)
              for w in wind_names for f in fault_names for c in ctrl_names}
+    for raw in cells.values():
+        ensure_field(raw)  # each TurbSim field a cell reads, made once, first
     configs = {key: config.make_config(raw) for key, raw in cells.items()}
     dask = _on_dask(engine, workers, scheduler)
     if engine == "openfast":

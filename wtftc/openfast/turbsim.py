@@ -67,7 +67,9 @@ def make_field(cfg: dict) -> Path:
     if not isinstance(table, dict) or table.get("field") != "turbsim":
         raise ConfigError("wind.field", table.get("field") if isinstance(table, dict) else None,
                           '"turbsim" in an NTM [wind] table, for a field to make')
-    rc = config.make_config({**cfg, "wind": {**table, "field": "spectral"}})
+    # the configuration as wtftc's own plant would run it, for its wind, turbine and length
+    native = {k: v for k, v in cfg.items() if k not in ("engine", "openfast", "plant")}
+    rc = config.make_config({**native, "wind": {**table, "field": "spectral"}})
     name = rc.raw.get("turbine", turbine_file.DEFAULT)
     deck = config.openfast_deck(turbine_file.load(name))
     if deck is None:
@@ -75,3 +77,26 @@ def make_field(cfg: dict) -> Path:
                           "(openfast_deck) with [wind] field = \"turbsim\"")
     return generate(turbsim_field(rc.wind.describe(), deck, rc.param("rotor_radius"),
                                   rc.t_final))
+
+
+def needs_field(cfg: dict) -> bool:
+    """Whether the configuration ``cfg`` reads a TurbSim field: an NTM ``[wind]`` with
+    ``field = "turbsim"``, or with no ``field`` in an OpenFAST run whose ``[openfast] wind``
+    is TurbSim's (the default: wtftc.config then reads the same field for the operating
+    point it starts from)."""
+    table = cfg.get("wind")
+    if not isinstance(table, dict) or table.get("kind") != "ntm":
+        return False
+    if "field" in table:
+        return table["field"] == "turbsim"
+    of = cfg.get("openfast")
+    return cfg.get("engine") == "openfast" and (
+        not isinstance(of, dict) or of.get("wind", "turbsim") == "turbsim")
+
+
+def ensure_field(cfg: dict) -> None:
+    """Make the TurbSim field ``cfg`` reads into the cache, if it reads one (needs_field):
+    the step before wtftc.config.make_config, which cannot run TurbSim. Every command
+    that builds configurations calls this first (run, compare, sweep)."""
+    if needs_field(cfg):
+        make_field({**cfg, "wind": {**cfg["wind"], "field": "turbsim"}})

@@ -56,6 +56,7 @@ from wtftc.campaign.sweep.summary import show_run, summarize
 from wtftc.campaign.sweep.tasks import run_task
 from wtftc.errors import ConfigError
 from wtftc.files import MAX_TOML_BYTES, read_user_text
+from wtftc.openfast.turbsim import ensure_field
 
 __all__ = ["FAULT_TYPES", "METRICS", "PLANTS", "STATUS", "TURBULENCE_CLASSES", "Axis",
            "Interrupted", "Sweep", "batches", "count_status", "expand", "load_sweep",
@@ -141,7 +142,9 @@ def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
         if pt["controller"] != "rosco":  # ROSCO's availability is checked below
             # (a [tuning] target is solved where the run runs: one out of reach fails
             # that run, with its cause)
-            config.make_config({k: v for k, v in pt["config"].items() if k != "tuning"})
+            raw = {k: v for k, v in pt["config"].items() if k != "tuning"}
+            ensure_field(raw)  # each TurbSim field a run reads, made once, before the runs
+            config.make_config(raw)
     if any(pt["controller"] == "rosco" for pt in runs):
         from wtftc.sim import rosco
 

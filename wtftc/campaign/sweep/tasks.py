@@ -13,6 +13,7 @@ from wtftc import config
 from wtftc.campaign import cases, tune
 from wtftc.campaign.compare import CONTROLLERS
 from wtftc.campaign.sweep.store import METRICS
+from wtftc.openfast.turbsim import ensure_field
 from wtftc.results.metrics import fdi_ran, metrics, speed_series
 from wtftc.sim import rhs
 
@@ -80,7 +81,9 @@ def _run_points(points: list[dict], traces: bool, case_root: str | None = None
     rcs, out = [], []
     for pt in points:
         try:
-            rcs.append(config.make_config(tune.resolve(pt["config"])))
+            raw = tune.resolve(pt["config"])
+            ensure_field(raw)  # made before the sweep: found in the cache (a remote worker
+            rcs.append(config.make_config(raw))  # with another cache makes its own)
         except Exception as exc:  # noqa: BLE001 - recorded as the run's failure
             rcs.append(f"{type(exc).__name__}: {exc}")
     ok = [rc for rc in rcs if not isinstance(rc, str)]
