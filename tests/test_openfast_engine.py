@@ -294,3 +294,24 @@ def test_the_case_reruns_by_hand_after_its_folder_is_moved(tmp_path, controller)
     again = engine.read_outb(fst.with_suffix(".outb"))["RotSpeed"]
     assert np.array_equal(first, again)
     assert str(tmp_path / "run") not in (case / "wtftc_plant.in").read_text()
+
+
+@pytest.mark.parametrize("missing, text", [("openfast_io", "openfast-io 5.0.0"),
+                                           ("rosco", "ROSCO is not installed")])
+def test_a_missing_python_package_of_the_engine_is_one_line_before_any_run(
+        monkeypatch, capsys, tmp_path, missing, text):
+    """A `pip install wtftc` without the engine's packages: OpenFAST's output reader
+    (openfast-io) and ROSCO's wheel (the built-in decks) are named, with the command that
+    installs them, in one line and exit code 4, before anything runs (a newcomer got a
+    traceback after the whole simulation)."""
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec",
+                        lambda name, *a: None if name == missing else real(name, *a))
+    code = main(["run", "--engine", "openfast", "--controller", "pi", "--profile",
+                 "realistic", "--wind", "constant", "--wind-mean", "16", "--t-final", "5",
+                 "--quiet", "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 4 and err.count("\n") == 1 and text in err and "pip install" in err
+    assert not (tmp_path / "run").exists()

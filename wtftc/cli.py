@@ -82,7 +82,59 @@ def build_parser() -> argparse.ArgumentParser:
     _add_turbine(sub)
     _add_linearize(sub)
     _add_openfast(sub)
+    _add_validate(sub)
     return p
+
+
+def _add_validate(sub) -> None:
+    v = sub.add_parser(
+        "validate", help="one controller and scenario on both engines: OpenFAST and wtftc's "
+                         "tower plant, side by side (docs/validation.md)",
+        description="Runs the controller in OpenFAST 5.0.0 (the turbine's deck, the benchmark "
+                    "actuator, wtftc's sensors and faults) and on wtftc's tower plant, on the "
+                    "same TurbSim field for an NTM (its rotor-effective and its hub-height "
+                    "series), with the same seed. Writes OUT/openfast/, OUT/wtftc/, "
+                    "OUT/wtftc_hub/ (run folders), validation.json and validation.md (each "
+                    "figure on each engine, wtftc / OpenFAST, a verdict against its "
+                    "tolerance) and time_series and spectra figures.",
+        epilog="Example: wtftc validate --controller rosco --wind-mean 16 --t-final 60 "
+               "--out out/validate_rosco16")
+    v.add_argument("--controller", default="rosco", help="rosco (default) or a registered "
+                   "controller that exports (pi, physical, paper, drivetrain)")
+    v.add_argument("--case", type=int, choices=(1, 2, 4),
+                   help="1 no fault (default), 2 a fault the controller is not told of, "
+                        "4 wtftc's FDI finds it")
+    v.add_argument("--turbine", help=TURBINE_HELP)
+    v.add_argument("--wind", default="ntm", help="wind kind (default ntm, class B): "
+                   "constant, steps, ntm, eog, file")
+    v.add_argument("--wind-mean", type=float, default=16.0,
+                   help="mean (or constant) wind speed at hub height [m/s] (default 16)")
+    v.add_argument("--wind-file", type=Path, help="OpenFAST .hh/.wnd or CSV (time_s, "
+                   "speed_mps)")
+    v.add_argument("--fault", choices=("default", "none"),
+                   help="default: blade 1 locked, blades 2-3 ρ = 0.5 from 20 s (cases 2, 4)")
+    v.add_argument("--t-final", type=float, default=60.0,
+                   help="simulated time [s] (default 60)")
+    v.add_argument("--seed", type=_nonnegative_int, default=0, help="random seed (default 0)")
+    v.add_argument("--out", type=Path, required=True,
+                   help="output folder: new, empty or an earlier validation's")
+    v.add_argument("--quiet", action="store_true", help="no progress")
+
+
+def _cmd_validate(args) -> int:
+    from wtftc.campaign import tune, validate
+
+    raw = tune.resolve(_run_overrides(args))
+    if args.controller != "rosco":
+        raw.setdefault("turbine_params", {"gen_torque_law": 1.0})  # as compare runs them
+    doc = validate.run_validate(raw, args.out, progress=not args.quiet)
+    counts = {}
+    for row in doc["metrics"].values():
+        counts[row["verdict"]] = counts.get(row["verdict"], 0) + 1
+    print(", ".join(f"{n} {k}" for k, n in sorted(counts.items())) + " (wtftc against "
+          f"OpenFAST); written: {args.out}/validation.json, validation.md, time_series.png, "
+          "spectra.png, openfast/, wtftc/")
+    return 0
 
 
 def _add_openfast(sub) -> None:
@@ -485,8 +537,10 @@ def _cmd_run(args) -> int:
     rc = config.make_config(raw)
     check_run_folder(args.out, "--out")
     rc.initial_state()  # a wind with no operating point: refused before the first line
-    print(f"{rc.label}: case {rc.case} ({config.CASES[rc.case]}) on {rc.plant}, "
-          f"{rc.t_final:g} s at dt = {rc.dt:g} s")
+    where = (f"OpenFAST 5.0.0 ({rc.raw.get('turbine', 'nrel5mw')}'s deck)"
+             if rc.raw.get("engine") == "openfast" else f"{rc.plant}, at dt = {rc.dt:g} s")
+    print(f"{rc.label}: case {rc.case} ({config.CASES[rc.case]}) on {where}, "
+          f"{rc.t_final:g} s")
     res, table, paths = cases.run_and_write(rc, args.out, progress=not args.quiet)
     print(table)
     if res.diverged:
@@ -768,7 +822,7 @@ def _cmd_openfast(args) -> int:
     return 0
 
 
-COMMANDS = {"verify": _cmd_verify, "run": _cmd_run, "cases": _cmd_cases,
+COMMANDS = {"validate": _cmd_validate, "verify": _cmd_verify, "run": _cmd_run, "cases": _cmd_cases,
             "compare": _cmd_compare, "sweep": _cmd_sweep, "functions": _cmd_functions,
             "export": _cmd_export, "turbine": _cmd_turbine, "linearize": _cmd_linearize,
             "openfast": _cmd_openfast}

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import importlib.util
 import json
 import math
 import numbers
@@ -14,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from wtftc.artefacts import layout as lay
-from wtftc.errors import ConfigError, range_text
+from wtftc.errors import ConfigError, EngineError, range_text
 from wtftc.model import tuning, turbine_file, wind_field
 from wtftc.model.cp_table import nrel5mw_cp_table, read_cp_table
 from wtftc.model.faults import DEFAULT_FAULT, parse_faults
@@ -186,8 +187,10 @@ class RunConfig:
     def model_name(self) -> str:
         """The plant's name, or on a turbine other than the NREL 5-MW the turbine's (its
         built-in name or its file's stem): what tables and figure titles call the run's
-        turbine."""
+        turbine; ``openfast-<turbine>`` for a run in OpenFAST."""
         turbine = self.raw.get("turbine", turbine_file.DEFAULT)
+        if self.raw.get("engine") == "openfast":  # the deck is the plant
+            return f"openfast-{Path(turbine).stem}"
         return self.plant if turbine == turbine_file.DEFAULT else Path(turbine).stem
 
     @property
@@ -353,10 +356,21 @@ def openfast_deck(turbine: turbine_file.Turbine) -> Path | None:
     if not turbine.openfast_deck:
         return None
     if turbine.openfast_deck.startswith("rosco:"):
+        if importlib.util.find_spec("rosco") is None:
+            raise EngineError(f"the OpenFAST deck of turbine {turbine.name} is ROSCO 2.10.6's "
+                              f"({turbine.openfast_deck[len('rosco:'):]}), and ROSCO is not "
+                              "installed: " + OPENFAST_PACKAGES + " (docs/openfast.md)")
         from wtftc.sim.rosco import discon_path
 
         return discon_path(turbine.openfast_deck)
     return Path(turbine.openfast_deck)
+
+
+#: what the OpenFAST engine needs from Python besides wtftc's core: ROSCO's wheel (the
+#: built-in turbines' decks, ROSCO's controller) and openfast-io (OpenFAST's output read
+#: back); both without their heavy dependencies, as `make setup` installs them
+OPENFAST_PACKAGES = ("pip install pyzmq pyyaml ruamel.yaml 'deepdiff>8.0' && pip install "
+                     "--no-deps rosco==2.10.6 openfast-io==5.0.0")
 
 
 def _turbsim_wind(wind, turbine: turbine_file.Turbine, p_turbine: np.ndarray, t_final: float):
@@ -554,6 +568,9 @@ def _engine(raw: dict, given: dict) -> None:
             raise ConfigError("openfast", given["openfast"], "no [openfast] table with "
                               "engine = wtftc")
         return
+    if importlib.util.find_spec("openfast_io") is None:  # checked before, not after, a run
+        raise EngineError("engine = openfast reads OpenFAST's output with openfast-io 5.0.0, "
+                          "which is not installed: " + OPENFAST_PACKAGES)
     for key, why in OPENFAST_REFUSED.items():
         # what a saved run's config.toml holds is accepted back: the engine's own values
         if key in given and given[key] not in OPENFAST_ACCEPTED.get(key, ()):

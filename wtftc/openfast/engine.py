@@ -335,5 +335,7 @@ def run(rc, folder: Path, progress: bool = True) -> integrate.Result:
                   "fault_resolved": res.schedule.describe() if res.schedule else [],
                   "openfast": {"version": install.VERSION, "dt_s": case.dt,
                                "dll_dt_s": case.dll_dt, "wall_s": wall,
-                               "case": str(case.fst)}}
+                               # the main file within the run folder (the folder is made
+                               # under a temporary name, then renamed)
+                               "case": f"{Path(folder).name}/{case.fst.name}"}}
     return res

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import os
 import tempfile
 from collections.abc import Iterator
@@ -56,7 +57,20 @@ def atomic_savez(path: Path, **arrays) -> None:
 
 
 def atomic_write_json(path: Path, obj) -> None:
-    atomic_write_text(path, json.dumps(obj, indent=1, sort_keys=True) + "\n")
+    atomic_write_text(path, json.dumps(_finite_or_null(obj), indent=1, sort_keys=True,
+                                       allow_nan=False) + "\n")
+
+
+def _finite_or_null(obj):
+    """``obj`` with every NaN or infinite float as None: standard JSON (null), which every
+    reader takes (a bare NaN is Python's extension; JavaScript's JSON.parse refuses it)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite_or_null(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_or_null(v) for v in obj]
+    return obj
 
 
 def atomic_savefig(fig, path: Path, **kwargs) -> None:
