@@ -108,7 +108,7 @@ def test_a_native_run_reads_the_openfast_engines_field():
 
 def test_the_field_key_is_refused_naming_it(tmp_path, monkeypatch):
     for table, what in (({**NATIVE["wind"], "field": "pyconturb"}, '"spectral", "turbsim"'),
-                        ({"kind": "constant", "field": "turbsim"}, "no such field")):
+                        ({"kind": "constant", "field": "turbsim"}, "kind = \"ntm\" only")):
         with pytest.raises(ConfigError, match="wind.field") as exc:
             config.make_config({**NATIVE, "wind": table})
         assert what in str(exc.value)

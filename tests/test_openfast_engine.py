@@ -315,3 +315,16 @@ def test_a_missing_python_package_of_the_engine_is_one_line_before_any_run(
     err = capsys.readouterr().err
     assert code == 4 and err.count("\n") == 1 and text in err and "pip install" in err
     assert not (tmp_path / "run").exists()
+
+
+def test_the_engine_defaults_to_the_realistic_profile_and_refuses_ideal_when_asked():
+    """A newcomer's `--engine openfast` without `--profile` was told "profile = 'ideal' is
+    not allowed", a value never given: OpenFAST calls a library every control interval,
+    so the realistic profile is the engine's default; asked for, ideal is refused."""
+    rc = config.make_config({"engine": "openfast", "controller": "pi", "case": 1,
+                             "wind": WIND})
+    assert rc.raw["profile"] == "realistic" and rc.control_interval == pytest.approx(0.01)
+    with pytest.raises(config.ConfigError) as exc:
+        config.make_config({"engine": "openfast", "controller": "pi", "case": 1,
+                            "wind": WIND, "profile": "ideal"})
+    assert exc.value.field == "profile"

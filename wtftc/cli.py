@@ -220,7 +220,7 @@ def _add_run(sub) -> None:
     r.add_argument("--turbine", help=TURBINE_HELP)
     _add_wind_arguments(r)
     r.add_argument("--fault", choices=("default", "none"),
-                   help="default: blade 1 locked, blades 2-3 ρ = 0.5 from 20 s (cases 2, 3)")
+                   help="default: blade 1 locked, blades 2-3 ρ = 0.5 from 20 s (cases 2, 3, 4)")
     r.add_argument("--t-final", type=float, help="simulated time [s] (default 60)")
     r.add_argument("--dt", type=float, help="RK4 step [s] (default 0.001)")
     r.add_argument("--seed", type=_nonnegative_int, help="random seed (default 0)")
@@ -253,8 +253,8 @@ def _add_compare(sub) -> None:
                     "paper, physical_fdi, physical_known, physical_unaccommodated, "
                     "drivetrain_fdi, pi, and any other registered ControllerDesign as "
                     "<name>_fdi; a wrong name lists them all), fault (none, "
-                    "loss_of_effectiveness, lock, pressure_drop, air_in_oil; from 20 s) and "
-                    "wind (paper_random_12, ntm_B_16, eog_rated) and writes compare.md, "
+                    "loss_of_effectiveness, lock, pressure_drop, air_in_oil, runaway; from "
+                    "20 s) and wind (paper_random_12, ntm_B_16, eog_rated) and writes compare.md, "
                     "compare.csv, compare.png/pdf, and each cell's config.toml and "
                     "metrics.json under <out>/<wind>/<fault>/<controller>/ (re-run one with "
                     "wtftc run --config). Named only: the variant paper_fdi (the paper's "

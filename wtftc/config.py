@@ -597,6 +597,8 @@ def _engine(raw: dict, given: dict) -> None:
     if raw["case"] == ORACLE_CASE:
         raise ConfigError("case", 3, "1, 2 or 4 with engine = openfast (case 3 tells eq (49) "
                           "the fault inside wtftc's loop; a DISCON library is not told)")
+    if "profile" not in given and not given.get("control_interval_s"):
+        raw["profile"] = "realistic"  # the engine's default: a library every interval
     if raw.get("profile", "ideal") == "ideal" and not given.get("control_interval_s"):
         raise ConfigError("profile", raw.get("profile", "ideal"), "realistic with engine = "
                           "openfast (or a control_interval_s > 0): OpenFAST calls the "

@@ -280,6 +280,9 @@ def wind_from_config(cfg: dict, t_final: float, seed: int = 0, where: str = "win
     for key in cfg:
         if key != "kind" and key not in fields:
             allowed = ", ".join(fields) or "none"
+            if key in ("field", "rotor_radius_m"):  # --wind-field, --wind-radius
+                raise ConfigError(f"{where}.{key}", cfg[key], f'a key of kind = "ntm" only '
+                                  f'(this wind is kind = "{kind}", whose keys are: {allowed})')
             raise ConfigError(f"{where}.{key}", cfg[key],
                               f'no such field for kind = "{kind}" (fields: {allowed})')
     p = {k: cfg.get(k, d) for k, d in fields.items()}
