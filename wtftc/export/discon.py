@@ -422,6 +422,11 @@ host. Put the actuator in: `wtftc export discon --with-actuator` adds
 libwtftc_plant.so, wtftc's plant-side pitch actuator (its settings in wtftc_plant.in),
 which ServoDyn calls instead and which calls this library (demand_rate_limit = 0 then);
 `wtftc run --engine openfast` runs OpenFAST so (docs/openfast.md).
+
+INTO YOUR OWN DECK: copy every file of this folder beside the deck's ServoDyn input file
+(ServoDyn reads DLL_FileName and DLL_InFile relative to it, and the library reads the
+names in its input file relative to that file), paste servodyn_snippet.txt over the same
+keys, and keep the deck's DT a whole fraction of DLL_DT.
 """
 
 

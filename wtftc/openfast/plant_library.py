@@ -183,9 +183,16 @@ class Settings:
                  f"records {self._path(self.records)}",
                  f"actuator {int(self.actuator)}",
                  f"actuator_dt {self.actuator_dt!r}",
+                 "# p_turbine, in this order [SI]: " + " ".join(lay.names("turbine_params")),
                  f"p_turbine {_numbers(self.p_turbine)}",
+                 "# p_sensors, in this order [SI] (the noise σ act only with a noise table): "
+                 + " ".join(lay.names("sensor_params")),
                  f"p_sensors {_numbers(self.p_sensors)}",
+                 "# sensor_faults at rest, in this order: " + " ".join(lay.names("sensor_faults")),
                  f"sensor_faults {_numbers(sf0)}",
+                 "# fault <blade 1-3> <1 loss of effectiveness | 2 lock | 3 hydraulic> <onset s>"
+                 " <end s> <ramp s> <rho | angle rad (nan: where the blade is) | omega_n rad/s>"
+                 " <0 | 0 | zeta>",
                  *fault_lines(self.faults, self.p_turbine)]
         if self.noise is not None:
             lines += [f"noise {self._path(self.noise)}",
