@@ -136,3 +136,28 @@ def test_tuning_reaches_its_target_and_writes_a_run_configuration(tmp_path):
     bad = subprocess.run([sys.executable, "-m", "wtftc.cli", "turbine", "tune", "--zeta", "5"],
                          capture_output=True, text=True, timeout=300)
     assert bad.returncode == 2 and "--zeta" in bad.stderr
+
+
+def test_linearize_takes_a_plant_and_writes_plain_numbers(tmp_path):
+    """`--plant tower` linearizes the tower plant (11 plant states: the nrel5mw plant's 9
+    and tower_x, tower_v); modes.csv holds plain numbers (it wrote numpy reprs,
+    'np.float64(...)', found in issue 33's research); a plant that does not exist is one
+    line naming --plant, and nothing is written."""
+    import csv
+
+    from wtftc.cli import main
+
+    out = tmp_path / "lin"
+    assert main(["linearize", "--controller", "pi", "--plant", "tower", "--winds", "16",
+                 "--out", str(out), "--quiet"]) == 0
+    assert np.load(out / "linear_16mps.npz")["A_p"].shape == (11, 11)
+    text = (out / "modes.csv").read_text()
+    assert "np." not in text
+    rows = list(csv.reader(text.splitlines()))
+    assert rows[0] == ["wind_mps", "real_1_per_s", "imag_rad_s", "omega_n_rad_s", "damping"]
+    assert all(len(r) == 5 and [float(x) for x in r] for r in rows[1:])
+    bad = subprocess.run([sys.executable, "-m", "wtftc.cli", "linearize", "--plant", "tall",
+                          "--out", str(tmp_path / "bad")], capture_output=True, text=True,
+                         timeout=300)
+    assert bad.returncode == 2 and "--plant" in bad.stderr and "tower" in bad.stderr
+    assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "bad").exists()

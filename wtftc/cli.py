@@ -81,6 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_export(sub)
     _add_turbine(sub)
     _add_linearize(sub)
+    _add_modes(sub)
     _add_openfast(sub)
     _add_validate(sub)
     return p
@@ -762,6 +763,8 @@ def _add_linearize(sub) -> None:
     k.add_argument("--controller", default="physical",
                    help="the registered controller (default physical)")
     k.add_argument("--turbine", help=TURBINE_HELP)
+    k.add_argument("--plant", help="the plant model, a name of wtftc.sim.rhs.PLANTS: nrel5mw "
+                   "(the default), tower, paper, ...")
     k.add_argument("--winds", type=float, nargs="+", metavar="MPS",
                    help="wind speeds [m/s] (default 12 14 ... 24)")
     k.add_argument("--out", type=Path, default=Path("out/linearize"), help="output folder")
@@ -784,11 +787,10 @@ def _cmd_linearize(args) -> int:
                           "DISCON library: nothing here can differentiate it)")
     raw = {"controller": args.controller, **({"turbine": args.turbine} if args.turbine
                                              else {})}
+    if args.plant is not None:
+        raw["plant"] = _plant(args.plant, "--plant")
     config.make_config(raw)  # validate before any work
-    winds = args.winds or linearize.WINDS
-    for w in winds:
-        if not (0 < w <= 60):
-            raise ConfigError("--winds", w, "wind speeds in (0, 60] m/s")
+    winds = _winds(args.winds or linearize.WINDS)
     check_out_folder(args.out, "--out", legacy=linearize.is_legacy_linearize)
     try:
         linearize.run_linearize(raw, winds, args.out, progress=not args.quiet)
@@ -797,6 +799,92 @@ def _cmd_linearize(args) -> int:
     print((args.out / "linearize.md").read_text(), end="")
     print(f"written under {args.out}/: linearize.md, linearize.csv, modes.csv, "
           "linear_<wind>mps.npz, linearize.png/pdf")
+    return 0
+
+
+def _plant(name: str, flag: str, plants=None) -> str:
+    """``name`` if it is one of ``plants`` (default: every plant of wtftc.sim.rhs.PLANTS),
+    else one line naming the flag."""
+    from wtftc.sim.rhs import PLANTS
+
+    allowed = list(plants if plants is not None else PLANTS)
+    if name not in allowed:
+        raise ConfigError(flag, name, "one of " + ", ".join(allowed))
+    return name
+
+
+def _winds(winds, lo: float = 0.0) -> list[float]:
+    """Wind speeds [m/s] each in (lo, 60], else one line naming --winds."""
+    for w in winds:
+        if not (lo < w <= 60):
+            raise ConfigError("--winds", w, f"wind speeds in ({lo:g}, 60] m/s")
+    return list(winds)
+
+
+def _add_modes(sub) -> None:
+    m = sub.add_parser(
+        "modes", help="wtftc's plant modes against OpenFAST's linearization of the turbine's "
+                      "deck (docs/validation.md)",
+        description="At each steady wind OpenFAST 5.0.0 linearizes the turbine's deck "
+                    "(CalcSteady, pitch trim, open loop; cached: a second call is instant), "
+                    "its .lin files are taken to the fixed frame (MBC3) and averaged over "
+                    "the azimuths; its drivetrain and tower modes are named by participation "
+                    "and compared with the open-loop modes of wtftc's --plant at its own "
+                    "operating point (wtftc linearize). Writes modes.json, modes.csv, "
+                    "modes.md and lin/ (the .lin files) into --out. A rigid-DOF "
+                    "linearization takes about a minute, a full one a few.",
+        epilog="Example: wtftc modes --winds 16 --dofs rigid --out out/modes_rigid")
+    m.add_argument("--turbine", help=TURBINE_HELP)
+    m.add_argument("--winds", type=float, nargs="+", metavar="MPS", default=[16.0],
+                   help="steady wind speeds above rated [m/s] (default 16)")
+    m.add_argument("--plant", default="tower", help="wtftc's plant, one with a tower "
+                   "(default tower)")
+    m.add_argument("--dofs", default="rigid", help="OpenFAST's degrees of freedom: rigid "
+                   "(generator, drivetrain twist, 1st tower fore-aft: wtftc's plant; the "
+                   "default) or full (every blade, tower and drivetrain DOF)")
+    m.add_argument("--azimuths", type=_positive_int, help="azimuths per wind (default 2 "
+                   "for rigid, 6 for full; at least 2)")
+    m.add_argument("--out", type=Path, default=Path("out/modes"), help="output folder: new, "
+                   "empty or an earlier `wtftc modes` output")
+    m.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def _cmd_modes(args) -> int:
+    import importlib.util
+
+    from wtftc import config
+    from wtftc.campaign import modes
+    from wtftc.files import check_out_folder
+    from wtftc.model import turbine_file
+    from wtftc.openfast import install
+    from wtftc.openfast.linearization import AZIMUTHS, DOF_SETS
+
+    raw = {"plant": _plant(args.plant, "--plant", modes.tower_plants()),
+           **({"turbine": args.turbine} if args.turbine else {})}
+    if args.dofs not in DOF_SETS:
+        raise ConfigError("--dofs", args.dofs, "one of " + ", ".join(DOF_SETS))
+    n_az = AZIMUTHS[args.dofs] if args.azimuths is None else args.azimuths
+    if n_az < 2:
+        raise ConfigError("--azimuths", n_az, "an integer >= 2 (OpenFAST's CalcSteady "
+                          "linearizes at 2 azimuths at least)")
+    winds = _winds(args.winds)
+    config.make_config({**raw, "controller": modes.SETTLING_CONTROLLER})
+    if importlib.util.find_spec("openfast_io") is None:
+        raise EngineError("wtftc modes reads OpenFAST's .lin files with openfast-io 5.0.0, "
+                          "which is not installed: " + config.OPENFAST_PACKAGES)
+    install.require()
+    name = raw.get("turbine", turbine_file.DEFAULT)
+    deck = config.openfast_deck(turbine_file.load(name))
+    if deck is None:
+        raise ConfigError("--turbine", name, "a turbine whose file names its OpenFAST deck "
+                          "(openfast_deck; docs/turbines.md)")
+    check_out_folder(args.out, "--out")
+    try:
+        modes.run_modes(raw, deck, winds, args.dofs, n_az, args.out, not args.quiet)
+    except modes.linearize.NotAtRest as exc:  # no wtftc operating point: nothing written
+        raise ConfigError("--winds", exc.value, exc.allowed) from None
+    print((args.out / "modes.md").read_text().split("\n\n## ")[0])
+    print(f"written under {args.out}/: modes.md, modes.csv, modes.json, lin/")
     return 0
 
 
@@ -825,7 +913,7 @@ def _cmd_openfast(args) -> int:
 COMMANDS = {"validate": _cmd_validate, "verify": _cmd_verify, "run": _cmd_run, "cases": _cmd_cases,
             "compare": _cmd_compare, "sweep": _cmd_sweep, "functions": _cmd_functions,
             "export": _cmd_export, "turbine": _cmd_turbine, "linearize": _cmd_linearize,
-            "openfast": _cmd_openfast}
+            "modes": _cmd_modes, "openfast": _cmd_openfast}
 
 
 #: every top-level table of layout.json the runtime reads: artefacts generated by an older

@@ -353,8 +353,8 @@ def _write_linearize(raw: dict, winds, out, progress: bool) -> list[dict]:
     for w in winds:
         op = operating_point(raw, float(w))
         rows.append(summary_row(op))
-        mode_lines += [f"{w:g},{m['real']!r},{m['imag']!r},{m['omega_n_rad_s']!r},"
-                       f"{m['damping']!r}" for m in modes(op)]
+        mode_lines += [",".join([f"{w:g}", *(repr(float(m[k])) for k in (
+            "real", "imag", "omega_n_rad_s", "damping"))]) for m in modes(op)]
         atomic_savez(out / f"linear_{w:g}mps.npz", **{
             k: getattr(op, k) for k in ("A_p", "B_p", "E_p", "C_p", "A_c", "B_c", "C_c",
                                         "D_c", "A_cl", "z")}, wind_mps=op.wind)

@@ -174,15 +174,30 @@ def simulate(case: ofcase.Case, progress: bool = True) -> tuple[float, str | Non
     """OpenFAST on the case, in its folder (its screen output in ``openfast.log``):
     (wall time [s], None) when it ends normally, else OpenFAST's own message, one line.
     Ctrl-C stops OpenFAST with it."""
+    wall, abort, _ = simulate_in(case.folder, case.fst)
+    return wall, abort
+
+
+def simulate_in(folder: Path, fst: Path, watch=None, every_s: float = 5.0
+                ) -> tuple[float, str | None, str]:
+    """OpenFAST on the main file ``fst`` in ``folder`` (its screen output in
+    ``openfast.log``): (wall time [s], None or OpenFAST's message, one line, the screen
+    output). ``watch(text)``, if given, is called every ``every_s`` with the screen output
+    so far. Ctrl-C stops OpenFAST with it."""
     exe = install.require().openfast
-    log = case.folder / "openfast.log"
+    log = folder / "openfast.log"
     t0 = time.perf_counter()
     with open(log, "w") as out:
-        proc = subprocess.Popen([str(exe), case.fst.name], cwd=case.folder, stdout=out,
+        proc = subprocess.Popen([str(exe), Path(fst).name], cwd=folder, stdout=out,
                                 stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                 start_new_session=True)
         try:
-            proc.wait()
+            while True:
+                try:
+                    proc.wait(timeout=every_s if watch else None)
+                    break
+                except subprocess.TimeoutExpired:
+                    watch(log.read_text(errors="replace"))
         except BaseException:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
@@ -190,8 +205,8 @@ def simulate(case: ofcase.Case, progress: bool = True) -> tuple[float, str | Non
     wall = time.perf_counter() - t0
     text = log.read_text(errors="replace")
     if NORMAL_END in text and proc.returncode == 0:
-        return wall, None
-    return wall, abort_message(text, proc.returncode)
+        return wall, None, text
+    return wall, abort_message(text, proc.returncode), text
 
 
 def abort_message(text: str, code: int) -> str:
