@@ -141,6 +141,10 @@ class Translator:
             return ca.exp(self(e.args[0]))
         if isinstance(e, sp.Abs):
             return ca.fabs(self(e.args[0]))
+        if isinstance(e, sp.cos):
+            return ca.cos(self(e.args[0]))
+        if isinstance(e, sp.sin):
+            return ca.sin(self(e.args[0]))
         if isinstance(e, sp.floor):
             return ca.floor(self(e.args[0]))
         if isinstance(e, sp.Min):

@@ -267,6 +267,7 @@ def build_turbine() -> list[ca.Function]:
         out.append(_function(name, {"x_plant": x, "v": v, "wind": wind, "cp": cp,
                                     "actuator_faults": af, "p_turbine": p_t}, outs))
     out += _build_tower(common, p_t, v, wind, cp, af)
+    out += _build_tower_edge(common, p_t, v, wind, cp, af)
     # the pitch actuators alone (the actuator rows of the plants above): OpenFAST's
     # plant-side actuator library integrates them (wtftc.openfast.plant_library)
     n_b = lay.N_BLADES
@@ -314,6 +315,26 @@ def _build_tower(common: dict, p_t, v, wind, cp, af) -> list[ca.Function]:
         "thrust": tr(turbine.thrust(w_rel)), "M_tower": tr(turbine.tower_base_moment())})
     inflow = _function("rotor_inflow", {"x_plant": x_t, "wind": wind},
                        {"wind_rel": tr(w_rel)})
+    return [plant, inflow]
+
+
+def _build_tower_edge(common: dict, p_t, v, wind, cp, af) -> list[ca.Function]:
+    """The tower_edge plant (derivation/turbine.py ``tower_edge_rhs``), and the relative
+    wind and the blades' aerodynamic speed ω_a at which the runtime evaluates the tables."""
+    x_e = _vec("x_plant", len(lay.TOWER_EDGE_STATES))
+    ct = ca.SX.sym("ct")
+    tr = Translator({**common, **_named(x_e, lay.TOWER_EDGE_STATES), "ct": ct})
+    w_rel, w_a = turbine.relative_wind(), turbine.aero_speed()
+    t_gen = tr(turbine.generator_torque())
+    t_aero = turbine.aero_torque(w_rel).subs(turbine.omega_r, w_a)
+    plant = _function("turbine_tower_edge", {"x_plant": x_e, "v": v, "wind": wind, "cp": cp,
+                                             "ct": ct, "actuator_faults": af,
+                                             "p_turbine": p_t}, {
+        "x_plant_dot": ca.vertcat(*[tr(e) for e in turbine.tower_edge_rhs()]),
+        "T_aero": tr(t_aero), "T_gen": t_gen, "P_gen": t_gen * x_e[2],
+        "thrust": tr(turbine.thrust(w_rel)), "M_tower": tr(turbine.tower_base_moment())})
+    inflow = _function("edge_inflow", {"x_plant": x_e, "wind": wind, "p_turbine": p_t},
+                       {"wind_rel": tr(w_rel), "omega_aero": tr(w_a)})
     return [plant, inflow]
 
 

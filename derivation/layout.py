@@ -157,6 +157,15 @@ TOWER_STATES = [
     Entry("tower_v", 0.0, "m/s", "tower-top fore-aft velocity (first mode)",
           sample=(-1.0, 1.0)),
 ]
+#: the tower_edge plant's: the tower plant's, then the blades' collective first edgewise
+#: mode (derivation/turbine.py ``tower_edge_rhs``; issue 33)
+TOWER_EDGE_STATES = [
+    *TOWER_STATES,
+    Entry("edge_q", 0.0, "m", "collective edgewise tip deflection of the blades (first mode)",
+          sample=(-0.5, 1.5)),
+    Entry("edge_v", 0.0, "m/s", "collective edgewise tip velocity (first mode)",
+          sample=(-2.0, 2.0)),
+]
 #: the turbine's parameters after the plant's: names and units here, the NREL 5-MW's
 #: values and sources from its turbine file (the baseline torque law: Jonkman 2009, 7.1,
 #: its DISCON's VS_* constants referred to the LSS)
@@ -169,7 +178,9 @@ TURBINE_PARAMS = [*PLANT_PARAMS, *[nrel5mw.entry(Entry, n, u) for n, u in (
     ("vs_region2_k", "N m s^2/rad^2"), ("vs_rated_speed", "rad/s"), ("vs_slip", "-"),
     ("vs_rated_power", "W"), ("vs_max_torque", "N m"),
     ("tower_modal_mass", "kg"), ("tower_stiffness", "N/m"), ("tower_damping_ratio", "-"),
-    ("tower_moment_arm", "m"))]]
+    ("tower_moment_arm", "m"),
+    ("edge_modal_mass", "kg"), ("edge_stiffness", "N/m"), ("edge_damping_ratio", "-"),
+    ("edge_coupling_cos", "kg m"), ("edge_coupling_sin", "kg m"), ("edge_torque_share", "1/m"))]]
 #: The physical range of every turbine parameter (docs/running.md, "Errors and exit codes").
 #: Positive where the derivation declares the symbol positive (a zero inertia, stiffness,
 #: time constant or slip divides by zero); upper limits only where physics sets one (air
@@ -180,8 +191,11 @@ TURBINE_VALID = {
                      "omega_g_rated", "omega_n_nominal", "zeta_nominal", "pitch_rate_max",
                      "vs_cut_in_speed", "vs_region2_speed", "vs_region2_k", "vs_rated_speed",
                      "vs_rated_power", "vs_max_torque", "tower_modal_mass", "tower_stiffness",
-                     "tower_moment_arm"), _POSITIVE),
+                     "tower_moment_arm", "edge_modal_mass", "edge_stiffness",
+                     "edge_coupling_cos", "edge_torque_share"), _POSITIVE),
     "tower_damping_ratio": (0.0, 1.0, True, False),  # structural: about 1 %
+    "edge_damping_ratio": (0.0, 1.0, True, False),  # structural: about 0.5 %
+    "edge_coupling_sin": (None, None, True, True),  # the twist's share: either sign
     "air_density": (0.0, 2.0, True, False),  # 1.225 at 15 °C, about 1.5 at -40 °C
     "rotor_radius": (0.0, 250.0, True, False),  # the largest rotors: about 155 m
     "gen_efficiency": (0.0, 1.0, True, False),
@@ -287,6 +301,7 @@ def as_json() -> dict:
         "theta_star": THETA_STAR,
         "nrel5mw_states": NREL_STATES,
         "tower_states": TOWER_STATES,
+        "tower_edge_states": TOWER_EDGE_STATES,
         "turbine_params": TURBINE_PARAMS,
         "actuator_faults": ACTUATOR_FAULTS,
     }

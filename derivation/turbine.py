@@ -14,6 +14,11 @@ coefficient cp evaluated by the runtime's Cp(λ, β) interpolant, per-blade faul
               (one modal mass, stiffness and damping at the tower top), driven by the
               rotor thrust ½ ρ π R² v_rel² Ct(λ, β̄), the rotor seeing the wind relative
               to the moving tower top, v_rel = v - ẋ_t (issue 18; docs/loads.md).
+* ``tower_edge`` the ``tower`` plant with edgewise-flexible blades: the blades' first
+              edgewise mode, collective (all three blades alike), in series with the
+              shaft, as ElastoDyn has it (issue 33; docs/validation.md). The mode that
+              OpenFAST's generator speed shows at 1.68 Hz on the NREL 5-MW, where the
+              rigid rotor's two-mass drivetrain has 2.22 Hz.
 
 The aerodynamic torque T_aero = ½ ρ π R² v³ Cp(λ, β̄) / ω_r with λ = ω_r R / v and
 β̄ the mean blade pitch (rigid rotor, uniform inflow); Cp comes in as the input ``cp``.
@@ -67,6 +72,15 @@ tower_stiffness = sp.Symbol("tower_stiffness", positive=True)  # modal [N/m]
 tower_damping_ratio = sp.Symbol("tower_damping_ratio", positive=True)  # [-]
 tower_moment_arm = sp.Symbol("tower_moment_arm", positive=True)  # rotor over base [m]
 
+# the blades' first edgewise mode, per blade (values and sources: the turbine files; the
+# integrals over the ElastoDyn blade file: wtftc.model.turbine_import.edge_mode)
+edge_modal_mass = sp.Symbol("edge_modal_mass", positive=True)  # m_e = ∫ μ φ² dr [kg]
+edge_stiffness = sp.Symbol("edge_stiffness", positive=True)  # k_e = ∫ EI φ''² dr [N/m]
+edge_damping_ratio = sp.Symbol("edge_damping_ratio", positive=True)  # structural [-]
+edge_coupling_cos = sp.Symbol("edge_coupling_cos", positive=True)  # ∫ μ r φ cos τ dr [kg m]
+edge_coupling_sin = sp.Symbol("edge_coupling_sin", real=True)  # ∫ μ r φ sin τ dr [kg m]
+edge_torque_share = sp.Symbol("edge_torque_share", positive=True)  # κ = ∫rφ/∫r² [1/m]
+
 # --- states ---
 beta = plant.beta
 beta_rate = sp.symbols("beta_rate_1:4", real=True)  # blade pitch rates [rad/s]
@@ -78,6 +92,10 @@ tower_v = sp.Symbol("tower_v", real=True)  # tower-top fore-aft velocity [m/s]
 PAPER_STATES = [omega_r, theta_s, omega_g, *beta]
 NREL_STATES = [omega_r, theta_s, omega_g, *beta, *beta_rate]
 TOWER_STATES = [*NREL_STATES, tower_x, tower_v]
+
+edge_q = sp.Symbol("edge_q", real=True)  # collective edgewise tip deflection [m]
+edge_v = sp.Symbol("edge_v", real=True)  # its rate [m/s]
+TOWER_EDGE_STATES = [*TOWER_STATES, edge_q, edge_v]
 
 
 def tip_speed_ratio(w: sp.Expr = wind) -> sp.Expr:
@@ -226,6 +244,57 @@ def tower_rhs() -> list[sp.Expr]:
     w = relative_wind()
     force = thrust(w) - tower_damping() * tower_v - tower_stiffness * tower_x
     return nrel5mw_rhs(w) + [tower_v, force / tower_modal_mass]
+
+
+def edge_coupling(b: sp.Expr) -> sp.Expr:
+    """S(β) = ∫ μ r φ cos(β + τ) dr [kg m]: how much of a blade's edgewise mode moves in
+    the rotor plane, where rotation moves it. The mode φ(r) turns with the structural
+    twist τ(r) and the pitch β; cos(β + τ) = cos β cos τ - sin β sin τ splits the integral
+    into two constants of the blade (Jonkman 2009's ElastoDyn blade, twist and mode
+    shape). At the NREL 5-MW's 12° above rated it is 0.96 of the flat blade's."""
+    return edge_coupling_cos * sp.cos(b) - edge_coupling_sin * sp.sin(b)
+
+
+def aero_speed() -> sp.Expr:
+    """ω_a = ω_r + κ q̇_e: the blades' speed as the aerodynamic torque sees it. With the
+    tangential load taken proportional to the radius, the load's virtual work on the
+    blades is T_aero (δθ_r + κ δq_e), κ = ∫ r φ dr / ∫ r² dr (ours: the reduced plant's
+    one assumption on the load's spanwise shape; it gives the edge mode its aerodynamic
+    damping from the Cp table's slope)."""
+    return omega_r + edge_torque_share * edge_v
+
+
+def tower_edge_rhs() -> list[sp.Expr]:
+    """The ``tower`` plant with the blades' first edgewise mode, collective, in series with
+    the shaft (Lagrange's equations; ElastoDyn's kinematics with one mode, Jonkman 2005,
+    FAST User's Guide, the blade's in-plane motion r θ_r + φ(r) cos(β + τ) q_e):
+
+    T = ½ J_r ω_r² + Σ_j S(β_j) ω_r q̇_e + ½ · 3 m_e q̇_e²,   V = ½ · 3 k_e q_e² + ½ k_s θ_s²
+
+    J_r ω̇_r + Σ S_j q̈_e = T_aero - k_s θ_s - d_s (ω_r - ω_g) - Σ S'_j β̇_j q̇_e
+    Σ S_j ω̇_r + 3 m_e q̈_e = κ T_aero - 3 k_e q_e - 3 c_e q̇_e - Σ S'_j β̇_j ω_r
+
+    with c_e = 2 ζ_e √(k_e m_e), S'_j = dS/dβ at blade j, β̇_j its actual rate, and the
+    aerodynamic torque at the blades' speed ω_a (:func:`aero_speed`). J_r is the rigid
+    rotor's inertia (hub and blades); the mass matrix is positive definite because the
+    blade's rigid inertia ∫ μ r² dr exceeds S²/m_e (Cauchy-Schwarz). Left out: the edge
+    mode's centrifugal stiffening (about 1 % in frequency at rated speed), its
+    out-of-plane share in the thrust and the flap modes."""
+    base = tower_rhs()
+    rates = pitch_actuator_rhs()[:N_BLADES]
+    w, wa = relative_wind(), aero_speed()
+    t_aero = aero_torque(w).subs(omega_r, wa)
+    s_sum = sum(edge_coupling(b) for b in beta)
+    s_dot = sum(sp.diff(edge_coupling(b), b) * r for b, r in zip(beta, rates, strict=True))
+    c_e = 2 * edge_damping_ratio * sp.sqrt(edge_stiffness * edge_modal_mass)
+    J_r, k_s, d_s = plant.J_r, plant.k_s, plant.d_s
+    f_rotor = t_aero - k_s * theta_s - d_s * (omega_r - omega_g) - s_dot * edge_v
+    f_edge = (edge_torque_share * t_aero - 3 * edge_stiffness * edge_q - 3 * c_e * edge_v
+              - s_dot * omega_r)
+    det = 3 * edge_modal_mass * J_r - s_sum**2
+    omega_r_dot = (3 * edge_modal_mass * f_rotor - s_sum * f_edge) / det
+    edge_v_dot = (J_r * f_edge - s_sum * f_rotor) / det
+    return [omega_r_dot, *base[1:], edge_v, edge_v_dot]
 
 
 def generator_power() -> sp.Expr:

@@ -32,6 +32,8 @@ extern "C" {
 /* Add prefix to internal symbols */
 #define casadi_f0 CASADI_PREFIX(f0)
 #define casadi_f1 CASADI_PREFIX(f1)
+#define casadi_f10 CASADI_PREFIX(f10)
+#define casadi_f11 CASADI_PREFIX(f11)
 #define casadi_f2 CASADI_PREFIX(f2)
 #define casadi_f3 CASADI_PREFIX(f3)
 #define casadi_f4 CASADI_PREFIX(f4)
@@ -46,6 +48,7 @@ extern "C" {
 #define casadi_s0 CASADI_PREFIX(s0)
 #define casadi_s1 CASADI_PREFIX(s1)
 #define casadi_s10 CASADI_PREFIX(s10)
+#define casadi_s11 CASADI_PREFIX(s11)
 #define casadi_s2 CASADI_PREFIX(s2)
 #define casadi_s3 CASADI_PREFIX(s3)
 #define casadi_s4 CASADI_PREFIX(s4)
@@ -113,15 +116,16 @@ static const casadi_int casadi_s0[3] = {6, 1, 1};
 static const casadi_int casadi_s1[3] = {3, 1, 1};
 static const casadi_int casadi_s2[3] = {1, 1, 1};
 static const casadi_int casadi_s3[3] = {15, 1, 1};
-static const casadi_int casadi_s4[3] = {29, 1, 1};
+static const casadi_int casadi_s4[3] = {35, 1, 1};
 static const casadi_int casadi_s5[3] = {9, 1, 1};
 static const casadi_int casadi_s6[3] = {11, 1, 1};
-static const casadi_int casadi_s7[3] = {10, 1, 1};
-static const casadi_int casadi_s8[3] = {50, 1, 1};
-static const casadi_int casadi_s9[3] = {40, 1, 1};
-static const casadi_int casadi_s10[3] = {5, 1, 1};
+static const casadi_int casadi_s7[3] = {13, 1, 1};
+static const casadi_int casadi_s8[3] = {10, 1, 1};
+static const casadi_int casadi_s9[3] = {50, 1, 1};
+static const casadi_int casadi_s10[3] = {40, 1, 1};
+static const casadi_int casadi_s11[3] = {5, 1, 1};
 
-/* turbine_paper:(x_plant[6],v[3],wind,cp,actuator_faults[15],p_turbine[29])->(x_plant_dot[6],T_aero,T_gen,P_gen) */
+/* turbine_paper:(x_plant[6],v[3],wind,cp,actuator_faults[15],p_turbine[35])->(x_plant_dot[6],T_aero,T_gen,P_gen) */
 static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13;
@@ -328,7 +332,7 @@ CASADI_SYMBOL_EXPORT int turbine_paper_work_bytes(casadi_int *sz_arg, casadi_int
   return 0;
 }
 
-/* turbine_nrel5mw:(x_plant[9],v[3],wind,cp,actuator_faults[15],p_turbine[29])->(x_plant_dot[9],T_aero,T_gen,P_gen) */
+/* turbine_nrel5mw:(x_plant[9],v[3],wind,cp,actuator_faults[15],p_turbine[35])->(x_plant_dot[9],T_aero,T_gen,P_gen) */
 static int casadi_f1(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22;
@@ -644,7 +648,7 @@ CASADI_SYMBOL_EXPORT int turbine_nrel5mw_work_bytes(casadi_int *sz_arg, casadi_i
   return 0;
 }
 
-/* turbine_tower:(x_plant[11],v[3],wind,cp,ct,actuator_faults[15],p_turbine[29])->(x_plant_dot[11],T_aero,T_gen,P_gen,thrust,M_tower) */
+/* turbine_tower:(x_plant[11],v[3],wind,cp,ct,actuator_faults[15],p_turbine[35])->(x_plant_dot[11],T_aero,T_gen,P_gen,thrust,M_tower) */
 static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
@@ -1079,8 +1083,539 @@ CASADI_SYMBOL_EXPORT int rotor_inflow_work_bytes(casadi_int *sz_arg, casadi_int*
   return 0;
 }
 
-/* pitch_actuator:(x_actuator[6],v[3],actuator_faults[15],p_turbine[29])->(x_actuator_dot[6]) */
+/* turbine_tower_edge:(x_plant[13],v[3],wind,cp,ct,actuator_faults[15],p_turbine[35])->(x_plant_dot[13],T_aero,T_gen,P_gen,thrust,M_tower) */
 static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
+  casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
+  casadi_real a36, a37, a38, a39, a40, a41, a42, a43, a44, a45, a46, a47;
+  casadi_real a48, a49;
+  a00=3.;
+  a01=arg[6]? arg[6][29] : 0;
+  a02=5.0000000000000000e-01;
+  a03=3.1415926535897931e+00;
+  a04=arg[3]? arg[3][0] : 0;
+  a04=(a03*a04);
+  a05=arg[6]? arg[6][5] : 0;
+  a04=(a04*a05);
+  a06=arg[6]? arg[6][6] : 0;
+  a06=casadi_sq(a06);
+  a07=(a04*a06);
+  a08=arg[0]? arg[0][0] : 0;
+  a09=arg[0]? arg[0][12] : 0;
+  a10=arg[6]? arg[6][34] : 0;
+  a11=(a09*a10);
+  a11=(a08+a11);
+  a07=(a07/a11);
+  a12=arg[2]? arg[2][0] : 0;
+  a13=arg[0]? arg[0][10] : 0;
+  a12=(a12-a13);
+  a14=casadi_sq(a12);
+  a12=(a12*a14);
+  a07=(a07*a12);
+  a07=(a02*a07);
+  a15=arg[6]? arg[6][15] : 0;
+  a16=arg[0]? arg[0][3] : 0;
+  a17=(a15<=a16);
+  a18=0.;
+  a19=arg[6]? arg[6][16] : 0;
+  a20=arg[0]? arg[0][6] : 0;
+  a21=(-a19);
+  a22=casadi_fmax(a20,a21);
+  a22=casadi_fmin(a19,a22);
+  a23=(a18<a22);
+  a17=(a17&&a23);
+  a23=arg[6]? arg[6][14] : 0;
+  a24=(a16<=a23);
+  a25=(a22<a18);
+  a24=(a24&&a25);
+  a17=(a17||a24);
+  a17=(!a17);
+  a24=arg[6]? arg[6][33] : 0;
+  a25=cos(a16);
+  a26=(a24*a25);
+  a27=arg[6]? arg[6][32] : 0;
+  a28=sin(a16);
+  a29=(a27*a28);
+  a26=(a26+a29);
+  a26=(a26*a22);
+  a26=(-a26);
+  a26=(a17?a26:0);
+  a29=arg[0]? arg[0][4] : 0;
+  a30=(a15<=a29);
+  a31=arg[0]? arg[0][7] : 0;
+  a32=casadi_fmax(a31,a21);
+  a32=casadi_fmin(a19,a32);
+  a33=(a18<a32);
+  a30=(a30&&a33);
+  a33=(a29<=a23);
+  a34=(a32<a18);
+  a33=(a33&&a34);
+  a30=(a30||a33);
+  a30=(!a30);
+  a33=cos(a29);
+  a34=(a24*a33);
+  a35=sin(a29);
+  a36=(a27*a35);
+  a34=(a34+a36);
+  a34=(a34*a32);
+  a34=(-a34);
+  a34=(a30?a34:0);
+  a26=(a26+a34);
+  a34=arg[0]? arg[0][5] : 0;
+  a36=(a15<=a34);
+  a37=arg[0]? arg[0][8] : 0;
+  a38=casadi_fmax(a37,a21);
+  a38=casadi_fmin(a19,a38);
+  a39=(a18<a38);
+  a36=(a36&&a39);
+  a39=(a34<=a23);
+  a40=(a38<a18);
+  a39=(a39&&a40);
+  a36=(a36||a39);
+  a36=(!a36);
+  a39=cos(a34);
+  a40=(a24*a39);
+  a41=sin(a34);
+  a42=(a27*a41);
+  a40=(a40+a42);
+  a40=(a40*a38);
+  a40=(-a40);
+  a40=(a36?a40:0);
+  a26=(a26+a40);
+  a40=(a09*a26);
+  a42=arg[0]? arg[0][1] : 0;
+  a43=arg[6]? arg[6][2] : 0;
+  a42=(a42*a43);
+  a40=(a40+a42);
+  a43=arg[6]? arg[6][3] : 0;
+  a44=arg[0]? arg[0][2] : 0;
+  a45=(a08-a44);
+  a43=(a43*a45);
+  a40=(a40+a43);
+  a40=(a07-a40);
+  a46=(a01*a40);
+  a46=(a00*a46);
+  a47=-3.;
+  a48=arg[0]? arg[0][11] : 0;
+  a49=arg[6]? arg[6][30] : 0;
+  a48=(a48*a49);
+  a47=(a47*a48);
+  a08=(a08*a26);
+  a47=(a47-a08);
+  a08=-6.;
+  a26=arg[6]? arg[6][31] : 0;
+  a26=(a09*a26);
+  a48=sqrt(a01);
+  a26=(a26*a48);
+  a49=sqrt(a49);
+  a26=(a26*a49);
+  a08=(a08*a26);
+  a47=(a47+a08);
+  a04=(a04*a10);
+  a04=(a04*a06);
+  a04=(a04/a11);
+  a04=(a04*a12);
+  a04=(a02*a04);
+  a47=(a47+a04);
+  a25=(a27*a25);
+  a33=(a27*a33);
+  a25=(a25+a33);
+  a27=(a27*a39);
+  a25=(a25+a27);
+  a28=(a24*a28);
+  a25=(a25-a28);
+  a35=(a24*a35);
+  a25=(a25-a35);
+  a24=(a24*a41);
+  a25=(a25-a24);
+  a24=(a47*a25);
+  a46=(a46-a24);
+  a24=arg[6]? arg[6][0] : 0;
+  a01=(a24*a01);
+  a00=(a00*a01);
+  a01=casadi_sq(a25);
+  a00=(a00-a01);
+  a46=(a46/a00);
+  if (res[0]!=0) res[0][0]=a46;
+  if (res[0]!=0) res[0][1]=a45;
+  a42=(a42+a43);
+  a43=arg[6]? arg[6][17] : 0;
+  a45=arg[6]? arg[6][24] : 0;
+  a46=arg[6]? arg[6][23] : 0;
+  a01=(a46/a44);
+  a41=arg[6]? arg[6][20] : 0;
+  a35=casadi_sq(a44);
+  a35=(a41*a35);
+  a28=arg[6]? arg[6][19] : 0;
+  a27=casadi_sq(a28);
+  a41=(a41*a27);
+  a27=arg[6]? arg[6][18] : 0;
+  a28=(a28-a27);
+  a41=(a41/a28);
+  a27=(a44-a27);
+  a41=(a41*a27);
+  a35=casadi_fmin(a35,a41);
+  a41=arg[6]? arg[6][21] : 0;
+  a46=(a46/a41);
+  a27=1.;
+  a28=arg[6]? arg[6][22] : 0;
+  a28=(a27+a28);
+  a28=(a41/a28);
+  a41=(a41-a28);
+  a46=(a46/a41);
+  a28=(a44-a28);
+  a46=(a46*a28);
+  a35=casadi_fmax(a35,a46);
+  a01=casadi_fmin(a01,a35);
+  a01=casadi_fmax(a18,a01);
+  a45=casadi_fmin(a45,a01);
+  a45=(a43*a45);
+  a42=(a42-a45);
+  a43=(a27-a43);
+  a01=arg[6]? arg[6][8] : 0;
+  a35=arg[6]? arg[6][9] : 0;
+  a27=(a27-a35);
+  a27=(a01*a27);
+  a35=(a35*a01);
+  a01=arg[6]? arg[6][10] : 0;
+  a35=(a35*a01);
+  a35=(a35/a44);
+  a27=(a27+a35);
+  a43=(a43*a27);
+  a42=(a42-a43);
+  a27=arg[6]? arg[6][1] : 0;
+  a42=(a42/a27);
+  if (res[0]!=0) res[0][2]=a42;
+  a17=(a17?a22:0);
+  if (res[0]!=0) res[0][3]=a17;
+  a30=(a30?a32:0);
+  if (res[0]!=0) res[0][4]=a30;
+  a36=(a36?a38:0);
+  if (res[0]!=0) res[0][5]=a36;
+  a36=(a19<=a20);
+  a38=arg[5]? arg[5][9] : 0;
+  a30=(a20*a38);
+  a32=arg[5]? arg[5][12] : 0;
+  a30=(a30*a32);
+  a32=(2.*a30);
+  a38=casadi_sq(a38);
+  a17=arg[5]? arg[5][3] : 0;
+  a22=arg[5]? arg[5][6] : 0;
+  a42=arg[5]? arg[5][0] : 0;
+  a27=arg[1]? arg[1][0] : 0;
+  a42=(a42*a27);
+  a22=(a22-a42);
+  a17=(a17*a22);
+  a17=(a17+a42);
+  a17=casadi_fmax(a23,a17);
+  a17=casadi_fmin(a15,a17);
+  a17=(a17-a16);
+  a38=(a38*a17);
+  a32=(a32-a38);
+  a17=(a32<a18);
+  a36=(a36&&a17);
+  a20=(a20<=a21);
+  a32=(a18<a32);
+  a20=(a20&&a32);
+  a36=(a36||a20);
+  a36=(!a36);
+  a20=-2.;
+  a30=(a20*a30);
+  a38=(a38+a30);
+  a36=(a36?a38:0);
+  if (res[0]!=0) res[0][6]=a36;
+  a36=(a19<=a31);
+  a38=arg[5]? arg[5][10] : 0;
+  a30=(a31*a38);
+  a32=arg[5]? arg[5][13] : 0;
+  a30=(a30*a32);
+  a32=(2.*a30);
+  a38=casadi_sq(a38);
+  a17=arg[5]? arg[5][4] : 0;
+  a16=arg[5]? arg[5][7] : 0;
+  a42=arg[5]? arg[5][1] : 0;
+  a22=arg[1]? arg[1][1] : 0;
+  a42=(a42*a22);
+  a16=(a16-a42);
+  a17=(a17*a16);
+  a17=(a17+a42);
+  a17=casadi_fmax(a23,a17);
+  a17=casadi_fmin(a15,a17);
+  a17=(a17-a29);
+  a38=(a38*a17);
+  a32=(a32-a38);
+  a17=(a32<a18);
+  a36=(a36&&a17);
+  a31=(a31<=a21);
+  a32=(a18<a32);
+  a31=(a31&&a32);
+  a36=(a36||a31);
+  a36=(!a36);
+  a30=(a20*a30);
+  a38=(a38+a30);
+  a36=(a36?a38:0);
+  if (res[0]!=0) res[0][7]=a36;
+  a19=(a19<=a37);
+  a36=arg[5]? arg[5][11] : 0;
+  a38=(a37*a36);
+  a30=arg[5]? arg[5][14] : 0;
+  a38=(a38*a30);
+  a30=(2.*a38);
+  a36=casadi_sq(a36);
+  a31=arg[5]? arg[5][5] : 0;
+  a32=arg[5]? arg[5][8] : 0;
+  a17=arg[5]? arg[5][2] : 0;
+  a29=arg[1]? arg[1][2] : 0;
+  a17=(a17*a29);
+  a32=(a32-a17);
+  a31=(a31*a32);
+  a31=(a31+a17);
+  a23=casadi_fmax(a23,a31);
+  a15=casadi_fmin(a15,a23);
+  a15=(a15-a34);
+  a36=(a36*a15);
+  a30=(a30-a36);
+  a15=(a30<a18);
+  a19=(a19&&a15);
+  a37=(a37<=a21);
+  a18=(a18<a30);
+  a37=(a37&&a18);
+  a19=(a19||a37);
+  a19=(!a19);
+  a38=(a20*a38);
+  a36=(a36+a38);
+  a19=(a19?a36:0);
+  if (res[0]!=0) res[0][8]=a19;
+  if (res[0]!=0) res[0][9]=a13;
+  a19=arg[6]? arg[6][27] : 0;
+  a13=(a13*a19);
+  a19=arg[6]? arg[6][25] : 0;
+  a36=sqrt(a19);
+  a13=(a13*a36);
+  a36=arg[6]? arg[6][26] : 0;
+  a38=sqrt(a36);
+  a13=(a13*a38);
+  a20=(a20*a13);
+  a13=arg[0]? arg[0][9] : 0;
+  a38=(a13*a36);
+  a20=(a20-a38);
+  a38=arg[4]? arg[4][0] : 0;
+  a03=(a03*a38);
+  a03=(a03*a05);
+  a03=(a03*a06);
+  a03=(a03*a14);
+  a02=(a02*a03);
+  a20=(a20+a02);
+  a20=(a20/a19);
+  if (res[0]!=0) res[0][10]=a20;
+  if (res[0]!=0) res[0][11]=a09;
+  a24=(a24*a47);
+  a40=(a40*a25);
+  a24=(a24-a40);
+  a24=(a24/a00);
+  if (res[0]!=0) res[0][12]=a24;
+  if (res[1]!=0) res[1][0]=a07;
+  a45=(a45+a43);
+  if (res[2]!=0) res[2][0]=a45;
+  a45=(a45*a44);
+  if (res[3]!=0) res[3][0]=a45;
+  if (res[4]!=0) res[4][0]=a02;
+  a02=arg[6]? arg[6][28] : 0;
+  a13=(a13*a02);
+  a13=(a13*a36);
+  if (res[5]!=0) res[5][0]=a13;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int turbine_tower_edge(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f4(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int turbine_tower_edge_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void turbine_tower_edge_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void turbine_tower_edge_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void turbine_tower_edge_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int turbine_tower_edge_n_in(void) { return 7;}
+
+CASADI_SYMBOL_EXPORT casadi_int turbine_tower_edge_n_out(void) { return 6;}
+
+CASADI_SYMBOL_EXPORT casadi_real turbine_tower_edge_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* turbine_tower_edge_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x_plant";
+    case 1: return "v";
+    case 2: return "wind";
+    case 3: return "cp";
+    case 4: return "ct";
+    case 5: return "actuator_faults";
+    case 6: return "p_turbine";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* turbine_tower_edge_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "x_plant_dot";
+    case 1: return "T_aero";
+    case 2: return "T_gen";
+    case 3: return "P_gen";
+    case 4: return "thrust";
+    case 5: return "M_tower";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* turbine_tower_edge_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s7;
+    case 1: return casadi_s1;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s2;
+    case 5: return casadi_s3;
+    case 6: return casadi_s4;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* turbine_tower_edge_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s7;
+    case 1: return casadi_s2;
+    case 2: return casadi_s2;
+    case 3: return casadi_s2;
+    case 4: return casadi_s2;
+    case 5: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int turbine_tower_edge_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 7;
+  if (sz_res) *sz_res = 6;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int turbine_tower_edge_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 7*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 6*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* edge_inflow:(x_plant[13],wind,p_turbine[35])->(wind_rel,omega_aero) */
+static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+  casadi_real a0, a1, a2;
+  a0=arg[1]? arg[1][0] : 0;
+  a1=arg[0]? arg[0][10] : 0;
+  a0=(a0-a1);
+  if (res[0]!=0) res[0][0]=a0;
+  a0=arg[0]? arg[0][0] : 0;
+  a1=arg[0]? arg[0][12] : 0;
+  a2=arg[2]? arg[2][34] : 0;
+  a1=(a1*a2);
+  a0=(a0+a1);
+  if (res[1]!=0) res[1][0]=a0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int edge_inflow(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
+  return casadi_f5(arg, res, iw, w, mem);
+}
+
+CASADI_SYMBOL_EXPORT int edge_inflow_checkout(void) {
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT void edge_inflow_release(int mem) {
+}
+
+CASADI_SYMBOL_EXPORT void edge_inflow_incref(void) {
+}
+
+CASADI_SYMBOL_EXPORT void edge_inflow_decref(void) {
+}
+
+CASADI_SYMBOL_EXPORT casadi_int edge_inflow_n_in(void) { return 3;}
+
+CASADI_SYMBOL_EXPORT casadi_int edge_inflow_n_out(void) { return 2;}
+
+CASADI_SYMBOL_EXPORT casadi_real edge_inflow_default_in(casadi_int i) {
+  switch (i) {
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* edge_inflow_name_in(casadi_int i) {
+  switch (i) {
+    case 0: return "x_plant";
+    case 1: return "wind";
+    case 2: return "p_turbine";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const char* edge_inflow_name_out(casadi_int i) {
+  switch (i) {
+    case 0: return "wind_rel";
+    case 1: return "omega_aero";
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* edge_inflow_sparsity_in(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s7;
+    case 1: return casadi_s2;
+    case 2: return casadi_s4;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT const casadi_int* edge_inflow_sparsity_out(casadi_int i) {
+  switch (i) {
+    case 0: return casadi_s2;
+    case 1: return casadi_s2;
+    default: return 0;
+  }
+}
+
+CASADI_SYMBOL_EXPORT int edge_inflow_work(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3;
+  if (sz_res) *sz_res = 2;
+  if (sz_iw) *sz_iw = 0;
+  if (sz_w) *sz_w = 0;
+  return 0;
+}
+
+CASADI_SYMBOL_EXPORT int edge_inflow_work_bytes(casadi_int *sz_arg, casadi_int* sz_res, casadi_int *sz_iw, casadi_int *sz_w) {
+  if (sz_arg) *sz_arg = 3*sizeof(const casadi_real*);
+  if (sz_res) *sz_res = 2*sizeof(casadi_real*);
+  if (sz_iw) *sz_iw = 0*sizeof(casadi_int);
+  if (sz_w) *sz_w = 0*sizeof(casadi_real);
+  return 0;
+}
+
+/* pitch_actuator:(x_actuator[6],v[3],actuator_faults[15],p_turbine[35])->(x_actuator_dot[6]) */
+static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18;
   a00=arg[3]? arg[3][15] : 0;
@@ -1228,7 +1763,7 @@ static int casadi_f4(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int pitch_actuator(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f4(arg, res, iw, w, mem);
+  return casadi_f6(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int pitch_actuator_checkout(void) {
@@ -1304,8 +1839,8 @@ CASADI_SYMBOL_EXPORT int pitch_actuator_work_bytes(casadi_int *sz_arg, casadi_in
   return 0;
 }
 
-/* generator_torque:(omega_g,p_turbine[29])->(T_gen) */
-static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* generator_torque:(omega_g,p_turbine[35])->(T_gen) */
+static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7, a8, a9;
   a0=arg[1]? arg[1][17] : 0;
   a1=arg[1]? arg[1][24] : 0;
@@ -1357,7 +1892,7 @@ static int casadi_f5(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int generator_torque(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f5(arg, res, iw, w, mem);
+  return casadi_f7(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int generator_torque_checkout(void) {
@@ -1429,8 +1964,8 @@ CASADI_SYMBOL_EXPORT int generator_torque_work_bytes(casadi_int *sz_arg, casadi_
   return 0;
 }
 
-/* aero_operating_point:(x_plant[6],wind,p_turbine[29])->(tsr,beta_mean) */
-static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* aero_operating_point:(x_plant[6],wind,p_turbine[35])->(tsr,beta_mean) */
+static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=arg[0]? arg[0][0] : 0;
   a1=arg[2]? arg[2][6] : 0;
@@ -1452,7 +1987,7 @@ static int casadi_f6(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int aero_operating_point(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f6(arg, res, iw, w, mem);
+  return casadi_f8(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int aero_operating_point_checkout(void) {
@@ -1528,8 +2063,8 @@ CASADI_SYMBOL_EXPORT int aero_operating_point_work_bytes(casadi_int *sz_arg, cas
   return 0;
 }
 
-/* aero_torque_sensitivity:(x_plant[6],wind,cp,dcp_dbeta,p_turbine[29])->(T_aero,dT_dbeta) */
-static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+/* aero_torque_sensitivity:(x_plant[6],wind,cp,dcp_dbeta,p_turbine[35])->(T_aero,dT_dbeta) */
+static int casadi_f9(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2, a3, a4, a5, a6, a7;
   a0=5.0000000000000000e-01;
   a1=3.1415926535897931e+00;
@@ -1560,7 +2095,7 @@ static int casadi_f7(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int aero_torque_sensitivity(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f7(arg, res, iw, w, mem);
+  return casadi_f9(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int aero_torque_sensitivity_checkout(void) {
@@ -1641,7 +2176,7 @@ CASADI_SYMBOL_EXPORT int aero_torque_sensitivity_work_bytes(casadi_int *sz_arg, 
 }
 
 /* sensors:(true_signals[10],x_lag[10],noise[10],sensor_faults[50],p_sensors[40])->(meas[10],x_lag_dot[10]) */
-static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f10(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21, a22, a23;
   casadi_real a24, a25, a26, a27, a28, a29, a30, a31, a32, a33, a34, a35;
@@ -2085,7 +2620,7 @@ static int casadi_f8(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int sensors(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f8(arg, res, iw, w, mem);
+  return casadi_f10(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int sensors_checkout(void) {
@@ -2132,19 +2667,19 @@ CASADI_SYMBOL_EXPORT const char* sensors_name_out(casadi_int i) {
 
 CASADI_SYMBOL_EXPORT const casadi_int* sensors_sparsity_in(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s7;
-    case 1: return casadi_s7;
-    case 2: return casadi_s7;
-    case 3: return casadi_s8;
-    case 4: return casadi_s9;
+    case 0: return casadi_s8;
+    case 1: return casadi_s8;
+    case 2: return casadi_s8;
+    case 3: return casadi_s9;
+    case 4: return casadi_s10;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* sensors_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s7;
-    case 1: return casadi_s7;
+    case 0: return casadi_s8;
+    case 1: return casadi_s8;
     default: return 0;
   }
 }
@@ -2166,7 +2701,7 @@ CASADI_SYMBOL_EXPORT int sensors_work_bytes(casadi_int *sz_arg, casadi_int* sz_r
 }
 
 /* virtual_sensors:(readings[10],excluded[10],p_sensors[40],gearbox_ratio)->(meas[5]) */
-static int casadi_f9(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
+static int casadi_f11(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
   casadi_real a12, a13, a14, a15, a16, a17, a18, a19, a20, a21;
   a00=arg[2]? arg[2][0] : 0;
@@ -2467,7 +3002,7 @@ static int casadi_f9(const casadi_real** arg, casadi_real** res, casadi_int* iw,
 }
 
 CASADI_SYMBOL_EXPORT int virtual_sensors(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem){
-  return casadi_f9(arg, res, iw, w, mem);
+  return casadi_f11(arg, res, iw, w, mem);
 }
 
 CASADI_SYMBOL_EXPORT int virtual_sensors_checkout(void) {
@@ -2512,9 +3047,9 @@ CASADI_SYMBOL_EXPORT const char* virtual_sensors_name_out(casadi_int i) {
 
 CASADI_SYMBOL_EXPORT const casadi_int* virtual_sensors_sparsity_in(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s7;
-    case 1: return casadi_s7;
-    case 2: return casadi_s9;
+    case 0: return casadi_s8;
+    case 1: return casadi_s8;
+    case 2: return casadi_s10;
     case 3: return casadi_s2;
     default: return 0;
   }
@@ -2522,7 +3057,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* virtual_sensors_sparsity_in(casadi_int i)
 
 CASADI_SYMBOL_EXPORT const casadi_int* virtual_sensors_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s10;
+    case 0: return casadi_s11;
     default: return 0;
   }
 }

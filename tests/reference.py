@@ -94,10 +94,14 @@ def evaluate(key: str, exprs, values: dict[str, float]) -> np.ndarray:
     return np.asarray(f(*[values[n] for n in names]), dtype=float).reshape(-1)
 
 
+@cache
+def _magnitudes(exprs: tuple) -> tuple:
+    return tuple(sp.Abs(magnitude(sp.sympify(e))) for e in exprs)
+
+
 def scale(key: str, exprs, values: dict[str, float]) -> np.ndarray:
     """|magnitude(e)| of each expression at values: the scale of attainable accuracy."""
-    mags = tuple(sp.Abs(magnitude(sp.sympify(e))) for e in exprs)
-    return evaluate(key + "|mag|", mags, values)
+    return evaluate(key + "|mag|", _magnitudes(tuple(exprs)), values)
 
 
 def named_values(args: dict[str, np.ndarray]) -> dict[str, float]:
@@ -138,13 +142,13 @@ def controller_reference(values: dict[str, float]) -> dict[str, tuple]:
     d = bs.derive()
     vals = {**values, **fuzzy_symbol_values(values)}
     out = {
-        "u0": pair("u0", [d.u0], vals),
+        "u0": pair("u0", [d.u0]),
         "v": pair("v", bs.applied_commands(d.u0), vals),
         "chi": pair("chi", d.chi, vals),
         "alpha": pair("alpha", d.alpha, vals),
         "alpha_dot": pair("alpha_dot_comp", d.alpha_dot_comp, vals),
         "alpha_dot_comp": pair("alpha_dot_comp", d.alpha_dot_comp, vals),
-        "ydot_hat": pair("ydot_hat", [d.ydot_hat], vals),
+        "ydot_hat": pair("ydot_hat", [d.ydot_hat]),
         "dalpha_dy": pair("dalpha_dy", d.dalpha_dy, vals),
     }
     if "ydot" in vals:
@@ -216,7 +220,7 @@ def bound_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
         k += n
     terms = lyapunov.derive()
     return {"kappa_terms": pair("kappa", terms.kappa_terms, vals),
-            "zeta_theta": pair("zeta", [terms.zeta_theta], vals)}
+            "zeta_theta": pair("zeta", [terms.zeta_theta])}
 
 
 def observer_lyapunov_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
@@ -239,7 +243,8 @@ def observer_lyapunov_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]
 
 def turbine_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     states = {"turbine_nrel5mw": dlay.NREL_STATES, "turbine_tower": dlay.TOWER_STATES,
-              "rotor_inflow": dlay.TOWER_STATES}.get(name, dlay.PLANT_STATES)
+              "rotor_inflow": dlay.TOWER_STATES, "turbine_tower_edge": dlay.TOWER_EDGE_STATES,
+              "edge_inflow": dlay.TOWER_EDGE_STATES}.get(name, dlay.PLANT_STATES)
     entries = {"x_plant": states, "p_turbine": dlay.TURBINE_PARAMS,
                "actuator_faults": dlay.ACTUATOR_FAULTS}
     vals: dict[str, float] = {}
@@ -251,27 +256,50 @@ def turbine_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple
             vals.update({f"v_{j + 1}": float(x) for j, x in enumerate(flat)})
         else:
             vals[key] = float(flat[0])
+    return {k: pair(tag, exprs, vals) for k, (tag, exprs) in _turbine_exprs(name).items()}
+
+
+@cache
+def _turbine_exprs(name: str) -> dict[str, tuple[str, tuple]]:
+    """The SymPy references of a generated plant function, built once per name: output
+    name → (tag, expressions)."""
     if name == "aero_operating_point":
-        return {"tsr": pair("tsr", [turbine.tip_speed_ratio()], vals),
-                "beta_mean": pair("bmean", [turbine.mean_pitch()], vals)}
+        return {"tsr": _P("tsr", [turbine.tip_speed_ratio()]),
+                "beta_mean": _P("bmean", [turbine.mean_pitch()])}
     if name == "rotor_inflow":
-        return {"wind_rel": pair("wrel", [turbine.relative_wind()], vals)}
+        return {"wind_rel": _P("wrel", [turbine.relative_wind()])}
+    if name == "edge_inflow":
+        return {"wind_rel": _P("wrel", [turbine.relative_wind()]),
+                "omega_aero": _P("waero", [turbine.aero_speed()])}
+    if name == "turbine_tower_edge":
+        w, t_gen = turbine.relative_wind(), turbine.generator_torque()
+        t_aero = turbine.aero_torque(w).subs(turbine.omega_r, turbine.aero_speed())
+        return {"x_plant_dot": _P(name, turbine.tower_edge_rhs()),
+                "T_aero": _P("taero_e", [t_aero]),
+                "T_gen": _P("tgen_t", [t_gen]),
+                "P_gen": _P("pgen_t", [t_gen * turbine.omega_g]),
+                "thrust": _P("thrust", [turbine.thrust(w)]),
+                "M_tower": _P("mtower", [turbine.tower_base_moment()])}
     if name == "turbine_tower":
         w = turbine.relative_wind()
         t_gen = turbine.generator_torque()
-        return {"x_plant_dot": pair(name, turbine.tower_rhs(), vals),
-                "T_aero": pair("taero_t", [turbine.aero_torque(w)], vals),
-                "T_gen": pair("tgen_t", [t_gen], vals),
-                "P_gen": pair("pgen_t", [t_gen * turbine.omega_g], vals),
-                "thrust": pair("thrust", [turbine.thrust(w)], vals),
-                "M_tower": pair("mtower", [turbine.tower_base_moment()], vals)}
+        return {"x_plant_dot": _P(name, turbine.tower_rhs()),
+                "T_aero": _P("taero_t", [turbine.aero_torque(w)]),
+                "T_gen": _P("tgen_t", [t_gen]),
+                "P_gen": _P("pgen_t", [t_gen * turbine.omega_g]),
+                "thrust": _P("thrust", [turbine.thrust(w)]),
+                "M_tower": _P("mtower", [turbine.tower_base_moment()])}
     loaded = name == "turbine_nrel5mw"
     rhs = turbine.nrel5mw_rhs() if loaded else turbine.paper_rhs()
     t_gen = turbine.generator_torque() if loaded else sp.S.Zero
-    return {"x_plant_dot": pair(name, rhs, vals),
-            "T_aero": pair("taero", [turbine.aero_torque()], vals),
-            "T_gen": pair(f"tgen{loaded}", [t_gen], vals),
-            "P_gen": pair(f"pgen{loaded}", [t_gen * turbine.omega_g], vals)}
+    return {"x_plant_dot": _P(name, rhs),
+            "T_aero": _P("taero", [turbine.aero_torque()]),
+            "T_gen": _P(f"tgen{loaded}", [t_gen]),
+            "P_gen": _P(f"pgen{loaded}", [t_gen * turbine.omega_g])}
+
+
+def _P(tag: str, exprs) -> tuple[str, tuple]:  # noqa: N802 (reads as pair's twin)
+    return tag, tuple(exprs)
 
 
 def sensors_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
@@ -285,7 +313,7 @@ def sensors_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
                          ("p_sensors", sensors.param_entries())):
         vals.update({e.name: float(x) for e, x in zip(entries, _flat(args, key), strict=True)})
     return {"meas": pair("meas", sensors.measured(), vals),
-            "x_lag_dot": pair("lagdot", sensors.lag_rhs(), vals)}
+            "x_lag_dot": pair("lagdot", sensors.lag_rhs())}
 
 
 def _flat(args, key):
@@ -338,7 +366,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         vals = {**base, "v": float(v[j]), "beta_m": rd[f"beta_meas_{j + 1}_m1"],
                 "beta_m2": rd[f"beta_meas_{j + 1}_m2"], "beta_v": float(meas[2 + j]),
                 **{sy.name: float(y) for sy, y in zip(fdi.STATE_SYMBOLS, xs, strict=True)}}
-        rhs.append(pair("fdi_rhs", fdi.blade_rhs(), vals))
+        rhs.append(pair("fdi_rhs", fdi.blade_rhs()))
         for k, a in enumerate(fdi.accommodation()):
             known[k].append(pair(f"fdi_acc{k}", [a], vals))
         rho.append(pair("fdi_rho", [sp.Piecewise((0, fdi.is_locked()), (r0, True))], vals))
@@ -445,7 +473,7 @@ def design_reference(cname: str, name: str, args: dict[str, np.ndarray]) -> dict
         return {"z_dot": tuple(np.concatenate([rates[k], bdot[k], x_dot[k]]) for k in (0, 1)),
                 "true_rates": true, "meas": exact([vals[n] for n in MEAS])}
     v = pair(f"{cname}_v", [d.v], vals)
-    return {"v": (np.repeat(v[0], 3), np.repeat(v[1], 3)), "u0": pair(f"{cname}_u0", [d.u0], vals),
+    return {"v": (np.repeat(v[0], 3), np.repeat(v[1], 3)), "u0": pair(f"{cname}_u0", [d.u0]),
             "x_ctrl_dot": x_dot, "diag": pair(f"{cname}_diag", d.diag, vals)}
 
 
@@ -493,13 +521,13 @@ def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
             dlay.TURBINE_PARAMS, _flat(args, "p_turbine"), strict=True)})
         vals.update({k: float(_flat(args, k)[0]) for k in ("wind", "cp", "dcp_dbeta")})
         dT = sp.diff(turbine.aero_torque(), turbine.cp) * sp.Symbol("dcp_dbeta")
-        return {"T_aero": pair("taero", [turbine.aero_torque()], vals),
-                "dT_dbeta": pair("dTdb", [dT], vals)}
+        return {"T_aero": pair("taero", [turbine.aero_torque()]),
+                "dT_dbeta": pair("dTdb", [dT])}
     if name == "generator_torque":
         vals = {e.name: float(x) for e, x in zip(dlay.TURBINE_PARAMS, _flat(args, "p_turbine"),
                                                   strict=True)}
         vals["omega_g"] = float(_flat(args, "omega_g")[0])
-        return {"T_gen": pair("tgen", [turbine.generator_torque()], vals)}
+        return {"T_gen": pair("tgen", [turbine.generator_torque()])}
     if name == "pitch_actuator":  # derivation/turbine.py pitch_actuator_rhs, in SymPy
         vals = {e.name: float(x) for e, x in zip(dlay.TURBINE_PARAMS, _flat(args, "p_turbine"),
                                                   strict=True)}
@@ -509,8 +537,9 @@ def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         vals.update({s.name: float(x) for s, x in zip(
             turbine.ACTUATOR_FAULTS, _flat(args, "actuator_faults"), strict=True)})
         vals.update({f"v_{j + 1}": float(x) for j, x in enumerate(_flat(args, "v"))})
-        return {"x_actuator_dot": pair("actuator", turbine.pitch_actuator_rhs(), vals)}
-    if name.startswith("turbine_") or name in ("aero_operating_point", "rotor_inflow"):
+        return {"x_actuator_dot": pair("actuator", turbine.pitch_actuator_rhs())}
+    if name.startswith("turbine_") or name in ("aero_operating_point", "rotor_inflow",
+                                                "edge_inflow"):
         return turbine_reference(name, args)
     if name == "lyapunov":
         return lyapunov_reference(args)

@@ -47,6 +47,9 @@ SCENARIOS = {
     # the tower plant's first fore-aft mode (its base moment among the traces)
     "tower": {"plant": "tower", "controller": "physical", "t_final_s": 8.0,
               "wind": {**NTM, "mean_mps": 16.0}},
+    # the tower_edge plant's blades' edgewise mode (issue 33)
+    "edge": {"plant": "tower_edge", "controller": "physical", "t_final_s": 8.0,
+             "wind": {**NTM, "mean_mps": 16.0}},
     # eq (4)'s first-order pitch: only the paper's plant has it
     "paper_plant": {"plant": "paper", "controller": "paper", "t_final_s": 5.0},
 }
@@ -66,13 +69,16 @@ TURBINE = {
     "vs_max_torque": ("above_law", 3.5e6),
     "tower_modal_mass": ("tower", None), "tower_stiffness": ("tower", None),
     "tower_damping_ratio": ("tower", 0.05), "tower_moment_arm": ("tower", None),
+    "edge_modal_mass": ("edge", None), "edge_stiffness": ("edge", None),
+    "edge_damping_ratio": ("edge", 0.05), "edge_coupling_cos": ("edge", None),
+    "edge_coupling_sin": ("edge", None), "edge_torque_share": ("edge", None),
 }
 
 
 def _outcome(raw: dict) -> tuple[np.ndarray, float]:
     rc = make_config(raw)
     res = run(rc, progress=False)
-    columns = COLUMNS + (("M_tower",) if rc.plant == "tower" else ())
+    columns = COLUMNS + (("M_tower",) if rc.plant in ("tower", "tower_edge") else ())
     return (np.column_stack([res.column(c) for c in columns]),
             metrics(rc, res)["mean_electrical_power_W"])
 

@@ -175,7 +175,10 @@ def _entry(params: dict, name: str, unit: str, where: str) -> tuple[float, str]:
     e = params.get(name)
     field = f"params.{name}"
     if e is None:
-        raise ConfigError(field, "missing", f"every turbine parameter, in {unit}",
+        hint = (" (the blades' edgewise mode, new in wtftc's issue 33: `wtftc turbine "
+                "import` writes it from the ElastoDyn blade file; docs/turbines.md)"
+                if name.startswith("edge_") else "")
+        raise ConfigError(field, "missing", f"every turbine parameter, in {unit}{hint}",
                           where=where)
     if not isinstance(e, dict) or set(e) - {"value", "unit", "source"} or "value" not in e:
         raise ConfigError(field, e, '{ value = <number>, unit = "...", source = "..." }',

@@ -170,21 +170,74 @@ def _deck_values_of(deck: openfast_deck.Deck) -> tuple[dict, dict, dict]:
                "J_g": (ed, "GenIner", g["GenIner"]), "k_s": (ed, "DTTorSpr", g["DTTorSpr"]),
                "d_s": (ed, "DTTorDmp", g["DTTorDmp"]), "gearbox_ratio": (ed, "GBRatio", n),
                "rotor_radius": (ed, "TipRad", g["TipRad"])}
-    tower, tower_sources, tower_origins = tower_mode(deck, g, m_blade)
-    values.update(tower)
-    sources.update({k: f"{src}, {v}" for k, v in tower_sources.items()})
-    origins.update(tower_origins)
+    for mode in (tower_mode(deck, g, m_blade), edge_mode(deck, g)):
+        values.update(mode[0])
+        sources.update({k: f"{src}, {v}" for k, v in mode[1].items()})
+        origins.update(mode[2])
     return values, sources, origins
 
 
-def _mode_shape(tw: dict, f: Path) -> list[float]:
-    """TwFAM1Sh(2..6): finite, summing to 1 (φ(1) = 1; ElastoDyn refuses any other)."""
-    c = numbers(tw, "TwFAM1Sh", f)
+def _mode_shape(d: dict, f: Path, key: str = "TwFAM1Sh",
+                what: str = "first fore-aft") -> list[float]:
+    """A mode shape's coefficients of x² .. x⁶ (TwFAM1Sh, BldEdgSh): finite, summing to 1
+    (φ(1) = 1; ElastoDyn refuses any other)."""
+    c = numbers(d, key, f)
     if not abs(sum(c) - 1.0) <= 1e-3:
-        raise ConfigError("TwFAM1Sh(2:6)", c, f"coefficients of the first fore-aft mode shape "
+        raise ConfigError(f"{key}(2:6)", c, f"coefficients of the {what} mode shape "
                           f"that sum to 1 (φ(1) = 1, as ElastoDyn requires; these sum to "
                           f"{sum(c):g})", where=str(f))
     return c
+
+
+def edge_mode(deck: openfast_deck.Deck, g: dict) -> tuple[dict, dict, dict]:
+    """The blade's first edgewise mode from ElastoDyn's blade file [SI], per blade, as the
+    ``tower_edge`` plant needs it (derivation/turbine.py ``tower_edge_rhs``): the mode
+    shape φ(x) = Σ BldEdgSh(k) x^k (x the fraction of the flexible blade from HubRad to
+    TipRad, φ(1) = 1), modal mass m_e = ∫ μ φ² dr (BMassDen × AdjBlMs), stiffness
+    k_e = ∫ EI φ''² dr (EdgStff × AdjEdSt, as ElastoDyn computes it), damping BldEdDmp(1),
+    the couplings to the rotor's rotation ∫ μ r φ cos τ dr and ∫ μ r φ sin τ dr (r the
+    distance from the rotor axis with the precone, τ the structural twist StrcTwst), and
+    the edge's share of the aerodynamic torque κ = ∫ r φ dr / ∫ r² dr (a tangential load
+    proportional to r). (values, sources, origins)."""
+    bl, f, name = deck.blade, deck.blade_file, deck.blade_file.name
+    frac = _stations(bl, "BlFract", f, "NBlInpSt")
+    length = g["TipRad"] - g["HubRad"]
+    x = np.linspace(0.0, 1.0, 20001)
+    r = (g["HubRad"] + x * length) * math.cos(math.radians(g["PreCone(1)"]))
+    mu = np.interp(x, frac, numbers(bl, "BMassDen", f, 0.0, unit="kg/m")) * number(
+        bl, "AdjBlMs", f, 0, low_open=True)
+    ei = np.interp(x, frac, numbers(bl, "EdgStff", f, 0.0, unit="N m^2")) * number(
+        bl, "AdjEdSt", f, 0, low_open=True)
+    twist = np.radians(np.interp(x, frac, numbers(bl, "StrcTwst", f, -90, 90, unit="deg")))
+    c = _mode_shape(bl, f, "BldEdgSh", "first edgewise")
+    phi = sum(ck * x ** (k + 2) for k, ck in enumerate(c))
+    curv = sum(ck * (k + 2) * (k + 1) * x**k for k, ck in enumerate(c)) / (length * length)
+    values = {"edge_modal_mass": length * float(np.trapezoid(mu * phi**2, x)),
+              "edge_stiffness": length * float(np.trapezoid(ei * curv**2, x)),
+              "edge_damping_ratio": number(bl, "BldEdDmp1", f, 0, 100, unit="%") / 100.0,
+              "edge_coupling_cos": length * float(np.trapezoid(mu * r * phi * np.cos(twist), x)),
+              "edge_coupling_sin": length * float(np.trapezoid(mu * r * phi * np.sin(twist), x)),
+              "edge_torque_share": float(np.trapezoid(r * phi, x) / np.trapezoid(r * r, x))}
+    f1 = (math.sqrt(values["edge_stiffness"] / values["edge_modal_mass"]) / (2 * math.pi)
+          if values["edge_stiffness"] > 0 and values["edge_modal_mass"] > 0 else math.nan)
+    sources = {
+        "edge_modal_mass": f"{name}: ∫ BMassDen × AdjBlMs × φ² dr, φ the BldEdgSh mode shape",
+        "edge_stiffness": f"{name}: ∫ EdgStff × AdjEdSt × φ''² dr (the blade's first edgewise "
+                          f"frequency alone, clamped, not rotating: {f1:.4f} Hz)",
+        "edge_damping_ratio": f"{name}: BldEdDmp(1) / 100",
+        "edge_coupling_cos": f"{name}: ∫ BMassDen × AdjBlMs × r × φ × cos(StrcTwst) dr, r "
+                             "from the rotor axis at the precone",
+        "edge_coupling_sin": f"{name}: ∫ BMassDen × AdjBlMs × r × φ × sin(StrcTwst) dr",
+        "edge_torque_share": f"{name}: ∫ r φ dr / ∫ r² dr (a tangential load ∝ r)"}
+    origins = {"edge_modal_mass": (f, "BMassDen, AdjBlMs, BldEdgSh", values["edge_modal_mass"]),
+               "edge_stiffness": (f, "EdgStff, AdjEdSt, BldEdgSh", values["edge_stiffness"]),
+               "edge_damping_ratio": (f, "BldEdDmp(1)", values["edge_damping_ratio"] * 100),
+               "edge_coupling_cos": (f, "BMassDen, StrcTwst, BldEdgSh",
+                                     values["edge_coupling_cos"]),
+               "edge_coupling_sin": (f, "BMassDen, StrcTwst, BldEdgSh",
+                                     values["edge_coupling_sin"]),
+               "edge_torque_share": (f, "BldEdgSh", values["edge_torque_share"])}
+    return values, sources, origins
 
 
 def tower_mode(deck: openfast_deck.Deck, g: dict, m_blade: float

@@ -29,6 +29,11 @@ PLANTS = {
               "doc": "the nrel5mw plant on a flexible tower: first fore-aft mode, rotor "
                      "thrust from Ct, the rotor in the wind relative to the tower top, "
                      "each blade's share of Cp and Ct at its own pitch"},
+    "tower_edge": {"function": "turbine_tower_edge", "states": "tower_edge_states",
+                   "loaded": True, "tower": True, "per_blade": True, "edge": True,
+                   "doc": "the tower plant with edgewise-flexible blades: their first "
+                          "edgewise mode, collective, in series with the shaft (ElastoDyn's "
+                          "drivetrain mode; issue 33, docs/validation.md)"},
     "paper": {"function": "turbine_paper", "states": "plant_states", "loaded": False,
               "doc": "eqs (1)-(4) as printed: UNLOADED, no generator torque "
                      "(paper-notes defect 3)"},
@@ -209,11 +214,17 @@ def plant_block(loop: Loop, xp, v, sym: dict) -> dict:
     spec = PLANTS[loop.plant]
     pf = load(spec["function"], "interpreted")
     pt, wind = sym["p_turbine"], sym["wind"]
-    w_rotor = (load("rotor_inflow", "interpreted")(x_plant=xp, wind=wind)["wind_rel"]
-               if spec.get("tower") else wind)
-    op = load("aero_operating_point", "interpreted")(
-        x_plant=xp[lay.prefix("plant_states", of=spec["states"])], wind=w_rotor,
-        p_turbine=pt)
+    x_aero = xp[lay.prefix("plant_states", of=spec["states"])]
+    if spec.get("edge"):  # the blades' speed includes their edgewise motion
+        inflow = load("edge_inflow", "interpreted")(x_plant=xp, wind=wind, p_turbine=pt)
+        w_rotor = inflow["wind_rel"]
+        x_aero = ca.vertcat(inflow["omega_aero"], x_aero[1:])
+    elif spec.get("tower"):
+        w_rotor = load("rotor_inflow", "interpreted")(x_plant=xp, wind=wind)["wind_rel"]
+    else:
+        w_rotor = wind
+    op = load("aero_operating_point", "interpreted")(x_plant=x_aero, wind=w_rotor,
+                                                      p_turbine=pt)
     # the plant's Cp: the table's, scaled by the model mismatch (1: none)
     cp = sym["cp_scale"] * _rotor_table(loop, xp, op)
     args = {"x_plant": xp, "v": v, "wind": wind, "cp": cp,

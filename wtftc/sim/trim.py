@@ -38,6 +38,9 @@ def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0
     if PLANTS[loop.plant].get("tower"):  # the tower bent by the steady thrust, at rest
         plant["tower_x"] = _thrust(loop, np.array(list(plant.values())), wind0) \
             / tp["tower_stiffness"]
+    if PLANTS[loop.plant].get("edge"):  # the blades bent by the torque they carry:
+        # q_e = κ T / (3 k_e), derivation/turbine.py tower_edge_rhs at rest
+        plant["edge_q"] = tp["edge_torque_share"] * torque / (3 * tp["edge_stiffness"])
     # the controller and the FDI start from what they measure (init_<name>, generated)
     meas = {"omega_r": omega, "omega_g_hss": omega * tp["gearbox_ratio"],
             **{f"beta_meas_{j}": beta0 for j in lay.blades()}}

@@ -52,8 +52,8 @@ def random_inputs(name: str, rng: np.random.Generator,
         size = int(np.prod(shape))
         if n in special and special[n].size == size:
             val = special[n]
-        elif n == "x_plant" and size == lay.size("tower_states"):
-            val = special["x_plant_tower"]
+        elif n == "x_plant" and size in special["x_plant_sized"]:  # the tower plants'
+            val = special["x_plant_sized"][size]
         elif n == "z" and name in _models():  # a design's model: model and controller states
             reg = _models()[name]
             val = np.concatenate([_draw(reg["model"]["states"], rng),
@@ -139,12 +139,9 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
     true = np.array([meas[names.index(s["measures"])] for s in lay.layout()["sensors"]])
     readings = true * (1 + 0.05 * rs.standard_normal(true.size)
                        * (rs.uniform(size=true.size) < 0.33))
-    # the tower plant's draws (issue 18), from a third stream: the others stay what they were
     rt = np.random.default_rng(int(rng.bit_generator.state["state"]["state"]) % 2**61 + 1)
-    tower_states = [e for e in lay.layout()["tower_states"]
-                    if e["name"] not in lay.names("nrel5mw_states")]
     return {
-        "x_plant_tower": np.concatenate([x_plant, _draw(tower_states, rt)]),
+        "x_plant_sized": _tower_plant_states(rng, rt, x_plant),
         "ct": np.array([rt.uniform(-0.1, 1.2)]),
         "tower_rng": rt,
         "x_plant": x_plant,
@@ -180,9 +177,25 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
     }
 
 
+def _tower_plant_states(rng: np.random.Generator, rt: np.random.Generator,
+                        x_plant: np.ndarray) -> dict[int, np.ndarray]:
+    """The tower plants' states by their count: the nrel5mw plant's ``x_plant``, then the
+    tower's drawn from ``rt`` (issue 18), then the blades' edge mode from a fourth stream
+    (issue 33): every other draw stays what it was."""
+    tower_states = [e for e in lay.layout()["tower_states"]
+                    if e["name"] not in lay.names("nrel5mw_states")]
+    x_tower = np.concatenate([x_plant, _draw(tower_states, rt)])
+    re_ = np.random.default_rng(int(rng.bit_generator.state["state"]["state"]) % 2**61 + 2)
+    edge_states = [e for e in lay.layout()["tower_edge_states"]
+                   if e["name"] not in lay.names("tower_states")]
+    return {x_tower.size: x_tower,
+            x_tower.size + len(edge_states): np.concatenate([x_tower,
+                                                             _draw(edge_states, re_)])}
+
+
 #: turbine parameters added after the points were fixed (the tower's, issue 18, last in
 #: the layout): drawn from a stream of their own, the others from rng
-TURBINE_PARAMS_ADDED = 4
+TURBINE_PARAMS_ADDED = 10
 
 
 def _added_last(rng: np.random.Generator, other: np.random.Generator, size: int,
