@@ -255,6 +255,7 @@ def test_a_trim_that_does_not_converge_is_refused_and_not_cached(tmp_path, monke
 @pytest.mark.parametrize("argv, flag", [
     (["--plant", "nrel5mw"], "--plant"), (["--dofs", "half"], "--dofs"),
     (["--azimuths", "1"], "--azimuths"), (["--winds", "0"], "--winds"),
+    (["--winds", "10"], "above the turbine's rated wind"),
     (["--turbine", "nonsense"], "turbine")])
 def test_bad_input_is_one_line(argv, flag, tmp_path, capsys):
     assert main(["modes", *argv, "--out", str(tmp_path / "m")]) == 2

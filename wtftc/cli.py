@@ -814,10 +814,13 @@ def _plant(name: str, flag: str, plants=None) -> str:
 
 
 def _winds(winds, lo: float = 0.0) -> list[float]:
-    """Wind speeds [m/s] each in (lo, 60], else one line naming --winds."""
+    """Wind speeds [m/s] each in (lo, 60], else one line naming --winds (``lo`` > 0: the
+    turbine's rated wind, which the range then names)."""
     for w in winds:
         if not (lo < w <= 60):
-            raise ConfigError("--winds", w, f"wind speeds in ({lo:g}, 60] m/s")
+            raise ConfigError("--winds", w, f"wind speeds in ({lo:.4g}, 60] m/s" + (
+                " (above the turbine's rated wind: OpenFAST's trim holds the rotor speed "
+                "with the pitch)" if lo > 0 else ""))
     return list(winds)
 
 
@@ -867,8 +870,9 @@ def _cmd_modes(args) -> int:
     if n_az < 2:
         raise ConfigError("--azimuths", n_az, "an integer >= 2 (OpenFAST's CalcSteady "
                           "linearizes at 2 azimuths at least)")
-    winds = _winds(args.winds)
-    config.make_config({**raw, "controller": modes.SETTLING_CONTROLLER})
+    rc = config.make_config({**raw, "controller": modes.SETTLING_CONTROLLER})
+    rated = config.rated_wind_speed(rc.loop.p_turbine, rc.loop.table)
+    winds = _winds(args.winds, lo=rated)  # OpenFAST's trim holds the speed by pitch
     if importlib.util.find_spec("openfast_io") is None:
         raise EngineError("wtftc modes reads OpenFAST's .lin files with openfast-io 5.0.0, "
                           "which is not installed: " + config.OPENFAST_PACKAGES)
