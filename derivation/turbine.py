@@ -266,31 +266,34 @@ def aero_speed() -> sp.Expr:
 
 def tower_edge_rhs() -> list[sp.Expr]:
     """The ``tower`` plant with the blades' first edgewise mode, collective, in series with
-    the shaft (Lagrange's equations; ElastoDyn's kinematics with one mode, Jonkman 2005,
-    FAST User's Guide, the blade's in-plane motion r θ_r + φ(r) cos(β + τ) q_e):
+    the shaft (Lagrange's equations with ElastoDyn's kinematics and one blade mode, Jonkman
+    2005, FAST User's Guide). A blade element at radius r moves in the rotor plane by
+    r θ_r + φ(r) cos(β + τ) q_e, the mode turning with the pitch and the twist, so
 
-    T = ½ J_r ω_r² + Σ_j S(β_j) ω_r q̇_e + ½ · 3 m_e q̇_e²,   V = ½ · 3 k_e q_e² + ½ k_s θ_s²
+    T = ½ J_r ω_r² + ω_r Σ_j (S_j q̇_e + S'_j β̇_j q_e) + ½ · 3 m_e q̇_e² (+ O(q_e² β̇²))
+    V = ½ · 3 k_e q_e² + ½ k_s θ_s²
 
-    J_r ω̇_r + Σ S_j q̈_e = T_aero - k_s θ_s - d_s (ω_r - ω_g) - Σ S'_j β̇_j q̇_e
-    Σ S_j ω̇_r + 3 m_e q̈_e = κ T_aero - 3 k_e q_e - 3 c_e q̇_e - Σ S'_j β̇_j ω_r
+    with S_j = S(β_j) (:func:`edge_coupling`), S'_j = dS/dβ. In the edge equation the
+    pitch-rate terms cancel exactly (d/dt ∂T/∂q̇_e brings ω_r Σ S'_j β̇_j, ∂T/∂q_e takes it
+    away); in the rotor equation they are 2 Σ S'_j β̇_j q̇_e + Σ (S'_j β̈_j + S''_j β̇_j²) q_e,
+    under 1 % of the rated torque at the 8°/s rate limit and left out. What stays:
 
-    with c_e = 2 ζ_e √(k_e m_e), S'_j = dS/dβ at blade j, β̇_j its actual rate, and the
-    aerodynamic torque at the blades' speed ω_a (:func:`aero_speed`). J_r is the rigid
-    rotor's inertia (hub and blades); the mass matrix is positive definite because the
-    blade's rigid inertia ∫ μ r² dr exceeds S²/m_e (Cauchy-Schwarz). Left out: the edge
-    mode's centrifugal stiffening (about 1 % in frequency at rated speed), its
-    out-of-plane share in the thrust and the flap modes."""
+    J_r ω̇_r + Σ S_j q̈_e = T_aero - k_s θ_s - d_s (ω_r - ω_g)
+    Σ S_j ω̇_r + 3 m_e q̈_e = κ T_aero - 3 k_e q_e - 3 c_e q̇_e
+
+    with c_e = 2 ζ_e √(k_e m_e) and the aerodynamic torque at the blades' speed ω_a
+    (:func:`aero_speed`). J_r is the rigid rotor's inertia (hub and blades); the mass
+    matrix is positive definite because the blade's rigid inertia ∫ μ r² dr exceeds S²/m_e
+    (Cauchy-Schwarz). Also left out: the edge mode's centrifugal stiffening (about 1 % in
+    frequency at rated speed), its out-of-plane share in the thrust and the flap modes."""
     base = tower_rhs()
-    rates = pitch_actuator_rhs()[:N_BLADES]
     w, wa = relative_wind(), aero_speed()
     t_aero = aero_torque(w).subs(omega_r, wa)
     s_sum = sum(edge_coupling(b) for b in beta)
-    s_dot = sum(sp.diff(edge_coupling(b), b) * r for b, r in zip(beta, rates, strict=True))
     c_e = 2 * edge_damping_ratio * sp.sqrt(edge_stiffness * edge_modal_mass)
     J_r, k_s, d_s = plant.J_r, plant.k_s, plant.d_s
-    f_rotor = t_aero - k_s * theta_s - d_s * (omega_r - omega_g) - s_dot * edge_v
-    f_edge = (edge_torque_share * t_aero - 3 * edge_stiffness * edge_q - 3 * c_e * edge_v
-              - s_dot * omega_r)
+    f_rotor = t_aero - k_s * theta_s - d_s * (omega_r - omega_g)
+    f_edge = edge_torque_share * t_aero - 3 * edge_stiffness * edge_q - 3 * c_e * edge_v
     det = 3 * edge_modal_mass * J_r - s_sum**2
     omega_r_dot = (3 * edge_modal_mass * f_rotor - s_sum * f_edge) / det
     edge_v_dot = (J_r * f_edge - s_sum * f_rotor) / det

@@ -120,3 +120,20 @@ def test_import_reads_the_edge_mode_from_the_elastodyn_blade_file():
     f_e = math.sqrt(nrel["edge_stiffness"] / nrel["edge_modal_mass"]) / (2 * math.pi)
     assert f_e == pytest.approx(1.096, abs=2e-3)
     assert "1.0958 Hz" in src["edge_stiffness"]
+
+
+def test_pitch_jitter_does_not_ring_the_edge_mode():
+    """Under the realistic profile's sensor noise the PI's pitch jitters near its rate
+    limit; the pitch-rate terms of the edge mode's kinematics cancel in its own equation
+    (derivation/turbine.py ``tower_edge_rhs``). In steady 16 m/s the shaft torque's σ
+    stays below 1 % of the rated torque (here about 0.25 %; the rigid-blade tower plant's
+    0.02 %) and the rotor speed's below 1e-3 rad/s. (With those terms kept on one side
+    only, a 3-Hz limit cycle of ±5 MN m and 0.04 rad/s.)"""
+    run = {"controller": "pi", "t_final_s": 30.0, "profile": "realistic",
+           "wind": {"kind": "constant", "speed_mps": 16.0}}
+    rc = config.make_config({**run, "plant": "tower_edge"})
+    res = cases.run(rc, progress=False)
+    tp = lay.values("turbine_params", rc.p_turbine)
+    keep = res.t > 10.0
+    assert np.std(res.column("theta_s")[keep]) * tp["k_s"] < 0.01 * tp["gen_torque_rated"]
+    assert np.std(res.column("omega_r")[keep]) < 1e-3
