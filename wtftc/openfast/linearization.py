@@ -168,7 +168,7 @@ def _watcher(label: str, n_az: int):
     def watch(text: str) -> None:
         lins = _LINE.findall(text)
         times = _TIME.findall(text)
-        line = (f"  {label}: linearization {len(lins)} of {n_az} done" if lins else
+        line = (f"  {label}: linearizing at azimuth {len(lins)} of {n_az}" if lins else
                 f"  {label}: trimming, {times[-1][0]} of at most {times[-1][1]} s "
                 "simulated" if times else f"  {label}: starting OpenFAST")
         if line != seen["line"]:
