@@ -264,6 +264,16 @@ def test_bad_input_is_one_line(argv, flag, tmp_path, capsys):
     assert not (tmp_path / "m").exists()
 
 
+def test_without_openfast_it_is_one_line_exit_4(tmp_path, capsys, monkeypatch):
+    from wtftc.openfast import install
+
+    monkeypatch.setattr(install, "find", lambda *a, **k: None)
+    assert main(["modes", "--out", str(tmp_path / "m")]) == 4
+    err = capsys.readouterr().err.strip()
+    assert "OpenFAST" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "m").exists()
+
+
 def test_without_openfast_io_it_is_one_line_exit_4(tmp_path, capsys, monkeypatch):
     import importlib.util
 
