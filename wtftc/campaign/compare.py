@@ -19,7 +19,7 @@ import numpy as np
 
 from wtftc import config
 from wtftc.artefacts import layout as lay
-from wtftc.campaign import cases, cluster
+from wtftc.campaign import cases, cluster, tune
 from wtftc.errors import ConfigError
 from wtftc.files import owned_folder
 from wtftc.model import turbine_file
@@ -40,6 +40,9 @@ class Variant:
     controller: str  # registered controller (generated/layout.json)
     fault_case: int
     doc: str
+    #: the pitch loop's target mode (ω_n [rad/s], ζ), turned into the controller's own
+    #: gains by wtftc.campaign.tune.resolve; None: its default gains (ROSCO: its deck's)
+    tuning: tuple[float, float] | None = None
 
     @property
     def uses_fdi(self) -> bool:
@@ -138,12 +141,12 @@ PLANT = "tower"
 
 def cell_config(controller: str, fault: str, wind: str, t_final: float, dt: float,
                 seed: int, profile: str = PROFILE, turbine: str | None = None,
-                engine: str = "wtftc") -> dict:
-    """One cell's run configuration, on the tower plant. The turbulent wind is the
-    rotor-effective one (averaged over the turbine's rotor disk: docs/wind.md). On a
-    turbine other than the NREL 5-MW the gust of ``eog_rated`` comes at that turbine's
-    rated wind (config.rated_wind_speed, to 0.01 m/s; the NREL 5-MW keeps Jonkman's 11.4
-    m/s)."""
+                engine: str = "wtftc", plant: str = PLANT) -> dict:
+    """One cell's run configuration, on ``plant`` (the tower plant by default). The
+    turbulent wind is the rotor-effective one (averaged over the turbine's rotor disk:
+    docs/wind.md). On a turbine other than the NREL 5-MW the gust of ``eog_rated`` comes
+    at that turbine's rated wind (config.rated_wind_speed, to 0.01 m/s; the NREL 5-MW
+    keeps Jonkman's 11.4 m/s). A tuned variant's target is resolved into its gains."""
     tab = WINDS[wind]
     t = turbine_file.load(turbine or turbine_file.DEFAULT)
     if turbine and turbine != turbine_file.DEFAULT and wind == "eog_rated":
@@ -152,8 +155,8 @@ def cell_config(controller: str, fault: str, wind: str, t_final: float, dt: floa
         tab = {**tab, "rotor_radius_m": t.values["rotor_radius"]}
     cfg = variant_config(controller, FAULTS[fault], tab, t_final, dt, seed,
                          label=f"{wind}/{fault}/{controller}", profile=profile)
-    where = {"plant": PLANT} if engine == "wtftc" else {"engine": engine}
-    return cfg | where | ({"turbine": turbine} if turbine else {})
+    where = {"plant": plant} if engine == "wtftc" else {"engine": engine}
+    return tune.resolve(cfg | where | ({"turbine": turbine} if turbine else {}))
 
 
 def variant_config(controller: str, faults: list | None, wind: dict, t_final: float,
@@ -168,6 +171,8 @@ def variant_config(controller: str, faults: list | None, wind: dict, t_final: fl
            "seed": seed, "label": label, "profile": profile}
     if faults:
         cfg["fault"] = copy.deepcopy(faults)
+    if variant.tuning is not None:  # resolved by the caller, on the run's turbine
+        cfg["tuning"] = dict(zip(("omega_n_rad_s", "zeta"), variant.tuning, strict=True))
     if name != "rosco":
         # ROSCO commands the generator torque itself; every other pitch controller runs with
         # the NREL 5-MW baseline variable-speed torque law (Jonkman 2009, 7.1), so that all
@@ -192,11 +197,12 @@ def _row(controller, fault, wind, m) -> dict:
 def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_final=60.0,
                 dt=1e-3, seed=0, progress=True, profile: str = PROFILE,
                 turbine: str | None = None, engine: str = "wtftc",
-                workers: int | None = None, scheduler: str | None = None) -> list[dict]:
+                workers: int | None = None, scheduler: str | None = None,
+                plant: str = PLANT) -> list[dict]:
     """The matrix into ``out_dir``; its rows. Runs in OpenFAST are Dask tasks, on a local
     cluster of ``workers`` processes (default: the cores) or on ``scheduler``'s; the
-    native engine's cells run in this process unless ``workers`` or ``scheduler`` is
-    given."""
+    native engine's cells run in this process, on ``plant``, unless ``workers`` or
+    ``scheduler`` is given."""
     from wtftc.sim import rosco
 
     ctrl_names = _check("controllers", controllers, CONTROLLERS, DEFAULT_CONTROLLERS)
@@ -219,7 +225,8 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
         raise ConfigError("t-final", t_final, f"more than {ONSET_S:g} s, the faults' onset "
                           "(or --faults none)")
     # validate every cell before running any
-    cells = {(w, f, c): cell_config(c, f, w, t_final, dt, seed, profile, turbine, engine)
+    cells = {(w, f, c): cell_config(c, f, w, t_final, dt, seed, profile, turbine, engine,
+                                    plant)
              for w in wind_names for f in fault_names for c in ctrl_names}
     for raw in cells.values():
         ensure_field(raw)  # each TurbSim field a cell reads, made once, first
