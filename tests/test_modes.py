@@ -316,9 +316,10 @@ def test_openfast_rigid_modes_agree_with_wtftcs_tower_plant(rigid16):
     derivative acts on the rigid-body pole, not this mode); the .lin files' 4 digits
     allow 0.05 %. ζ within 5 %: the shaft's damping d_s on both. Measured: 2.2230 Hz
     against 2.2226 Hz (−0.02 %), ζ 0.0508 both.
-    The tower within issue 33's 3 %: wtftc's modal stiffness comes from Jonkman's
-    0.324 Hz with the rotor-nacelle mass, ElastoDyn's from its mode shapes with the
-    rotor's inertia and the thrust's stiffness; measured 0.3264 against 0.3231 Hz (−1.0 %)."""
+    The tower within issue 33's 3 %: wtftc's modal mass and stiffness are ElastoDyn's
+    with one tower mode (the assembly on top moving and tilting, gravity's destiffening;
+    wtftc.model.turbine_import.tower_mode); measured 0.3264 Hz against wtftc's 0.3281 Hz
+    structural (Jonkman's 0.324 Hz before issue 33's fix: −1.0 %)."""
     base, _ = rigid16
     doc = json.loads((base / "out" / "modes.json").read_text())
     rows = {r["mode"]: r for r in doc["winds"][0]["compare"]}

@@ -62,3 +62,16 @@ def test_validate_runs_both_engines_on_one_field_and_scores_them_alike(tmp_path)
              for e in ("wtftc", "wtftc_hub")]
     assert all(w["field"] == "turbsim" for w in winds)
     assert winds[0]["rotor_radius_m"] > 60 and winds[1]["rotor_radius_m"] == 0.0
+    # wtftc's side ran the validated plant, with the blades' edgewise mode
+    assert doc["scenario"]["plant"] == "tower_edge"
+    assert json.loads((out / "wtftc" / "metrics.json").read_text())["config"]["plant"] \
+        == "tower_edge"
+
+
+def test_validate_names_a_plant_without_a_tower_in_one_line(capsys):
+    """--plant takes the plants with a tower; any other is one line naming the flag, before
+    anything runs."""
+    assert main(["validate", "--plant", "nrel5mw", "--out", "unused"]) == 2
+    err = capsys.readouterr().err
+    assert "--plant = 'nrel5mw'" in err and "tower, tower_edge" in err
+    assert "Traceback" not in err

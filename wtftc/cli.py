@@ -90,9 +90,9 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_validate(sub) -> None:
     v = sub.add_parser(
         "validate", help="one controller and scenario on both engines: OpenFAST and wtftc's "
-                         "tower plant, side by side (docs/validation.md)",
+                         "plant, side by side (docs/validation.md)",
         description="Runs the controller in OpenFAST 5.0.0 (the turbine's deck, the benchmark "
-                    "actuator, wtftc's sensors and faults) and on wtftc's tower plant, on the "
+                    "actuator, wtftc's sensors and faults) and on wtftc's --plant, on the "
                     "same TurbSim field for an NTM (its rotor-effective and its hub-height "
                     "series), with the same seed. Writes OUT/openfast/, OUT/wtftc/, "
                     "OUT/wtftc_hub/ (run folders), validation.json and validation.md (each "
@@ -117,6 +117,9 @@ def _add_validate(sub) -> None:
     v.add_argument("--t-final", type=float, default=60.0,
                    help="simulated time [s] (default 60)")
     v.add_argument("--seed", type=_nonnegative_int, default=0, help="random seed (default 0)")
+    v.add_argument("--plant", default="tower_edge", help="wtftc's plant, one with a tower: "
+                   "tower_edge (default; the blades' edgewise mode, validated against "
+                   "OpenFAST in docs/validation.md) or tower (rigid blades)")
     v.add_argument("--out", type=Path, required=True,
                    help="output folder: new, empty or an earlier validation's")
     v.add_argument("--quiet", action="store_true", help="no progress")
@@ -128,7 +131,10 @@ def _cmd_validate(args) -> int:
     raw = tune.resolve(_run_overrides(args))
     if args.controller != "rosco":
         raw.setdefault("turbine_params", {"gen_torque_law": 1.0})  # as compare runs them
-    doc = validate.run_validate(raw, args.out, progress=not args.quiet)
+    from wtftc.campaign.modes import tower_plants
+
+    plant = _plant(args.plant, "--plant", tower_plants())
+    doc = validate.run_validate(raw, args.out, progress=not args.quiet, plant=plant)
     counts = {}
     for row in doc["metrics"].values():
         counts[row["verdict"]] = counts.get(row["verdict"], 0) + 1
@@ -215,8 +221,10 @@ def _add_run(sub) -> None:
                    help="1 no fault, 2 fault with the controller unaware, 3 fault known to "
                         "eq (49), 4 fault detected by wtftc's FDI")
     r.add_argument("--plant", help="nrel5mw (default; two-mass drivetrain), tower (nrel5mw "
-                   "on a flexible tower: thrust, tower-base moment, Cp and Ct per blade) or "
-                   "paper (eqs (1)-(4), unloaded)")
+                   "on a flexible tower: thrust, tower-base moment, Cp and Ct per blade), "
+                   "tower_edge (tower with the blades' edgewise mode in series with the "
+                   "shaft: OpenFAST's drivetrain mode; docs/validation.md) or paper (eqs "
+                   "(1)-(4), unloaded)")
     r.add_argument("--controller", help=_controller_help())
     r.add_argument("--turbine", help=TURBINE_HELP)
     _add_wind_arguments(r)
@@ -841,8 +849,9 @@ def _add_modes(sub) -> None:
     m.add_argument("--turbine", help=TURBINE_HELP)
     m.add_argument("--winds", type=float, nargs="+", metavar="MPS", default=[16.0],
                    help="steady wind speeds above rated [m/s] (default 16)")
-    m.add_argument("--plant", default="tower", help="wtftc's plant, one with a tower "
-                   "(default tower)")
+    m.add_argument("--plant", help="wtftc's plant, one with a tower (default: tower with "
+                   "--dofs rigid, its like-for-like; tower_edge with --dofs full, whose "
+                   "blades have their edgewise mode)")
     m.add_argument("--dofs", default="rigid", help="OpenFAST's degrees of freedom: rigid "
                    "(generator, drivetrain twist, 1st tower fore-aft: wtftc's plant; the "
                    "default) or full (every blade, tower and drivetrain DOF)")
@@ -863,7 +872,8 @@ def _cmd_modes(args) -> int:
     from wtftc.openfast import install
     from wtftc.openfast.linearization import AZIMUTHS, DOF_SETS
 
-    raw = {"plant": _plant(args.plant, "--plant", modes.tower_plants()),
+    plant = args.plant or ("tower" if args.dofs == "rigid" else "tower_edge")
+    raw = {"plant": _plant(plant, "--plant", modes.tower_plants()),
            **({"turbine": args.turbine} if args.turbine else {})}
     if args.dofs not in DOF_SETS:
         raise ConfigError("--dofs", args.dofs, "one of " + ", ".join(DOF_SETS))

@@ -92,7 +92,8 @@ def _elastodyn(deck: openfast_deck.Deck) -> dict:
     g["PreCone(1)"] = number(ed, "PreCone(1)", f, -90, 90, True, True, "deg")
     for key in ("GenIner", "HubIner", "HubMass", "NacMass", "YawBrMass"):
         g[key] = number(ed, key, f, 0, unit="kg m^2" if "Iner" in key else "kg")
-    for key in ("DTTorSpr", "DTTorDmp", "Twr2Shft", "TowerBsHt"):
+    for key in ("DTTorSpr", "DTTorDmp", "Twr2Shft", "TowerBsHt", "OverHang", "NacCMxn",
+                "NacCMzn"):
         g[key] = number(ed, key, f)  # their ranges: the turbine's (k_s, d_s, moment arm)
     g["TowerHt"] = number(ed, "TowerHt", f)
     if not g["TowerHt"] > g["TowerBsHt"]:
@@ -170,7 +171,7 @@ def _deck_values_of(deck: openfast_deck.Deck) -> tuple[dict, dict, dict]:
                "J_g": (ed, "GenIner", g["GenIner"]), "k_s": (ed, "DTTorSpr", g["DTTorSpr"]),
                "d_s": (ed, "DTTorDmp", g["DTTorDmp"]), "gearbox_ratio": (ed, "GBRatio", n),
                "rotor_radius": (ed, "TipRad", g["TipRad"])}
-    for mode in (tower_mode(deck, g, m_blade), edge_mode(deck, g)):
+    for mode in (tower_mode(deck, g, m_blade, values["J_r"]), edge_mode(deck, g)):
         values.update(mode[0])
         sources.update({k: f"{src}, {v}" for k, v in mode[1].items()})
         origins.update(mode[2])
@@ -240,15 +241,27 @@ def edge_mode(deck: openfast_deck.Deck, g: dict) -> tuple[dict, dict, dict]:
     return values, sources, origins
 
 
-def tower_mode(deck: openfast_deck.Deck, g: dict, m_blade: float
+#: standard gravity [m/s²] (ElastoDyn's default, OpenFAST's .fst Gravity)
+GRAVITY = 9.80665
+
+
+def tower_mode(deck: openfast_deck.Deck, g: dict, m_blade: float, j_rotor: float
                ) -> tuple[dict, dict, dict]:
-    """The tower's first fore-aft mode from ElastoDyn [SI]: the mode shape φ(h) =
-    Σ TwFAM1Sh(k) h^k (k = 2..6, h the height fraction over the flexible tower, φ(1) = 1),
-    modal mass m_t = m_RNA + ∫ μ φ² dz (the rotor-nacelle assembly at the top: hub,
-    nacelle, yaw bearing and blades), modal stiffness k_t = ∫ EI (φ'')² dz (Rayleigh's
-    quotient: an assumed shape overestimates the frequency; the tower-top inertia is
-    left out), damping ratio TwrFADmp(1), and the moment arm of the rotor over the tower
-    base, TowerHt + Twr2Shft - TowerBsHt. (values, sources, origins)."""
+    """The tower's first fore-aft mode from ElastoDyn [SI], as its equations have it with
+    the tower's one mode (issue 33; docs/validation.md): the mode shape φ(h) =
+    Σ TwFAM1Sh(k) h^k (k = 2..6, h the height fraction over the flexible tower, φ(1) = 1).
+
+    - Modal mass m_t = ∫ μ φ² dz + the rotor-nacelle assembly carried by the tower top as
+      it moves and tilts by φ'(H): each of its masses (yaw bearing at the top, rotor at
+      OverHang and Twr2Shft, nacelle at NacCMxn and NacCMzn) weighs m [(1 + z φ'(H))² +
+      (x φ'(H))²], the rotor's inertia about its tilt axis J_r/2 weighs φ'(H)².
+    - Modal stiffness k_t = ∫ EI (φ'')² dz - g ∫ m_above(z) φ'² dz: bending less gravity's
+      destiffening under the tower above z and the assembly on top.
+    - Damping ratio TwrFADmp(1); the moment arm of the rotor over the tower base,
+      TowerHt + Twr2Shft - TowerBsHt.
+
+    On both shipped turbines the result is OpenFAST's rigid-blade linearization within
+    1.3 % (Rayleigh's quotient alone: +6 % and +12 %). (values, sources, origins)."""
     tw, f, name = deck.tower, deck.tower_file, deck.tower_file.name
     height = g["TowerHt"] - g["TowerBsHt"]
     frac = _stations(tw, "HtFract", f, "NTwInpSt")
@@ -259,21 +272,30 @@ def tower_mode(deck: openfast_deck.Deck, g: dict, m_blade: float
         tw, "AdjFASt", f, 0, low_open=True)
     c = _mode_shape(tw, f)
     phi = sum(ck * h ** (k + 2) for k, ck in enumerate(c))
+    slope = sum(ck * (k + 2) * h ** (k + 1) for k, ck in enumerate(c)) / height
     curv = sum(ck * (k + 2) * (k + 1) * h**k for k, ck in enumerate(c)) / (height * height)
     rna = g["HubMass"] + g["NacMass"] + g["YawBrMass"] + g["NumBl"] * m_blade
-    mass = rna + height * float(np.trapezoid(mu * phi**2, h))
-    stiffness = height * float(np.trapezoid(ei * curv**2, h))
+    top = _tower_top_mass(g, m_blade, j_rotor, float(slope[-1]))
+    tower_above = height * (np.trapezoid(mu, h) - np.concatenate(
+        [[0.0], np.cumsum((mu[1:] + mu[:-1]) / 2 * np.diff(h))]))
+    mass = top + height * float(np.trapezoid(mu * phi**2, h))
+    bending = height * float(np.trapezoid(ei * curv**2, h))
+    gravity = height * float(np.trapezoid(GRAVITY * (rna + tower_above) * slope**2, h))
+    stiffness = bending - gravity
     values = {"tower_modal_mass": mass, "tower_stiffness": stiffness,
               "tower_damping_ratio": number(tw, "TwrFADmp1", f, 0, 100, unit="%") / 100.0,
               "tower_moment_arm": g["TowerHt"] + g["Twr2Shft"] - g["TowerBsHt"]}
     f1 = (math.sqrt(stiffness / mass) / (2 * math.pi) if stiffness > 0 and mass > 0
           else math.nan)
     sources = {
-        "tower_modal_mass": f"{name}: rotor-nacelle assembly {rna:.6g} kg (HubMass, NacMass, "
-                            "YawBrMass, NumBl × blade mass) + ∫ TMassDen × AdjTwMa × φ² dz, "
-                            "φ the TwFAM1Sh mode shape",
-        "tower_stiffness": f"{name}: ∫ TwFAStif × AdjFASt × φ''² dz (Rayleigh's quotient: "
-                           f"first fore-aft frequency {f1:.4f} Hz, an upper bound)",
+        "tower_modal_mass": f"{name}: ∫ TMassDen × AdjTwMa × φ² dz, φ the TwFAM1Sh mode "
+                            f"shape, + the rotor-nacelle assembly ({rna:.6g} kg: HubMass, "
+                            f"NacMass, YawBrMass, NumBl × blade mass) moving and tilting with "
+                            f"the tower top: {top:.6g} kg (OverHang, Twr2Shft, NacCMxn, "
+                            "NacCMzn, the rotor inertia)",
+        "tower_stiffness": f"{name}: ∫ TwFAStif × AdjFASt × φ''² dz ({bending:.6g} N/m) less "
+                           f"gravity's destiffening g ∫ m_above φ'² dz ({gravity:.6g} N/m); "
+                           f"first fore-aft frequency {f1:.4f} Hz",
         "tower_damping_ratio": f"{name}: TwrFADmp(1) / 100",
         "tower_moment_arm": "TowerHt + Twr2Shft - TowerBsHt"}
     origins = {"tower_modal_mass": (f, "TMassDen, AdjTwMa", mass),
@@ -282,6 +304,19 @@ def tower_mode(deck: openfast_deck.Deck, g: dict, m_blade: float
                "tower_moment_arm": (deck.ed_file, "TowerHt, Twr2Shft, TowerBsHt",
                                     values["tower_moment_arm"])}
     return values, sources, origins
+
+
+def _tower_top_mass(g: dict, m_blade: float, j_rotor: float, slope: float) -> float:
+    """The tower top's share of the first fore-aft mode's modal mass [kg]: each mass of
+    the rotor-nacelle assembly at (x downwind, z up) from the tower top moves by
+    (1 + z φ') horizontally and x φ' vertically per unit of top displacement, φ' the mode's
+    slope there [1/m]; the rotor (hub and blades at OverHang, Twr2Shft) also turns about its
+    tilt axis, J_r / 2 for a rotor of three or more blades."""
+    parts = ((g["YawBrMass"], 0.0, 0.0),
+             (g["HubMass"] + g["NumBl"] * m_blade, g["OverHang"], g["Twr2Shft"]),
+             (g["NacMass"], g["NacCMxn"], g["NacCMzn"]))
+    return (sum(m * ((1 + z * slope) ** 2 + (x * slope) ** 2) for m, x, z in parts)
+            + j_rotor / 2 * slope**2)
 
 
 # ------------------------------------------------------------------------------ DISCON.IN
