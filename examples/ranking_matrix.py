@@ -1,9 +1,9 @@
 """Issue 33 item 4, the ranking test: do wtftc's reduced plants rank the controllers as
 OpenFAST does? Run from the repository, one engine a call, then the ranking:
 
-    python examples/ranking_matrix.py openfast OUT/openfast      # ~45 min on 2 cores
-    python examples/ranking_matrix.py tower_edge OUT/tower_edge  # wtftc's plants, minutes
-    python examples/ranking_matrix.py tower OUT/tower
+    python examples/ranking_matrix.py openfast OUT/openfast      # 36 runs: 50 min, 2 workers
+    python examples/ranking_matrix.py tower_edge OUT/tower_edge  # 36 runs: 4.5 min, 1 process
+    python examples/ranking_matrix.py tower OUT/tower            # 36 runs: 4.3 min
     python examples/ranking_matrix.py rank OUT                   # OUT/ranking.md, .json
 
 The NREL 5-MW; ROSCO, the PI and the physical AFTC (with wtftc's FDI where a fault is
@@ -14,6 +14,8 @@ and a faster target (0.9, 0.7) for all three (``*_fast``, wtftc.campaign.tune.re
 and blade 1 locked where it is at 12 m/s (both from 20 s); seed 0, 120 s, the realistic
 profile. Every NTM cell of every engine reads the same TurbSim field (OpenFAST's wind).
 Each engine's matrix is three `compare` trees (fault_free/, runaway_16/, lock_12/).
+The wall times above were measured on 2 cores shared with another developer's OpenFAST
+runs (load average 4-7), the native runs beside the OpenFAST ones.
 """
 
 import json
