@@ -142,13 +142,13 @@ def controller_reference(values: dict[str, float]) -> dict[str, tuple]:
     d = bs.derive()
     vals = {**values, **fuzzy_symbol_values(values)}
     out = {
-        "u0": pair("u0", [d.u0]),
+        "u0": pair("u0", [d.u0], vals),
         "v": pair("v", bs.applied_commands(d.u0), vals),
         "chi": pair("chi", d.chi, vals),
         "alpha": pair("alpha", d.alpha, vals),
         "alpha_dot": pair("alpha_dot_comp", d.alpha_dot_comp, vals),
         "alpha_dot_comp": pair("alpha_dot_comp", d.alpha_dot_comp, vals),
-        "ydot_hat": pair("ydot_hat", [d.ydot_hat]),
+        "ydot_hat": pair("ydot_hat", [d.ydot_hat], vals),
         "dalpha_dy": pair("dalpha_dy", d.dalpha_dy, vals),
     }
     if "ydot" in vals:
@@ -220,7 +220,7 @@ def bound_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
         k += n
     terms = lyapunov.derive()
     return {"kappa_terms": pair("kappa", terms.kappa_terms, vals),
-            "zeta_theta": pair("zeta", [terms.zeta_theta])}
+            "zeta_theta": pair("zeta", [terms.zeta_theta], vals)}
 
 
 def observer_lyapunov_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
@@ -313,7 +313,7 @@ def sensors_reference(args: dict[str, np.ndarray]) -> dict[str, tuple]:
                          ("p_sensors", sensors.param_entries())):
         vals.update({e.name: float(x) for e, x in zip(entries, _flat(args, key), strict=True)})
     return {"meas": pair("meas", sensors.measured(), vals),
-            "x_lag_dot": pair("lagdot", sensors.lag_rhs())}
+            "x_lag_dot": pair("lagdot", sensors.lag_rhs(), vals)}
 
 
 def _flat(args, key):
@@ -366,7 +366,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         vals = {**base, "v": float(v[j]), "beta_m": rd[f"beta_meas_{j + 1}_m1"],
                 "beta_m2": rd[f"beta_meas_{j + 1}_m2"], "beta_v": float(meas[2 + j]),
                 **{sy.name: float(y) for sy, y in zip(fdi.STATE_SYMBOLS, xs, strict=True)}}
-        rhs.append(pair("fdi_rhs", fdi.blade_rhs()))
+        rhs.append(pair("fdi_rhs", fdi.blade_rhs(), vals))
         for k, a in enumerate(fdi.accommodation()):
             known[k].append(pair(f"fdi_acc{k}", [a], vals))
         rho.append(pair("fdi_rho", [sp.Piecewise((0, fdi.is_locked()), (r0, True))], vals))
@@ -473,7 +473,7 @@ def design_reference(cname: str, name: str, args: dict[str, np.ndarray]) -> dict
         return {"z_dot": tuple(np.concatenate([rates[k], bdot[k], x_dot[k]]) for k in (0, 1)),
                 "true_rates": true, "meas": exact([vals[n] for n in MEAS])}
     v = pair(f"{cname}_v", [d.v], vals)
-    return {"v": (np.repeat(v[0], 3), np.repeat(v[1], 3)), "u0": pair(f"{cname}_u0", [d.u0]),
+    return {"v": (np.repeat(v[0], 3), np.repeat(v[1], 3)), "u0": pair(f"{cname}_u0", [d.u0], vals),
             "x_ctrl_dot": x_dot, "diag": pair(f"{cname}_diag", d.diag, vals)}
 
 
@@ -521,13 +521,13 @@ def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
             dlay.TURBINE_PARAMS, _flat(args, "p_turbine"), strict=True)})
         vals.update({k: float(_flat(args, k)[0]) for k in ("wind", "cp", "dcp_dbeta")})
         dT = sp.diff(turbine.aero_torque(), turbine.cp) * sp.Symbol("dcp_dbeta")
-        return {"T_aero": pair("taero", [turbine.aero_torque()]),
-                "dT_dbeta": pair("dTdb", [dT])}
+        return {"T_aero": pair("taero", [turbine.aero_torque()], vals),
+                "dT_dbeta": pair("dTdb", [dT], vals)}
     if name == "generator_torque":
         vals = {e.name: float(x) for e, x in zip(dlay.TURBINE_PARAMS, _flat(args, "p_turbine"),
                                                   strict=True)}
         vals["omega_g"] = float(_flat(args, "omega_g")[0])
-        return {"T_gen": pair("tgen", [turbine.generator_torque()])}
+        return {"T_gen": pair("tgen", [turbine.generator_torque()], vals)}
     if name == "pitch_actuator":  # derivation/turbine.py pitch_actuator_rhs, in SymPy
         vals = {e.name: float(x) for e, x in zip(dlay.TURBINE_PARAMS, _flat(args, "p_turbine"),
                                                   strict=True)}
@@ -537,7 +537,7 @@ def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         vals.update({s.name: float(x) for s, x in zip(
             turbine.ACTUATOR_FAULTS, _flat(args, "actuator_faults"), strict=True)})
         vals.update({f"v_{j + 1}": float(x) for j, x in enumerate(_flat(args, "v"))})
-        return {"x_actuator_dot": pair("actuator", turbine.pitch_actuator_rhs())}
+        return {"x_actuator_dot": pair("actuator", turbine.pitch_actuator_rhs(), vals)}
     if name.startswith("turbine_") or name in ("aero_operating_point", "rotor_inflow",
                                                 "edge_inflow"):
         return turbine_reference(name, args)
