@@ -326,12 +326,11 @@ def _build_tower_edge(common: dict, p_t, v, wind, cp, af) -> list[ca.Function]:
     tr = Translator({**common, **_named(x_e, lay.TOWER_EDGE_STATES), "ct": ct})
     w_rel, w_a = turbine.relative_wind(), turbine.aero_speed()
     t_gen = tr(turbine.generator_torque())
-    t_aero = turbine.aero_torque(w_rel).subs(turbine.omega_r, w_a)
     plant = _function("turbine_tower_edge", {"x_plant": x_e, "v": v, "wind": wind, "cp": cp,
                                              "ct": ct, "actuator_faults": af,
                                              "p_turbine": p_t}, {
         "x_plant_dot": ca.vertcat(*[tr(e) for e in turbine.tower_edge_rhs()]),
-        "T_aero": tr(t_aero), "T_gen": t_gen, "P_gen": t_gen * x_e[2],
+        "T_aero": tr(turbine.edge_aero_torque()), "T_gen": t_gen, "P_gen": t_gen * x_e[2],
         "thrust": tr(turbine.thrust(w_rel)), "M_tower": tr(turbine.tower_base_moment())})
     inflow = _function("edge_inflow", {"x_plant": x_e, "wind": wind, "p_turbine": p_t},
                        {"wind_rel": tr(w_rel), "omega_aero": tr(w_a)})

@@ -264,6 +264,12 @@ def aero_speed() -> sp.Expr:
     return omega_r + edge_torque_share * edge_v
 
 
+def edge_aero_torque() -> sp.Expr:
+    """T_aero on the tower_edge plant: in the wind relative to the tower top, at the
+    blades' speed ω_a (:func:`aero_speed`)."""
+    return aero_torque(relative_wind()).subs(omega_r, aero_speed())
+
+
 def tower_edge_rhs() -> list[sp.Expr]:
     """The ``tower`` plant with the blades' first edgewise mode, collective, in series with
     the shaft (Lagrange's equations with ElastoDyn's kinematics and one blade mode, Jonkman
@@ -287,8 +293,7 @@ def tower_edge_rhs() -> list[sp.Expr]:
     (Cauchy-Schwarz). Also left out: the edge mode's centrifugal stiffening (about 1 % in
     frequency at rated speed), its out-of-plane share in the thrust and the flap modes."""
     base = tower_rhs()
-    w, wa = relative_wind(), aero_speed()
-    t_aero = aero_torque(w).subs(omega_r, wa)
+    t_aero = edge_aero_torque()
     s_sum = sum(edge_coupling(b) for b in beta)
     c_e = 2 * edge_damping_ratio * sp.sqrt(edge_stiffness * edge_modal_mass)
     J_r, k_s, d_s = plant.J_r, plant.k_s, plant.d_s

@@ -273,9 +273,8 @@ def _turbine_exprs(name: str) -> dict[str, tuple[str, tuple]]:
                 "omega_aero": _P("waero", [turbine.aero_speed()])}
     if name == "turbine_tower_edge":
         w, t_gen = turbine.relative_wind(), turbine.generator_torque()
-        t_aero = turbine.aero_torque(w).subs(turbine.omega_r, turbine.aero_speed())
         return {"x_plant_dot": _P(name, turbine.tower_edge_rhs()),
-                "T_aero": _P("taero_e", [t_aero]),
+                "T_aero": _P("taero_e", [turbine.edge_aero_torque()]),
                 "T_gen": _P("tgen_t", [t_gen]),
                 "P_gen": _P("pgen_t", [t_gen * turbine.omega_g]),
                 "thrust": _P("thrust", [turbine.thrust(w)]),

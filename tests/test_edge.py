@@ -14,6 +14,7 @@ from wtftc import config
 from wtftc.artefacts import layout as lay
 from wtftc.campaign import cases
 from wtftc.campaign.linearize import operating_point
+from wtftc.campaign.validate import three_inertias_hz
 from wtftc.model import turbine_file
 
 #: OpenFAST 5.0.0's NREL 5-MW (ROSCO 2.10.6's deck, every ElastoDyn DOF), linearized at
@@ -37,30 +38,17 @@ def _drivetrain_hz(plant: str, params: dict | None = None, wind: float = 16.0) -
     return abs(slowest) / (2 * math.pi), -slowest.real / abs(slowest), op.pitch
 
 
-def _three_inertias_hz(tp: dict, pitch: float) -> list[float]:
-    """The undamped modes of rotor, blades' collective edge and generator on the shaft,
-    from the turbine's parameters alone (numpy, not the derivation): M q̈ + K q = 0 with
-    q = (θ_r, q_e, θ_g), M = [[J_r, 3S, 0], [3S, 3 m_e, 0], [0, 0, J_g]],
-    S = S_c cos β - S_s sin β."""
-    s = tp["edge_coupling_cos"] * math.cos(pitch) - tp["edge_coupling_sin"] * math.sin(pitch)
-    m = np.array([[tp["J_r"], 3 * s, 0], [3 * s, 3 * tp["edge_modal_mass"], 0],
-                  [0, 0, tp["J_g"]]])
-    k = np.array([[tp["k_s"], 0, -tp["k_s"]], [0, 3 * tp["edge_stiffness"], 0],
-                  [-tp["k_s"], 0, tp["k_s"]]])
-    w2 = np.linalg.eigvals(np.linalg.solve(m, k)).real
-    return sorted(math.sqrt(x) / (2 * math.pi) for x in w2 if x > 1e-6)
-
-
 def test_the_drivetrain_mode_is_the_three_inertia_chains_and_openfasts():
     """The generated plant's drivetrain mode at 16 m/s is the lower mode of the three
     inertias (rotor, blades' collective edge, generator) computed from the turbine file
-    with numpy: within 0.5 % (the plant adds damping, the tower and the aerodynamics). It
+    with numpy (wtftc.campaign.validate.three_inertias_hz, not the derivation): within
+    0.5 % (the plant adds damping, the tower and the aerodynamics). It
     sits at 1.69 Hz, within 1 % of OpenFAST's 1.68 Hz, where the rigid rotor's two-mass
     drivetrain (the tower plant) has 2.22 Hz, 32 % high; its damping ratio, about 0.023,
     is OpenFAST's 0.0235 within 15 % (the tower plant's: 0.051)."""
     f, zeta, pitch = _drivetrain_hz("tower_edge")
     tp = turbine_file.load("nrel5mw").values
-    assert f == pytest.approx(_three_inertias_hz(tp, pitch)[0], rel=5e-3)
+    assert f == pytest.approx(three_inertias_hz(tp, pitch)[0], rel=5e-3)
     assert f == pytest.approx(OPENFAST_DRIVETRAIN_16_HZ, rel=0.01)
     assert zeta == pytest.approx(0.0235, rel=0.15)
     f_rigid, zeta_rigid, _ = _drivetrain_hz("tower")
@@ -104,19 +92,14 @@ def test_import_reads_the_edge_mode_from_the_elastodyn_blade_file():
     with the rest of the turbine)."""
     pytest.importorskip("openfast_io", reason="the import extra (make setup installs it)")
     from wtftc.model.turbine_import import read_deck
-    from wtftc.sim.rosco import discon_path
 
-    base = discon_path("rosco:Examples/Test_Cases")
-    decks = {"nrel5mw": base / "NREL-5MW" / "NREL-5MW.fst",
-             "iea15mw": base / "IEA-15-240-RWT" / "IEA-15-240-RWT-Monopile"
-             / "IEA-15-240-RWT-Monopile.fst"}
-    for name, fst in decks.items():
-        got, src = read_deck(fst)
+    for name in ("nrel5mw", "iea15mw"):
+        got, src = read_deck(config.openfast_deck(turbine_file.load(name)))
         shipped = turbine_file.load(name).values
         for key in [k for k in shipped if k.startswith("edge_")]:
             assert got[key] == pytest.approx(shipped[key], rel=1e-9), (name, key)
         assert 0 < got["edge_coupling_sin"] < 0.1 * got["edge_coupling_cos"]
-    nrel, src = read_deck(decks["nrel5mw"])
+    nrel, src = read_deck(config.openfast_deck(turbine_file.load("nrel5mw")))
     f_e = math.sqrt(nrel["edge_stiffness"] / nrel["edge_modal_mass"]) / (2 * math.pi)
     assert f_e == pytest.approx(1.096, abs=2e-3)
     assert "1.0958 Hz" in src["edge_stiffness"]

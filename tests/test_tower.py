@@ -57,19 +57,14 @@ def test_import_reads_the_tower_from_the_elastodyn_files():
     quotient (0.3465 Hz on the NREL 5-MW with the assembly as a point mass)."""
     pytest.importorskip("openfast_io", reason="the import extra (make setup installs it)")
     from wtftc.model.turbine_import import read_deck
-    from wtftc.sim.rosco import discon_path
 
-    base = discon_path("rosco:Examples/Test_Cases")
-    decks = {"nrel5mw": base / "NREL-5MW" / "NREL-5MW.fst",
-             "iea15mw": base / "IEA-15-240-RWT" / "IEA-15-240-RWT-Monopile"
-             / "IEA-15-240-RWT-Monopile.fst"}
-    for name, fst in decks.items():
-        got, src = read_deck(fst)
+    for name in ("nrel5mw", "iea15mw"):
+        got, src = read_deck(config.openfast_deck(turbine_file.load(name)))
         shipped = turbine_file.load(name).values
         for key in ("tower_modal_mass", "tower_stiffness", "tower_damping_ratio",
                     "tower_moment_arm"):
             assert got[key] == pytest.approx(shipped[key], rel=1e-9), (name, key)
-    nrel, src = read_deck(decks["nrel5mw"])
+    nrel, src = read_deck(config.openfast_deck(turbine_file.load("nrel5mw")))
     assert "(1.91269e+06 N/m)" in src["tower_stiffness"]
     assert "0.3281 Hz" in src["tower_stiffness"]
     assert math.sqrt(1.91269e6 / 403589.3) / (2 * math.pi) == pytest.approx(0.3465, abs=5e-4)

@@ -64,6 +64,8 @@ def test_validate_runs_both_engines_on_one_field_and_scores_them_alike(tmp_path)
     assert winds[0]["rotor_radius_m"] > 60 and winds[1]["rotor_radius_m"] == 0.0
     # wtftc's side ran the validated plant, with the blades' edgewise mode
     assert doc["scenario"]["plant"] == "tower_edge"
+    # its modes: the drivetrain with the blades' edge (1.69 Hz), not the rigid rotor's 2.22
+    assert doc["modes_wtftc_hz"]["drivetrain"] == pytest.approx(1.69, abs=0.01)
     assert json.loads((out / "wtftc" / "metrics.json").read_text())["config"]["plant"] \
         == "tower_edge"
 

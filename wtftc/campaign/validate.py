@@ -11,7 +11,8 @@ The spectra are Welch's (Hann windows of :data:`SEGMENT_S` or the whole series i
 half overlapping) of the
 shaft torque and the tower-base moment after the start-up window. Their peaks are looked
 for around the modes of wtftc's own plant, a factor of two either side: the drivetrain's
-free-free torsion, √(k_s (1/J_r + 1/J_g)) / 2π, and the tower's first fore-aft mode,
+free-free torsion, √(k_s (1/J_r + 1/J_g)) / 2π (on ``tower_edge``, rotor, blades' edge
+and generator together: :func:`three_inertias_hz`), and the tower's first fore-aft mode,
 √(k_t / m_t) / 2π; the damping from the half-power width, ζ ≈ Δf / (2 f).
 """
 
@@ -30,6 +31,8 @@ from wtftc.files import owned_folder
 from wtftc.openfast.turbsim import ensure_field
 from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text
 from wtftc.results.metrics import metrics, signals
+from wtftc.sim.rhs import PLANTS
+from wtftc.sim.trim import operating_point
 
 #: the run folders under --out: OpenFAST, wtftc's plant on the rotor-effective series, and on
 #: the hub-height point
@@ -83,10 +86,32 @@ def engine_configs(raw: dict, plant: str = PLANT) -> dict[str, dict]:
     return out
 
 
+def three_inertias_hz(tp: dict, pitch: float) -> list[float]:
+    """The undamped modes [Hz] of rotor, blades' collective edge and generator on the shaft
+    (derivation/turbine.py ``tower_edge_rhs`` without aerodynamics, tower and damping):
+    M q̈ + K q = 0 on q = (θ_r, q_e, θ_g), M = [[J_r, 3S, 0], [3S, 3 m_e, 0], [0, 0, J_g]],
+    S = S_c cos β - S_s sin β, from the turbine's parameters ``tp``."""
+    s = tp["edge_coupling_cos"] * math.cos(pitch) - tp["edge_coupling_sin"] * math.sin(pitch)
+    m = np.array([[tp["J_r"], 3 * s, 0], [3 * s, 3 * tp["edge_modal_mass"], 0],
+                  [0, 0, tp["J_g"]]])
+    k = np.array([[tp["k_s"], 0, -tp["k_s"]], [0, 3 * tp["edge_stiffness"], 0],
+                  [-tp["k_s"], 0, tp["k_s"]]])
+    w2 = np.linalg.eigvals(np.linalg.solve(m, k)).real
+    return sorted(math.sqrt(x) / (2 * math.pi) for x in w2 if x > 1e-6)
+
+
 def modes(rc: config.RunConfig) -> dict[str, float]:
-    """wtftc's own drivetrain and tower frequencies [Hz] (the module's docstring)."""
+    """wtftc's own drivetrain and tower frequencies [Hz] on ``rc``'s plant (the module's
+    docstring); on a plant with the blades' edgewise mode the drivetrain is the lower
+    mode of :func:`three_inertias_hz` at the pitch of the operating point of the run's
+    mean wind."""
     tp = lay.values("turbine_params", rc.p_turbine)
-    drive = math.sqrt(tp["k_s"] * (1 / tp["J_r"] + 1 / tp["J_g"])) / (2 * math.pi)
+    if PLANTS[rc.plant].get("edge"):
+        wind = rc.raw["wind"]
+        _, _, pitch = operating_point(rc.loop, wind.get("mean_mps", wind.get("speed_mps")))
+        drive = three_inertias_hz(tp, pitch)[0]
+    else:
+        drive = math.sqrt(tp["k_s"] * (1 / tp["J_r"] + 1 / tp["J_g"])) / (2 * math.pi)
     tower = math.sqrt(tp["tower_stiffness"] / tp["tower_modal_mass"]) / (2 * math.pi)
     return {"drivetrain": drive, "tower": tower}
 
@@ -125,8 +150,9 @@ def peak(f: np.ndarray, p: np.ndarray, centre: float) -> tuple[float | None, flo
     return float(f[k]), float((f_hi - f_lo) / (2 * f[k]))
 
 
-def figures_of(rc: config.RunConfig, res) -> dict:
-    """The validation's figures of one run, after its start-up window."""
+def figures_of(rc: config.RunConfig, res, centre: dict[str, float]) -> dict:
+    """The validation's figures of one run, after its start-up window; the spectral peaks
+    looked for around ``centre`` (:func:`modes` of wtftc's plant)."""
     t0 = rc.transient[0]
     sig = signals(rc, res, t0)
     keep = res.t >= t0 - 1e-9
@@ -144,7 +170,6 @@ def figures_of(rc: config.RunConfig, res) -> dict:
     figs["shaft_del"] = ("del", m["shaft_torque_del_1hz_Nm"])
     figs["tower_del"] = ("del", m["tower_base_del_1hz_Nm"])
     figs["rotor_speed_max"] = ("extreme", m["overspeed_peak_rad_s"])
-    centre = modes(rc)
     for mode, x in (("drivetrain", sig.shaft), ("tower", sig.tower)):
         f, p = welch(x, sig.dt) if x is not None else (np.zeros(1), np.zeros(1))
         freq, zeta = peak(f, p, centre[mode])
@@ -260,20 +285,20 @@ def run_validate(raw: dict, out_dir: Path, progress: bool = True,
     for cfg in cfgs.values():
         ensure_field(cfg)
     rcs = {eng: config.make_config(cfg) for eng, cfg in cfgs.items()}  # all checked first
-    runs = {}
+    runs, centre = {}, modes(rcs["wtftc"])
     with owned_folder(out_dir, "--out", command="validate") as tmp:
         for eng, rc in rcs.items():
             if progress:
                 print(f"[{eng}] {rc.label}: {rc.t_final:g} s", flush=True)
             res, _, _ = cases.run_and_write(rc, tmp / eng, progress=progress)
-            runs[eng] = figures_of(rc, res)
+            runs[eng] = figures_of(rc, res, centre)
         table = compare_figures(runs)
         rc = rcs["openfast"]
         doc = {"scenario": {"controller": rc.raw["controller"], "plant": plant,
                             "turbine": rc.raw.get("turbine"),
                             "wind": rc.raw["wind"], "t_final_s": rc.t_final, "seed": rc.seed,
                             "transient_s": rc.transient[0], "faults": rc.raw.get("fault")},
-               "modes_wtftc_hz": modes(rc), "metrics": table}
+               "modes_wtftc_hz": centre, "metrics": table}
         atomic_write_json(tmp / "validation.json", doc)
         atomic_write_text(tmp / "validation.md", markdown(
             table, f"wtftc validate: {rc.raw['controller']}, {rc.raw['wind'].get('kind')} "
