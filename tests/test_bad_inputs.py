@@ -96,6 +96,9 @@ CASES = [
     Case("wind-mean-nan", "wind.mean_mps", ("run", "--wind-mean", "nan")),
     Case("compare-controller", "controllers", ("compare", "--controllers", "lqr")),
     Case("compare-t-final", "t-final", ("compare", "--t-final", "10")),
+    Case("compare-plant-no-tower", "plant", ("compare", "--plant", "nrel5mw")),
+    Case("compare-plant-openfast", "plant", ("compare", "--plant", "tower_edge", "--engine",
+                                             "openfast")),
     # --- the config file itself
     Case("config-missing", "--config", ("run", "--config", "{tmp}/nowhere.toml")),
     Case("config-folder", "--config", ("run", "--config", "{tmp}")),

@@ -34,6 +34,19 @@ def test_small_matrix_and_a_cell_re_run_alone(tmp_path):
     assert np.isclose(m2["rms_speed_error_rad_s"], m["rms_speed_error_rad_s"], rtol=1e-12)
 
 
+def test_the_matrix_runs_on_the_plant_it_is_given(tmp_path):
+    """--plant tower_edge: the cells run on the plant with the blades' edgewise mode, whose
+    drivetrain mode (1.69 Hz, docs/validation.md) the shaft torque carries."""
+    out = tmp_path / "edge"
+    p = wtftc("compare", "--out", out, "--controllers", "pi", "--faults", "none", "--winds",
+              "ntm_B_16", "--t-final", 30, "--plant", "tower_edge", "--quiet")
+    assert p.returncode == 0, p.stderr
+    cell = out / "ntm_B_16" / "none" / "pi"
+    m = json.loads((cell / "metrics.json").read_text())
+    assert m["plant"] == "tower_edge" and m["shaft_torque_del_1hz_Nm"] > 0
+    assert 'plant = "tower_edge"' in (cell / "config.toml").read_text()
+
+
 def test_unknown_controller_fault_or_wind_is_refused(tmp_path):
     for flag, bad in (("--controllers", "rosco2"), ("--faults", "gearbox"),
                       ("--winds", "hurricane")):

@@ -286,6 +286,10 @@ def _add_compare(sub) -> None:
                         "turbine's deck, each cell's case under <wind>/<fault>/<controller>/"
                         "openfast/ (the variants told the fault are left out; "
                         "docs/openfast.md)")
+    k.add_argument("--plant",
+                   help="wtftc's plant with --engine wtftc, one with a tower: tower (default, "
+                        "as docs/compare.md's results) or tower_edge (the blades' edgewise "
+                        "mode, validated against OpenFAST in docs/validation.md)")
     k.add_argument("--workers", type=_positive_int,
                    help="the cells as Dask tasks on a local cluster of this many processes "
                         f"(default with --engine openfast: the cores, {os.cpu_count()}; "
@@ -586,12 +590,19 @@ def _cmd_compare(args) -> int:
     from wtftc.campaign import compare
     from wtftc.files import check_out_folder
 
+    from wtftc.campaign.modes import tower_plants
+
+    plant = compare.PLANT if args.plant is None else _plant(args.plant, "--plant",
+                                                             tower_plants())
+    if args.plant is not None and args.engine == "openfast":
+        raise ConfigError("--plant", args.plant, "no --plant with --engine openfast "
+                          "(OpenFAST runs the turbine's deck)")
     check_out_folder(args.out, "--out", legacy=compare.is_legacy_compare)
     compare.run_compare(args.out, args.controllers, args.faults, args.winds,
                                t_final=args.t_final, seed=args.seed, progress=not args.quiet,
                                profile=args.profile, turbine=args.turbine,
                                engine=args.engine, workers=args.workers,
-                               scheduler=args.scheduler)
+                               scheduler=args.scheduler, plant=plant)
     print((args.out / "compare.md").read_text(), end="")
     print(f"written under {args.out}/: compare.md, compare.csv, compare.png, "
           "<wind>/<fault>/<controller>/{config.toml,metrics.json}")
