@@ -252,6 +252,34 @@ def test_a_trim_that_does_not_converge_is_refused_and_not_cached(tmp_path, monke
                 if not p.name.startswith(".")]
 
 
+def test_sigterm_during_a_linearization_leaves_nothing_in_the_cache(tmp_path, monkeypatch):
+    """SIGTERM while OpenFAST runs (here: a stand-in that receives it) stops the command as
+    Ctrl-C does, and neither its work folder nor a case is left in the cache."""
+    import os
+    import signal
+
+    from wtftc.config import openfast_deck
+    from wtftc.model import turbine_file
+    from wtftc.openfast import engine
+    from wtftc.openfast import linearization as oflin
+
+    monkeypatch.setattr(oflin, "cache_dir", lambda: tmp_path / "cache")
+    seen = []
+
+    def killed(folder, fst, watch=None, every_s=5.0):
+        seen.append(sorted(p.name[:6] for p in (tmp_path / "cache" / "openfast_lin").iterdir()))
+        os.kill(os.getpid(), signal.SIGTERM)
+        raise AssertionError("SIGTERM did not stop the run")
+    monkeypatch.setattr(engine, "simulate_in", killed)
+    g = oflin.Guess(1.2671, math.radians(11.97), 0.21, 43093.55, 97.0, 2.22)
+    with pytest.raises(KeyboardInterrupt):
+        oflin.linearize(openfast_deck(turbine_file.load("nrel5mw")), 16.0, "rigid", 2, g,
+                        progress=False)
+    assert ".work-" in seen[0]  # the work folder was there while OpenFAST ran
+    assert list((tmp_path / "cache" / "openfast_lin").iterdir()) == []
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+
+
 @pytest.mark.parametrize("argv, flag", [
     (["--plant", "nrel5mw"], "--plant"), (["--dofs", "half"], "--dofs"),
     (["--azimuths", "1"], "--azimuths"), (["--winds", "0"], "--winds"),

@@ -588,9 +588,8 @@ def _cmd_cases(args) -> int:
 
 def _cmd_compare(args) -> int:
     from wtftc.campaign import compare
-    from wtftc.files import check_out_folder
-
     from wtftc.campaign.modes import tower_plants
+    from wtftc.files import check_out_folder
 
     plant = compare.PLANT if args.plant is None else _plant(args.plant, "--plant",
                                                              tower_plants())

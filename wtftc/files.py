@@ -25,8 +25,10 @@ import hashlib
 import json
 import os
 import shutil
+import signal
 import stat
 import tempfile
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from pathlib import Path
@@ -420,3 +422,22 @@ def write_files_together(files: dict[Path, bytes]) -> None:
         for tmp, _ in tmps:
             with suppress(OSError):
                 os.unlink(tmp)
+
+
+@contextmanager
+def sigterm_as_interrupt():
+    """Meanwhile SIGTERM raises KeyboardInterrupt, so that what is running is stopped and
+    what it wrote is cleaned up as on Ctrl-C (only in the main thread, where Python takes
+    signals)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)

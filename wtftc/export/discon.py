@@ -44,9 +44,8 @@ import os
 import shutil
 import signal
 import subprocess
-import threading
 from collections.abc import Callable
-from contextlib import contextmanager, suppress
+from contextlib import suppress
 from pathlib import Path
 
 import casadi as ca
@@ -478,24 +477,6 @@ def write_input(rc: config.RunConfig, path: Path, demand_rate_limit: int = 1) ->
 COMPILE_TIMEOUT_S = 600.0
 
 
-@contextmanager
-def _sigterm_as_interrupt():
-    """Meanwhile SIGTERM raises KeyboardInterrupt, so that what is running is stopped and
-    cleaned up as on Ctrl-C (only in the main thread, where Python takes signals)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def interrupt(signum, frame):
-        raise KeyboardInterrupt
-
-    previous = signal.signal(signal.SIGTERM, interrupt)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
 def _kill_group(proc: subprocess.Popen) -> None:
     """Kill the compiler and every process it started (its own process group), then reap
     it; its leader not yet reaped, the group's id cannot have been reused."""
@@ -513,7 +494,7 @@ def compile_library(cmd: list[str], cc: str, timeout: float | None = None) -> No
     killed, so no compiler is left behind. A compiler that cannot be started, fails or
     times out is a ConfigError naming --cc, in one line."""
     timeout = COMPILE_TIMEOUT_S if timeout is None else timeout
-    with _sigterm_as_interrupt():
+    with files.sigterm_as_interrupt():
         try:
             proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                     stderr=subprocess.PIPE, text=True, errors="replace",

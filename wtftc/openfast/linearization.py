@@ -39,6 +39,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
+from wtftc import files
 from wtftc.artefacts.loader import built_once, cache_dir
 from wtftc.errors import EngineError
 from wtftc.openfast import case as ofcase
@@ -210,15 +211,16 @@ def linearize(deck: Path, wind: float, dofs: str, n_az: int, g: Guess,
     inst = install.require()
     root = cache_dir() / "openfast_lin"
     root.mkdir(parents=True, exist_ok=True)
-    work = Path(tempfile.mkdtemp(prefix=".work-", dir=root))
     label = f"{wind:g} m/s, {dofs} DOFs"
-    try:
-        fst = write_case(deck, work / "case", wind, dofs, n_az, g)
-        folder = root / case_key(fst, inst.version)
-        cached = (folder / "lin.json").is_file()
-        built_once(folder, "lin.json", lambda tmp: _run(fst, tmp, label, n_az, progress))
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
+    with files.sigterm_as_interrupt():  # a killed run leaves no work folder in the cache
+        work = Path(tempfile.mkdtemp(prefix=".work-", dir=root))
+        try:
+            fst = write_case(deck, work / "case", wind, dofs, n_az, g)
+            folder = root / case_key(fst, inst.version)
+            cached = (folder / "lin.json").is_file()
+            built_once(folder, "lin.json", lambda tmp: _run(fst, tmp, label, n_az, progress))
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
     rec = json.loads((folder / "lin.json").read_text())
     return Lin([folder / f for f in rec["files"]], rec["pitch_deg"], rec["rotor_rpm"],
                rec["trim_s"], rec["wall_s"], cached)
