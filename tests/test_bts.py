@@ -82,6 +82,79 @@ def test_the_rotor_average_weighs_the_disk_by_area():
         wf.rotor_series(quad, 41.0)
 
 
+def _grid_field(u_of, t):
+    """A FullField on a 1-m grid ±40 m around a 90-m hub, u = u_of(t, y, z) [m/s]."""
+    y = np.arange(-40.0, 40.5, 1.0)
+    z = 90.0 + y
+    yy, zz = np.meshgrid(y, z)
+    return wf.FullField(None, True, t, y, z, np.stack([u_of(tk, yy, zz - 90.0) for tk in t]),
+                        None, None, 16.0, 90.0, np.zeros(0), None, None, None,
+                        (1.0, 1.0, 1.0), "")
+
+
+def test_the_blades_sample_the_field_along_their_span_as_they_turn():
+    """Three radial lines of equal weights along the span, turning at Ω from blade 1
+    upright: a wind ∝ r² reads R²/3 (the disk average, by area: R²/2); a wind linear in y
+    and z cancels over the three blades; a frozen pattern r cos 3θ reads at 3P, its
+    amplitude R/2, in phase with blade 1 (at 120° apart the three blades see it alike)."""
+    R, omega = 30.0, 1.2
+    t = np.linspace(0.0, 10.0, 201)
+    quad = _grid_field(lambda tk, y, z: 0.01 * (y**2 + z**2), t)
+    expected = 0.01 * R**2 * np.mean(((np.arange(wf.BLADE_POINTS) + 0.5) / wf.BLADE_POINTS)**2)
+    # the bilinear interpolant's excess over a quadratic: at most dy²/4 per axis, 0.005 here
+    assert np.allclose(wf.blade_series(quad, R, omega), expected, atol=0.006)
+    assert expected == pytest.approx(0.01 * R**2 / 3, rel=1e-3)
+    assert wf.rotor_series(quad, R)[0] == pytest.approx(0.01 * R**2 / 2, abs=0.006)
+    lin = _grid_field(lambda tk, y, z: 3.0 + 0.1 * y - 0.05 * z, t)
+    assert np.allclose(wf.blade_series(lin, R, omega), 3.0, atol=1e-12)
+    # θ from upright towards +y: y = r sin θ, z = r cos θ; cos 3θ = 4 cos³θ - 3 cos θ
+    tri = _grid_field(lambda tk, y, z: 4 * z**3 / np.maximum(y**2 + z**2, 1e-9) - 3 * z, t)
+    got = wf.blade_series(tri, R, omega)
+    assert np.allclose(got, R / 2 * np.cos(3 * omega * t), atol=0.02 * R / 2)
+    with pytest.raises(ConfigError, match="wind.rotor_radius_m"):
+        wf.blade_series(quad, 41.0, omega)
+
+
+def test_the_blades_wind_is_a_choice_of_the_turbsim_ntm_only():
+    """`rotor_wind = "blades"` needs the TurbSim field and a rotor; any other value, or a
+    blade speed without it, is one line naming the field; the default adds no parameter
+    (earlier configurations and sweep ids unchanged)."""
+    from wtftc.model.wind import wind_from_config
+
+    base = {"kind": "ntm", "mean_mps": 16.0, "rotor_radius_m": 63.0}
+    for table, field in (({**base, "rotor_wind": "blades"}, "wind.rotor_wind"),
+                         ({**base, "rotor_wind": "blade", "field": "turbsim"},
+                          "wind.rotor_wind"),
+                         ({**base, "rotor_wind": "blades", "field": "turbsim",
+                           "rotor_radius_m": 0.0}, "wind.rotor_wind"),
+                         ({**base, "blade_speed_rad_s": 1.0}, "wind.blade_speed_rad_s"),
+                         ({**base, "rotor_wind": "blades", "field": "turbsim",
+                           "blade_speed_rad_s": -1.0}, "wind.blade_speed_rad_s"),
+                         ({"kind": "constant", "rotor_wind": "blades"}, "wind.rotor_wind")):
+        with pytest.raises(ConfigError) as exc:
+            wind_from_config(table, 30.0)
+        assert exc.value.field == field, table
+    assert "rotor_wind" not in wind_from_config(base, 30.0).describe()["parameters"]
+
+
+def test_the_blades_turn_at_the_operating_speed_of_the_mean_wind():
+    """The blade speed filled in: rated above rated, λ* v / R below (written into the
+    saved configuration); a run on the blades' wind reads blade_series at the run's times."""
+    from wtftc.config import blade_speed
+
+    rc = config.make_config({**NATIVE, "wind": {**NATIVE["wind"], "rotor_wind": "blades"}})
+    assert rc.raw["wind"]["blade_speed_rad_s"] == pytest.approx(rc.param("omega_g_rated"))
+    slow = blade_speed(rc.loop.p_turbine, rc.loop.table, 8.0)
+    assert slow == pytest.approx(rc.loop.table.cp_max()[1] * 8.0 / 63.0)
+    assert 0.9 < slow < 1.0  # OpenFAST's mean at 8 m/s: 0.93-0.98 rad/s (docs/validation.md)
+    ff = wf.read_bts(turbsim.make_field(NATIVE))
+    t = np.linspace(0.0, 10.0, 401)
+    expected = np.interp(t + ff.time_shift_s, ff.t,
+                         wf.blade_series(ff, 63.0, rc.param("omega_g_rated")))
+    assert np.allclose(rc.wind(t), expected, rtol=0, atol=1e-12)
+    assert rc.wind.describe()["derived"]["series"].startswith("three blades turning")
+
+
 def test_a_native_run_reads_the_openfast_engines_field():
     """`[wind] field = "turbsim"` on wtftc's plant: the same cached .bts an OpenFAST run of
     the same mean, class, seed, turbine and length makes, read as the rotor sees it: the

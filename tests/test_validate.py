@@ -62,6 +62,10 @@ def test_validate_runs_both_engines_on_one_field_and_scores_them_alike(tmp_path)
              for e in ("wtftc", "wtftc_hub")]
     assert all(w["field"] == "turbsim" for w in winds)
     assert winds[0]["rotor_radius_m"] > 60 and winds[1]["rotor_radius_m"] == 0.0
+    # the rotor's wind as the blades sample it, turning at rated speed (16 m/s is above rated)
+    assert winds[0]["rotor_wind"] == "blades" and "rotor_wind" not in winds[1]
+    assert winds[0]["blade_speed_rad_s"] == pytest.approx(1.26711)
+    assert doc["scenario"]["rotor_wind"] == "blades"
     # wtftc's side ran the validated plant, with the blades' edgewise mode
     assert doc["scenario"]["plant"] == "tower_edge"
     # its modes: the drivetrain with the blades' edge (1.69 Hz), not the rigid rotor's 2.22

@@ -122,6 +122,11 @@ def _add_validate(sub) -> None:
                    "OpenFAST in docs/validation.md) or tower (rigid blades)")
     v.add_argument("--out", type=Path, required=True,
                    help="output folder: new, empty or an earlier validation's")
+    v.add_argument("--rotor-wind", choices=("blades", "disk"), default="blades",
+                   help="the NTM field as wtftc's plant takes it: blades (default; as the "
+                        "three blades sample it turning, whose loads agree best with "
+                        "OpenFAST's) or disk (its average over the rotor disk, as campaigns "
+                        "take it by default); docs/wind.md")
     v.add_argument("--quiet", action="store_true", help="no progress")
 
 
@@ -134,7 +139,8 @@ def _cmd_validate(args) -> int:
     from wtftc.campaign.modes import tower_plants
 
     plant = _plant(args.plant, "--plant", tower_plants())
-    doc = validate.run_validate(raw, args.out, progress=not args.quiet, plant=plant)
+    doc = validate.run_validate(raw, args.out, progress=not args.quiet, plant=plant,
+                                rotor_wind=args.rotor_wind)
     counts = {}
     for row in doc["metrics"].values():
         counts[row["verdict"]] = counts.get(row["verdict"], 0) + 1

@@ -330,12 +330,12 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     retune = _rosco(raw, turbine)
     p_ctrl, p_turbine = _parameters(raw, controller, turbine)
     ref = _reference(raw, p_turbine)
-    wind = wind_from_config(_wind_table(raw, p_turbine), t_final=t_final, seed=seed)
+    table = _cp_table(raw, turbine)
+    wind = wind_from_config(_wind_table(raw, p_turbine, table[0]), t_final=t_final, seed=seed)
     wind = _turbsim_wind(wind, turbine, p_turbine, t_final)
     faults = _faults(raw, case, t_final)
     transient_window(raw, t_final, first_event(faults, wind))
     offset, rest = _initial(raw)
-    table = _cp_table(raw, turbine)
     _torque_law(raw, p_turbine, wind, t_final, table[0])
     loop = rhs.Loop(raw["plant"], controller, *table, tuple(float(x) for x in p_turbine),
                     interval=interval, delay=raw["control_delay"])
@@ -390,17 +390,34 @@ def _turbsim_wind(wind, turbine: turbine_file.Turbine, p_turbine: np.ndarray, t_
                                  t_final)
 
 
-def _wind_table(raw: dict, p_turbine: np.ndarray) -> dict:
+def _wind_table(raw: dict, p_turbine: np.ndarray, cp) -> dict:
     """The [wind] table, an NTM's ``rotor_radius_m`` filled in when not given: the run's
     turbine's rotor radius, the rotor-effective wind (docs/wind.md), as the load campaigns
-    run it; ``rotor_radius_m = 0`` keeps the hub-height point. Written into ``raw``, so
-    that the saved configuration says which it was and re-runs to the same wind."""
+    run it; ``rotor_radius_m = 0`` keeps the hub-height point. With ``rotor_wind =
+    "blades"`` its ``blade_speed_rad_s`` too, when not given or 0: :func:`blade_speed` at
+    the mean wind. Written into ``raw``, so that the saved configuration says which it was
+    and re-runs to the same wind."""
     if not isinstance(raw["wind"], dict):
         raise ConfigError("wind", raw["wind"], "a table with kind = ...")
-    if raw["wind"].get("kind") == "ntm" and "rotor_radius_m" not in raw["wind"]:
+    wind = raw["wind"]
+    if wind.get("kind") == "ntm" and "rotor_radius_m" not in wind:
         radius = lay.values("turbine_params", p_turbine)["rotor_radius"]  # [m]
-        raw["wind"] = {**raw["wind"], "rotor_radius_m": radius}
+        raw["wind"] = wind = {**wind, "rotor_radius_m": radius}
+    if (wind.get("kind") == "ntm" and wind.get("rotor_wind") == "blades"
+            and not wind.get("blade_speed_rad_s") and isinstance(wind.get("mean_mps"), float
+                                                                 | int)):
+        raw["wind"] = {**wind, "blade_speed_rad_s": blade_speed(p_turbine, cp,
+                                                                float(wind["mean_mps"]))}
     return raw["wind"]
+
+
+def blade_speed(p_turbine, cp, mean_mps: float) -> float:
+    """The rotor speed [rad/s] at which the blades sample an NTM of mean ``mean_mps``
+    [m/s]: rated speed, or below it the speed of the best tip-speed ratio, λ* v / R (the
+    region-2 law's aim; 0.95 rad/s at 8 m/s on the NREL 5-MW, where OpenFAST's mean over
+    120 s of NTM B was 0.93-0.98 rad/s under ROSCO and the PI, two seeds)."""
+    tp = lay.values("turbine_params", p_turbine)
+    return float(min(tp["omega_g_rated"], cp.cp_max()[1] * mean_mps / tp["rotor_radius"]))
 
 
 #: the [rosco] table: ROSCO's pitch PI retuned to this closed-loop target (docs/compare.md)

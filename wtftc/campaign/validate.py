@@ -2,10 +2,11 @@
 
 OpenFAST 5.0.0 on the turbine's deck (wtftc.openfast, its TurbSim field for an NTM) and
 wtftc's plant (by default ``tower_edge``, the tower plant with edgewise-flexible blades)
-on the same field, read back as the rotor-effective series (the
-default, ``wtftc/``) and as the hub-height point (``wtftc_hub/``); the same seeds, sensors
-and faults. Per metric, the value on each engine, their ratio (wtftc / OpenFAST) and a
-verdict against a tolerance; the overlaid time series and spectra as figures.
+on the same field, read back as the rotor's wind (``wtftc/``: as the three blades sample
+it, by default, or its disk average) and as the hub-height point (``wtftc_hub/``); the same
+seeds, sensors and faults. Per metric, the value on each engine, their ratio (wtftc /
+OpenFAST) and a verdict against a tolerance; the overlaid time series and spectra as
+figures.
 
 The spectra are Welch's (Hann windows of :data:`SEGMENT_S` or the whole series if shorter,
 half overlapping) of the
@@ -34,8 +35,8 @@ from wtftc.results.metrics import metrics, signals
 from wtftc.sim.rhs import PLANTS
 from wtftc.sim.trim import operating_point
 
-#: the run folders under --out: OpenFAST, wtftc's plant on the rotor-effective series, and on
-#: the hub-height point
+#: the run folders under --out: OpenFAST, wtftc's plant on the rotor's wind, and on the
+#: hub-height point
 ENGINES = ("openfast", "wtftc", "wtftc_hub")
 #: Welch's segment [s]: 0.017-Hz bins. The half-power width of a mode with ζ 3 % at 1.7 Hz
 #: is 0.10 Hz; with 20-s segments the window widened it to ζ 4.9 %, with 60-s ones 3.3 %
@@ -68,18 +69,23 @@ def scenario(raw: dict) -> dict:
 
 #: wtftc's plant a validation runs by default: the one issue 33 validated (docs/validation.md)
 PLANT = "tower_edge"
+#: the rotor's wind of wtftc's run by default (wtftc.model.wind.ROTOR_WINDS): the field as the
+#: blades sample it, whose loads agree best with OpenFAST's (docs/validation.md)
+ROTOR_WIND = "blades"
 
 
-def engine_configs(raw: dict, plant: str = PLANT) -> dict[str, dict]:
+def engine_configs(raw: dict, plant: str = PLANT, rotor_wind: str = ROTOR_WIND
+                   ) -> dict[str, dict]:
     """Each engine's configuration of the scenario ``raw``: OpenFAST, and wtftc's
-    ``plant`` (one with a tower) on the same TurbSim field (an NTM), rotor-effective and at
-    the hub."""
+    ``plant`` (one with a tower) on the same TurbSim field (an NTM), as the rotor sees it
+    (``rotor_wind``: "blades" or "disk") and at the hub."""
     out = {"openfast": {**raw, "engine": "openfast"}}
     native = {**raw, "plant": plant}
     if raw["wind"].get("kind") == "ntm":
         wind = {**raw["wind"], "field": "turbsim"}
-        wind.pop("rotor_radius_m", None)
-        out["wtftc"] = {**native, "wind": wind}
+        for key in ("rotor_radius_m", "rotor_wind", "blade_speed_rad_s"):
+            wind.pop(key, None)
+        out["wtftc"] = {**native, "wind": {**wind, "rotor_wind": rotor_wind}}
         out["wtftc_hub"] = {**native, "wind": {**wind, "rotor_radius_m": 0.0}}
     else:  # the same series on both engines already (a uniform wind file in OpenFAST)
         out["wtftc"] = native
@@ -219,15 +225,22 @@ def markdown(table: dict, title: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot(runs: dict, out: Path, plant: str = PLANT) -> list[Path]:
-    """Overlaid time series and spectra (PNG and PDF), wtftc's on ``plant``."""
+#: the legend of wtftc's run by its rotor wind
+WIND_LABELS = {"blades": "the blades' wind", "disk": "disk-average wind"}
+
+
+def plot(runs: dict, out: Path, plant: str = PLANT, rotor_wind: str | None = ROTOR_WIND
+         ) -> list[Path]:
+    """Overlaid time series and spectra (PNG and PDF), wtftc's on ``plant`` in the wind
+    ``rotor_wind`` ("blades", "disk"; None: the scenario's own, not an NTM)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     style = {"openfast": ("k", "OpenFAST 5.0.0"),
-             "wtftc": ("tab:blue", f"wtftc {plant} plant, rotor-effective wind"),
+             "wtftc": ("tab:blue", f"wtftc {plant} plant, " + WIND_LABELS.get(rotor_wind,
+                                                                            "the same wind")),
              "wtftc_hub": ("tab:orange", f"wtftc {plant} plant, hub wind")}
     rows = [("omega_r", "rotor speed [rad/s]", 1.0), ("pitch", "mean blade pitch [deg]",
             180 / math.pi), ("shaft", "LSS torque [MN m]", 1e-6),
@@ -276,12 +289,12 @@ def plot(runs: dict, out: Path, plant: str = PLANT) -> list[Path]:
 
 
 def run_validate(raw: dict, out_dir: Path, progress: bool = True,
-                 plant: str = PLANT) -> dict:
+                 plant: str = PLANT, rotor_wind: str = ROTOR_WIND) -> dict:
     """Both engines on the scenario ``raw`` into ``out_dir`` (new, empty, or an earlier
-    validation's: wtftc.files.owned_folder), wtftc on ``plant``; validation.json's
-    content."""
+    validation's: wtftc.files.owned_folder), wtftc on ``plant`` in the ``rotor_wind``;
+    validation.json's content."""
     raw = scenario(raw)
-    cfgs = engine_configs(raw, plant)
+    cfgs = engine_configs(raw, plant, rotor_wind)
     for cfg in cfgs.values():
         ensure_field(cfg)
     rcs = {eng: config.make_config(cfg) for eng, cfg in cfgs.items()}  # all checked first
@@ -295,6 +308,7 @@ def run_validate(raw: dict, out_dir: Path, progress: bool = True,
         table = compare_figures(runs)
         rc = rcs["openfast"]
         doc = {"scenario": {"controller": rc.raw["controller"], "plant": plant,
+                            "rotor_wind": rcs["wtftc"].raw["wind"].get("rotor_wind"),
                             "turbine": rc.raw.get("turbine"),
                             "wind": rc.raw["wind"], "t_final_s": rc.t_final, "seed": rc.seed,
                             "transient_s": rc.transient[0], "faults": rc.raw.get("fault")},
@@ -304,5 +318,5 @@ def run_validate(raw: dict, out_dir: Path, progress: bool = True,
             table, f"wtftc validate: {rc.raw['controller']}, {rc.raw['wind'].get('kind')} "
                    f"{rc.raw['wind'].get('mean_mps', rc.raw['wind'].get('speed_mps', ''))} "
                    f"m/s, {rc.t_final:g} s, seed {rc.seed}"))
-        plot(runs, tmp, plant)
+        plot(runs, tmp, plant, rcs["wtftc"].raw["wind"].get("rotor_wind"))
     return doc

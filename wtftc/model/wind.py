@@ -73,6 +73,11 @@ KINDS = ("constant", "steps", "paper_random", "ntm", "eog", "file")
 #: over the rotor), or read from TurbSim's full field, the one OpenFAST's engine uses
 #: (wtftc.config resolves it: wtftc.model.wind_field)
 NTM_FIELDS = ("spectral", "turbsim")
+#: how a TurbSim field becomes the one wind the plant takes ([wind] rotor_wind): averaged
+#: over the rotor disk, or as the three blades sample it turning (wtftc.model.wind_field)
+ROTOR_WINDS = ("disk", "blades")
+#: the fastest a rotor may turn [rad/s] (blade_speed_rad_s; 0: the turbine's own, below)
+BLADE_SPEED_MAX = 10.0
 
 #: IEC 61400-1 reference turbulence intensity I_ref by turbulence category (A+ is ed. 4)
 I_REF = {"A+": 0.18, "A": 0.16, "B": 0.14, "C": 0.12}
@@ -91,7 +96,7 @@ _FIELDS = {
     "steps": {"speed_mps": 12.0, "steps": None},
     "paper_random": {"mean_mps": 12.0, "std_mps": 1.0, "cutoff_hz": 0.1},
     "ntm": {"mean_mps": 12.0, "turbulence_class": "B", "dt_s": 0.05, "rotor_radius_m": 0.0,
-            "field": "spectral"},
+            "field": "spectral", "rotor_wind": "disk", "blade_speed_rad_s": 0.0},
     "eog": {"mean_mps": 11.4, "start_s": 20.0, "turbine_class": "I", "turbulence_class": "B",
             "rotor_diameter_m": 126.0},
     "file": {"path": None},
@@ -280,7 +285,7 @@ def wind_from_config(cfg: dict, t_final: float, seed: int = 0, where: str = "win
     for key in cfg:
         if key != "kind" and key not in fields:
             allowed = ", ".join(fields) or "none"
-            if key in ("field", "rotor_radius_m"):  # --wind-field, --wind-radius
+            if key in ("field", "rotor_radius_m", "rotor_wind", "blade_speed_rad_s"):
                 raise ConfigError(f"{where}.{key}", cfg[key], f'a key of kind = "ntm" only '
                                   f'(this wind is kind = "{kind}", whose keys are: {allowed})')
             raise ConfigError(f"{where}.{key}", cfg[key],
@@ -385,6 +390,7 @@ def _ntm(p, f, t_final, seed) -> SampledWind:
     radius = _number(p["rotor_radius_m"], f["rotor_radius_m"], lo=0.0, hi=rotor_radius_max_m(),
                      lo_open=False, unit=" [m] (0: the hub-height point)")
     field = _choice(p["field"], f["field"], NTM_FIELDS)
+    blades = _rotor_wind(p, f, field, radius)
     sig = sigma1(mean, tc)
     lu = KAIMAL_LU_OVER_LAMBDA1 * LAMBDA1_M
     n = _grid(max(NTM_MIN_PERIOD_S, t_final + SYNTH_MARGIN_S), dt, f["dt_s"])
@@ -407,7 +413,7 @@ def _ntm(p, f, t_final, seed) -> SampledWind:
     return SampledWind("ntm", t, v, seed=seed,
                        parameters={"mean_mps": mean, "turbulence_class": tc, "dt_s": dt}
                        | ({"rotor_radius_m": radius} if radius > 0 else {})
-                       | ({"field": field} if field != "spectral" else {}),
+                       | ({"field": field} if field != "spectral" else {}) | blades,
                        derived={"standard": "IEC 61400-1 ed. 3, 6.3.1.3 NTM; Annex B Kaimal",
                                 "I_ref": I_REF[tc], "sigma1_mps": sig, "Lambda1_m": LAMBDA1_M,
                                 "L_u_m": lu, "synthesis_period_s": period,
@@ -415,6 +421,27 @@ def _ntm(p, f, t_final, seed) -> SampledWind:
                                 "rescaled": "std over the synthesized period = sigma1",
                                 "run_mean_mps": float(v[run].mean()),
                                 "run_std_mps": float(v[run].std())})
+
+
+def _rotor_wind(p, f, field: str, radius: float) -> dict:
+    """The NTM's ``rotor_wind`` and ``blade_speed_rad_s``, as its parameters name them:
+    nothing for the disk average (the default, so that earlier configurations and sweeps
+    keep their parameters), else both. The blades' wind needs the TurbSim field and the
+    rotor's radius; its speed 0 is for wtftc.config to fill in from the turbine."""
+    how = _choice(p["rotor_wind"], f["rotor_wind"], ROTOR_WINDS)
+    speed = _number(p["blade_speed_rad_s"], f["blade_speed_rad_s"], lo=0.0,
+                    hi=BLADE_SPEED_MAX, lo_open=False, unit=" [rad/s] (0: the turbine's "
+                    "operating speed at the mean wind)")
+    if how == "disk":
+        if speed:
+            raise ConfigError(f["blade_speed_rad_s"], speed, 'a key of rotor_wind = "blades" '
+                              "only (the disk average does not turn)")
+        return {}
+    if field != "turbsim" or radius <= 0:
+        raise ConfigError(f["rotor_wind"], how, 'a wind the blades can sample: field = '
+                          f'"turbsim" and rotor_radius_m > 0 (here field = "{field}", '
+                          f'rotor_radius_m = {radius:g}); or rotor_wind = "disk"')
+    return {"rotor_wind": how, "blade_speed_rad_s": speed}
 
 
 def _eog(p, f, t_final) -> EOGWind:

@@ -69,7 +69,8 @@ def make_field(cfg: dict) -> Path:
                           '"turbsim" in an NTM [wind] table, for a field to make')
     # the configuration as wtftc's own plant would run it, for its wind, turbine and length
     native = {k: v for k, v in cfg.items() if k not in ("engine", "openfast", "plant")}
-    rc = config.make_config({**native, "wind": {**table, "field": "spectral"}})
+    spectral = {k: v for k, v in table.items() if k not in ("rotor_wind", "blade_speed_rad_s")}
+    rc = config.make_config({**native, "wind": {**spectral, "field": "spectral"}})
     name = rc.raw.get("turbine", turbine_file.DEFAULT)
     deck = config.openfast_deck(turbine_file.load(name))
     if deck is None:
