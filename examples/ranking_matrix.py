@@ -4,6 +4,8 @@ OpenFAST does? Run from the repository, one engine a call, then the ranking:
     python examples/ranking_matrix.py openfast OUT/openfast      # 36 runs: 50 min, 2 workers
     python examples/ranking_matrix.py tower_edge OUT/tower_edge  # 36 runs: 4.5 min, 1 process
     python examples/ranking_matrix.py tower OUT/tower            # 36 runs: 4.3 min
+    python examples/ranking_matrix.py tower_edge_blades OUT/tower_edge_blades  # the same,
+                                                   # on the blades' wind (docs/wind.md)
     python examples/ranking_matrix.py rank OUT                   # OUT/ranking.md, .json
 
 The NREL 5-MW; ROSCO, the PI and the physical AFTC (with wtftc's FDI where a fault is
@@ -32,7 +34,11 @@ CONTROLLERS = ["rosco", "pi", "physical_fdi", "rosco_fast", "pi_fast", "physical
 PARTS = {"fault_free": (["ntm_B_8", "ntm_B_12", "ntm_B_16", "ntm_B_20"], "none"),
          "runaway_16": (["ntm_B_16"], "runaway"), "lock_12": (["ntm_B_12"], "lock")}
 ENGINES = {"openfast": ("openfast", compare.PLANT), "tower_edge": ("wtftc", "tower_edge"),
-           "tower": ("wtftc", "tower")}
+           "tower": ("wtftc", "tower"), "tower_edge_blades": ("wtftc", "tower_edge")}
+#: the engines whose NTM cells read the field as the blades sample it (the others: the disk)
+BLADES = ("tower_edge_blades",)
+#: wtftc's plants ranked against OpenFAST, those run so far (a folder under OUT)
+PLANTS = ("tower_edge_blades", "tower_edge", "tower")
 
 
 def register() -> None:
@@ -50,6 +56,10 @@ def register() -> None:
 
 def run(which: str, out: Path) -> None:
     engine, plant = ENGINES[which]
+    if which in BLADES:
+        for name, table in compare.WINDS.items():
+            if table["kind"] == "ntm":
+                compare.WINDS[name] = {**table, "rotor_wind": "blades"}
     walls = {}
     for part, (winds, fault) in PARTS.items():
         t0 = time.time()
@@ -77,9 +87,10 @@ def _only(table: dict, ctrls: list[str]) -> dict:
 def rank(out: Path) -> None:
     """Each plant against OpenFAST, the six variants together and each tuning's three
     apart: OUT/ranking.md and OUT/ranking.json."""
-    tables = {e: ranking.read_compare([out / e / p for p in PARTS]) for e in ENGINES}
+    tables = {e: ranking.read_compare([out / e / p for p in PARTS]) for e in ENGINES
+              if (out / e).is_dir()}
     md, js = [], {}
-    for plant in ("tower_edge", "tower"):
+    for plant in (p for p in PLANTS if p in tables):
         rows = ranking.agreement_table(tables[plant], tables["openfast"])
         js[plant] = {"all": {"rows": rows, "summary": ranking.summary(rows)}}
         md += [f"## {plant} against OpenFAST: the six variants", "",
@@ -92,7 +103,7 @@ def rank(out: Path) -> None:
                    ranking.summary_markdown(sub), ""]
         md += [f"### every order, {plant} against OpenFAST", "",
                ranking.rows_markdown(rows, plant, "OpenFAST"), ""]
-    md += ["## The values: OpenFAST / tower_edge / tower", ""]
+    md += ["## The values: " + " / ".join(tables), ""]
     for metric, (scale, fmt) in SHOWN.items():
         md += [f"### {ranking.NAMES[metric]} ({metric})", "",
                ranking.values_markdown(tables, metric, scale, fmt), ""]
