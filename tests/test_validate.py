@@ -52,7 +52,7 @@ def test_validate_runs_both_engines_on_one_field_and_scores_them_alike(tmp_path)
     assert m["rotor_speed_mean"]["openfast"] == pytest.approx(
         np.mean(ch["RotSpeed"][keep]) * rpm_to_rad, rel=1e-6)
     for row in m.values():
-        if row["openfast"] and row.get("wtftc") is not None:
+        if row.get("ratio_wtftc") is not None:
             assert row["ratio_wtftc"] == pytest.approx(row["wtftc"] / row["openfast"])
             assert row["verdict"] == ("agrees" if abs(row["ratio_wtftc"] - 1) <=
                                       row["tolerance"] else "differs")
@@ -72,6 +72,22 @@ def test_validate_runs_both_engines_on_one_field_and_scores_them_alike(tmp_path)
     assert doc["modes_wtftc_hz"]["drivetrain"] == pytest.approx(1.69, abs=0.01)
     assert json.loads((out / "wtftc" / "metrics.json").read_text())["config"]["plant"] \
         == "tower_edge"
+
+
+def test_a_figure_that_is_zero_on_both_engines_agrees_without_a_ratio():
+    """Below rated the pitch rests at fine pitch: OpenFAST's σ is round-off (1e-24 rad),
+    wtftc's 0. No ratio, the verdict "both zero"; a real σ against OpenFAST's zero
+    differs; a real pair is scored as before."""
+    from wtftc.campaign.validate import compare_figures
+
+    def runs(of, wt):
+        return {"openfast": {"figures": {"pitch_std": ("std", of)}},
+                "wtftc": {"figures": {"pitch_std": ("std", wt)}}}
+    row = compare_figures(runs(4.4e-24, 0.0))["pitch_std"]
+    assert row["ratio_wtftc"] is None and row["verdict"] == "both zero"
+    assert compare_figures(runs(4.4e-24, 0.01))["pitch_std"]["verdict"] == "differs"
+    row = compare_figures(runs(0.02, 0.019))["pitch_std"]
+    assert row["ratio_wtftc"] == pytest.approx(0.95) and row["verdict"] == "agrees"
 
 
 def test_validate_names_a_plant_without_a_tower_in_one_line(capsys):

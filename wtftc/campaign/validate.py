@@ -194,19 +194,33 @@ def unit_of(name: str) -> str:
     return next((u for k, u in UNITS.items() if name.startswith(k)), "-")
 
 
+#: below these a figure is zero (round-off: OpenFAST's pitch σ at fine pitch is 1e-24 rad),
+#: by unit; a ratio to it means nothing
+ZERO = {"rad": 1e-9, "rad/s": 1e-9, "N m": 1e-3, "W": 1e-3}
+
+
+def _is_zero(v, unit: str) -> bool:
+    return v is not None and abs(v) < ZERO.get(unit, 0.0)
+
+
 def compare_figures(runs: dict[str, dict]) -> dict:
     """validation.json's ``metrics``: per figure, each engine's value, wtftc's ratio to
-    OpenFAST's and the verdict."""
+    OpenFAST's and the verdict: "agrees" or "differs" against the tolerance, "both zero"
+    (both below :data:`ZERO`, no ratio), "not found" (a peak one engine lacks)."""
     table = {}
     for name, (kind, ref) in runs["openfast"]["figures"].items():
-        row = {"unit": unit_of(name), "tolerance": TOLERANCE[kind], "openfast": ref}
+        unit = unit_of(name)
+        row = {"unit": unit, "tolerance": TOLERANCE[kind], "openfast": ref}
         for eng in ENGINES[1:]:
             if eng in runs:
                 v = runs[eng]["figures"][name][1]
                 row[eng] = v
-                row[f"ratio_{eng}"] = None if v is None or not ref else v / ref
+                row[f"ratio_{eng}"] = (None if v is None or not ref or _is_zero(ref, unit)
+                                       else v / ref)
         r = row.get("ratio_wtftc")
-        row["verdict"] = ("not found" if r is None else
+        row["verdict"] = ("both zero" if _is_zero(ref, unit) and _is_zero(row.get("wtftc"), unit)
+                          else "differs" if _is_zero(ref, unit) and row.get("wtftc") is not None
+                          else "not found" if r is None else
                           "agrees" if abs(r - 1) <= TOLERANCE[kind] else "differs")
         table[name] = row
     return table
