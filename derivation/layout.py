@@ -217,7 +217,7 @@ CONTROLLER_VALID = {
     **dict.fromkeys(("c", "gamma", "theta_max", "inertia", "J_r", "J_g", "k_s", "d_s",
                      "gearbox_ratio", "tau_a", "dTdbeta_min", "rate_max", "mf_width", "x_scale",
                      "omega_n", "zeta", "tau_young", "tau_b_model"), _POSITIVE),
-    **dict.fromkeys(("sigma", "r", "gen_torque"), _NONNEG),
+    **dict.fromkeys(("sigma", "r", "gen_torque", "lpf_corner"), _NONNEG),
     **dict.fromkeys(("K_obs", "mf_centre", "x_offset", "b"), _ANY),
     **dict.fromkeys(("pitch_min", "pitch_max", "ubar_hat"), _ANGLE),
     "control_sign": (-1.0, 1.0, False, False),

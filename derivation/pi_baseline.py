@@ -12,6 +12,15 @@ damping ζ at every operating point:
 with J the drivetrain inertia on the LSS (rotor + generator). Anti-windup by conditional
 integration: x_I stops integrating when β_cmd is at a pitch limit and e pushes it
 further out. The same command goes to the three blades.
+
+The speed it regulates may pass a first-order low-pass filter first (issue 34; ROSCO's
+F_LPFType 1, F_LPFCornerFreq 1.5708 rad/s on the NREL 5-MW):
+
+    ω̇_f = ω_c (ω_r - ω_f),   e = ω_f - ω_ref      (ω_c > 0; ω_f starts at the measured ω_r)
+
+so that the drivetrain mode (1.7 Hz on the NREL 5-MW with its flexible blades,
+docs/validation.md) and the sensor noise reach the pitch attenuated. ω_c = 0 (the default)
+is no filter: e = ω_r - ω_ref, the PI as it was before issue 34, bit for bit.
 """
 
 from __future__ import annotations
@@ -27,8 +36,12 @@ beta_meas = sp.symbols(f"beta_meas_1:{N_BLADES + 1}", real=True)
 yd0 = sp.Symbol("yd_0", real=True)
 dTdbeta = sp.Symbol("dT_dbeta", real=True)  # scheduled pitch sensitivity [N m/rad], < 0
 x_I = sp.Symbol("pi_integrator", real=True)
+w_f = sp.Symbol("pi_speed_filtered", real=True)
+speed = sp.Symbol("pi_speed_used", real=True)  # ω_f with the filter, else ω_r
 
-STATES = [Entry("pi_integrator", 0.0, "rad", "PI integrator x_I (pitch units)")]
+STATES = [Entry("pi_integrator", 0.0, "rad", "PI integrator x_I (pitch units)"),
+          Entry("pi_speed_filtered", nrel5mw.RATED_SPEED, "rad/s",
+                "the rotor speed through the low-pass filter, ω_f", sample=(1.1, 1.45))]
 PARAMS = [
     Entry("pi_omega_n", nrel5mw.ROSCO_PC_OMEGA, "rad/s",
           "closed-loop natural frequency (ROSCO NREL5MW PC_omega)"),
@@ -40,21 +53,30 @@ PARAMS = [
     Entry("pi_pitch_max", nrel5mw.PITCH_MAX, "rad", "command upper limit"),
     Entry("pi_dTdbeta_min", 1.0e5, "N m/rad",
           "smallest |∂T/∂β| used in the schedule (bounds the gains near rated)"),
+    Entry("pi_lpf_corner", 0.0, "rad/s",
+          "corner frequency ω_c of the first-order low-pass filter on the rotor speed; "
+          "0: no filter (ROSCO NREL5MW F_LPFCornerFreq: 1.5708)", sample=(0.5, 6.0)),
 ]
-wn, zeta, J, bmin, bmax, gmin = sp.symbols(
-    "pi_omega_n pi_zeta pi_inertia pi_pitch_min pi_pitch_max pi_dTdbeta_min", real=True)
+wn, zeta, J, bmin, bmax, gmin, wc = sp.symbols(
+    "pi_omega_n pi_zeta pi_inertia pi_pitch_min pi_pitch_max pi_dTdbeta_min pi_lpf_corner",
+    real=True)
 
 
 def derive() -> ControllerDesign:
     """The PI as a ControllerDesign: the same command to every blade (no accommodation)."""
     cmd, xI_dot, diag = law()
-    return ControllerDesign(v=cmd, u0=cmd, x_dot=[xI_dot], diag=diag,
-                            x0=[initial_integrator()])
+    # without the filter ω_f is unused; it still follows ω_r at 1 rad/s, so that the loop
+    # has no zero eigenvalue (wtftc linearize would read one as marginally stable)
+    rate = sp.Piecewise((wc, wc > 0), (1, True))
+    return ControllerDesign(v=cmd, u0=cmd, x_dot=[xI_dot, rate * (omega_r - w_f)], diag=diag,
+                            x0=[initial_integrator(), omega_r],
+                            intermediates=[(speed, sp.Piecewise((w_f, wc > 0),
+                                                                (omega_r, True)))])
 
 
 def law():
     """(β_cmd, ẋ_I, diagnostics) of the PI above."""
-    e = omega_r - yd0
+    e = speed - yd0
     g = sp.Max(-dTdbeta, gmin)  # -∂T/∂β > 0 above rated
     kp = 2 * zeta * wn * J / g
     ki = wn**2 * J / g

@@ -111,10 +111,10 @@ static const casadi_int casadi_s3[3] = {43, 1, 1};
 static const casadi_int casadi_s4[3] = {9, 1, 1};
 static const casadi_int casadi_s5[3] = {3, 1, 1};
 static const casadi_int casadi_s6[3] = {4, 1, 1};
-static const casadi_int casadi_s7[3] = {6, 1, 1};
-static const casadi_int casadi_s8[3] = {18, 1, 1};
-static const casadi_int casadi_s9[3] = {24, 1, 1};
-static const casadi_int casadi_s10[3] = {2, 1, 1};
+static const casadi_int casadi_s7[3] = {2, 1, 1};
+static const casadi_int casadi_s8[3] = {7, 1, 1};
+static const casadi_int casadi_s9[3] = {18, 1, 1};
+static const casadi_int casadi_s10[3] = {24, 1, 1};
 static const casadi_int casadi_s11[3] = {8, 1, 1};
 
 /* ctrl_paper:(x_ctrl[124],meas[5],yd[5],sched,p_ctrl[43],known_fault[9])->(v[3],x_ctrl_dot[124],u0,diag[4]) */
@@ -2409,9 +2409,10 @@ CASADI_SYMBOL_EXPORT int init_paper_work_bytes(casadi_int *sz_arg, casadi_int* s
   return 0;
 }
 
-/* ctrl_pi:(x_ctrl,meas[5],yd[5],sched,p_ctrl[6],known_fault[9])->(v[3],x_ctrl_dot,u0,diag[4]) */
+/* ctrl_pi:(x_ctrl[2],meas[5],yd[5],sched,p_ctrl[7],known_fault[9])->(v[3],x_ctrl_dot[2],u0,diag[4]) */
 static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a00, a01, a02, a03, a04, a05, a06, a07, a08, a09, a10, a11;
+  casadi_real a12, a13, a14, a15, a16;
   a00=arg[4]? arg[4][4] : 0;
   a01=arg[4]? arg[4][3] : 0;
   a02=arg[0]? arg[0][0] : 0;
@@ -2425,34 +2426,48 @@ static int casadi_f2(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a07=(-a07);
   a06=casadi_fmax(a06,a07);
   a05=(a05/a06);
-  a07=arg[1]? arg[1][0] : 0;
-  a08=arg[2]? arg[2][0] : 0;
-  a07=(a07-a08);
-  a08=(a05*a07);
-  a08=(2.*a08);
-  a08=(a02+a08);
-  a09=casadi_fmax(a01,a08);
-  a09=casadi_fmin(a00,a09);
-  if (res[0]!=0) res[0][0]=a09;
-  if (res[0]!=0) res[0][1]=a09;
-  if (res[0]!=0) res[0][2]=a09;
-  a10=0.;
-  a11=(a10<a07);
-  a00=(a00<=a08);
-  a11=(a11&&a00);
-  a10=(a07<a10);
-  a08=(a08<=a01);
-  a10=(a10&&a08);
-  a11=(a11||a10);
-  a11=(!a11);
+  a07=0.;
+  a08=arg[4]? arg[4][6] : 0;
+  a09=(a07<a08);
+  a10=arg[0]? arg[0][1] : 0;
+  a11=(a09?a10:0);
+  a12=(!a09);
+  a13=arg[1]? arg[1][0] : 0;
+  a14=(a12?a13:0);
+  a11=(a11+a14);
+  a14=arg[2]? arg[2][0] : 0;
+  a11=(a11-a14);
+  a14=(a05*a11);
+  a14=(2.*a14);
+  a14=(a02+a14);
+  a15=casadi_fmax(a01,a14);
+  a15=casadi_fmin(a00,a15);
+  if (res[0]!=0) res[0][0]=a15;
+  if (res[0]!=0) res[0][1]=a15;
+  if (res[0]!=0) res[0][2]=a15;
+  a16=(a07<a11);
+  a00=(a00<=a14);
+  a16=(a16&&a00);
+  a07=(a11<a07);
+  a14=(a14<=a01);
+  a07=(a07&&a14);
+  a16=(a16||a07);
+  a16=(!a16);
   a04=casadi_sq(a04);
   a03=(a03*a04);
   a03=(a03/a06);
-  a06=(a03*a07);
-  a11=(a11?a06:0);
-  if (res[1]!=0) res[1][0]=a11;
-  if (res[2]!=0) res[2][0]=a09;
-  if (res[3]!=0) res[3][0]=a07;
+  a06=(a03*a11);
+  a16=(a16?a06:0);
+  if (res[1]!=0) res[1][0]=a16;
+  a13=(a13-a10);
+  a09=(a09?a08:0);
+  a08=1.;
+  a12=(a12?a08:0);
+  a09=(a09+a12);
+  a13=(a13*a09);
+  if (res[1]!=0) res[1][1]=a13;
+  if (res[2]!=0) res[2][0]=a15;
+  if (res[3]!=0) res[3][0]=a11;
   if (res[3]!=0) res[3][1]=a02;
   a05=(2.*a05);
   if (res[3]!=0) res[3][2]=a05;
@@ -2511,11 +2526,11 @@ CASADI_SYMBOL_EXPORT const char* ctrl_pi_name_out(casadi_int i) {
 
 CASADI_SYMBOL_EXPORT const casadi_int* ctrl_pi_sparsity_in(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s2;
+    case 0: return casadi_s7;
     case 1: return casadi_s1;
     case 2: return casadi_s1;
     case 3: return casadi_s2;
-    case 4: return casadi_s7;
+    case 4: return casadi_s8;
     case 5: return casadi_s4;
     default: return 0;
   }
@@ -2524,7 +2539,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* ctrl_pi_sparsity_in(casadi_int i) {
 CASADI_SYMBOL_EXPORT const casadi_int* ctrl_pi_sparsity_out(casadi_int i) {
   switch (i) {
     case 0: return casadi_s5;
-    case 1: return casadi_s2;
+    case 1: return casadi_s7;
     case 2: return casadi_s2;
     case 3: return casadi_s6;
     default: return 0;
@@ -2547,7 +2562,7 @@ CASADI_SYMBOL_EXPORT int ctrl_pi_work_bytes(casadi_int *sz_arg, casadi_int* sz_r
   return 0;
 }
 
-/* init_pi:(meas[5],sched,p_ctrl[6])->(x_ctrl0) */
+/* init_pi:(meas[5],sched,p_ctrl[7])->(x_ctrl0[2]) */
 static int casadi_f3(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {
   casadi_real a0, a1, a2;
   a0=3.3333333333333331e-01;
@@ -2560,6 +2575,8 @@ static int casadi_f3(const casadi_real** arg, casadi_real** res, casadi_int* iw,
   a0=(a0*a2);
   a1=(a1+a0);
   if (res[0]!=0) res[0][0]=a1;
+  a1=arg[0]? arg[0][0] : 0;
+  if (res[0]!=0) res[0][1]=a1;
   return 0;
 }
 
@@ -2610,14 +2627,14 @@ CASADI_SYMBOL_EXPORT const casadi_int* init_pi_sparsity_in(casadi_int i) {
   switch (i) {
     case 0: return casadi_s1;
     case 1: return casadi_s2;
-    case 2: return casadi_s7;
+    case 2: return casadi_s8;
     default: return 0;
   }
 }
 
 CASADI_SYMBOL_EXPORT const casadi_int* init_pi_sparsity_out(casadi_int i) {
   switch (i) {
-    case 0: return casadi_s2;
+    case 0: return casadi_s7;
     default: return 0;
   }
 }
@@ -2948,7 +2965,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* ctrl_physical_sparsity_in(casadi_int i) {
     case 1: return casadi_s1;
     case 2: return casadi_s1;
     case 3: return casadi_s2;
-    case 4: return casadi_s8;
+    case 4: return casadi_s9;
     case 5: return casadi_s4;
     default: return 0;
   }
@@ -3055,7 +3072,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* init_physical_sparsity_in(casadi_int i) {
   switch (i) {
     case 0: return casadi_s1;
     case 1: return casadi_s2;
-    case 2: return casadi_s8;
+    case 2: return casadi_s9;
     default: return 0;
   }
 }
@@ -4032,7 +4049,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* ctrl_drivetrain_sparsity_in(casadi_int i)
     case 1: return casadi_s1;
     case 2: return casadi_s1;
     case 3: return casadi_s2;
-    case 4: return casadi_s9;
+    case 4: return casadi_s10;
     case 5: return casadi_s4;
     default: return 0;
   }
@@ -4150,7 +4167,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* init_drivetrain_sparsity_in(casadi_int i)
   switch (i) {
     case 0: return casadi_s1;
     case 1: return casadi_s2;
-    case 2: return casadi_s9;
+    case 2: return casadi_s10;
     default: return 0;
   }
 }
@@ -4721,7 +4738,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* alpha_physical_sparsity_in(casadi_int i) 
     case 1: return casadi_s1;
     case 2: return casadi_s1;
     case 3: return casadi_s2;
-    case 4: return casadi_s8;
+    case 4: return casadi_s9;
     case 5: return casadi_s2;
     case 6: return casadi_s2;
     default: return 0;
@@ -5024,7 +5041,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* closed_loop_physical_model_sparsity_in(ca
     case 1: return casadi_s2;
     case 2: return casadi_s1;
     case 3: return casadi_s2;
-    case 4: return casadi_s8;
+    case 4: return casadi_s9;
     default: return 0;
   }
 }
@@ -5032,7 +5049,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* closed_loop_physical_model_sparsity_in(ca
 CASADI_SYMBOL_EXPORT const casadi_int* closed_loop_physical_model_sparsity_out(casadi_int i) {
   switch (i) {
     case 0: return casadi_s1;
-    case 1: return casadi_s10;
+    case 1: return casadi_s7;
     case 2: return casadi_s1;
     default: return 0;
   }
@@ -7229,7 +7246,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* alpha_drivetrain_sparsity_in(casadi_int i
     case 1: return casadi_s1;
     case 2: return casadi_s1;
     case 3: return casadi_s2;
-    case 4: return casadi_s9;
+    case 4: return casadi_s10;
     case 5: return casadi_s2;
     case 6: return casadi_s2;
     case 7: return casadi_s2;
@@ -8154,7 +8171,7 @@ CASADI_SYMBOL_EXPORT const casadi_int* closed_loop_drivetrain_model_sparsity_in(
     case 1: return casadi_s2;
     case 2: return casadi_s1;
     case 3: return casadi_s2;
-    case 4: return casadi_s9;
+    case 4: return casadi_s10;
     default: return 0;
   }
 }

@@ -120,13 +120,13 @@ def _add_validate(sub) -> None:
     v.add_argument("--plant", default="tower_edge", help="wtftc's plant, one with a tower: "
                    "tower_edge (default; the blades' edgewise mode, validated against "
                    "OpenFAST in docs/validation.md) or tower (rigid blades)")
-    v.add_argument("--out", type=Path, required=True,
-                   help="output folder: new, empty or an earlier validation's")
     v.add_argument("--rotor-wind", choices=("blades", "disk"), default="blades",
                    help="the NTM field as wtftc's plant takes it: blades (default; as the "
                         "three blades sample it turning, whose loads agree best with "
                         "OpenFAST's) or disk (its average over the rotor disk, as campaigns "
                         "take it by default); docs/wind.md")
+    v.add_argument("--out", type=Path, required=True,
+                   help="output folder: new, empty or an earlier validation's")
     v.add_argument("--quiet", action="store_true", help="no progress")
 
 
@@ -597,8 +597,9 @@ def _cmd_compare(args) -> int:
     from wtftc.campaign.modes import tower_plants
     from wtftc.files import check_out_folder
 
-    plant = compare.PLANT if args.plant is None else _plant(args.plant, "--plant",
-                                                             tower_plants())
+    plant = compare.PLANT if args.plant is None else _plant(
+        args.plant, "--plant", tower_plants(), " (the plants with a tower: compare scores the "
+        "tower-base loads)")
     if args.plant is not None and args.engine == "openfast":
         raise ConfigError("--plant", args.plant, "no --plant with --engine openfast "
                           "(OpenFAST runs the turbine's deck)")
@@ -826,14 +827,14 @@ def _cmd_linearize(args) -> int:
     return 0
 
 
-def _plant(name: str, flag: str, plants=None) -> str:
+def _plant(name: str, flag: str, plants=None, why: str = "") -> str:
     """``name`` if it is one of ``plants`` (default: every plant of wtftc.sim.rhs.PLANTS),
-    else one line naming the flag."""
+    else one line naming the flag (and ``why`` those)."""
     from wtftc.sim.rhs import PLANTS
 
     allowed = list(plants if plants is not None else PLANTS)
     if name not in allowed:
-        raise ConfigError(flag, name, "one of " + ", ".join(allowed))
+        raise ConfigError(flag, name, "one of " + ", ".join(allowed) + why)
     return name
 
 
