@@ -370,6 +370,23 @@ def test_a_range_error_gives_the_value_and_the_range(tmp_path, capsys, no_run):
         "[kg/m^3]")
 
 
+def test_a_value_given_by_a_flag_is_refused_naming_the_flag(tmp_path, capsys, no_run):
+    """The flag that set the value stands beside the field; a config file's value names the
+    field alone; `--wind file` without `--wind-file` names the flag it needs."""
+    out = str(tmp_path / "o")
+    assert cli.main(["run", "--t-final", "0", "--out", out]) == 2
+    assert capsys.readouterr().err.startswith(
+        "wtftc: error: t_final_s (--t-final) = 0.0 is not allowed: a number in (0, ")
+    assert cli.main(["run", "--wind-mean=-3", "--out", out]) == 2
+    assert "wind.mean_mps (--wind-mean) = -3.0" in capsys.readouterr().err
+    cfg = tmp_path / "c.toml"
+    cfg.write_text("t_final_s = 0\n")
+    assert cli.main(["run", "--config", str(cfg), "--out", out]) == 2
+    assert capsys.readouterr().err.startswith("wtftc: error: t_final_s = 0 is not allowed")
+    assert cli.main(["run", "--wind", "file", "--out", out]) == 2
+    assert "wind.path (--wind-file) = None" in capsys.readouterr().err
+
+
 # --- the environment: a process per case (the artefacts are read once per process)
 
 

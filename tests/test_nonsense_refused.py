@@ -149,7 +149,7 @@ def test_run_with_dt_1e_9_exits_2_at_once(tmp_path):
     p = subprocess.run([sys.executable, "-m", "wtftc.cli", "run", "--dt", "1e-9", "--out",
                         str(out), "--quiet"], capture_output=True, text=True, timeout=120)
     assert p.returncode == 2, p.stderr
-    assert p.stderr.startswith("wtftc: error: dt_s = 1e-09") and p.stderr.count("\n") == 1
+    assert p.stderr.startswith("wtftc: error: dt_s (--dt) = 1e-09") and p.stderr.count("\n") == 1
     assert "t_final_s" in p.stderr
     assert not out.exists()
 

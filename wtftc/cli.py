@@ -989,6 +989,27 @@ def _artefact_message(exc: GeneratedArtefactError) -> str:
     return f"WTFTC_GENERATED={env}: {exc}" if env else str(exc)
 
 
+#: a configuration field and the flag that sets it: a refusal of a value given by the flag
+#: names both (``t_final_s (--t-final) = 0.0 is not allowed: ...``)
+FLAG_OF = {"t_final_s": "--t-final", "dt_s": "--dt", "seed": "--seed",
+           "wind.mean_mps": "--wind-mean", "wind.speed_mps": "--wind-mean",
+           "wind.path": "--wind-file", "wind.rotor_radius_m": "--wind-radius",
+           "wind.field": "--wind-field", "control_interval_s": "--control-interval",
+           "plant": "--plant", "controller": "--controller", "turbine": "--turbine",
+           "case": "--case", "profile": "--profile", "kind": "--wind", "wind.kind": "--wind"}
+
+
+def _refusal(exc: ConfigError, argv: list[str]) -> str:
+    """The refusal on one line; when its field is set by a flag given in ``argv``, the flag
+    beside the field."""
+    flag = FLAG_OF.get(exc.field)
+    given = flag is not None and any(a == flag or a.startswith(flag + "=") for a in argv)
+    given = given or (exc.field == "wind.path" and exc.value is None and "--wind" in argv)
+    if not given or exc.where:
+        return _one_line(exc)
+    return _one_line(f"{exc.field} ({flag}) = {exc.value!r} is not allowed: {exc.allowed}")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Exit codes (docs/running.md, "Errors and exit codes"): 0 done; 2 refused input, one
     line naming the field; 3 a run diverged; 1 a sweep with runs still missing; 4 an external
@@ -1003,7 +1024,8 @@ def main(argv: list[str] | None = None) -> int:
         _check_artefacts()
         return COMMANDS[args.command](args)
     except ConfigError as exc:
-        print(f"wtftc: error: {_one_line(exc)}", file=sys.stderr)
+        print(f"wtftc: error: {_refusal(exc, sys.argv[1:] if argv is None else argv)}",
+              file=sys.stderr)
     except GeneratedArtefactError as exc:
         print(f"wtftc: error: {_one_line(_artefact_message(exc))}", file=sys.stderr)
     except EngineError as exc:
