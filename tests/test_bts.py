@@ -153,6 +153,17 @@ def test_the_blades_turn_at_the_operating_speed_of_the_mean_wind():
                          wf.blade_series(ff, 63.0, rc.param("omega_g_rated")))
     assert np.allclose(rc.wind(t), expected, rtol=0, atol=1e-12)
     assert rc.wind.describe()["derived"]["series"].startswith("three blades turning")
+    # an NTM without its mean takes the default's (12 m/s, above rated): rated speed
+    plain = {**NATIVE, "wind": {"kind": "ntm", "field": "turbsim", "rotor_wind": "blades"}}
+    turbsim.make_field(plain)
+    assert config.make_config(plain).raw["wind"]["blade_speed_rad_s"] == pytest.approx(
+        rc.param("omega_g_rated"))
+    # a blade speed of 0 never reaches the field: the configuration fills it in
+    desc = {**rc.wind.describe(), "parameters": {**rc.wind.describe()["parameters"],
+                                                 "blade_speed_rad_s": 0.0}}
+    field = wf.turbsim_field(desc, engine.deck_of(rc), 63.0, rc.t_final)
+    with pytest.raises(ConfigError, match="wind.blade_speed_rad_s"):
+        wf.field_wind(field, desc, rc.t_final)
 
 
 def test_a_native_run_reads_the_openfast_engines_field():

@@ -46,6 +46,14 @@ def test_with_the_filter_the_pi_regulates_the_filtered_speed():
     assert c > a  # a faster filtered speed asks for more pitch
 
 
+def test_a_negative_corner_is_refused_naming_it():
+    """The corner's range is [0, ∞) rad/s (derivation/layout.py CONTROLLER_VALID)."""
+    with pytest.raises(config.ConfigError) as exc:
+        config.make_config({"controller": "pi", "controller_params": {"pi_lpf_corner": -1.0}})
+    assert exc.value.field == "controller_params.pi_lpf_corner"
+    assert "a number >= 0 [rad/s]" in str(exc.value)
+
+
 def _run(corner):
     cfg = {"plant": "tower_edge", "controller": "pi", "t_final_s": 60.0,
            "profile": "realistic", "seed": 0,

@@ -996,7 +996,7 @@ FLAG_OF = {"t_final_s": "--t-final", "dt_s": "--dt", "seed": "--seed",
            "wind.path": "--wind-file", "wind.rotor_radius_m": "--wind-radius",
            "wind.field": "--wind-field", "control_interval_s": "--control-interval",
            "plant": "--plant", "controller": "--controller", "turbine": "--turbine",
-           "case": "--case", "profile": "--profile", "kind": "--wind", "wind.kind": "--wind"}
+           "case": "--case", "profile": "--profile", "wind.kind": "--wind"}
 
 
 def _refusal(exc: ConfigError, argv: list[str]) -> str:
@@ -1007,7 +1007,7 @@ def _refusal(exc: ConfigError, argv: list[str]) -> str:
     given = given or (exc.field == "wind.path" and exc.value is None and "--wind" in argv)
     if not given or exc.where:
         return _one_line(exc)
-    return _one_line(f"{exc.field} ({flag}) = {exc.value!r} is not allowed: {exc.allowed}")
+    return _one_line(ConfigError(f"{exc.field} ({flag})", exc.value, exc.allowed))
 
 
 def main(argv: list[str] | None = None) -> int:

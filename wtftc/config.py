@@ -19,7 +19,7 @@ from wtftc.errors import ConfigError, EngineError, range_text
 from wtftc.model import tuning, turbine_file, wind_field
 from wtftc.model.cp_table import nrel5mw_cp_table, read_cp_table
 from wtftc.model.faults import DEFAULT_FAULT, parse_faults
-from wtftc.model.wind import wind_from_config
+from wtftc.model.wind import field_default, wind_from_config
 from wtftc.sim import fdi, rhs
 from wtftc.sim.integrate import Envelope
 from wtftc.sim.trim import trim
@@ -403,11 +403,11 @@ def _wind_table(raw: dict, p_turbine: np.ndarray, cp) -> dict:
     if wind.get("kind") == "ntm" and "rotor_radius_m" not in wind:
         radius = lay.values("turbine_params", p_turbine)["rotor_radius"]  # [m]
         raw["wind"] = wind = {**wind, "rotor_radius_m": radius}
+    mean = wind.get("mean_mps", field_default("ntm", "mean_mps"))
     if (wind.get("kind") == "ntm" and wind.get("rotor_wind") == "blades"
-            and not wind.get("blade_speed_rad_s") and isinstance(wind.get("mean_mps"), float
-                                                                 | int)):
-        raw["wind"] = {**wind, "blade_speed_rad_s": blade_speed(p_turbine, cp,
-                                                                float(wind["mean_mps"]))}
+            and not wind.get("blade_speed_rad_s") and not isinstance(mean, bool)
+            and isinstance(mean, float | int) and mean > 0):  # else refused with its name
+        raw["wind"] = {**wind, "blade_speed_rad_s": blade_speed(p_turbine, cp, float(mean))}
     return raw["wind"]
 
 

@@ -264,6 +264,11 @@ def _speed(value, field: str) -> float:
     return _number(value, field, lo=0.0, hi=V_MAX_MPS, unit=" [m/s]")
 
 
+def field_default(kind: str, key: str):
+    """The default of ``key`` in a ``[wind]`` table of ``kind`` (what an absent key means)."""
+    return _FIELDS[kind][key]
+
+
 def wind_from_config(cfg: dict, t_final: float, seed: int = 0, where: str = "wind") -> Wind:
     """Build the wind of a ``[wind]`` table (keys = fields, ``kind`` required).
 

@@ -252,30 +252,42 @@ def read_bts(path: Path) -> FullField:
 DISK_RINGS, DISK_ANGLES = 48, 96
 
 
+def _check_radius(ff: FullField, radius_m: float, what: str) -> None:
+    """``radius_m`` [m] within the field's grid around the hub, else one line naming it."""
+    if radius_m > min(ff.half_width_m, ff.hub_height_m - ff.z[0], ff.z[-1] - ff.hub_height_m):
+        raise ConfigError("wind.rotor_radius_m", radius_m, f"{what} within the TurbSim "
+                          f"field's grid ({ff.half_width_m:g} m each side of the hub)")
+
+
+def _corners(ff: FullField, ys: np.ndarray, zs: np.ndarray):
+    """The field's bilinear interpolant at the points (y, z) = (``ys``, hub height +
+    ``zs``) [m], as InflowWind interpolates: the four grid corners ((z index, y index),
+    share) of each point, the shares summing to 1 (points beyond the grid: its edge)."""
+    fy = np.clip((ys - ff.y[0]) / (ff.y[1] - ff.y[0]), 0, len(ff.y) - 1)
+    fz = np.clip((zs + ff.hub_height_m - ff.z[0]) / (ff.z[1] - ff.z[0]), 0, len(ff.z) - 1)
+    iy, iz = np.minimum(fy.astype(int), len(ff.y) - 2), np.minimum(fz.astype(int), len(ff.z) - 2)
+    by, bz = fy - iy, fz - iz
+    return (((iz, iy), (1 - bz) * (1 - by)), ((iz, iy + 1), (1 - bz) * by),
+            ((iz + 1, iy), bz * (1 - by)), ((iz + 1, iy + 1), bz * by))
+
+
 def disk_weights(ff: FullField, radius_m: float) -> np.ndarray:
     """Weights W [z, y] (summing to 1) with Σ W u = the mean of the field's u over the disk
     of radius ``radius_m`` [m] centred on the hub (y = 0, z = hub height), each point of the
     disk weighing by its area: the field's rotor-effective wind, as wtftc's native NTM
     defines it (docs/wind.md: two points drawn uniformly on the disk). The field between
-    grid points is bilinear in y and z, as InflowWind interpolates it; the disk is sampled
-    by DISK_RINGS rings of equal area x DISK_ANGLES points. ``radius_m`` 0: the hub point."""
-    if radius_m > min(ff.half_width_m, ff.hub_height_m - ff.z[0], ff.z[-1] - ff.hub_height_m):
-        raise ConfigError("wind.rotor_radius_m", radius_m, f"a radius within the TurbSim "
-                          f"field's grid ({ff.half_width_m:g} m each side of the hub)")
+    grid points is bilinear in y and z (:func:`_corners`); the disk is sampled by
+    DISK_RINGS rings of equal area x DISK_ANGLES points. ``radius_m`` 0: the hub point."""
+    _check_radius(ff, radius_m, "a radius")
     if radius_m > 0:
         r = radius_m * np.sqrt((np.arange(DISK_RINGS) + 0.5) / DISK_RINGS)
         a = 2 * np.pi * (np.arange(DISK_ANGLES) + 0.5) / DISK_ANGLES
         ys, zs = np.outer(r, np.cos(a)).ravel(), np.outer(r, np.sin(a)).ravel()
     else:
         ys, zs = np.zeros(1), np.zeros(1)
-    fy = np.clip((ys - ff.y[0]) / (ff.y[1] - ff.y[0]), 0, len(ff.y) - 1)
-    fz = np.clip((zs + ff.hub_height_m - ff.z[0]) / (ff.z[1] - ff.z[0]), 0, len(ff.z) - 1)
-    iy, iz = np.minimum(fy.astype(int), len(ff.y) - 2), np.minimum(fz.astype(int), len(ff.z) - 2)
-    by, bz = fy - iy, fz - iz
     w = np.zeros((len(ff.z), len(ff.y)))
-    for dz, dy, share in ((0, 0, (1 - bz) * (1 - by)), (0, 1, (1 - bz) * by),
-                          (1, 0, bz * (1 - by)), (1, 1, bz * by)):
-        np.add.at(w, (iz + dz, iy + dy), share)
+    for at, share in _corners(ff, ys, zs):
+        np.add.at(w, at, share)
     return w / w.sum()
 
 
@@ -304,28 +316,20 @@ def blade_series(ff: FullField, radius_m: float, speed_rad_s: float) -> np.ndarr
     weights fitted the loads better than weights ∝ r. What this keeps that the disk
     average smooths away: the eddies a blade sweeps through as it turns, which put power
     at the tower's mode and at 3P (the sum of three blades cancels the other harmonics of
-    a pattern fixed in space). The rotor speed is
-    a constant (the operating point's): the azimuth does not follow the run's speed."""
-    if not 0 < radius_m <= min(ff.half_width_m, ff.hub_height_m - ff.z[0],
-                               ff.z[-1] - ff.hub_height_m):
-        raise ConfigError("wind.rotor_radius_m", radius_m, f"a radius > 0 within the "
-                          f"TurbSim field's grid ({ff.half_width_m:g} m each side of the hub)")
+    a pattern fixed in space). The rotor speed is a constant (the operating point's): the
+    azimuth does not follow the run's speed."""
+    if radius_m <= 0:
+        raise ConfigError("wind.rotor_radius_m", radius_m, "a radius > 0 for the blades")
+    _check_radius(ff, radius_m, "a radius > 0")
     r = radius_m * (np.arange(BLADE_POINTS) + 0.5) / BLADE_POINTS
     t = run_times(ff)
-    dy, dz = ff.y[1] - ff.y[0], ff.z[1] - ff.z[0]
     rows = np.arange(len(t))[:, None]
     total = np.zeros(len(t))
     for b in range(3):
-        psi = speed_rad_s * t[:, None] + 2 * np.pi * b / 3  # from upright, clockwise
-        fy = (r * np.sin(psi) - ff.y[0]) / dy
-        fz = (r * np.cos(psi) + ff.hub_height_m - ff.z[0]) / dz
-        iy = np.minimum(fy.astype(int), len(ff.y) - 2)
-        iz = np.minimum(fz.astype(int), len(ff.z) - 2)
-        by, bz = fy - iy, fz - iz
-        u = ff.u
-        total += ((1 - bz) * (1 - by) * u[rows, iz, iy] + (1 - bz) * by * u[rows, iz, iy + 1]
-                  + bz * (1 - by) * u[rows, iz + 1, iy] + bz * by * u[rows, iz + 1, iy + 1]
-                  ).mean(axis=1)
+        psi = speed_rad_s * t[:, None] + 2 * np.pi * b / 3  # from upright towards +y
+        total += sum(share * ff.u[(rows, *at)]
+                     for at, share in _corners(ff, r * np.sin(psi), r * np.cos(psi))
+                     ).mean(axis=1)
     return total / 3
 
 
@@ -354,6 +358,9 @@ def field_wind(f: Field, ntm: dict, t_final_s: float):
     radius = float(par.get("rotor_radius_m", 0.0))
     blades = par.get("rotor_wind") == "blades"
     speed = float(par.get("blade_speed_rad_s", 0.0))
+    if blades and speed <= 0:  # wtftc.config fills it in from the turbine
+        raise ConfigError("wind.blade_speed_rad_s", speed, "a rotor speed > 0 [rad/s] for "
+                          "the blades' wind (wtftc.config fills it in from the turbine)")
     t = run_times(ff)
     v = blade_series(ff, radius, speed) if blades else rotor_series(ff, radius)
     series = (f"three blades turning at {speed:.6g} rad/s" if blades
