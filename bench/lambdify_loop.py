@@ -161,20 +161,26 @@ class LambdifiedLoop:
         self.design = d
         self.p_names = [e.name for e in physical.PARAMS]
         th2, thdir = sp.Symbol("theta_norm2"), sp.Symbol("theta_dot_dir")
-        kappa = physical.freeze_conditions(d, th2, thdir)
-        exprs = [d.v_free, d.z1, kappa]
+        # the design without its speed observer, on the actuator model (the defaults): the
+        # switches folded, as a user lambdifying the default design would
+        default = {physical.L_obs: 0, physical.act: 1}
+        kappa = physical.freeze_conditions(d, th2, thdir).subs(default)
+        exprs = [d.v_free.subs(default), d.z1.subs(default), kappa]
         syms = sorted(set().union(*[sp.sympify(e).free_symbols for e in exprs])
                       - {sp.Symbol("kappa", real=True)}, key=lambda s: s.name)
         self.c_args = syms
         # κ enters v through α̇1: evaluate κ first, then v with it
-        self.k_fun = sp.lambdify(syms, [d.z1, kappa], modules="numpy", cse=True)
-        self.v_args = sorted(sp.sympify(d.v_free).free_symbols, key=lambda s: s.name)
-        self.v_fun = sp.lambdify(self.v_args, d.v_free, modules="numpy", cse=True)
+        self.k_fun = sp.lambdify(syms, exprs[1:], modules="numpy", cse=True)
+        self.v_args = sorted(sp.sympify(exprs[0]).free_symbols, key=lambda s: s.name)
+        self.v_fun = sp.lambdify(self.v_args, exprs[0], modules="numpy", cse=True)
         self.n_c = len(physical.STATES)
 
-    def _physical(self, th, omega_r, beta_meas, sched, known):
+    def _physical(self, xc, omega_r, beta_meas, sched, known):
+        th, w_hat = xc[:dlay.N_MF], xc[dlay.N_MF]
         vals = dict(zip(self.p_names, self.pc, strict=True))
-        vals.update({"omega_r": omega_r, "dT_dbeta": sched,
+        if vals["phys_obs_gain"] != 0.0:
+            raise ValueError("the lambdify loop runs the design without its speed observer")
+        vals.update({"omega_r": omega_r, "dT_dbeta": sched, "phys_speed_hat": w_hat,
                      **{f"beta_meas_{j + 1}": b for j, b in enumerate(beta_meas)},
                      **{f"yd_{k}": y for k, y in enumerate(self.yd)}})
         for k, n in enumerate(("rho_hat", "lock_hat", "ubar_hat")):
@@ -198,7 +204,7 @@ class LambdifiedLoop:
         v = float(self.v_fun(*[vals[s.name] for s in self.v_args]))
         phi = self.regressors(1, (0,), [omega_r], off, scl, mf)
         theta_dot = kappa * (vals["phys_gamma"] * z1 * phi - vals["phys_sigma"] * th)
-        return np.full(3, v), theta_dot
+        return np.full(3, v), np.append(theta_dot, omega_r - w_hat)  # ω̂_r: follows ω_r
 
     def __call__(self, z, wind, af, sf, known) -> np.ndarray:
         xp, xc = z[:self.n_p], z[self.n_p:]

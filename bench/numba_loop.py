@@ -126,7 +126,7 @@ Q_BMIN, Q_BMAX, Q_GMIN, Q_RMAX = (_PP["phys_pitch_min"], _PP["phys_pitch_max"],
 Q_W, Q_OFF, Q_SC = _PP["mf_width"], _PP["x_offset_1"], _PP["x_scale_1"]
 Q_CEN = _family("physical_params", "mf_centre", N_MF)
 N_C_PHYSICAL = len(lay.names("physical_states"))
-assert N_C_PHYSICAL == N_MF
+assert N_C_PHYSICAL == N_MF + 1  # the weights, then the speed observer's ω̂_r (here off)
 
 # paper controller parameters (eq (49)'s ρ̂, σ̂, ū are replaced by the known_fault input)
 P_K = _family("controller_params", "K_obs", 4)
@@ -432,6 +432,8 @@ def _ctrl_physical(z, bm1, bm2, bm3, yd, sched, pc, kf, zdot, o, ws):
     gain = _fmax(gain, 0.3)
     for m in range(N):
         zdot[o + N_P + m] = kappa * (gam * z1 * ws[W_NUD + m] - sig * z[N_P + m])
+    # the speed observer off (phys_obs_gain = 0, the default): ω̂_r follows ω_r at 1 rad/s
+    zdot[o + N_P + N] = omega_r - z[N_P + N]
     return (3.0 * _fmin(_fmax(U, b_min), b_max) - lock_sum) / gain
 
 

@@ -12,6 +12,7 @@ import sys
 
 import casadi as ca
 import sympy as sp
+from sympy.logic.boolalg import ITE
 
 from derivation import fuzzy
 from derivation.layout import N_MF
@@ -170,6 +171,8 @@ class Translator:
             return self._fold(ca.logic_or, e.args)
         if isinstance(e, sp.Not):
             return ca.logic_not(self(e.args[0]))
+        if isinstance(e, ITE):  # a relation on a Piecewise, as SymPy folds it
+            return ca.if_else(self(e.args[0]), self(e.args[1]), self(e.args[2]))
         rel = {sp.GreaterThan: ca.ge, sp.StrictGreaterThan: ca.gt,
                sp.LessThan: ca.le, sp.StrictLessThan: ca.lt}
         for cls, fn in rel.items():

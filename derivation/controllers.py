@@ -102,19 +102,20 @@ def design_translator(module, sym: dict) -> tuple[Translator, object]:
     params = {e.name: sym["p_ctrl"][k] for k, e in enumerate(module.PARAMS)}
     states = {e.name: sym["x_ctrl"][k] for k, e in enumerate(module.STATES)}
     meas = {n: sym["meas"][k] for k, n in enumerate(MEAS)}
-    fuzzy_symbols = {}
-    if d.rule_base is not None:
-        fz = FuzzyEvaluator(ca.vertcat(*[meas[n] for n in d.fuzzy_inputs]), params,
-                            [ca.vertcat(*[states[w] for w in d.weights])])
-        fuzzy_symbols = fz.symbol_values([d.rule_base])
     kf = sym["known_fault"]
     names = {**meas, **{f"yd_{m}": sym["yd"][m] for m in range(len(lay.REFERENCE))},
-             "dT_dbeta": sym["sched"][0], **params, **states, **fuzzy_symbols,
+             "dT_dbeta": sym["sched"][0], **params, **states,
              **{f"{kind}_{j + 1}": kf[k * lay.N_BLADES + j]
                 for k, kind in enumerate(("rho_hat", "lock_hat", "ubar_hat"))
                 for j in range(lay.N_BLADES)},
              **{s.name: sym[s.name] for s in d.check_inputs if s.name in sym}}
     tr = Translator(names)
+    for s, e in d.signals:
+        tr.symbols[s.name] = tr(e)
+    if d.rule_base is not None:
+        fz = FuzzyEvaluator(ca.vertcat(*[tr.symbols[n] for n in d.fuzzy_inputs]), params,
+                            [ca.vertcat(*[states[w] for w in d.weights])])
+        tr.symbols.update(fz.symbol_values([d.rule_base]))
     for s, e in d.intermediates:
         tr.symbols[s.name] = tr(e)
     return tr, d

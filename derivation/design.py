@@ -9,6 +9,8 @@ uniform ``ctrl_<name>``/``init_<name>`` functions. The symbols it may use are bo
 * the eq (49) fault estimates ``rho_hat_j``, ``lock_hat_j``, ``ubar_hat_j``;
 * its own states and parameters, by their layout names;
 * the fuzzy symbols L/B/φ of its rule base (inputs: the named measurements);
+* ``signals``, bound in order before the rule base, so that they may feed it (a filtered
+  speed the design uses in place of a measurement);
 * ``intermediates``, bound in order (an anti-windup switch κ used by later expressions).
 """
 
@@ -29,11 +31,12 @@ class ControllerDesign:
     x_dot: list[sp.Expr]  # controller state derivatives, in state order
     diag: list[sp.Expr]  # four diagnostics
     x0: list[sp.Expr]  # initial controller state from the measurements
-    #: the fuzzy approximator, if the design has one: its rule base, the measurement names
-    #: feeding it (in order) and the state names of its weights θ̂ (rule order)
+    #: the fuzzy approximator, if the design has one: its rule base, the measurement or
+    #: signal names feeding it (in order) and the state names of its weights θ̂ (rule order)
     rule_base: fuzzy.RuleBase | None = None
     fuzzy_inputs: list[str] = field(default_factory=list)
     weights: list[str] = field(default_factory=list)
+    signals: list[tuple[sp.Symbol, sp.Expr]] = field(default_factory=list)
     intermediates: list[tuple[sp.Symbol, sp.Expr]] = field(default_factory=list)
     #: named expressions for verification (α_i, α̇_i full and computable, ...), and the
     #: extra inputs they need (true derivatives the controller cannot measure)
@@ -61,15 +64,19 @@ def free_blade_command(u_mean: sp.Expr) -> sp.Expr:
 
 
 def freeze(command, beta_mean, tau, pitch_min, pitch_max, rate_max, push, theta_norm2,
-           theta_dot_dir, theta_max) -> sp.Expr:
+           theta_dot_dir, theta_max, rate_test=None) -> sp.Expr:
     """κ: 0 (adaptation frozen) when the pitch command is saturated in position, or in
     the rate (command - β̄)/τ of the first-order actuator model, and the error ``push``
     (> 0: overspeed, more pitch wanted) drives it further out; or when |θ̂| is at its
-    bound and the update points outward (projection onto |θ̂| ≤ θ_max). Else 1."""
+    bound and the update points outward (projection onto |θ̂| ≤ θ_max). Else 1.
+    ``rate_test``, if given, is the condition under which the rate test applies (a design
+    that may assume no actuator model has no rate of its own to test)."""
     rate = (command - beta_mean) / tau
+    rate_out = [sp.And(rate >= rate_max, push > 0), sp.And(rate <= -rate_max, push < 0)]
+    if rate_test is not None:  # the rate is a first-order model's: only where there is one
+        rate_out = [sp.And(rate_test, sp.Or(*rate_out))]
     sat_out = sp.Or(sp.And(command >= pitch_max, push > 0),
-                    sp.And(command <= pitch_min, push < 0),
-                    sp.And(rate >= rate_max, push > 0), sp.And(rate <= -rate_max, push < 0))
+                    sp.And(command <= pitch_min, push < 0), *rate_out)
     proj_out = sp.And(theta_norm2 >= theta_max**2, theta_dot_dir > 0)
     return sp.Piecewise((0, sp.Or(sat_out, proj_out)), (1, True))
 

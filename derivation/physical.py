@@ -26,6 +26,26 @@ pushes it further out; or when |θ̂| is at its bound and the update points outw
 (projection onto the ball |θ̂| ≤ θ_max). Accommodation (eq (49)'s structure
 for three blades): the free blades get v = (3U - Σ σ̂_j ū_j) / Σ (1 - σ̂_j) ρ̂_j, so that
 the mean of the effective blade inputs is U.
+
+Two options of issue 34 (both off by default: the design above, bit for bit):
+
+* **A speed observer** (``phys_obs_gain`` L > 0). The measured ω_r carries the drivetrain
+  mode (1.7 Hz on the NREL 5-MW) and the sensor noise; fed back through z1 and α̇1 they
+  drive the drivetrain (docs/controllers.md). The design then runs on the state ω̂_r of
+
+      ω̂̇_r = b β̄ + h0 + f̂(ω̂_r) + L (ω_r - ω̂_r)
+
+  a model-based low-pass filter of corner L with little phase lag below it, since the
+  model carries the pitch's effect. z1 = ω̂_r - y_d, f̂ = θ̂ᵀφ(ω̂_r), and α̇1 is the total
+  derivative through ω̂̇_r, which the controller computes exactly (only ḃ is left out).
+  With e = ω_r - ω̂_r the observer error, ė = f - f̂ - L e (the unknown residual f enters
+  only here), so the weights adapt on it: θ̂̇ = κ (γ e φ - σ θ̂). V = ½z1² + ½z2² + ½e² +
+  θ̃ᵀθ̃/(2γ) gives V̇ = -c1 z1² - c2 z2² - L e² + L z1 e + e ε + σ θ̃ᵀθ̂ - z2 (α̇1 - α̇1c):
+  negative definite in (z1, e) for L < 4 c1. Off (L = 0), ω̂_r follows ω_r at 1 rad/s,
+  unused, so that ``wtftc linearize`` sees no zero eigenvalue.
+* **No actuator model** (``phys_actuator_model`` = 0), for a host whose blades take the
+  command as given (OpenFAST's ServoDyn without an actuator, issue 22): relative degree 1,
+  U = α1. Inverting a lag τ_a that is not there is what made the design unstable there.
 """
 
 from __future__ import annotations
@@ -46,10 +66,17 @@ dT_dbeta = sp.Symbol("dT_dbeta", real=True)
 omega_dot = sp.Symbol("omega_dot", real=True)  # true ω̇_r (unmeasured), for the full α̇1
 b_dot = sp.Symbol("b_dot", real=True)  # true rate of b = G/J (unmeasured)
 kappa = sp.Symbol("kappa", real=True)  # 1 integrate, 0 frozen (anti-windup), set by the generator
+omega_hat = sp.Symbol("phys_speed_hat", real=True)  # the observer's ω̂_r
+eta = sp.Symbol("phys_innovation", real=True)  # its filtered innovation η
+speed = sp.Symbol("phys_speed_used", real=True)  # the rule base's input: ω̂_r or ω_r
 
-STATES = [Entry(f"phys_theta_hat[{m}]", 0.0, "rad/s^2", f"fuzzy weight {m} of f̂(ω_r)",
-                sample=(-0.5, 1.0))
-          for m in range(N_MF)]
+STATES = [*[Entry(f"phys_theta_hat[{m}]", 0.0, "rad/s^2", f"fuzzy weight {m} of f̂(ω_r)",
+                  sample=(-0.5, 1.0))
+            for m in range(N_MF)],
+          Entry("phys_speed_hat", nrel5mw.RATED_SPEED, "rad/s",
+                "the speed observer's rotor speed ω̂_r", sample=(1.1, 1.45)),
+          Entry("phys_innovation", 0.0, "rad/s",
+                "the speed observer's filtered innovation η", sample=(-0.02, 0.02))]
 PARAMS = [
     # c1, c2, γ chosen among (1, 4, 0.5), (2, 6, 0.5), (2, 6, 2), (3, 8, 1) on 60 s of NTM
     # class B at 16 m/s: (2, 6, 2) had the lowest RMS speed error (docs/controllers.md)
@@ -63,10 +90,24 @@ PARAMS = [
     Entry("phys_gen_torque", nrel5mw.RATED_GEN_TORQUE_LSS, "N m",
           "generator torque on the LSS above rated (constant torque, Jonkman 2009)"),
     *design_.actuator_and_fuzzy_params("phys"),
+    Entry("phys_obs_omega", 0.0, "rad/s",
+          "natural frequency ω_o of the speed observer the design runs on; "
+          "0: none, the measured ω_r (as before issue 34)", sample=(3.0, 9.0)),
+    Entry("phys_obs_zeta", 0.7, "-", "damping ratio ζ_o of the speed observer",
+          sample=(0.5, 1.0)),
+    Entry("phys_actuator_model", 1.0, "-",
+          "1: the design inverts the first-order actuator τ_a; 0: none (a host whose "
+          "blades take the command as given): U = α1", sample=(1.0, 1.0)),
 ]
-c1, c2, gam, sig, th_max, J, T_g, tau_a, bmin, bmax, gmin, rmax = sp.symbols(
+(c1, c2, gam, sig, th_max, J, T_g, tau_a, bmin, bmax, gmin, rmax, w_obs, z_obs,
+ act) = sp.symbols(
     "phys_c1 phys_c2 phys_gamma phys_sigma phys_theta_max phys_inertia phys_gen_torque "
-    "phys_tau_a phys_pitch_min phys_pitch_max phys_dTdbeta_min phys_rate_max", real=True)
+    "phys_tau_a phys_pitch_min phys_pitch_max phys_dTdbeta_min phys_rate_max phys_obs_omega "
+    "phys_obs_zeta phys_actuator_model", real=True)
+observing = w_obs > 0
+L_obs = w_obs / (2 * z_obs)  # the innovation's gain into ω̂̇_r
+L_eta = 2 * z_obs * w_obs  # the innovation filter's corner
+with_actuator = act > sp.Rational(1, 2)
 
 
 @dataclass
@@ -92,36 +133,58 @@ def beta_mean() -> sp.Expr:
 
 @cache
 def chain() -> PhysicalDesign:
-    rb = fuzzy.RuleBase(1)  # f̂(ω_r): the input x̂_1 of the rule base is ω_r here
+    """The design on the measured ω_r, and on the observer's ω̂_r, joined by one switch at
+    the top (so that the design without the observer is the same expression as before)."""
+    rb = fuzzy.RuleBase(1)  # f̂: the input x̂_1 of the rule base is the speed used
     d = PhysicalDesign(rule_base=rb)
     g = -sp.Max(-dT_dbeta, gmin)  # G ≤ -gmin < 0 above rated
     b_sym = sp.Symbol("b_sched", real=True)  # b as a symbol: its rate is b_dot
     d.b = g / J
     d.h0 = -T_g / J
-    F = rb.L()
-    x2 = beta_mean()
-    d.z1 = omega_r - yd[0]
-    alpha1 = (-c1 * d.z1 - d.h0 - F + yd[1]) / b_sym
-    d.omega_dot_hat = b_sym * x2 + d.h0 + F
-    # total derivative along the loop: ω_r, y_d, the weights (through L/B), b
-    xdot = [omega_dot]
-    rates = {omega_r: omega_dot, yd[0]: yd[1], yd[1]: yd[2], b_sym: b_dot}
-    full = fuzzy.total_derivative(alpha1, rates, rb, xdot, d.z1, kappa * gam, kappa * sig)
-    # rb.rate may have created symbols L1_1, B1_0_0 used above: all generated by the caller
-    comp = full.subs({omega_dot: d.omega_dot_hat, b_dot: 0})
-    d.alpha1 = alpha1.subs(b_sym, d.b)
-    d.alpha1_dot_full = full.subs(b_sym, d.b)
-    d.alpha1_dot_comp = comp.subs(b_sym, d.b)
-    d.omega_dot_hat = d.omega_dot_hat.subs(b_sym, d.b)
-    d.z2 = x2 - d.alpha1
-    d.U = x2 + tau_a * (-c2 * d.z2 - d.b * d.z1 + d.alpha1_dot_comp)
+    omega_dot_hat = b_sym * beta_mean() + d.h0 + rb.L()
+    observer = omega_dot_hat + L_obs * eta
+    measured = _branch(rb, b_sym, omega_r, omega_dot, omega_dot_hat, None)
+    observed = _branch(rb, b_sym, omega_hat, observer, observer, ADAPT(omega_r - omega_hat, eta))
+    for name in ("z1", "alpha1", "alpha1_dot_full", "alpha1_dot_comp", "adapt_gain"):
+        joined = sp.Piecewise((observed[name], observing), (measured[name], True))
+        setattr(d, name, joined.subs(b_sym, d.b))
+    d.omega_dot_hat = omega_dot_hat.subs(b_sym, d.b)
+    d.raw = [observer.subs(b_sym, d.b)]
+    d.z2 = sp.Piecewise((beta_mean() - observed["alpha1"], observing),
+                        (beta_mean() - measured["alpha1"], True)).subs(b_sym, d.b)
+    d.U = sp.Piecewise((observed["U"].subs(b_sym, d.b), sp.And(observing, with_actuator)),
+                       (measured["U"].subs(b_sym, d.b), with_actuator), (d.alpha1, True))
     u_clip = sp.Min(sp.Max(d.U, bmin), bmax)
     d.v_free = design_.free_blade_command(u_clip)
-    d.adapt_gain = gam * d.z1
     return d
 
 
-WEIGHTS = [e.name for e in STATES]
+def _branch(rb, b_sym, w, rate_full, rate_comp, chi) -> dict:
+    """z1, α1, α̇1 (full and computable), the adaptive law's γ χ and U of the design run on
+    the speed w (ω_r or ω̂_r) of rate ``rate_full`` (``rate_comp`` what the controller
+    computes of it); the weights adapt on χ (z1 if None)."""
+    x2 = beta_mean()
+    z1 = w - yd[0]
+    chi = z1 if chi is None else chi
+    alpha1 = (-c1 * z1 - (-T_g / J) - rb.L() + yd[1]) / b_sym
+    # total derivative along the loop: the speed, y_d, the weights (through L/B), b
+    rates = {w: omega_dot, yd[0]: yd[1], yd[1]: yd[2], b_sym: b_dot}
+    full = fuzzy.total_derivative(alpha1, rates, rb, [omega_dot], chi, kappa * gam, kappa * sig)
+    # rb.rate may have created symbols L1_1, B1_0_0 used above: all generated by the caller
+    comp = full.subs({omega_dot: rate_comp, b_dot: 0})
+    full = full.subs(omega_dot, rate_full)
+    U = x2 + tau_a * (-c2 * (x2 - alpha1) - b_sym * z1 + comp)
+    return {"z1": z1, "alpha1": alpha1, "alpha1_dot_full": full, "alpha1_dot_comp": comp,
+            "adapt_gain": gam * chi, "U": U}
+
+
+def ADAPT(e, eta_):
+    """What the weights adapt on with the observer (L/c1 scales it to the tracking error's
+    size, so that γ keeps its meaning): the innovation e."""
+    return L_obs / c1 * eta_
+
+
+WEIGHTS = [e.name for e in STATES[:N_MF]]
 theta = sp.symbols(WEIGHTS, real=True)
 #: the design model of the α̇1 checks (design_model): start at the defaults, random
 #: verification inputs in the sample ranges
@@ -141,12 +204,16 @@ def derive() -> design_.ControllerDesign:
     d = chain()
     theta_norm2, theta_dot_dir = sp.symbols("theta_norm2 theta_dot_dir", real=True)
     return design_.ControllerDesign(
-        rule_base=d.rule_base, fuzzy_inputs=["omega_r"], weights=WEIGHTS,
+        rule_base=d.rule_base, fuzzy_inputs=[speed.name], weights=WEIGHTS,
         v=d.v_free, u0=d.U,
-        x_dot=[kappa * (gam * d.z1 * d.rule_base.phi(m) - sig * t) for m, t in enumerate(theta)],
-        diag=[d.z1, d.z2, d.alpha1, kappa], x0=[initial_residual()] * N_MF,
+        x_dot=[*[kappa * (d.adapt_gain * d.rule_base.phi(m) - sig * t)
+                 for m, t in enumerate(theta)],
+               sp.Piecewise((d.raw[0], observing), (omega_r - omega_hat, True)),
+               sp.Piecewise((L_eta * (omega_r - omega_hat - eta), observing), (-eta, True))],
+        diag=[d.z1, d.z2, d.alpha1, kappa], x0=[*[initial_residual()] * N_MF, omega_r, 0],
+        signals=[(speed, sp.Piecewise((omega_hat, observing), (omega_r, True)))],
         intermediates=[(theta_norm2, sum(t**2 for t in theta)),
-                       (theta_dot_dir, gam * d.z1 * d.rule_base.L() - sig * theta_norm2),
+                       (theta_dot_dir, d.adapt_gain * d.rule_base.L() - sig * theta_norm2),
                        (kappa, freeze_conditions(d, theta_norm2, theta_dot_dir))],
         checks={"alpha1": d.alpha1, "alpha1_dot_full": d.alpha1_dot_full,
                 "alpha1_dot_comp": d.alpha1_dot_comp, "omega_dot_hat": d.omega_dot_hat,
@@ -171,7 +238,7 @@ def freeze_conditions(d: PhysicalDesign, theta_norm2, theta_dot_dir) -> sp.Expr:
     and the update points outward; else 1. The saturation test uses the command computed
     with κ = 1 (U itself contains κ through α̇1)."""
     return design_.freeze(d.U.subs(kappa, 1), beta_mean(), tau_a, bmin, bmax, rmax, d.z1,
-                         theta_norm2, theta_dot_dir, th_max)
+                         theta_norm2, theta_dot_dir, th_max, rate_test=with_actuator)
 
 
 def initial_residual() -> sp.Expr:

@@ -457,6 +457,8 @@ def design_reference(cname: str, name: str, args: dict[str, np.ndarray]) -> dict
     vals.update({e.name: float(x) for e, x in zip(module.STATES, xc, strict=True)})
     if name.startswith("init"):
         return {"x_ctrl0": pair(f"{cname}_x0", d.x0, vals)}
+    for sym, e in d.signals:
+        vals[sym.name] = float(evaluate(f"{cname}_{sym.name}", [e], vals)[0])
     if d.rule_base is not None:
         _fuzzy_values(d, vals)
     for sym, e in d.intermediates:

@@ -126,6 +126,8 @@ TURBINE_RANGES = _ranges("turbine_params")
 TURBINE_ORDER = (("pitch_min", "pitch_max"), ("vs_cut_in_speed", "vs_region2_speed"))
 #: turbine parameters that switch a behaviour on (1) or off (0)
 TURBINE_FLAGS = ("gen_torque_law", "gen_constant_power")
+#: controller parameters that are switches
+CONTROLLER_FLAGS = ("phys_actuator_model",)
 
 
 @dataclass
@@ -573,6 +575,20 @@ def _fdi(raw: dict, loop: rhs.Loop, p_sensors: np.ndarray,
                           vals["rate_limited_uncertainty"]), pulse
 
 
+def _openfast_actuator(raw: dict) -> None:
+    """[openfast] actuator: true (the default) puts the benchmark pitch actuator between
+    the controller and OpenFAST's blades; false is a host without one (the deck as it is:
+    ElastoDyn takes the demand, limited in rate by the controller library), fault-free."""
+    act = raw["openfast"]["actuator"]
+    if not isinstance(act, bool):
+        raise ConfigError("openfast.actuator", act, "true (the benchmark actuator in the "
+                          "plant library, the default) or false (none: the blades take the "
+                          "demand)")
+    if not act and raw["case"] != 1:
+        raise ConfigError("openfast.actuator", act, "true for case 2 or 4 (the faults are "
+                          "the actuator's)")
+
+
 def _engine(raw: dict, given: dict) -> None:
     """The engine: OpenFAST refuses the keys of wtftc's own plant and needs a controller
     it can call every control interval; its operating point is the tower plant's."""
@@ -594,13 +610,15 @@ def _engine(raw: dict, given: dict) -> None:
             raise ConfigError(key, given[key], f"no {key} with engine = openfast: {why}")
     raw["plant"] = "tower"
     table = raw.get("openfast", {})
-    if not isinstance(table, dict) or set(table) - {"wind"}:
-        raise ConfigError("openfast", table, "a table with the key wind")
-    raw["openfast"] = {"wind": table.get("wind", "turbsim")}
+    if not isinstance(table, dict) or set(table) - {"wind", "actuator"}:
+        raise ConfigError("openfast", table, "a table with the keys wind and actuator")
+    raw["openfast"] = {"wind": table.get("wind", "turbsim"),
+                       "actuator": table.get("actuator", True)}
     if raw["openfast"]["wind"] not in OPENFAST_WINDS:
         raise ConfigError("openfast.wind", raw["openfast"]["wind"], "turbsim (NTM and ETM "
                           "winds as TurbSim full fields, the default) or uniform (the "
                           "series wtftc's own plant gets, uniform over the rotor)")
+    _openfast_actuator(raw)
     wind = raw.get("wind")
     if raw["openfast"]["wind"] == "turbsim" and isinstance(wind, dict) \
             and wind.get("kind") == "ntm":
@@ -926,6 +944,10 @@ def _parameters(raw: dict, controller: str, turbine: turbine_file.Turbine
                                      **_overrides(raw, "controller_params", ctrl_group),
                                      **({"control_sign": raw["control_sign"]} if signed else {})})
     vals = check_ranges(ctrl_group, p_ctrl, "controller_params")
+    for flag in (n for n in vals if n in CONTROLLER_FLAGS):
+        if vals[flag] not in (0.0, 1.0):
+            raise ConfigError(f"controller_params.{flag}", vals[flag],
+                              "0 or 1 (docs/controllers.md)")
     for low in (n for n in vals if n.endswith("pitch_min")):  # a controller's pitch range
         high = low.replace("pitch_min", "pitch_max")
         if high in vals and vals[low] >= vals[high]:

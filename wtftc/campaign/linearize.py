@@ -69,6 +69,15 @@ class OperatingPoint:
     def eigenvalues(self) -> np.ndarray:
         return np.linalg.eigvals(self.A_cl)
 
+    def coupled_eigenvalues(self) -> np.ndarray:
+        """The eigenvalues without those of dormant states: a state no other state's rate
+        depends on (its column of A is zero off the diagonal) only follows the loop, and
+        its own mode is not one of the loop's (the PI's filter state and the physical
+        AFTC's speed observer when switched off)."""
+        off = self.A_cl - np.diag(np.diag(self.A_cl))
+        keep = np.flatnonzero(np.any(off != 0.0, axis=0))
+        return np.linalg.eigvals(self.A_cl[np.ix_(keep, keep)])
+
     def state_spaces(self) -> dict:
         """python-control StateSpace objects: the plant (inputs the three blade commands
         and the wind, output ω_r), the controller (input the plant state, output the
@@ -258,9 +267,9 @@ def closed_loop_jacobian(raw: dict, op: OperatingPoint) -> np.ndarray:
 
 def modes(op: OperatingPoint) -> list[dict]:
     """Each closed-loop mode (one of a complex pair): eigenvalue, natural frequency
-    [rad/s], damping ratio [-], slowest first."""
+    [rad/s], damping ratio [-], slowest first; dormant states' modes left out."""
     out = []
-    for lam in sorted(op.eigenvalues(), key=lambda x: abs(x)):
+    for lam in sorted(op.coupled_eigenvalues(), key=lambda x: abs(x)):
         if lam.imag < -1e-12:
             continue
         wn = abs(lam)

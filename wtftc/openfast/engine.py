@@ -71,9 +71,11 @@ def controller_library(rc, folder: Path) -> tuple[Path, Path]:
     if rc.controller not in discon.exportable():
         raise ConfigError("controller", rc.controller, "rosco or one of "
                           + ", ".join(discon.exportable()) + " with engine = openfast")
-    # the plant library puts the benchmark actuator in: no rate limit on the demands
+    # the plant library puts the benchmark actuator in: no rate limit on the demands;
+    # without it the blades take the demands, each within the turbine's rate limit
+    actuator = rc.raw["openfast"]["actuator"]
     return _cached_library(rc, folder), discon.write_input(
-        rc, folder / f"wtftc_{rc.controller}.IN", demand_rate_limit=0)
+        rc, folder / f"wtftc_{rc.controller}.IN", demand_rate_limit=0 if actuator else 1)
 
 
 def _cached_library(rc, folder: Path) -> Path:
@@ -149,7 +151,8 @@ def prepare(rc, folder: Path) -> ofcase.Case:
     # every path of the case relative to it, so that it reruns by hand once moved (the
     # run folder is written beside its final name and renamed into place)
     settings = plant_library.Settings(lib, infile, records, rc.p_turbine, rc.p_sensors,
-                                      rc.faults if rc.faults else (), base=folder)
+                                      rc.faults if rc.faults else (), base=folder,
+                                      actuator=rc.raw["openfast"]["actuator"])
     n_calls = int(round(rc.t_final / dll_dt)) + 2
     settings.noise = folder / "wtftc_noise.bin"
     settings.noise_columns = plant_library.noise_table(

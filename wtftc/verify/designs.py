@@ -40,6 +40,8 @@ class DesignModel:
     """A derived controller's design model and checks, with the signals that drive them."""
 
     controller: str
+    #: parameters other than the defaults, by name (a design's option switched on)
+    params: dict[str, float] | None = None
 
     def __post_init__(self):
         reg = lay.layout()["controllers"][self.controller]
@@ -51,7 +53,7 @@ class DesignModel:
         self.n_model = len(reg["model"]["states"])
         res = reg["model"]["residual"]
         self.d0, self.d_amp = res["default"], (res["sample"][1] - res["sample"][0]) / 2
-        self.p_ctrl = lay.defaults(reg["params"])
+        self.p_ctrl = lay.vector(reg["params"], self.params or {})
         self.y0 = lay.defaults("reference")[0]
         # the model at its defaults; the controller as a run starts it (init_<name>)
         x_model = np.array([e["default"] for e in reg["model"]["states"]])
@@ -103,14 +105,15 @@ class DesignFD:
 
 
 def alpha_dot_fd(controller: str, t_point: float = 1.0, h_values=H_VALUES,
-                 substep: float = 2e-4) -> DesignFD:
+                 substep: float = 2e-4, params: dict[str, float] | None = None) -> DesignFD:
     """Central differences of every α_i along the design model against the generated α̇_i.
 
     The model runs by RK4 from its start to ``t_point``; the states at t ± h are reached
     with steps ≤ ``substep``, so the integration error stays far below the differencing
-    error. Slopes are fitted where truncation dominates (:func:`_truncation_slope`).
+    error. ``params`` overrides the design's defaults by name. Slopes are fitted where
+    truncation dominates (:func:`_truncation_slope`).
     """
-    m = DesignModel(controller)
+    m = DesignModel(controller, params)
     z = m.rk4(m.z0, 0.0, t_point, int(np.ceil(t_point / 5e-4)))
     at = m.check_values(z, t_point)
     exact = np.array([at[f"{a}_dot_full"] for a in m.alphas])
