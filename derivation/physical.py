@@ -29,20 +29,23 @@ the mean of the effective blade inputs is U.
 
 Two options of issue 34 (both off by default: the design above, bit for bit):
 
-* **A speed observer** (``phys_obs_gain`` L > 0). The measured ω_r carries the drivetrain
-  mode (1.7 Hz on the NREL 5-MW) and the sensor noise; fed back through z1 and α̇1 they
-  drive the drivetrain (docs/controllers.md). The design then runs on the state ω̂_r of
+* **A speed observer** (``phys_obs_omega`` ω_o > 0). The measured ω_r carries the
+  drivetrain mode (1.7 Hz on the NREL 5-MW) and the sensor noise; fed back through z1 and
+  α̇1 they drive the drivetrain (docs/controllers.md). The design then runs on the state
+  ω̂_r of the model-based observer
 
-      ω̂̇_r = b β̄ + h0 + f̂(ω̂_r) + L (ω_r - ω̂_r)
+      ω̂̇_r = b β̄ + h0 + f̂(ω̂_r) + L η,   η̇ = 2ζ_o ω_o (ω_r - ω̂_r - η),   L = ω_o/(2ζ_o)
 
-  a model-based low-pass filter of corner L with little phase lag below it, since the
-  model carries the pitch's effect. z1 = ω̂_r - y_d, f̂ = θ̂ᵀφ(ω̂_r), and α̇1 is the total
-  derivative through ω̂̇_r, which the controller computes exactly (only ḃ is left out).
-  With e = ω_r - ω̂_r the observer error, ė = f - f̂ - L e (the unknown residual f enters
-  only here), so the weights adapt on it: θ̂̇ = κ (γ e φ - σ θ̂). V = ½z1² + ½z2² + ½e² +
-  θ̃ᵀθ̃/(2γ) gives V̇ = -c1 z1² - c2 z2² - L e² + L z1 e + e ε + σ θ̃ᵀθ̂ - z2 (α̇1 - α̇1c):
-  negative definite in (z1, e) for L < 4 c1. Off (L = 0), ω̂_r follows ω_r at 1 rad/s,
-  unused, so that ``wtftc linearize`` sees no zero eigenvalue.
+  whose error e = ω_r - ω̂_r is a second-order loop (ω_o, ζ_o) driven by f - f̂. z1 =
+  ω̂_r - y_d, f̂ = θ̂ᵀφ(ω̂_r), and α̇1 is the total derivative through ω̂̇_r, which the
+  controller computes exactly (only ḃ is left out): the measured ω_r reaches U only through
+  η's rate. The weights adapt on χ = L η / c1 (the size z1 had at rest): θ̂̇ = κ (γ χ φ -
+  σ θ̂). With V = ½z1² + ½z2² + V_o(e, η) + θ̃ᵀθ̃/(2γ'), the θ̃ terms cancel for an
+  adaptation on e (the error system from θ̃ᵀφ to e is strictly positive real), not on η
+  (relative degree 2): adapting on η is a measured choice (lower loads, docs/controllers.md)
+  outside that argument. ż1 = -c1 z1 + b z2 + L η, the last term the observer's bounded
+  error. Off (ω_o = 0), ω̂_r follows ω_r and η decays at 1/s, unused, so that
+  ``wtftc linearize`` sees no zero eigenvalue.
 * **No actuator model** (``phys_actuator_model`` = 0), for a host whose blades take the
   command as given (OpenFAST's ServoDyn without an actuator, issue 22): relative degree 1,
   U = α1. Inverting a lag τ_a that is not there is what made the design unstable there.
@@ -144,7 +147,7 @@ def chain() -> PhysicalDesign:
     omega_dot_hat = b_sym * beta_mean() + d.h0 + rb.L()
     observer = omega_dot_hat + L_obs * eta
     measured = _branch(rb, b_sym, omega_r, omega_dot, omega_dot_hat, None)
-    observed = _branch(rb, b_sym, omega_hat, observer, observer, ADAPT(omega_r - omega_hat, eta))
+    observed = _branch(rb, b_sym, omega_hat, observer, observer, L_obs / c1 * eta)
     for name in ("z1", "alpha1", "alpha1_dot_full", "alpha1_dot_comp", "adapt_gain"):
         joined = sp.Piecewise((observed[name], observing), (measured[name], True))
         setattr(d, name, joined.subs(b_sym, d.b))
@@ -176,12 +179,6 @@ def _branch(rb, b_sym, w, rate_full, rate_comp, chi) -> dict:
     U = x2 + tau_a * (-c2 * (x2 - alpha1) - b_sym * z1 + comp)
     return {"z1": z1, "alpha1": alpha1, "alpha1_dot_full": full, "alpha1_dot_comp": comp,
             "adapt_gain": gam * chi, "U": U}
-
-
-def ADAPT(e, eta_):
-    """What the weights adapt on with the observer (L/c1 scales it to the tracking error's
-    size, so that γ keeps its meaning): the innovation e."""
-    return L_obs / c1 * eta_
 
 
 WEIGHTS = [e.name for e in STATES[:N_MF]]

@@ -183,6 +183,8 @@ def test_a_missing_openfast_is_one_line_and_exit_code_4(tmp_path, monkeypatch, c
     ({"engine": "fast"}, "engine"),
     ({"openfast": {"wind": "bts"}}, "openfast.wind"),
     ({"openfast": "turbsim"}, "openfast"),
+    ({"openfast": {"actuator": "no"}}, "openfast.actuator"),
+    ({"openfast": {"actuator": False}, "case": 4}, "openfast.actuator"),
 ])
 def test_keys_without_meaning_in_openfast_are_refused_naming_them(over, field):
     cfg = {"engine": "openfast", "profile": "realistic", "controller": "physical",
