@@ -14,10 +14,12 @@ import pytest
 
 from wtftc import config
 from wtftc.artefacts.loader import compiler
+from wtftc.campaign import cases
 from wtftc.cli import main
 from wtftc.errors import EngineError
 from wtftc.openfast import engine
 from wtftc.openfast.case import get_value
+from wtftc.results.metrics import metrics
 
 T_FINAL = 20.0
 WIND = {"kind": "constant", "speed_mps": 16.0}
@@ -330,3 +332,26 @@ def test_the_engine_defaults_to_the_realistic_profile_and_refuses_ideal_when_ask
         config.make_config({"engine": "openfast", "controller": "pi", "case": 1,
                             "wind": WIND, "profile": "ideal"})
     assert exc.value.field == "profile"
+
+
+def _bare_host_run(base: Path, actuator_model: float) -> dict:
+    """The physical AFTC with its speed observer in OpenFAST without the benchmark actuator
+    (the deck's blades take the demand, within the rate limit), 16 m/s steady, 30 s."""
+    rc = config.make_config({
+        "engine": "openfast", "profile": "realistic", "controller": "physical", "case": 1,
+        "t_final_s": 30.0, "wind": WIND, "turbine_params": {"gen_torque_law": 1.0},
+        "openfast": {"actuator": False},
+        "controller_params": {"phys_obs_omega": 6.0, "phys_actuator_model": actuator_model}})
+    res = cases.run(rc, progress=False, openfast_dir=base / f"am{actuator_model:g}")
+    return metrics(rc, res)
+
+
+def test_a_host_without_an_actuator_gets_a_design_without_one(tmp_path):
+    """issue 34: on OpenFAST's deck as it is (`[openfast] actuator = false`), the design
+    that inverts the benchmark's lag drives the drivetrain (docs/discon.md: the limit cycle
+    of issue 22); with `phys_actuator_model = 0` (U = α1) the shaft DEL falls to a
+    quarter of it or less, and the rotor stays within 5 % of rated."""
+    with_lag, without = _bare_host_run(tmp_path, 1.0), _bare_host_run(tmp_path, 0.0)
+    assert with_lag["diverged"] is None and without["diverged"] is None
+    assert without["shaft_torque_del_1hz_Nm"] < 0.25 * with_lag["shaft_torque_del_1hz_Nm"]
+    assert without["overspeed_peak_over_rated"] < 1.05
