@@ -163,7 +163,7 @@ class LambdifiedLoop:
         th2, thdir = sp.Symbol("theta_norm2"), sp.Symbol("theta_dot_dir")
         # the design without its speed observer, on the actuator model (the defaults): the
         # switches folded, as a user lambdifying the default design would
-        default = {physical.L_obs: 0, physical.act: 1}
+        default = {physical.w_obs: 0, physical.act: 1}
         kappa = physical.freeze_conditions(d, th2, thdir).subs(default)
         exprs = [d.v_free.subs(default), d.z1.subs(default), kappa]
         syms = sorted(set().union(*[sp.sympify(e).free_symbols for e in exprs])
@@ -176,11 +176,12 @@ class LambdifiedLoop:
         self.n_c = len(physical.STATES)
 
     def _physical(self, xc, omega_r, beta_meas, sched, known):
-        th, w_hat = xc[:dlay.N_MF], xc[dlay.N_MF]
+        th, w_hat, eta = xc[:dlay.N_MF], xc[dlay.N_MF], xc[dlay.N_MF + 1]
         vals = dict(zip(self.p_names, self.pc, strict=True))
-        if vals["phys_obs_gain"] != 0.0:
+        if vals["phys_obs_omega"] != 0.0:
             raise ValueError("the lambdify loop runs the design without its speed observer")
         vals.update({"omega_r": omega_r, "dT_dbeta": sched, "phys_speed_hat": w_hat,
+                     "phys_innovation": eta,
                      **{f"beta_meas_{j + 1}": b for j, b in enumerate(beta_meas)},
                      **{f"yd_{k}": y for k, y in enumerate(self.yd)}})
         for k, n in enumerate(("rho_hat", "lock_hat", "ubar_hat")):
@@ -204,7 +205,8 @@ class LambdifiedLoop:
         v = float(self.v_fun(*[vals[s.name] for s in self.v_args]))
         phi = self.regressors(1, (0,), [omega_r], off, scl, mf)
         theta_dot = kappa * (vals["phys_gamma"] * z1 * phi - vals["phys_sigma"] * th)
-        return np.full(3, v), np.append(theta_dot, omega_r - w_hat)  # ω̂_r: follows ω_r
+        # the observer off: ω̂_r follows ω_r, η decays
+        return np.full(3, v), np.concatenate([theta_dot, [omega_r - w_hat, -eta]])
 
     def __call__(self, z, wind, af, sf, known) -> np.ndarray:
         xp, xc = z[:self.n_p], z[self.n_p:]
