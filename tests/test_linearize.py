@@ -161,3 +161,27 @@ def test_linearize_takes_a_plant_and_writes_plain_numbers(tmp_path):
                          timeout=300)
     assert bad.returncode == 2 and "--plant" in bad.stderr and "tower" in bad.stderr
     assert len(bad.stderr.strip().splitlines()) == 1 and not (tmp_path / "bad").exists()
+
+
+def test_linearize_reads_a_design_from_config_and_refuses_what_it_cannot_use(tmp_path):
+    """--config: the controller, plant and controller_params of a run configuration (the
+    physical AFTC's observer here; its two states are in the linear model); a key that has
+    no meaning for a loop in constant wind is refused, naming it."""
+    cfg = tmp_path / "obs.toml"
+    cfg.write_text('controller = "physical"\nplant = "tower_edge"\n'
+                   '[controller_params]\nphys_obs_omega = 6.0\n')
+    out = tmp_path / "lin"
+    done = subprocess.run([sys.executable, "-m", "wtftc.cli", "linearize", "--config",
+                           str(cfg), "--winds", "16", "--out", str(out), "--quiet"],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    m = np.load(out / "linear_16mps.npz")
+    assert m["A_c"].shape[0] == 5  # three weights, ω̂_r and η
+    assert np.any(m["A_cl"][:-2, -2:] != 0)  # the observer's states act on the loop
+    cfg.write_text('controller = "physical"\nt_final_s = 30.0\n')
+    bad = subprocess.run([sys.executable, "-m", "wtftc.cli", "linearize", "--config",
+                          str(cfg), "--out", str(tmp_path / "bad")], capture_output=True,
+                         text=True, timeout=300)
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1
+    assert "t_final_s = 30.0 is not allowed" in bad.stderr and "not read by linearize" in bad.stderr
+    assert not (tmp_path / "bad").exists()
