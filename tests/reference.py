@@ -11,6 +11,7 @@ from functools import cache
 
 import numpy as np
 import sympy as sp
+from sympy.logic.boolalg import ITE
 
 from derivation import backstepping as bs
 from derivation import (
@@ -82,10 +83,19 @@ def magnitude(expr: sp.Expr, memo: dict | None = None) -> sp.Expr:
     return out
 
 
+def _without_ite(e):
+    """ITE(c, a, b) (SymPy's fold of a relation on a Piecewise) as (c ∧ a) ∨ (¬c ∧ b):
+    NumPy's lambdify prints ITE as a select of booleans whose float result another select
+    refuses as a condition."""
+    return sp.sympify(e).replace(
+        lambda x: isinstance(x, ITE),
+        lambda x: sp.Or(sp.And(x.args[0], x.args[1]), sp.And(sp.Not(x.args[0]), x.args[2])))
+
+
 @cache
 def lambdified(key: str, exprs: tuple):
-    syms = sorted(set().union(*[sp.sympify(e).free_symbols for e in exprs]),
-                  key=lambda s: s.name)
+    exprs = tuple(_without_ite(e) for e in exprs)
+    syms = sorted(set().union(*[e.free_symbols for e in exprs]), key=lambda s: s.name)
     return sp.lambdify(syms, list(exprs), modules="numpy", cse=True), [s.name for s in syms]
 
 

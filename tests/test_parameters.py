@@ -12,7 +12,7 @@ import pytest
 
 from wtftc.artefacts import layout as lay
 from wtftc.campaign.cases import run
-from wtftc.config import make_config
+from wtftc.config import CONTROLLER_FLAGS, make_config
 from wtftc.results.metrics import metrics
 from wtftc.sim.rhs import controllers
 
@@ -116,6 +116,9 @@ def test_each_controllers_parameters_change_its_run(controller):
     raw = {**SCENARIOS["above"], "controller": controller}
     changed = {n: (0.9 if "pitch_max" in n else 1.1) * v if v else 0.05  # within ±90°
                for n, v in zip(lay.names(group), lay.defaults(group), strict=True)}
+    # a switch (0 or 1) is flipped
+    changed |= {n: 1.0 - v for n, v in zip(lay.names(group), lay.defaults(group), strict=True)
+                if n in CONTROLLER_FLAGS}
     changed = {n: v for n, v in changed.items()
                if not n.startswith(("rho_hat", "lock_hat", "ubar_hat", "control_sign"))}
     base, _ = _outcome(raw)
