@@ -91,14 +91,21 @@ WINDS = {
     "steady_20": {"kind": "constant", "speed_mps": 20.0},
     "ntm_B_12": {"kind": "ntm", "mean_mps": 12.0, "turbulence_class": "B"},
 }
-#: issue 34's options, run when named: the physical AFTC on its speed observer, and the PI
-#: on its low-passed speed (docs/controllers.md)
+#: issue 34's options, run when named: the physical AFTC on its speed observer, the PI on
+#: its low-passed speed, each also with peak shaving (docs/controllers.md)
 ISSUE34 = {
     "physical_obs_fdi": Variant("physical", FDI_CASE, "physical AFTC on its speed observer "
                                 "(ω_o 6 rad/s) with wtftc's own FDI",
                                 params=(("phys_obs_omega", 6.0),)),
     "pi_lpf": Variant("pi", UNAWARE_CASE, "gain-scheduled PI on the rotor speed low-passed "
                       "at 6 rad/s", params=(("pi_lpf_corner", 6.0),)),
+    "physical_obs_ps_fdi": Variant("physical", FDI_CASE, "physical AFTC on its speed observer "
+                                   "(ω_o 6 rad/s) with peak shaving (2° near rated) and "
+                                   "wtftc's own FDI",
+                                   params=(("phys_obs_omega", 6.0), ("phys_ps_pitch", 0.0349))),
+    "pi_lpf_ps": Variant("pi", UNAWARE_CASE, "gain-scheduled PI on the rotor speed low-passed "
+                         "at 6 rad/s, with peak shaving (2° near rated)",
+                         params=(("pi_lpf_corner", 6.0), ("pi_ps_pitch", 0.0349))),
 }
 CONTROLLERS |= ISSUE34
 #: the matrix of a bare `wtftc compare`: what it was before issue 32's measured matrix
