@@ -27,7 +27,7 @@ pushes it further out; or when |θ̂| is at its bound and the update points outw
 for three blades): the free blades get v = (3U - Σ σ̂_j ū_j) / Σ (1 - σ̂_j) ρ̂_j, so that
 the mean of the effective blade inputs is U.
 
-Two options of issue 34 (both off by default: the design above, bit for bit):
+Three options of issue 34 (all off by default: the design above, bit for bit):
 
 * **A speed observer** (``phys_obs_omega`` ω_o > 0). The measured ω_r carries the
   drivetrain mode (1.7 Hz on the NREL 5-MW) and the sensor noise; fed back through z1 and
@@ -46,6 +46,8 @@ Two options of issue 34 (both off by default: the design above, bit for bit):
   outside that argument. ż1 = -c1 z1 + b z2 + L η, the last term the observer's bounded
   error. Off (ω_o = 0), ω̂_r follows ω_r and η decays at 1/s, unused, so that
   ``wtftc linearize`` sees no zero eigenvalue.
+* **Peak shaving** (``phys_ps_pitch`` > 0): the command's lower limit rises from the stop
+  near rated, scheduled on the speed the design regulates (:func:`pitch_floor`).
 * **No actuator model** (``phys_actuator_model`` = 0), for a host whose blades take the
   command as given (OpenFAST's ServoDyn without an actuator, issue 22): relative degree 1,
   U = α1. Inverting a lag τ_a that is not there is what made the design unstable there.
@@ -236,8 +238,7 @@ def freeze_conditions(d: PhysicalDesign, theta_norm2, theta_dot_dir) -> sp.Expr:
     and the update points outward; else 1. The saturation test uses the command computed
     with κ = 1 (U itself contains κ through α̇1)."""
     return design_.freeze(d.U.subs(kappa, 1), beta_mean(), tau_a, pitch_floor(), bmax, rmax,
-                          d.z1,
-                         theta_norm2, theta_dot_dir, th_max, rate_test=with_actuator)
+                          d.z1, theta_norm2, theta_dot_dir, th_max, rate_test=with_actuator)
 
 
 def pitch_floor() -> sp.Expr:
