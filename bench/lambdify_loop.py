@@ -161,9 +161,9 @@ class LambdifiedLoop:
         self.design = d
         self.p_names = [e.name for e in physical.PARAMS]
         th2, thdir = sp.Symbol("theta_norm2"), sp.Symbol("theta_dot_dir")
-        # the design without its speed observer, on the actuator model (the defaults): the
-        # switches folded, as a user lambdifying the default design would
-        default = {physical.w_obs: 0, physical.act: 1}
+        # the design without its speed observer and peak shaving, on the actuator model (the
+        # defaults): the switches folded, as a user lambdifying the default design would
+        default = {physical.w_obs: 0, physical.act: 1, physical.ps_pitch: 0}
         kappa = physical.freeze_conditions(d, th2, thdir).subs(default)
         exprs = [d.v_free.subs(default), d.z1.subs(default), kappa]
         syms = sorted(set().union(*[sp.sympify(e).free_symbols for e in exprs])

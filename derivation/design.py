@@ -81,6 +81,33 @@ def freeze(command, beta_mean, tau, pitch_min, pitch_max, rate_max, push, theta_
     return sp.Piecewise((0, sp.Or(sat_out, proj_out)), (1, True))
 
 
+def pitch_floor(pitch_min, ps_pitch, speed, ps_speed, reference) -> sp.Expr:
+    """Peak shaving (issue 34): the command's lower limit, the pitch stop raised near rated.
+
+    Near rated the blades sit at the stop, where the thrust peaks and ∂T/∂β is smallest;
+    in OpenFAST the physical AFTC and the PI limit-cycle there with the tower (0.25 Hz,
+    the pitch bouncing off the stop; docs/controllers.md). ROSCO raises its floor with an
+    estimated wind (PS_Mode). Without a wind estimate the floor is scheduled on the speed
+    the design regulates: below rated the torque law holds the rotor at λ* (ω_r ∝ v) up to
+    region 2½, so the floor is the stop there (no loss of Cp), and it rises linearly from
+    ``ps_speed`` to ``ps_pitch`` above the stop at the reference speed, and stays."""
+    rise = sp.Min(sp.Max((speed - ps_speed) / (reference - ps_speed), 0), 1)
+    return pitch_min + ps_pitch * rise
+
+
+def peak_shaving_params(prefix: str) -> list[Entry]:
+    """The two parameters of :func:`pitch_floor`, off by default."""
+    return [
+        Entry(f"{prefix}_ps_pitch", 0.0, "rad",
+              "peak shaving: the pitch floor above the stop at the reference speed, rising "
+              f"from the stop at {prefix}_ps_speed; 0: none (as before issue 34)",
+              sample=(0.0, 0.05)),
+        Entry(f"{prefix}_ps_speed", nrel5mw.RATED_SPEED / 1.1, "rad/s",
+              "peak shaving: the rotor speed from which the floor rises (the torque law's "
+              "region 2½ starts at ω_rated/(1 + slip), slip 10 %: Jonkman 2009)"),
+    ]
+
+
 def actuator_and_fuzzy_params(prefix: str) -> list[Entry]:
     """The parameters a pitch backstepping design shares: the actuator model and limits
     its anti-windup tests, and the memberships of its f̂(ω_r)."""

@@ -27,7 +27,7 @@ pushes it further out; or when |θ̂| is at its bound and the update points outw
 for three blades): the free blades get v = (3U - Σ σ̂_j ū_j) / Σ (1 - σ̂_j) ρ̂_j, so that
 the mean of the effective blade inputs is U.
 
-Two options of issue 34 (both off by default: the design above, bit for bit):
+Three options of issue 34 (all off by default: the design above, bit for bit):
 
 * **A speed observer** (``phys_obs_omega`` ω_o > 0). The measured ω_r carries the
   drivetrain mode (1.7 Hz on the NREL 5-MW) and the sensor noise; fed back through z1 and
@@ -46,6 +46,8 @@ Two options of issue 34 (both off by default: the design above, bit for bit):
   outside that argument. ż1 = -c1 z1 + b z2 + L η, the last term the observer's bounded
   error. Off (ω_o = 0), ω̂_r follows ω_r and η decays at 1/s, unused, so that
   ``wtftc linearize`` sees no zero eigenvalue.
+* **Peak shaving** (``phys_ps_pitch`` > 0): the command's lower limit rises from the stop
+  near rated, scheduled on the speed the design regulates (:func:`pitch_floor`).
 * **No actuator model** (``phys_actuator_model`` = 0), for a host whose blades take the
   command as given (OpenFAST's ServoDyn without an actuator, issue 22): relative degree 1,
   U = α1. Inverting a lag τ_a that is not there is what made the design unstable there.
@@ -98,15 +100,16 @@ PARAMS = [
           "0: none, the measured ω_r (as before issue 34)", sample=(3.0, 9.0)),
     Entry("phys_obs_zeta", 0.7, "-", "damping ratio ζ_o of the speed observer",
           sample=(0.5, 1.0)),
+    *design_.peak_shaving_params("phys"),
     Entry("phys_actuator_model", 1.0, "-",
           "1: the design inverts the first-order actuator τ_a; 0: none (a host whose "
           "blades take the command as given): U = α1", sample=(1.0, 1.0)),
 ]
 (c1, c2, gam, sig, th_max, J, T_g, tau_a, bmin, bmax, gmin, rmax, w_obs, z_obs,
- act) = sp.symbols(
+ act, ps_pitch, ps_speed) = sp.symbols(
     "phys_c1 phys_c2 phys_gamma phys_sigma phys_theta_max phys_inertia phys_gen_torque "
     "phys_tau_a phys_pitch_min phys_pitch_max phys_dTdbeta_min phys_rate_max phys_obs_omega "
-    "phys_obs_zeta phys_actuator_model", real=True)
+    "phys_obs_zeta phys_actuator_model phys_ps_pitch phys_ps_speed", real=True)
 observing = w_obs > 0
 L_obs = w_obs / (2 * z_obs)  # the innovation's gain into ω̂̇_r
 L_eta = 2 * z_obs * w_obs  # the innovation filter's corner
@@ -157,7 +160,7 @@ def chain() -> PhysicalDesign:
                         (beta_mean() - measured["alpha1"], True)).subs(b_sym, d.b)
     d.U = sp.Piecewise((observed["U"].subs(b_sym, d.b), sp.And(observing, with_actuator)),
                        (measured["U"].subs(b_sym, d.b), with_actuator), (d.alpha1, True))
-    u_clip = sp.Min(sp.Max(d.U, bmin), bmax)
+    u_clip = sp.Min(sp.Max(d.U, pitch_floor()), bmax)
     d.v_free = design_.free_blade_command(u_clip)
     return d
 
@@ -234,8 +237,14 @@ def freeze_conditions(d: PhysicalDesign, theta_norm2, theta_dot_dir) -> sp.Expr:
     """κ = 0 when the command is saturated and z1 pushes it out, or |θ̂| is at its bound
     and the update points outward; else 1. The saturation test uses the command computed
     with κ = 1 (U itself contains κ through α̇1)."""
-    return design_.freeze(d.U.subs(kappa, 1), beta_mean(), tau_a, bmin, bmax, rmax, d.z1,
-                         theta_norm2, theta_dot_dir, th_max, rate_test=with_actuator)
+    return design_.freeze(d.U.subs(kappa, 1), beta_mean(), tau_a, pitch_floor(), bmax, rmax,
+                          d.z1, theta_norm2, theta_dot_dir, th_max, rate_test=with_actuator)
+
+
+def pitch_floor() -> sp.Expr:
+    """The command's lower limit: the stop, raised near rated by peak shaving
+    (:func:`derivation.design.pitch_floor`) on the speed the design regulates."""
+    return design_.pitch_floor(bmin, ps_pitch, speed, ps_speed, yd[0])
 
 
 def initial_residual() -> sp.Expr:

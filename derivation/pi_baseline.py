@@ -21,13 +21,17 @@ F_LPFType 1, F_LPFCornerFreq 1.5708 rad/s on the NREL 5-MW):
 so that the drivetrain mode (1.7 Hz on the NREL 5-MW with its flexible blades,
 docs/validation.md) and the sensor noise reach the pitch attenuated. ω_c = 0 (the default)
 is no filter: e = ω_r - ω_ref, the PI as it was before issue 34, bit for bit.
+
+Peak shaving (issue 34, ``pi_ps_pitch``, off by default): the command's lower limit rises
+near rated from the stop to the stop + ``pi_ps_pitch``, on the speed the PI regulates
+(:func:`derivation.design.pitch_floor`); the anti-windup reads that floor.
 """
 
 from __future__ import annotations
 
 import sympy as sp
 
-from derivation import nrel5mw
+from derivation import design, nrel5mw
 from derivation.design import ControllerDesign
 from derivation.layout import N_BLADES, Entry
 
@@ -56,10 +60,11 @@ PARAMS = [
     Entry("pi_lpf_corner", 0.0, "rad/s",
           "corner frequency ω_c of the first-order low-pass filter on the rotor speed; "
           "0: no filter (ROSCO NREL5MW F_LPFCornerFreq: 1.5708)", sample=(0.5, 6.0)),
+    *design.peak_shaving_params("pi"),
 ]
-wn, zeta, J, bmin, bmax, gmin, wc = sp.symbols(
-    "pi_omega_n pi_zeta pi_inertia pi_pitch_min pi_pitch_max pi_dTdbeta_min pi_lpf_corner",
-    real=True)
+wn, zeta, J, bmin, bmax, gmin, wc, ps_pitch, ps_speed = sp.symbols(
+    "pi_omega_n pi_zeta pi_inertia pi_pitch_min pi_pitch_max pi_dTdbeta_min pi_lpf_corner "
+    "pi_ps_pitch pi_ps_speed", real=True)
 
 
 def derive() -> ControllerDesign:
@@ -81,8 +86,9 @@ def law():
     kp = 2 * zeta * wn * J / g
     ki = wn**2 * J / g
     raw = kp * e + x_I
-    cmd = sp.Min(sp.Max(raw, bmin), bmax)
-    saturated_out = sp.Or(sp.And(raw >= bmax, e > 0), sp.And(raw <= bmin, e < 0))
+    floor = design.pitch_floor(bmin, ps_pitch, speed, ps_speed, yd0)  # the stop, or higher
+    cmd = sp.Min(sp.Max(raw, floor), bmax)
+    saturated_out = sp.Or(sp.And(raw >= bmax, e > 0), sp.And(raw <= floor, e < 0))
     xI_dot = sp.Piecewise((0, saturated_out), (ki * e, True))
     return cmd, xI_dot, [e, x_I, kp, ki]
 

@@ -87,7 +87,8 @@ def test_the_matrix_has_every_actuator_fault_type_and_names_the_fdi_variants():
     assert set(compare.FAULTS) == {"none", *ACTUATOR_FAULT_TYPES}
     assert all(tabs[0]["type"] == f for f, tabs in compare.FAULTS.items() if tabs)
     assert [c for c, v in compare.CONTROLLERS.items() if v.uses_fdi] == [
-        "physical_fdi", "drivetrain_fdi", "paper_fdi"]
+        "physical_fdi", "drivetrain_fdi", "paper_fdi", "physical_obs_fdi",
+        "physical_obs_ps_fdi"]
     assert "FDI" in config.CASES[compare.FDI_CASE]
     cfg = compare.cell_config("physical_fdi", "lock", "ntm_B_16", 30.0, 1e-3, 0)
     assert (cfg["controller"], cfg["case"]) == ("physical", compare.FDI_CASE)
@@ -106,3 +107,30 @@ def test_the_paper_with_wtftcs_fdi_runs_on_the_native_engine(tmp_path):
     assert m["fdi"]["faults"][0]["detected"] and m["fdi"]["faults"][0]["isolated_blade"] == 1
     row = (out / "compare.csv").read_text().splitlines()[1].split(",")
     assert row[:3] == ["steady_20", "runaway", "paper_fdi"] and row[-3] != ""  # a delay
+
+
+def test_issue_34s_variants_carry_their_options_and_run_when_named(tmp_path):
+    """physical_obs_fdi and pi_lpf are the physical AFTC on its speed observer and the PI on
+    its filtered speed (the _ps variants add peak shaving): their cells carry the options in
+    [controller_params] (and a cell
+    re-runs alone from its config.toml); the other variants' configurations, hence sweep
+    run ids, carry none. A bare `wtftc compare` does not run them."""
+    from wtftc.campaign import compare
+
+    obs = compare.cell_config("physical_obs_fdi", "lock", "ntm_B_16", 30.0, 1e-3, 0)
+    assert (obs["controller"], obs["case"]) == ("physical", compare.FDI_CASE)
+    assert obs["controller_params"] == {"phys_obs_omega": 6.0}
+    lpf = compare.cell_config("pi_lpf", "none", "ntm_B_16", 30.0, 1e-3, 0)
+    assert lpf["controller_params"] == {"pi_lpf_corner": 6.0}
+    shaved = compare.cell_config("pi_lpf_ps", "none", "ntm_B_16", 30.0, 1e-3, 0)
+    assert shaved["controller_params"] == {"pi_lpf_corner": 6.0, "pi_ps_pitch": 0.0349}
+    assert all("controller_params" not in compare.cell_config(c, "lock", "ntm_B_16", 30.0,
+                                                              1e-3, 0)
+               for c in compare.DEFAULT_CONTROLLERS)
+    assert not set(compare.ISSUE34) & set(compare.DEFAULT_CONTROLLERS)
+    out = tmp_path / "cmp"
+    p = wtftc("compare", "--out", out, "--controllers", "physical_obs_fdi", "--faults",
+              "none", "--winds", "ntm_B_16", "--t-final", 30, "--quiet")
+    assert p.returncode == 0, p.stderr
+    cfg = (out / "ntm_B_16" / "none" / "physical_obs_fdi" / "config.toml").read_text()
+    assert "phys_obs_omega = 6.0" in cfg

@@ -43,6 +43,8 @@ class Variant:
     #: the pitch loop's target mode (ω_n [rad/s], ζ), turned into the controller's own
     #: gains by wtftc.campaign.tune.resolve; None: its default gains (ROSCO: its deck's)
     tuning: tuple[float, float] | None = None
+    #: the design's options other than its defaults, (name, value) of [controller_params]
+    params: tuple[tuple[str, float], ...] = ()
 
     @property
     def uses_fdi(self) -> bool:
@@ -89,9 +91,26 @@ WINDS = {
     "steady_20": {"kind": "constant", "speed_mps": 20.0},
     "ntm_B_12": {"kind": "ntm", "mean_mps": 12.0, "turbulence_class": "B"},
 }
+#: issue 34's options, run when named: the physical AFTC on its speed observer, the PI on
+#: its low-passed speed, each also with peak shaving (docs/controllers.md)
+ISSUE34 = {
+    "physical_obs_fdi": Variant("physical", FDI_CASE, "physical AFTC on its speed observer "
+                                "(ω_o 6 rad/s) with wtftc's own FDI",
+                                params=(("phys_obs_omega", 6.0),)),
+    "pi_lpf": Variant("pi", UNAWARE_CASE, "gain-scheduled PI on the rotor speed low-passed "
+                      "at 6 rad/s", params=(("pi_lpf_corner", 6.0),)),
+    "physical_obs_ps_fdi": Variant("physical", FDI_CASE, "physical AFTC on its speed observer "
+                                   "(ω_o 6 rad/s) with peak shaving (2° near rated) and "
+                                   "wtftc's own FDI",
+                                   params=(("phys_obs_omega", 6.0), ("phys_ps_pitch", 0.0349))),
+    "pi_lpf_ps": Variant("pi", UNAWARE_CASE, "gain-scheduled PI on the rotor speed low-passed "
+                         "at 6 rad/s, with peak shaving (2° near rated)",
+                         params=(("pi_lpf_corner", 6.0), ("pi_ps_pitch", 0.0349))),
+}
+CONTROLLERS |= ISSUE34
 #: the matrix of a bare `wtftc compare`: what it was before issue 32's measured matrix
 #: added paper_fdi and the steady and 12-m/s winds, which run when named (docs/compare.md)
-DEFAULT_CONTROLLERS = tuple(c for c in CONTROLLERS if c != "paper_fdi")
+DEFAULT_CONTROLLERS = tuple(c for c in CONTROLLERS if c != "paper_fdi" and c not in ISSUE34)
 DEFAULT_WINDS = ("paper_random_12", "ntm_B_16", "eog_rated")
 COLUMNS = [
     ("rms_speed_error_rad_s", "RMS ω error [rad/s]", "{:.4f}"),
@@ -173,6 +192,8 @@ def variant_config(controller: str, faults: list | None, wind: dict, t_final: fl
         cfg["fault"] = copy.deepcopy(faults)
     if variant.tuning is not None:  # resolved by the caller, on the run's turbine
         cfg["tuning"] = dict(zip(("omega_n_rad_s", "zeta"), variant.tuning, strict=True))
+    if variant.params:
+        cfg["controller_params"] = dict(variant.params)
     if name != "rosco":
         # ROSCO commands the generator torque itself; every other pitch controller runs with
         # the NREL 5-MW baseline variable-speed torque law (Jonkman 2009, 7.1), so that all

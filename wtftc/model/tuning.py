@@ -31,11 +31,11 @@ def _facts(tp: dict, ref: dict) -> dict[str, float]:
             "k_s": tp["k_s"], "d_s": tp["d_s"], "gearbox_ratio": tp["gearbox_ratio"],
             "tau_b_model": tp["tau_b"], "x_offset_1": tp["omega_g_rated"],
             # a unit of speed or of ∂T/∂β: scaled with the turbine's rated speed, torque
-            "x_scale_1": speed, "dTdbeta_min": torque}
+            "x_scale_1": speed, "dTdbeta_min": torque, "ps_speed": speed}
 
 
 #: roles whose layout default is multiplied by the fact (the others are set to it)
-_SCALED = ("x_scale_1", "dTdbeta_min")
+_SCALED = ("x_scale_1", "dTdbeta_min", "ps_speed")
 #: the controller prefixes of layout names (derivation: phys_, dt_, pi_, fdi_)
 _PREFIXES = ("phys_", "dt_", "pi_", "fdi_")
 
