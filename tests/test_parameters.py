@@ -116,6 +116,9 @@ def test_each_controllers_parameters_change_its_run(controller):
     raw = {**SCENARIOS["above"], "controller": controller}
     changed = {n: (0.9 if "pitch_max" in n else 1.1) * v if v else 0.05  # within ±90°
                for n, v in zip(lay.names(group), lay.defaults(group), strict=True)}
+    # the peak-shaving start stays below the reference speed (refused at or above it)
+    changed |= {n: 0.95 * v for n, v in zip(lay.names(group), lay.defaults(group), strict=True)
+                if n.endswith("_ps_speed")}
     # a switch (0 or 1) is flipped
     changed |= {n: 1.0 - v for n, v in zip(lay.names(group), lay.defaults(group), strict=True)
                 if n in CONTROLLER_FLAGS}

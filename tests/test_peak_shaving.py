@@ -89,3 +89,12 @@ def test_peak_shaving_ends_the_near_rated_limit_cycle_in_openfast(tmp_path):
     assert off["diverged"] is None and on["diverged"] is None
     assert on["tower_base_del_1hz_Nm"] < 0.6 * off["tower_base_del_1hz_Nm"]
     assert on["shaft_torque_del_1hz_Nm"] < off["shaft_torque_del_1hz_Nm"]
+
+
+def test_a_start_speed_at_or_above_the_reference_is_refused_naming_it():
+    """The floor rises between the start speed and the reference: a start at the
+    reference would divide by zero."""
+    with pytest.raises(config.ConfigError) as exc:
+        config.make_config({"controller": "pi", "controller_params": {"pi_ps_speed": REF}})
+    assert exc.value.field == "controller_params.pi_ps_speed"
+    assert "below the reference" in str(exc.value)

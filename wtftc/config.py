@@ -332,6 +332,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     retune = _rosco(raw, turbine)
     p_ctrl, p_turbine = _parameters(raw, controller, turbine)
     ref = _reference(raw, p_turbine)
+    _peak_shaving(raw, p_ctrl, ref)
     table = _cp_table(raw, turbine)
     wind = wind_from_config(_wind_table(raw, p_turbine, table[0]), t_final=t_final, seed=seed)
     wind = _turbsim_wind(wind, turbine, p_turbine, t_final)
@@ -876,6 +877,17 @@ def _control_sign(raw: dict) -> None:
     if isinstance(sign, bool) or not isinstance(sign, numbers.Real) or sign not in (-1, 1):
         raise ConfigError("control_sign", sign, "-1 (corrected, default) or +1 (as written, "
                           "stalls the rotor: paper-notes defect 2)")
+
+
+def _peak_shaving(raw: dict, p_ctrl, ref: float) -> None:
+    """A peak-shaving floor rises from its start speed to the reference speed: the start
+    must lie below the reference (derivation/design.py pitch_floor)."""
+    group = rhs.controllers()[raw["controller"]]["params"]
+    for name in (n for n in lay.names(group) if n.endswith("_ps_speed")):
+        val = float(p_ctrl[lay.index(group, name)])
+        if val >= ref:
+            raise ConfigError(f"controller_params.{name}", val, f"a speed below the "
+                              f"reference (here {ref:g} rad/s): the floor rises between them")
 
 
 def _reference(raw: dict, p_turbine) -> float:
