@@ -156,3 +156,23 @@ def test_the_command_runs_blas_on_one_thread_unless_told_otherwise():
     out = subprocess.run([sys.executable, "-c", code], env={**env, "OPENBLAS_NUM_THREADS": "3"},
                          capture_output=True, text=True, check=True).stdout.strip()
     assert out == "3"
+
+
+@pytest.mark.parametrize("argv, module, extra", [
+    (["linearize", "--out", "x"], "control", "linear"),
+    (["turbine", "tune", "--omega-n", "1", "--zeta", "0.7", "--out", "x.toml"], "control",
+     "linear"),
+    (["sweep", "sweep.toml", "--out", "x"], "distributed", "sweep")])
+def test_a_missing_extra_is_one_line_naming_it_and_its_pip_line(argv, module, extra,
+                                                                 monkeypatch, capsys, tmp_path):
+    """An optional dependency that is not installed: exit 2, one line that names the
+    command, the package and the pip line, nothing written."""
+    from wtftc import cli
+
+    monkeypatch.setitem(sys.modules, module, None)  # import fails as if not installed
+    monkeypatch.chdir(tmp_path)
+    code = cli.main(argv)
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert "which is not installed: pip install 'wtftc[" + extra + "]'" in err, err
+    assert "is not allowed" not in err and not list(tmp_path.iterdir())

@@ -26,7 +26,7 @@ from pathlib import Path  # noqa: E402
 
 from wtftc import __version__  # noqa: E402
 from wtftc.artefacts.loader import GeneratedArtefactError  # noqa: E402
-from wtftc.errors import ConfigError, EngineError  # noqa: E402
+from wtftc.errors import ConfigError, EngineError, MissingExtra  # noqa: E402
 
 
 class _Parser(argparse.ArgumentParser):
@@ -485,8 +485,7 @@ def _cmd_sweep(args) -> int:
     try:
         import distributed  # noqa: F401
     except ImportError:
-        raise ConfigError("sweep", "Dask distributed", "installed: pip install "
-                          "'wtftc[sweep]' (dask and distributed)") from None
+        raise MissingExtra("wtftc sweep", "Dask", "sweep", "dask and distributed") from None
     from wtftc.campaign import sweep
 
     if args.summary is not None:
@@ -714,8 +713,8 @@ def _turbine_tune(args) -> int:
     try:
         import control  # noqa: F401
     except ImportError:
-        raise ConfigError("tune", "python-control", "installed: pip install "
-                          "'wtftc[linear]' (the control package)") from None
+        raise MissingExtra("wtftc turbine tune", "python-control", "linear",
+                           "the control package") from None
     from wtftc import config
     from wtftc.campaign import tune
     from wtftc.files import check_new_file, write_files_together
@@ -803,8 +802,8 @@ def _cmd_linearize(args) -> int:
     try:
         import control  # noqa: F401
     except ImportError:
-        raise ConfigError("linearize", "python-control", "installed: pip install "
-                          "'wtftc[linear]' (the control package)") from None
+        raise MissingExtra("wtftc linearize", "python-control", "linear",
+                           "the control package") from None
     from wtftc import config
     from wtftc.campaign import linearize
     from wtftc.files import check_out_folder

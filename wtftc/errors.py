@@ -16,6 +16,17 @@ class ConfigError(ValueError):
         super().__init__(f"{loc}{field} = {value!r} is not allowed: {allowed}")
 
 
+class MissingExtra(ConfigError):
+    """A command or option needs an optional dependency that is not installed: one line
+    naming it and the pip line that installs it (exit code 2, as any refusal)."""
+
+    def __init__(self, field: str, needs: str, extra: str, what: str = ""):
+        self.field, self.value, self.where = field, needs, None
+        self.allowed = f"pip install 'wtftc[{extra}]'"
+        ValueError.__init__(self, f"{field} needs {needs}{f' ({what})' if what else ''}, "
+                                  f"which is not installed: {self.allowed}")
+
+
 def range_text(low: float, high: float, low_open: bool, high_open: bool,
                unit: str = "") -> str:
     """What a range allows, as every refusal says it: 'a number > 0 [m]', 'a number in

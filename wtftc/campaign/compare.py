@@ -20,7 +20,7 @@ import numpy as np
 from wtftc import config
 from wtftc.artefacts import layout as lay
 from wtftc.campaign import cases, cluster, tune
-from wtftc.errors import ConfigError
+from wtftc.errors import ConfigError, MissingExtra
 from wtftc.files import owned_folder
 from wtftc.model import turbine_file
 from wtftc.openfast.turbsim import ensure_field
@@ -338,8 +338,8 @@ def _on_dask(engine: str, workers: int | None, scheduler: str | None) -> bool:
             import distributed  # noqa: F401
         except ImportError:
             if engine != "openfast" or workers is not None:
-                raise ConfigError("--workers", workers, "Dask installed: pip install "
-                                  "'wtftc[sweep]' (dask and distributed)") from None
+                raise MissingExtra("--workers", "Dask", "sweep",
+                                   "dask and distributed") from None
             print("note: Dask is not installed (pip install 'wtftc[sweep]'): the cells run "
                   "one after the other", flush=True)
             return False

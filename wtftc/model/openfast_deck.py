@@ -31,7 +31,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-from wtftc.errors import ConfigError, range_text
+from wtftc.errors import ConfigError, MissingExtra, range_text
 from wtftc.files import read_user_text
 
 #: the largest deck file read (ElastoDyn files are ~20 kB, a BeamDyn blade ~0.1 MB)
@@ -86,8 +86,7 @@ def _reader_class():
     try:
         from openfast_io.FAST_reader import InputReader_OpenFAST
     except ImportError as exc:
-        raise ConfigError("--openfast", "openfast-io", "installed: pip install "
-                          f"'wtftc[import]' ({exc})") from None
+        raise MissingExtra("--openfast", "openfast-io", "import", str(exc)) from None
 
     class Reader(InputReader_OpenFAST):
         """openfast-io's reader without its output-channel tree (a deep copy of ~10^4
