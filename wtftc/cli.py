@@ -784,9 +784,10 @@ def _add_linearize(sub) -> None:
                     "linearize.png/pdf into --out. Needs python-control: pip install "
                     "'wtftc[linear]'.",
         epilog="Example: wtftc linearize --controller pi --turbine iea15mw --winds 12 16 20")
-    k.add_argument("--config", help="TOML configuration: its controller, turbine, plant, "
-                   "controller_params and turbine_params (a design's options, e.g. "
-                   "phys_obs_omega); the flags below override it")
+    k.add_argument("--config", help="TOML run configuration (a saved run's config.toml "
+                   "too): its controller, turbine, plant, controller_params and "
+                   "turbine_params (a design's options, e.g. phys_obs_omega) are used, the "
+                   "rest named in a note; the flags below override it")
     k.add_argument("--controller",
                    help="the registered controller (default physical)")
     k.add_argument("--turbine", help=TURBINE_HELP)
@@ -829,29 +830,31 @@ def _cmd_linearize(args) -> int:
 
 
 #: what `wtftc linearize --config` reads (the rest of a run's configuration has no meaning
-#: for a loop linearized in constant wind with exact sensors)
+#: for a loop linearized at rest in constant wind with exact sensors: named in a note)
 LINEARIZE_KEYS = ("controller", "turbine", "plant", "controller_params", "turbine_params",
                   "cp_table")
 
 
 def _linearize_config(args) -> dict:
     """The configuration `wtftc linearize` builds its loop from: --config's keys that mean
-    something there, the flags over them."""
-    from wtftc.config import load_toml
+    something there, the flags over them. The whole file is checked as a run configuration
+    (a saved run's config.toml is welcome; a misspelt key is refused); what a loop at rest
+    in constant wind with exact sensors does not read is named in a note."""
+    from wtftc import config
 
-    cfg = load_toml(args.config, "--config") if args.config else {}
-    extra = sorted(set(cfg) - set(LINEARIZE_KEYS))
-    if extra:
-        raise ConfigError(extra[0], cfg[extra[0]], "not read by linearize (constant wind, "
-                          "exact sensors, case 1): --config may hold "
-                          + ", ".join(LINEARIZE_KEYS))
-    raw = {k: cfg[k] for k in LINEARIZE_KEYS if k in cfg}
-    raw.setdefault("controller", "physical")
+    cfg = config.load_toml(args.config, "--config") if args.config else {}
     if args.controller is not None:
-        raw["controller"] = args.controller
+        cfg["controller"] = args.controller
     if args.turbine:
-        raw["turbine"] = args.turbine
-    return raw
+        cfg["turbine"] = args.turbine
+    cfg.setdefault("controller", "physical")
+    if args.config:
+        config.make_config(dict(cfg))
+    ignored = sorted(k for k in cfg if k not in LINEARIZE_KEYS and k != "label")
+    if ignored and not args.quiet:
+        print(f"note: {args.config}: linearize reads {', '.join(LINEARIZE_KEYS)}; not used "
+              f"here: {', '.join(ignored)}")
+    return {k: cfg[k] for k in LINEARIZE_KEYS if k in cfg}
 
 
 def _plant(name: str, flag: str, plants=None, why: str = "") -> str:
