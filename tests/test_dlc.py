@@ -199,3 +199,19 @@ def test_against_rosco_compares_over_the_bins_both_kept():
     ratio = ((p8 + 16 * p16) / (p8 + p16)) ** 0.25
     assert float(cells[2]) == pytest.approx(ratio, abs=0.005)
     assert cells[3:] == ["1.00", "1.00", "+0.00"]
+
+
+def test_the_openfast_dlc_examples_list_what_their_headers_say():
+    """examples/dlc12_openfast.toml and dlc21_openfast.toml (issue 34) expand to the run
+    counts their headers give (ROSCO's, optional, aside), every run in OpenFAST, issue
+    34's variants with their options."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent / "examples"
+    for name, n_runs in (("dlc12_openfast.toml", 110), ("dlc21_openfast.toml", 192)):
+        runs, _ = sweep.expand(sweep.load_sweep(root / name))
+        assert len([r for r in runs if r["controller"] != "rosco"]) == n_runs, name
+        assert all(r["config"]["engine"] == "openfast" for r in runs)
+        shaved = [r for r in runs if r["controller"] == "physical_obs_ps_fdi"]
+        assert shaved and all(r["config"]["controller_params"]["phys_ps_pitch"] == 0.0349
+                              for r in shaved)
