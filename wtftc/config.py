@@ -332,7 +332,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     retune = _rosco(raw, turbine)
     p_ctrl, p_turbine = _parameters(raw, controller, turbine)
     ref = _reference(raw, p_turbine)
-    _peak_shaving(raw, p_ctrl, ref)
+    _peak_shaving(controller, p_ctrl, ref)
     table = _cp_table(raw, turbine)
     wind = wind_from_config(_wind_table(raw, p_turbine, table[0]), t_final=t_final, seed=seed)
     wind = _turbsim_wind(wind, turbine, p_turbine, t_final)
@@ -879,10 +879,11 @@ def _control_sign(raw: dict) -> None:
                           "stalls the rotor: paper-notes defect 2)")
 
 
-def _peak_shaving(raw: dict, p_ctrl, ref: float) -> None:
+def _peak_shaving(controller: str, p_ctrl, ref: float) -> None:
     """A peak-shaving floor rises from its start speed to the reference speed: the start
-    must lie below the reference (derivation/design.py pitch_floor)."""
-    group = rhs.controllers()[raw["controller"]]["params"]
+    must lie below the reference (derivation/design.py pitch_floor). ``controller``: the
+    registered one (ROSCO's is "external")."""
+    group = rhs.controllers()[controller]["params"]
     for name in (n for n in lay.names(group) if n.endswith("_ps_speed")):
         val = float(p_ctrl[lay.index(group, name)])
         if val >= ref:
