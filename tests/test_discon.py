@@ -184,6 +184,11 @@ BAD_FILES = {
     "no value": (lambda ls: _set(ls, "phys_c1", ""), "phys_c1 has no value"),
     "twice": (lambda ls: ls + ["phys_c1 3.0"], "phys_c1 is set twice"),
     "not finite": (lambda ls: _set(ls, "phys_c1", "nan"), "not finite"),
+    # issue 34's options, checked as wtftc.config checks them
+    "half a switch": (lambda ls: _set(ls, "phys_actuator_model", "0.5"),
+                      "phys_actuator_model"),
+    "floor from above the reference": (lambda ls: _set(ls, "phys_ps_speed", "1.3"),
+                                       "phys_ps_speed"),
 }
 
 

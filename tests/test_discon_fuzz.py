@@ -201,6 +201,8 @@ def _verdict(controller: str, lines: list[str], name: str, token: str) -> str | 
         return "not finite"
     values = {n: float(v) for n, (_, v) in _values(lines).items()}
     values[name] = value
+    if name == discon.DEMAND_RATE_LIMIT:  # the library's own setting: a switch
+        return None if value in (0.0, 1.0) else "demand_rate_limit"
     groups = discon._groups(controller)
     group = next(g for g in groups.values() if name in lay.names(g))
     vec = np.array([values[n] for n in lay.names(group)])
@@ -214,6 +216,8 @@ def _verdict(controller: str, lines: list[str], name: str, token: str) -> str | 
                     return "pitch order"
             if "control_sign" in vals and vals["control_sign"] not in (-1.0, 1.0):
                 return "control_sign"
+            if any(vals[f] not in (0.0, 1.0) for f in config.CONTROLLER_FLAGS if f in vals):
+                return "a switch"
         elif group == "sensor_params":
             config.check_ranges(group, vec, "sensors")
         elif group == "fdi_params":
@@ -231,6 +235,8 @@ def _verdict(controller: str, lines: list[str], name: str, token: str) -> str | 
                 return "pitch order"
     except ConfigError as exc:
         return str(exc)
+    if any(values[n] >= values["yd_0"] for n in values if n.endswith("_ps_speed")):
+        return "peak shaving's start speed"
     env = lay.layout()["envelope"]
     if not (env["stall_under_rated"] * values["omega_g_rated"] < values["yd_0"]
             < env["overspeed_over_rated"] * values["omega_g_rated"]):

@@ -84,9 +84,9 @@ def checks(rc: config.RunConfig, groups: dict[str, str]) -> dict:
     from the layout's ``valid`` ranges (the ones wtftc.config checks) and, for the FDI,
     :func:`fdi_facts`, :data:`FDI_FROM_CONFIG` and the layout's ``valid`` of the FDI's own
     constants (derivation/fdi.py FDI_VALID); ``order``, pairs (low, high) that must
-    increase strictly (wtftc.config.TURBINE_ORDER and every ``*pitch_min`` <
-    ``*pitch_max``); ``one_of``, (name, (a, b), allowed) (the turbine's flags, the control
-    sign); ``envelope``, the
+    increase strictly (wtftc.config.TURBINE_ORDER, every ``*pitch_min`` < ``*pitch_max``
+    and ``*_ps_speed`` < ``yd_0``); ``one_of``, (name, (a, b), allowed) (the turbine's
+    and the controller's switches, the control sign); ``envelope``, the
     reference and the rated speed it must stay near (layout.json envelope, as
     wtftc.config checks the reference)."""
     facts = fdi_facts(rc)
@@ -106,9 +106,13 @@ def checks(rc: config.RunConfig, groups: dict[str, str]) -> dict:
     order += [(n, n.replace("pitch_min", "pitch_max")) for n in names
               if n.endswith("pitch_min") and n.replace("pitch_min", "pitch_max") in names
               and (n, n.replace("pitch_min", "pitch_max")) not in order]
+    # peak shaving's floor rises between its start speed and the reference (wtftc.config)
+    order += [(n, "yd_0") for n in names if n.endswith("_ps_speed") and "yd_0" in names]
     one_of = [(f, (0.0, 1.0), "0 or 1 (docs/running.md)") for f in config.TURBINE_FLAGS]
     one_of.append((DEMAND_RATE_LIMIT, (0.0, 1.0), "0 (a host with the benchmark pitch "
                    "actuator) or 1 (a host without one; docs/discon.md)"))
+    one_of += [(f, (0.0, 1.0), "0 or 1 (docs/controllers.md)") for f in config.CONTROLLER_FLAGS
+               if f in names]
     if "control_sign" in names:  # wtftc.config._control_sign
         one_of.append(("control_sign", (-1.0, 1.0), "-1 (corrected, default) or +1 (as "
                        "written, stalls the rotor: paper-notes defect 2)"))
