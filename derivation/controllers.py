@@ -27,7 +27,7 @@ from types import ModuleType
 import casadi as ca
 import sympy as sp
 
-from derivation import drivetrain, physical, pi_baseline
+from derivation import drivetrain, paper_design, physical, pi_baseline
 from derivation import fdi as fdi_module
 from derivation import layout as lay
 from derivation.casadi_build import FuzzyEvaluator, Translator, joint_cse
@@ -78,22 +78,6 @@ def _source(module: ModuleType) -> str:
         return path.name
 
 
-def _paper(sym: dict, controller_fn: ca.Function) -> dict:
-    """The paper's design (eqs (21)-(49)) behind the uniform signature."""
-    p = sym["p_ctrl"]
-    i0 = [e.name for e in lay.CONTROLLER_PARAMS].index("rho_hat_1")
-    kf = sym["known_fault"]
-    p_eff = ca.vertcat(p[:i0], kf, p[i0 + kf.numel():])
-    out = controller_fn(x_ctrl=sym["x_ctrl"], y=sym["meas"][0], yd=sym["yd"], p_ctrl=p_eff)
-    meas = sym["meas"]
-    beta_mean = ca.sum1(meas[2:]) / lay.N_BLADES
-    # observer at rest on what is measured: x̂ = [ω_r, 0, ω_r, β̄], weights zero
-    n_w = len(lay.CONTROLLER_STATES) - lay.N_CHAIN
-    x0 = ca.vertcat(meas[0], 0, meas[0], beta_mean, ca.DM.zeros(n_w))
-    return {"v": out["v"], "x_ctrl_dot": out["x_ctrl_dot"], "u0": out["u0"],
-            "diag": sym["x_ctrl"][:4], "x0": x0}
-
-
 def design_translator(module, sym: dict) -> tuple[Translator, object]:
     """SX for every symbol a :class:`derivation.design.ControllerDesign` may use (bound by
     name at the uniform inputs, plus any extra SX in ``sym`` such as true rates for the
@@ -112,10 +96,11 @@ def design_translator(module, sym: dict) -> tuple[Translator, object]:
     tr = Translator(names)
     for s, e in d.signals:
         tr.symbols[s.name] = tr(e)
-    if d.rule_base is not None:
+    bases, groups = d.fuzzy_systems()
+    if bases:
         fz = FuzzyEvaluator(ca.vertcat(*[tr.symbols[n] for n in d.fuzzy_inputs]), params,
-                            [ca.vertcat(*[states[w] for w in d.weights])])
-        tr.symbols.update(fz.symbol_values([d.rule_base]))
+                            [ca.vertcat(*[states[w] for w in g]) for g in groups])
+        tr.symbols.update(fz.symbol_values(bases))
     for s, e in d.intermediates:
         tr.symbols[s.name] = tr(e)
     return tr, d
@@ -125,7 +110,9 @@ def from_design(module) -> Callable:
     """The build function of a controller derived as a ControllerDesign."""
     def build(sym: dict) -> dict:
         tr, d = design_translator(module, sym)
-        return {"v": ca.repmat(tr(d.v), lay.N_BLADES, 1),
+        v = (ca.vertcat(*[tr(e) for e in d.v]) if isinstance(d.v, list)
+             else ca.repmat(tr(d.v), lay.N_BLADES, 1))
+        return {"v": v,
                 "x_ctrl_dot": ca.vertcat(*[tr(e) for e in d.x_dot]), "u0": tr(d.u0),
                 "diag": ca.vertcat(*[tr(e) for e in d.diag]),
                 "x0": ca.vertcat(*[tr(e) for e in d.x0])}
@@ -149,8 +136,11 @@ def _external(sym: dict) -> dict:
 REGISTRY: dict[str, Controller] = {
     "paper": Controller(
         "paper", "Bakhshi & Alfi (2020) observer-based adaptive fuzzy backstepping, eq (49)",
-        lay.CONTROLLER_STATES, lay.CONTROLLER_PARAMS, "controller_states",
-        "controller_params", [(e.name, e.unit) for e in lay.CONTROLLER_STATES[:N_DIAG]], None,
+        paper_design.STATES, paper_design.PARAMS, "controller_states", "controller_params",
+        [(e.name, e.unit) for e in lay.CONTROLLER_STATES[:N_DIAG]],
+        from_design(paper_design),
+        (_source(paper_design), "derivation/design.py", "derivation/backstepping.py",
+         "derivation/observer.py"), paper_design,
         # the least-squares window stays 2 s after a detection: eq (49) divides by ρ̂, and
         # the estimates of the shorter window (0.5 s) doubled this design's RMS speed error
         # after the default fault at 16 m/s, realistic profile (0.024 to 0.048 rad/s;
@@ -177,7 +167,7 @@ REGISTRY: dict[str, Controller] = {
 }
 
 
-def build(controller_fn: ca.Function) -> list[ca.Function]:
+def build() -> list[ca.Function]:
     """ctrl_<name> and init_<name> for every registered controller."""
     out = []
     for c in REGISTRY.values():
@@ -187,7 +177,7 @@ def build(controller_fn: ca.Function) -> list[ca.Function]:
                "sched": ca.SX.sym("sched", len(SCHED)),
                "p_ctrl": ca.SX.sym("p_ctrl", len(c.params)),
                "known_fault": ca.SX.sym("known_fault", len(lay.FAULT_INPUTS))}
-        res = _paper(sym, controller_fn) if c.name == "paper" else c.build(sym)
+        res = c.build(sym)
         ins = ["x_ctrl", "meas", "yd", "sched", "p_ctrl", "known_fault"]
         outs = {"v": res["v"], "x_ctrl_dot": res["x_ctrl_dot"], "u0": res["u0"],
                 "diag": res["diag"]}

@@ -8,7 +8,8 @@ uniform ``ctrl_<name>``/``init_<name>`` functions. The symbols it may use are bo
 * the reference ``yd_0..yd_4`` (y_d and its derivatives), the schedule ``dT_dbeta``;
 * the eq (49) fault estimates ``rho_hat_j``, ``lock_hat_j``, ``ubar_hat_j``;
 * its own states and parameters, by their layout names;
-* the fuzzy symbols L/B/φ of its rule base (inputs: the named measurements);
+* the fuzzy symbols L/B/φ of its rule base (inputs: the named measurements, signals or
+  states), or of several rule bases on nested inputs (the paper's f̂_i(x̂1..x̂i));
 * ``signals``, bound in order before the rule base, so that they may feed it (a filtered
   speed the design uses in place of a measurement);
 * ``intermediates``, bound in order (an anti-windup switch κ used by later expressions).
@@ -26,7 +27,8 @@ from derivation.layout import N_MF, Entry
 
 @dataclass
 class ControllerDesign:
-    v: sp.Expr  # the command of each free blade [rad]
+    #: the command of each free blade [rad], or one command per blade (a list)
+    v: sp.Expr | list[sp.Expr]
     u0: sp.Expr  # the controller's scalar (mean pitch) command [rad]
     x_dot: list[sp.Expr]  # controller state derivatives, in state order
     diag: list[sp.Expr]  # four diagnostics
@@ -36,12 +38,22 @@ class ControllerDesign:
     rule_base: fuzzy.RuleBase | None = None
     fuzzy_inputs: list[str] = field(default_factory=list)
     weights: list[str] = field(default_factory=list)
+    #: several rule bases instead of one: rule base i reads the first i fuzzy inputs
+    #: (triangular regressors) and its weights are weight_groups[i - 1]
+    rule_bases: list[fuzzy.RuleBase] = field(default_factory=list)
+    weight_groups: list[list[str]] = field(default_factory=list)
     signals: list[tuple[sp.Symbol, sp.Expr]] = field(default_factory=list)
     intermediates: list[tuple[sp.Symbol, sp.Expr]] = field(default_factory=list)
     #: named expressions for verification (α_i, α̇_i full and computable, ...), and the
     #: extra inputs they need (true derivatives the controller cannot measure)
     checks: dict[str, sp.Expr] = field(default_factory=dict)
     check_inputs: list[sp.Symbol] = field(default_factory=list)
+
+    def fuzzy_systems(self) -> tuple[list[fuzzy.RuleBase], list[list[str]]]:
+        """The rule bases and their weights' state names, one or several."""
+        if self.rule_base is not None:
+            return [self.rule_base], [self.weights]
+        return self.rule_bases, self.weight_groups
 
 
 N_BLADES = 3

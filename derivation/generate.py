@@ -72,17 +72,8 @@ class Symbols:
         self.y = ca.SX.sym("y")
         self.ydot = ca.SX.sym("ydot")
         self.xhat = self.x_ctrl[: lay.N_CHAIN]
-        self.thetas = self._split(self.x_ctrl[lay.N_CHAIN:])
-        self.thetas_star = self._split(self.theta_star)
-
-    @staticmethod
-    def _split(vec: ca.SX) -> list[ca.SX]:
-        out, k = [], 0
-        for i in range(1, lay.N_CHAIN + 1):
-            n = lay.rule_count(i)
-            out.append(vec[k:k + n])
-            k += n
-        return out
+        self.thetas = lay.split_by_rules(self.x_ctrl[lay.N_CHAIN:])
+        self.thetas_star = lay.split_by_rules(self.theta_star)
 
     def names(self) -> dict[str, ca.SX]:
         out = {}
@@ -477,7 +468,7 @@ def groups() -> list[Group]:
                              "derivation/fuzzy.py"], ctrl_fns),
         Group("turbine", ["derivation/turbine.py", "derivation/plant.py",
                           "derivation/sensors.py"], build_turbine() + build_sensors()),
-        Group("controllers", controllers.sources(), controllers.build(ctrl_fns[0])),
+        Group("controllers", controllers.sources(), controllers.build()),
         Group("fdi", ["derivation/fdi.py", "derivation/turbine.py", "derivation/sensors.py"],
               build_fdi()),
         Group("closed_loop", ["derivation/plant.py", "derivation/backstepping.py",

@@ -55,7 +55,7 @@ Three options of issue 34 (all off by default: the design above, bit for bit):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cache
 
 import sympy as sp
@@ -130,7 +130,7 @@ class PhysicalDesign:
     v_free: sp.Expr = sp.S.Zero
     omega_dot_hat: sp.Expr = sp.S.Zero
     adapt_gain: sp.Expr = sp.S.Zero  # γ z1 (times φ) of the adaptive law
-    raw: list = field(default_factory=list)
+    observer_rate: sp.Expr = sp.S.Zero  # ω̂̇_r of the speed observer
 
 
 def beta_mean() -> sp.Expr:
@@ -149,13 +149,13 @@ def chain() -> PhysicalDesign:
     d.h0 = -T_g / J
     omega_dot_hat = b_sym * beta_mean() + d.h0 + rb.L()
     observer = omega_dot_hat + L_obs * eta
-    measured = _branch(rb, b_sym, omega_r, omega_dot, omega_dot_hat, None)
-    observed = _branch(rb, b_sym, omega_hat, observer, observer, L_obs / c1 * eta)
+    measured = _branch(rb, b_sym, d.h0, omega_r, omega_dot, omega_dot_hat, None)
+    observed = _branch(rb, b_sym, d.h0, omega_hat, observer, observer, L_obs / c1 * eta)
     for name in ("z1", "alpha1", "alpha1_dot_full", "alpha1_dot_comp", "adapt_gain"):
         joined = sp.Piecewise((observed[name], observing), (measured[name], True))
         setattr(d, name, joined.subs(b_sym, d.b))
     d.omega_dot_hat = omega_dot_hat.subs(b_sym, d.b)
-    d.raw = [observer.subs(b_sym, d.b)]
+    d.observer_rate = observer.subs(b_sym, d.b)
     d.z2 = sp.Piecewise((beta_mean() - observed["alpha1"], observing),
                         (beta_mean() - measured["alpha1"], True)).subs(b_sym, d.b)
     d.U = sp.Piecewise((observed["U"].subs(b_sym, d.b), sp.And(observing, with_actuator)),
@@ -165,14 +165,14 @@ def chain() -> PhysicalDesign:
     return d
 
 
-def _branch(rb, b_sym, w, rate_full, rate_comp, chi) -> dict:
+def _branch(rb, b_sym, h0, w, rate_full, rate_comp, chi) -> dict:
     """z1, α1, α̇1 (full and computable), the adaptive law's γ χ and U of the design run on
     the speed w (ω_r or ω̂_r) of rate ``rate_full`` (``rate_comp`` what the controller
     computes of it); the weights adapt on χ (z1 if None)."""
     x2 = beta_mean()
     z1 = w - yd[0]
     chi = z1 if chi is None else chi
-    alpha1 = (-c1 * z1 - (-T_g / J) - rb.L() + yd[1]) / b_sym
+    alpha1 = (-c1 * z1 - h0 - rb.L() + yd[1]) / b_sym
     # total derivative along the loop: the speed, y_d, the weights (through L/B), b
     rates = {w: omega_dot, yd[0]: yd[1], yd[1]: yd[2], b_sym: b_dot}
     full = fuzzy.total_derivative(alpha1, rates, rb, [omega_dot], chi, kappa * gam, kappa * sig)
@@ -208,7 +208,7 @@ def derive() -> design_.ControllerDesign:
         v=d.v_free, u0=d.U,
         x_dot=[*[kappa * (d.adapt_gain * d.rule_base.phi(m) - sig * t)
                  for m, t in enumerate(theta)],
-               sp.Piecewise((d.raw[0], observing), (omega_r - omega_hat, True)),
+               sp.Piecewise((d.observer_rate, observing), (omega_r - omega_hat, True)),
                sp.Piecewise((L_eta * (omega_r - omega_hat - eta), observing), (-eta, True))],
         diag=[d.z1, d.z2, d.alpha1, kappa], x0=[*[initial_residual()] * N_MF, omega_r, 0],
         signals=[(speed, sp.Piecewise((omega_hat, observing), (omega_r, True)))],

@@ -330,29 +330,15 @@ def _flat(args, key):
 
 
 def controller_uniform_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
-    """ctrl_<name> / init_<name> of derivation/controllers.py from the SymPy laws."""
-    meas = _flat(args, "meas")
-    if name.endswith("_external"):  # commands held from outside: v = p_ctrl
-        if name.startswith("init"):
-            return {"x_ctrl0": exact([0.0])}
-        v = _flat(args, "p_ctrl")
-        return {"v": exact(v), "x_ctrl_dot": exact([0.0]), "u0": exact([v.mean()]),
-                "diag": exact(np.concatenate([v, [0.0]]))}
+    """ctrl_external / init_external: commands held from outside, v = p_ctrl. (Every other
+    registered controller is a ControllerDesign: :func:`design_reference`.)"""
+    if not name.endswith("_external"):
+        raise KeyError(f"no uniform reference for {name}")
     if name.startswith("init"):
-        n_w = len(dlay.CONTROLLER_STATES) - 4
-        x0 = np.concatenate([[meas[0], 0.0, meas[0], meas[2:].mean()], np.zeros(n_w)])
-        return {"x_ctrl0": exact(x0)}
-    # the paper's design with eq (49) told the known fault
-    a = {"x_ctrl": args["x_ctrl"], "yd": args["yd"]}
-    pc = _flat(args, "p_ctrl").copy()
-    i0 = [e.name for e in dlay.CONTROLLER_PARAMS].index("rho_hat_1")
-    pc[i0:i0 + 9] = _flat(args, "known_fault")
-    a["p_ctrl"] = pc
-    values = named_values(a)
-    values["y"] = float(meas[0])
-    r = controller_reference(values)
-    xc = _flat(args, "x_ctrl")
-    return {"v": r["v"], "x_ctrl_dot": r["x_ctrl_dot"], "u0": r["u0"], "diag": exact(xc[:4])}
+        return {"x_ctrl0": exact([0.0])}
+    v = _flat(args, "p_ctrl")
+    return {"v": exact(v), "x_ctrl_dot": exact([0.0]), "u0": exact([v.mean()]),
+            "diag": exact(np.concatenate([v, [0.0]]))}
 
 
 def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
@@ -469,7 +455,7 @@ def design_reference(cname: str, name: str, args: dict[str, np.ndarray]) -> dict
         return {"x_ctrl0": pair(f"{cname}_x0", d.x0, vals)}
     for sym, e in d.signals:
         vals[sym.name] = float(evaluate(f"{cname}_{sym.name}", [e], vals)[0])
-    if d.rule_base is not None:
+    if d.fuzzy_systems()[0]:
         _fuzzy_values(d, vals)
     for sym, e in d.intermediates:
         vals[sym.name] = float(evaluate(f"{cname}_{sym.name}", [e], vals)[0])
@@ -483,28 +469,35 @@ def design_reference(cname: str, name: str, args: dict[str, np.ndarray]) -> dict
                     vals)
         return {"z_dot": tuple(np.concatenate([rates[k], bdot[k], x_dot[k]]) for k in (0, 1)),
                 "true_rates": true, "meas": exact([vals[n] for n in MEAS])}
-    v = pair(f"{cname}_v", [d.v], vals)
-    return {"v": (np.repeat(v[0], 3), np.repeat(v[1], 3)), "u0": pair(f"{cname}_u0", [d.u0], vals),
+    if isinstance(d.v, list):  # one command per blade
+        v = pair(f"{cname}_v", d.v, vals)
+    else:
+        v = pair(f"{cname}_v", [d.v], vals)
+        v = (np.repeat(v[0], 3), np.repeat(v[1], 3))
+    return {"v": v, "u0": pair(f"{cname}_u0", [d.u0], vals),
             "x_ctrl_dot": x_dot, "diag": pair(f"{cname}_diag", d.diag, vals)}
 
 
 def _fuzzy_values(d, vals: dict) -> None:
-    """The L/B/φ symbols of a design's rule base from the unfactored regressor."""
-    vals["xhat_1"] = vals[d.fuzzy_inputs[0]]  # the reference regressor's input symbol
-    theta = np.array([vals[w] for w in d.weights])
-    for sym, kind in d.rule_base.symbols().items():
-        if kind[0] == "L":
-            vals[sym.name] = float(theta @ dphi(1, kind[1], vals))
-        else:
-            vals[sym.name] = float(dphi(1, kind[1], vals) @ dphi(1, kind[2], vals))
-    phi = dphi(1, (0,), vals)
-    vals.update({sym.name: float(phi[m]) for sym, m in d.rule_base.phi_symbols().items()})
+    """The L/B/φ symbols of a design's rule bases from the unfactored regressor."""
+    for k, n in enumerate(d.fuzzy_inputs):  # the reference regressor's input symbols
+        vals[f"xhat_{k + 1}"] = vals[n]
+    for rb, group in zip(*d.fuzzy_systems(), strict=True):
+        theta = np.array([vals[w] for w in group])
+        for sym, kind in rb.symbols().items():
+            if kind[0] == "L":
+                vals[sym.name] = float(theta @ dphi(rb.i, kind[1], vals))
+            else:
+                vals[sym.name] = float(dphi(rb.i, kind[1], vals) @ dphi(rb.i, kind[2], vals))
+        phi = dphi(rb.i, rb.zero(), vals)
+        vals.update({sym.name: float(phi[m]) for sym, m in rb.phi_symbols().items()})
 
 
 def reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     """SymPy reference (value, scale) of each output of generated function ``name``."""
     for cname in DESIGNS:
-        if name.endswith(f"_{cname}") or name == f"closed_loop_{cname}_model":
+        if name in (f"ctrl_{cname}", f"init_{cname}", f"alpha_{cname}",
+                    f"closed_loop_{cname}_model"):
             return design_reference(cname, name, args)
     if name in ("fdi", "init_fdi"):
         return fdi_reference(name, args)
