@@ -128,6 +128,10 @@ def test_issue_34s_variants_carry_their_options_and_run_when_named(tmp_path):
                                                               1e-3, 0)
                for c in compare.DEFAULT_CONTROLLERS)
     assert not set(compare.ISSUE34) & set(compare.DEFAULT_CONTROLLERS)
+    matched = compare.cell_config("rosco_matched", "lock", "ntm_B_16", 30.0, 1e-3, 0)
+    assert matched["controller"] == "rosco" and matched["case"] == compare.UNAWARE_CASE
+    assert matched["rosco"] == {"omega_pc_rad_s": 0.7, "zeta_pc": 0.85}
+    assert "rosco" not in compare.cell_config("rosco", "lock", "ntm_B_16", 30.0, 1e-3, 0)
     out = tmp_path / "cmp"
     p = wtftc("compare", "--out", out, "--controllers", "physical_obs_fdi", "--faults",
               "none", "--winds", "ntm_B_16", "--t-final", 30, "--quiet")

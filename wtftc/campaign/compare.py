@@ -106,6 +106,12 @@ ISSUE34 = {
     "pi_lpf_ps": Variant("pi", UNAWARE_CASE, "gain-scheduled PI on the rotor speed low-passed "
                          "at 6 rad/s, with peak shaving (2° near rated)",
                          params=(("pi_lpf_corner", 6.0), ("pi_ps_pitch", 0.0349))),
+    # the physical AFTC's dominant pitch-loop mode on its observer with peak shaving:
+    # ω_n 0.60-0.73 rad/s, ζ 0.78-1.0 at 12-24 m/s (wtftc linearize, tower_edge, the
+    # baseline torque law; docs/controllers.md): ROSCO's deck is tuned for 0.6, 0.7
+    "rosco_matched": Variant("rosco", UNAWARE_CASE, "ROSCO 2.10.6 with its pitch PI retuned "
+                             "to the physical AFTC's pitch-loop mode (0.7 rad/s, ζ 0.85)",
+                             tuning=(0.7, 0.85)),
 }
 CONTROLLERS |= ISSUE34
 #: the matrix of a bare `wtftc compare`: what it was before issue 32's measured matrix
