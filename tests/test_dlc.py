@@ -202,16 +202,20 @@ def test_against_rosco_compares_over_the_bins_both_kept():
 
 
 def test_the_openfast_dlc_examples_list_what_their_headers_say():
-    """examples/dlc12_openfast.toml and dlc21_openfast.toml (issue 34) expand to the run
-    counts their headers give (ROSCO's, optional, aside), every run in OpenFAST, issue
+    """examples/dlc12_openfast.toml and dlc21_openfast.toml (issue 34), and their IEA 15-MW
+    twins, expand to the run counts their headers give (ROSCO's, optional, aside), every run in OpenFAST, issue
     34's variants with their options."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent / "examples"
-    for name, n_runs in (("dlc12_openfast.toml", 110), ("dlc21_openfast.toml", 192)):
+    for name, n_runs, turbine in (("dlc12_openfast.toml", 110, None),
+                                  ("dlc21_openfast.toml", 192, None),
+                                  ("dlc12_openfast_iea15mw.toml", 110, "iea15mw"),
+                                  ("dlc21_openfast_iea15mw.toml", 192, "iea15mw")):
         runs, _ = sweep.expand(sweep.load_sweep(root / name))
         assert len([r for r in runs if r["controller"] != "rosco"]) == n_runs, name
         assert all(r["config"]["engine"] == "openfast" for r in runs)
+        assert all(r["config"].get("turbine") == turbine for r in runs), name
         shaved = [r for r in runs if r["controller"] == "physical_obs_ps_fdi"]
         assert shaved and all(r["config"]["controller_params"]["phys_ps_pitch"] == 0.0349
                               for r in shaved)
