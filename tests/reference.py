@@ -77,6 +77,8 @@ def magnitude(expr: sp.Expr, memo: dict | None = None) -> sp.Expr:
         out = sp.Mul(*[magnitude(a, memo) for a in expr.args])
     elif expr.is_Pow and expr.exp.is_Integer and expr.exp > 0:
         out = magnitude(expr.base, memo) ** expr.exp
+    elif isinstance(expr, sp.Piecewise):  # the accuracy of the branch taken
+        out = sp.Piecewise(*[(magnitude(e, memo), c) for e, c in expr.args])
     else:
         out = expr
     memo[expr] = out
