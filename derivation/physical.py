@@ -27,7 +27,7 @@ pushes it further out; or when |θ̂| is at its bound and the update points outw
 for three blades): the free blades get v = (3U - Σ σ̂_j ū_j) / Σ (1 - σ̂_j) ρ̂_j, so that
 the mean of the effective blade inputs is U.
 
-Four options of issue 34 (all off by default: the design above, bit for bit):
+Three options of issue 34 (all off by default: the design above, bit for bit):
 
 * **A speed observer** (``phys_obs_omega`` ω_o > 0). The measured ω_r carries the
   drivetrain mode (1.7 Hz on the NREL 5-MW) and the sensor noise; fed back through z1 and
@@ -51,16 +51,6 @@ Four options of issue 34 (all off by default: the design above, bit for bit):
 * **No actuator model** (``phys_actuator_model`` = 0), for a host whose blades take the
   command as given (OpenFAST's ServoDyn without an actuator, issue 22): relative degree 1,
   U = α1. Inverting a lag τ_a that is not there is what made the design unstable there.
-* **A pitch observer** (``phys_pitch_obs`` L_β > 0, with the actuator model): the design
-  runs on β̂ of the actuator model corrected by the measured mean pitch,
-
-      β̂̇ = (U_c - β̂)/τ_a + L_β (β̄ - β̂)      (U_c: U within the floor and the stop)
-
-  in place of the measured β̄ (z2, U, the observer's b β̄, the anti-windup's rate), so that
-  the pitch sensors' noise reaches the command only through β̂. α1 does not depend on the
-  pitch, so α̇1 is unchanged in form. The design is built on β̄ and on β̂ and the two are
-  joined by one switch at the top, as for the speed observer. Off, β̂ follows β̄ at 1/s,
-  unused.
 """
 
 from __future__ import annotations
@@ -91,9 +81,7 @@ STATES = [*[Entry(f"phys_theta_hat[{m}]", 0.0, "rad/s^2", f"fuzzy weight {m} of 
           Entry("phys_speed_hat", nrel5mw.RATED_SPEED, "rad/s",
                 "the speed observer's rotor speed ω̂_r", sample=(1.1, 1.45)),
           Entry("phys_innovation", 0.0, "rad/s",
-                "the speed observer's filtered innovation η", sample=(-0.02, 0.02)),
-          Entry("phys_pitch_hat", 0.0, "rad", "the pitch observer's mean pitch β̂",
-                sample=(0.0, 0.4))]
+                "the speed observer's filtered innovation η", sample=(-0.02, 0.02))]
 PARAMS = [
     # c1, c2, γ chosen among (1, 4, 0.5), (2, 6, 0.5), (2, 6, 2), (3, 8, 1) on 60 s of NTM
     # class B at 16 m/s: (2, 6, 2) had the lowest RMS speed error (docs/controllers.md)
@@ -116,10 +104,6 @@ PARAMS = [
     Entry("phys_actuator_model", 1.0, "-",
           "1: the design inverts the first-order actuator τ_a; 0: none (a host whose "
           "blades take the command as given): U = α1", sample=(1.0, 1.0)),
-    Entry("phys_pitch_obs", 0.0, "1/s",
-          "gain L_β of the pitch observer the design runs on (the actuator model corrected "
-          "by the measured mean pitch); 0: none, the measured β̄ (as before)",
-          sample=(2.0, 10.0)),
 ]
 (c1, c2, gam, sig, th_max, J, T_g, tau_a, bmin, bmax, gmin, rmax, w_obs, z_obs,
  act, ps_pitch, ps_speed) = sp.symbols(
@@ -130,9 +114,6 @@ observing = w_obs > 0
 L_obs = w_obs / (2 * z_obs)  # the innovation's gain into ω̂̇_r
 L_eta = 2 * z_obs * w_obs  # the innovation filter's corner
 with_actuator = act > sp.Rational(1, 2)
-pitch_hat = sp.Symbol("phys_pitch_hat", real=True)  # the pitch observer's β̂
-L_pitch = sp.Symbol("phys_pitch_obs", real=True)
-pitch_observing = sp.And(L_pitch > 0, with_actuator)  # it models the actuator: only with one
 
 
 @dataclass
@@ -150,10 +131,6 @@ class PhysicalDesign:
     omega_dot_hat: sp.Expr = sp.S.Zero
     adapt_gain: sp.Expr = sp.S.Zero  # γ z1 (times φ) of the adaptive law
     observer_rate: sp.Expr = sp.S.Zero  # ω̂̇_r of the speed observer
-    pitch: sp.Expr = sp.S.Zero  # the mean pitch the design runs on: β̄ measured, or β̂
-    u_clip: sp.Expr = sp.S.Zero  # U within the floor and the stop
-    #: the design on the measured β̄ and on the pitch observer's β̂ (chain() joins them)
-    branches: tuple = ()
 
 
 def beta_mean() -> sp.Expr:
@@ -162,48 +139,37 @@ def beta_mean() -> sp.Expr:
 
 @cache
 def chain() -> PhysicalDesign:
-    """The design on the measured β̄ and on the pitch observer's β̂, joined by one switch
-    at the top (so that the design without the observer is the same expression as before)."""
+    """The design on the measured ω_r, and on the observer's ω̂_r, joined by one switch at
+    the top (so that the design without the observer is the same expression as before)."""
     rb = fuzzy.RuleBase(1)  # f̂: the input x̂_1 of the rule base is the speed used
-    off, on = _speed_chain(rb, beta_mean()), _speed_chain(rb, pitch_hat)
-    d = PhysicalDesign(rule_base=rb, b=off.b, h0=off.h0, branches=(off, on))
-    for name in ("z1", "z2", "alpha1", "alpha1_dot_full", "alpha1_dot_comp", "adapt_gain",
-                 "U", "u_clip", "v_free", "omega_dot_hat", "observer_rate", "pitch"):
-        a, b = getattr(on, name), getattr(off, name)
-        setattr(d, name, a if a == b else sp.Piecewise((a, pitch_observing), (b, True)))
-    return d
-
-
-def _speed_chain(rb, x2) -> PhysicalDesign:
-    """The design on the mean pitch x2: on the measured ω_r, and on the speed observer's
-    ω̂_r, joined by one switch at the top."""
-    d = PhysicalDesign(rule_base=rb, pitch=x2)
+    d = PhysicalDesign(rule_base=rb)
     g = -sp.Max(-dT_dbeta, gmin)  # G ≤ -gmin < 0 above rated
     b_sym = sp.Symbol("b_sched", real=True)  # b as a symbol: its rate is b_dot
     d.b = g / J
     d.h0 = -T_g / J
-    omega_dot_hat = b_sym * x2 + d.h0 + rb.L()
+    omega_dot_hat = b_sym * beta_mean() + d.h0 + rb.L()
     observer = omega_dot_hat + L_obs * eta
-    measured = _branch(rb, b_sym, d.h0, x2, omega_r, omega_dot, omega_dot_hat, None)
-    observed = _branch(rb, b_sym, d.h0, x2, omega_hat, observer, observer, L_obs / c1 * eta)
+    measured = _branch(rb, b_sym, d.h0, omega_r, omega_dot, omega_dot_hat, None)
+    observed = _branch(rb, b_sym, d.h0, omega_hat, observer, observer, L_obs / c1 * eta)
     for name in ("z1", "alpha1", "alpha1_dot_full", "alpha1_dot_comp", "adapt_gain"):
         joined = sp.Piecewise((observed[name], observing), (measured[name], True))
         setattr(d, name, joined.subs(b_sym, d.b))
     d.omega_dot_hat = omega_dot_hat.subs(b_sym, d.b)
     d.observer_rate = observer.subs(b_sym, d.b)
-    d.z2 = sp.Piecewise((x2 - observed["alpha1"], observing),
-                        (x2 - measured["alpha1"], True)).subs(b_sym, d.b)
+    d.z2 = sp.Piecewise((beta_mean() - observed["alpha1"], observing),
+                        (beta_mean() - measured["alpha1"], True)).subs(b_sym, d.b)
     d.U = sp.Piecewise((observed["U"].subs(b_sym, d.b), sp.And(observing, with_actuator)),
                        (measured["U"].subs(b_sym, d.b), with_actuator), (d.alpha1, True))
-    d.u_clip = sp.Min(sp.Max(d.U, pitch_floor()), bmax)
-    d.v_free = design_.free_blade_command(d.u_clip)
+    u_clip = sp.Min(sp.Max(d.U, pitch_floor()), bmax)
+    d.v_free = design_.free_blade_command(u_clip)
     return d
 
 
-def _branch(rb, b_sym, h0, x2, w, rate_full, rate_comp, chi) -> dict:
+def _branch(rb, b_sym, h0, w, rate_full, rate_comp, chi) -> dict:
     """z1, α1, α̇1 (full and computable), the adaptive law's γ χ and U of the design run on
     the speed w (ω_r or ω̂_r) of rate ``rate_full`` (``rate_comp`` what the controller
-    computes of it), on the mean pitch x2; the weights adapt on χ (z1 if None)."""
+    computes of it); the weights adapt on χ (z1 if None)."""
+    x2 = beta_mean()
     z1 = w - yd[0]
     chi = z1 if chi is None else chi
     alpha1 = (-c1 * z1 - h0 - rb.L() + yd[1]) / b_sym
@@ -243,12 +209,8 @@ def derive() -> design_.ControllerDesign:
         x_dot=[*[kappa * (d.adapt_gain * d.rule_base.phi(m) - sig * t)
                  for m, t in enumerate(theta)],
                sp.Piecewise((d.observer_rate, observing), (omega_r - omega_hat, True)),
-               sp.Piecewise((L_eta * (omega_r - omega_hat - eta), observing), (-eta, True)),
-               sp.Piecewise(((d.u_clip - pitch_hat) / tau_a
-                             + L_pitch * (beta_mean() - pitch_hat), pitch_observing),
-                            (beta_mean() - pitch_hat, True))],
-        diag=[d.z1, d.z2, d.alpha1, kappa],
-        x0=[*[initial_residual()] * N_MF, omega_r, 0, beta_mean()],
+               sp.Piecewise((L_eta * (omega_r - omega_hat - eta), observing), (-eta, True))],
+        diag=[d.z1, d.z2, d.alpha1, kappa], x0=[*[initial_residual()] * N_MF, omega_r, 0],
         signals=[(speed, sp.Piecewise((omega_hat, observing), (omega_r, True)))],
         intermediates=[(theta_norm2, sum(t**2 for t in theta)),
                        (theta_dot_dir, d.adapt_gain * d.rule_base.L() - sig * theta_norm2),
@@ -275,10 +237,8 @@ def freeze_conditions(d: PhysicalDesign, theta_norm2, theta_dot_dir) -> sp.Expr:
     """κ = 0 when the command is saturated and z1 pushes it out, or |θ̂| is at its bound
     and the update points outward; else 1. The saturation test uses the command computed
     with κ = 1 (U itself contains κ through α̇1)."""
-    off, on = (design_.freeze(br.U.subs(kappa, 1), br.pitch, tau_a, pitch_floor(), bmax,
-                              rmax, br.z1, theta_norm2, theta_dot_dir, th_max,
-                              rate_test=with_actuator) for br in d.branches)
-    return on if on == off else sp.Piecewise((on, pitch_observing), (off, True))
+    return design_.freeze(d.U.subs(kappa, 1), beta_mean(), tau_a, pitch_floor(), bmax, rmax,
+                          d.z1, theta_norm2, theta_dot_dir, th_max, rate_test=with_actuator)
 
 
 def pitch_floor() -> sp.Expr:

@@ -18,12 +18,11 @@ from wtftc.verify import designs
 N_W = len([n for n in lay.names("physical_states") if n.startswith("phys_theta_hat")])
 
 
-def _ctrl(x_ctrl, omega_r, pitch=0.2, **params):
+def _ctrl(x_ctrl, omega_r, **params):
     """ctrl_physical at 16 m/s-like inputs: the measured rotor speed ``omega_r`` [rad/s], the
-    pitch at ``pitch`` (0.2 rad), the reference at rated; (command u0 [rad], state
-    derivatives, diag)."""
+    pitch at 0.2 rad, the reference at rated; (command u0 [rad], state derivatives, diag)."""
     p = lay.vector("physical_params", params)
-    meas = [omega_r, omega_r * 97.0, pitch, pitch, pitch]
+    meas = [omega_r, omega_r * 97.0, 0.2, 0.2, 0.2]
     out = load("ctrl_physical", "interpreted")(
         x_ctrl=x_ctrl, meas=meas, yd=[1.26711, 0, 0, 0, 0], sched=[-3.0e7], p_ctrl=p,
         known_fault=lay.defaults("fault_inputs"))
@@ -31,8 +30,8 @@ def _ctrl(x_ctrl, omega_r, pitch=0.2, **params):
             np.asarray(out["diag"]).ravel())
 
 
-def _state(w_hat, eta, pitch_hat=0.2):
-    return [*[0.05] * N_W, w_hat, eta, pitch_hat]
+def _state(w_hat, eta):
+    return [*[0.05] * N_W, w_hat, eta]
 
 
 def test_alpha1_dot_with_the_observer_against_central_differences():
@@ -71,44 +70,6 @@ def test_without_the_observer_its_states_do_not_act():
     assert da[N_W] == pytest.approx(1.30 - 1.20, rel=1e-12) and da[N_W + 1] == -0.01
 
 
-def test_without_the_pitch_observer_its_state_does_not_act():
-    """phys_pitch_obs = 0 (the default), or no actuator model for it to copy: the command is
-    the design on the measured β̄ whatever β̂; β̂ follows β̄ at 1/s, unused."""
-    assert lay.vector("physical_params")[lay.index("physical_params", "phys_pitch_obs")] == 0
-    for params in ({}, {"phys_obs_omega": 6.0},
-                   {"phys_pitch_obs": 4.0, "phys_actuator_model": 0.0}):
-        a, da, ga = _ctrl(_state(1.31, 0.001, 0.15), 1.30, **params)
-        b, db, gb = _ctrl(_state(1.31, 0.001, 0.25), 1.30, **params)
-        assert a == b and np.array_equal(ga, gb), params
-        assert da[-1] == pytest.approx(0.2 - 0.15, rel=1e-12)
-
-
-def test_with_the_pitch_observer_the_measured_pitch_reaches_the_command_only_through_it():
-    """phys_pitch_obs = 4/s: a step of the measured pitch leaves the command where it is (the
-    sensors' noise reaches it integrated); it moves β̂'s rate by L_β Δβ. The design runs
-    on β̂: a different β̂ moves the command. Without it the same step moves the command."""
-    for obs in (0.0, 6.0):
-        p = {"phys_pitch_obs": 4.0, "phys_obs_omega": obs}
-        a, da, _ = _ctrl(_state(1.31, 0.001), 1.30, pitch=0.20, **p)
-        b, db, _ = _ctrl(_state(1.31, 0.001), 1.30, pitch=0.21, **p)
-        assert a == b, obs
-        assert db[-1] - da[-1] == pytest.approx(4.0 * 0.01, rel=1e-9)
-        assert _ctrl(_state(1.31, 0.001, 0.21), 1.30, pitch=0.20, **p)[0] != a
-    assert (_ctrl(_state(1.31, 0.001), 1.30, pitch=0.20)[0]
-            != _ctrl(_state(1.31, 0.001), 1.30, pitch=0.21)[0])
-
-
-def test_alpha1_dot_with_both_observers_against_central_differences():
-    """The speed observer at 6 rad/s and the pitch observer at 4/s: d α1/dt by central
-    differences along the design model's closed loop falls to the generated α̇1 at O(h²),
-    below 1e-6 relative at the best h."""
-    fd = designs.alpha_dot_fd("physical", params={"phys_obs_omega": 6.0,
-                                                  "phys_pitch_obs": 4.0})
-    assert fd.kappa == 1.0 and np.all(np.abs(fd.alpha_dot) > 1e-6)
-    assert np.all((1.9 < fd.slopes) & (fd.slopes < 2.1)), (fd.slopes, fd.errors)
-    assert np.all(fd.errors.min(axis=0) < 1e-6), fd.errors
-
-
 def test_with_the_observer_the_measured_speed_reaches_the_pitch_only_through_it():
     """ω_o = 6 rad/s: a step of the measured speed leaves the command where it is (no direct
     path, so the drivetrain mode and the noise reach the pitch integrated); it moves the
@@ -138,7 +99,6 @@ def test_without_an_actuator_model_the_command_is_alpha1():
 @pytest.mark.parametrize("field, value, allowed", [
     ("phys_obs_omega", -1.0, "a number >= 0 [rad/s]"),
     ("phys_obs_zeta", 0.0, "a number > 0"),
-    ("phys_pitch_obs", -1.0, "a number >= 0 [1/s]"),
     ("phys_actuator_model", 0.5, "0 or 1")])
 def test_the_options_out_of_range_are_refused_naming_them(field, value, allowed):
     with pytest.raises(config.ConfigError) as exc:
