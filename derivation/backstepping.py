@@ -164,7 +164,7 @@ def applied_commands(u0) -> list[sp.Expr]:
     return [control_sign * bj * u0 for bj in b]
 
 
-def adaptive_law_coefficients(d: Design) -> list[tuple[sp.Expr, sp.Symbol, sp.Symbol]]:
+def adaptive_law_coefficients(d: Design) -> list[tuple[sp.Expr, sp.Symbol]]:
     """θ̂̇_i = γ_i χ_i φ_i - r_i θ̂_i, eqs (32), (37), (43), (49): (γ_i χ_i, r_i) per i."""
     return [(gamma[i] * d.chi[i], r[i]) for i in range(N_CHAIN)]
 

@@ -51,9 +51,10 @@ class Controller:
     diag: list[tuple[str, str]]  # the four diagnostics: (name, unit)
     build: Callable  # (symbols dict) -> dict of CasADi outputs v, x_ctrl_dot, u0, diag, x0
     sources: tuple[str, ...] = ()  # derivation modules it is derived in (for the manifest)
-    #: the module of a controller derived as a derivation.design.ControllerDesign (its
-    #: checks alpha_<name> and design model closed_loop_<name>_model are generated and
-    #: verified by every test that iterates over the registry)
+    #: the module of a controller derived as a derivation.design.ControllerDesign; where it
+    #: has a design model (``design_model``), its checks alpha_<name> and its model
+    #: closed_loop_<name>_model are generated and verified by every test that iterates over
+    #: the registry (the paper's design has its own: alpha_derivatives, closed_loop_paper)
     design: ModuleType | None = None
     #: FDI parameters (derivation/fdi.py) this design takes in place of the defaults, with
     #: the reason: the FDI is shared, but what its estimates may be trusted with is not

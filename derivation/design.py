@@ -33,8 +33,8 @@ class ControllerDesign:
     x_dot: list[sp.Expr]  # controller state derivatives, in state order
     diag: list[sp.Expr]  # four diagnostics
     x0: list[sp.Expr]  # initial controller state from the measurements
-    #: the fuzzy approximator, if the design has one: its rule base, the measurement or
-    #: signal names feeding it (in order) and the state names of its weights θ̂ (rule order)
+    #: the fuzzy approximator, if the design has one: its rule base, the measurement, signal
+    #: or state names feeding it (in order) and the state names of its weights θ̂ (rule order)
     rule_base: fuzzy.RuleBase | None = None
     fuzzy_inputs: list[str] = field(default_factory=list)
     weights: list[str] = field(default_factory=list)
@@ -50,10 +50,20 @@ class ControllerDesign:
     check_inputs: list[sp.Symbol] = field(default_factory=list)
 
     def fuzzy_systems(self) -> tuple[list[fuzzy.RuleBase], list[list[str]]]:
-        """The rule bases and their weights' state names, one or several."""
-        if self.rule_base is not None:
-            return [self.rule_base], [self.weights]
-        return self.rule_bases, self.weight_groups
+        """The rule bases and their weights' state names, one or several; refused where
+        rule base k is not the one on the first k inputs, or its weights are not one per
+        rule (the generator pairs them by position and picks the inputs by number)."""
+        if self.rule_base is not None and self.rule_bases:
+            raise ValueError("a design has rule_base or rule_bases, not both")
+        bases, groups = (([self.rule_base], [self.weights]) if self.rule_base is not None
+                         else (self.rule_bases, self.weight_groups))
+        if len(bases) != len(groups) or any(
+                rb.i != k + 1 or len(g) != N_MF**rb.i
+                for k, (rb, g) in enumerate(zip(bases, groups, strict=False))):
+            raise ValueError("rule base k (1-based) must read the first k fuzzy inputs, with "
+                             f"N_MF**k weights: got {[rb.i for rb in bases]} and "
+                             f"{[len(g) for g in groups]} weights")
+        return bases, groups
 
 
 N_BLADES = 3

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 from derivation import nrel5mw
@@ -60,14 +61,14 @@ def rule_count(i: int) -> int:
     return N_MF**i
 
 
-
-def split_by_rules(seq):
+def split_by_rules(seq: Sequence) -> list:
     """``seq`` (the weights of every chain step, in order) cut into θ̂_1..θ̂_N_CHAIN."""
     out, k = [], 0
     for i in range(1, N_CHAIN + 1):
         out.append(seq[k:k + rule_count(i)])
         k += rule_count(i)
     return out
+
 
 # --- plant states: eqs (1)-(4), pitch of eq (4) per blade (x4 = mean blade pitch) ---
 #: the two-mass drivetrain's states, shared by the paper's plant and the NREL 5-MW

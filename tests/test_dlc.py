@@ -202,9 +202,9 @@ def test_against_rosco_compares_over_the_bins_both_kept():
 
 
 def test_the_openfast_dlc_examples_list_what_their_headers_say():
-    """examples/dlc12_openfast.toml and dlc21_openfast.toml (issue 34), and their IEA 15-MW
-    twins, expand to the run counts their headers give (ROSCO's, optional, aside), every run in OpenFAST, issue
-    34's variants with their options."""
+    """examples/dlc12_openfast.toml and dlc21_openfast.toml (issue 34), and their IEA
+    15-MW twins, expand to the run counts their headers give (ROSCO's, optional, aside),
+    every run in OpenFAST, issue 34's variants with their options."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent / "examples"

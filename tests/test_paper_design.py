@@ -6,7 +6,7 @@ they compute what the paper's own generated ``controller`` (eqs (21)-(49)) compu
 SymPy expressions through the same fuzzy evaluator, and γ_i χ_i is bound before it meets
 φ_i, as the former build path formed it. ``init_paper``'s x̂4(0) = β̄ is (β1+β2+β3)·(1/3),
 the translator's form of a mean, where the former path divided by 3: within two units in
-the last place (docs/paper-notes.md, "Build path").
+the last place, equal pitch angles included (docs/paper-notes.md, "Build path").
 """
 
 import numpy as np
@@ -53,3 +53,26 @@ def test_init_paper_starts_the_observer_at_rest_on_the_measurements():
         assert np.array_equal(x0[[0, 1, 2]], [meas[0], 0.0, meas[0]])
         assert abs(x0[3] - meas[2:].sum() / 3) <= 2 * np.spacing(meas[2:].sum() / 3)
         assert not x0[4:].any()
+
+
+def test_rule_bases_and_their_weights_must_pair_up():
+    """The generator pairs rule base k with weight group k by position and reads its
+    inputs by number: a design whose bases are out of order, or whose groups are not one
+    weight per rule, is refused where it is built."""
+    import pytest
+
+    from derivation import design, fuzzy
+
+    d = paper_design.derive()
+    bad = [design.ControllerDesign(v=d.v, u0=d.u0, x_dot=d.x_dot, diag=d.diag, x0=d.x0,
+                                   rule_bases=rbs, weight_groups=groups)
+           for rbs, groups in ((d.rule_bases[::-1], d.weight_groups),
+                               (d.rule_bases, [g[:-1] for g in d.weight_groups]),
+                               (d.rule_bases[:3], d.weight_groups))]
+    bad.append(design.ControllerDesign(v=d.v, u0=d.u0, x_dot=d.x_dot, diag=d.diag, x0=d.x0,
+                                       rule_base=fuzzy.RuleBase(1), weights=d.weight_groups[0],
+                                       rule_bases=d.rule_bases, weight_groups=d.weight_groups))
+    for b in bad:
+        with pytest.raises(ValueError):
+            b.fuzzy_systems()
+    assert d.fuzzy_systems() == (d.rule_bases, d.weight_groups)
