@@ -128,6 +128,8 @@ def test_issue_34s_variants_carry_their_options_and_run_when_named(tmp_path):
                                                               1e-3, 0)
                for c in compare.DEFAULT_CONTROLLERS)
     assert not set(compare.ISSUE34) & set(compare.DEFAULT_CONTROLLERS)
+    low = compare.cell_config("physical_obs45_ps_fdi", "none", "ntm_B_16", 30.0, 1e-3, 0)
+    assert low["controller_params"] == {"phys_obs_omega": 4.5, "phys_ps_pitch": 0.0349}
     matched = compare.cell_config("rosco_matched", "lock", "ntm_B_16", 30.0, 1e-3, 0)
     assert matched["controller"] == "rosco" and matched["case"] == compare.UNAWARE_CASE
     assert matched["rosco"] == {"omega_pc_rad_s": 0.7, "zeta_pc": 0.85}

@@ -208,9 +208,9 @@ def test_the_openfast_dlc_examples_list_what_their_headers_say():
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent / "examples"
-    for name, n_runs, turbine in (("dlc12_openfast.toml", 110, None),
+    for name, n_runs, turbine in (("dlc12_openfast.toml", 132, None),
                                   ("dlc21_openfast.toml", 192, None),
-                                  ("dlc12_openfast_iea15mw.toml", 110, "iea15mw"),
+                                  ("dlc12_openfast_iea15mw.toml", 132, "iea15mw"),
                                   ("dlc21_openfast_iea15mw.toml", 192, "iea15mw")):
         runs, _ = sweep.expand(sweep.load_sweep(root / name))
         assert len([r for r in runs if r["controller"] != "rosco"]) == n_runs, name

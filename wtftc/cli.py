@@ -273,12 +273,16 @@ def _add_compare(sub) -> None:
                     "compare.csv, compare.png/pdf, and each cell's config.toml and "
                     "metrics.json under <out>/<wind>/<fault>/<controller>/ (re-run one with "
                     "wtftc run --config). Named only: the variant paper_fdi (the paper's "
-                    "design fed by wtftc's FDI) and the winds steady_16, steady_20, ntm_B_12. "
+                    "design fed by wtftc's FDI), issue 34's physical_obs_fdi, "
+                    "physical_obs_ps_fdi, physical_obs45_ps_fdi, pi_lpf, pi_lpf_ps and "
+                    "rosco_matched (docs/compare.md), and the winds steady_16, steady_20, "
+                    "ntm_B_12. "
                     "With --engine openfast the cells are Dask tasks (a local cluster of "
                     "--workers processes, or --scheduler's). ROSCO needs the optional extra: "
                     "pip install 'wtftc[rosco]'.")
     k.add_argument("--out", type=Path, default=Path("results/compare"), help="output folder")
-    k.add_argument("--controllers", nargs="+", help="subset of controllers")
+    k.add_argument("--controllers", nargs="+",
+                   help="subset of the controller variants above")
     k.add_argument("--faults", nargs="+", help="subset of faults")
     k.add_argument("--winds", nargs="+", help="subset of winds")
     k.add_argument("--turbine", help=TURBINE_HELP)
