@@ -64,14 +64,15 @@ def test_too_short_a_run_for_the_faults_is_refused(tmp_path):
 
 
 def test_pitch_controllers_run_with_the_baseline_torque_law_and_rosco_with_its_own():
-    """Every pitch controller competes with the NREL 5-MW baseline torque law; ROSCO
-    commands its own torque (its adapter holds it in gen_torque_rated, law 0)."""
+    """Every pitch controller competes with the NREL 5-MW baseline torque law; ROSCO, at
+    any tuning, commands its own torque (its adapter holds it in gen_torque_rated, law 0)."""
     from wtftc.campaign import compare
 
     for name in compare.CONTROLLERS:
         cfg = compare.cell_config(name, "lock", "ntm_B_16", 30.0, 1e-3, 0)
         law = cfg.get("turbine_params", {}).get("gen_torque_law", 0.0)
-        assert law == (0.0 if name == "rosco" else 1.0), name
+        rosco = compare.CONTROLLERS[name].controller == "rosco"
+        assert law == (0.0 if rosco else 1.0), name
         assert cfg["plant"] == "tower" and cfg["wind"]["rotor_radius_m"] == 63.0
     iea = compare.cell_config("pi", "none", "ntm_B_16", 30.0, 1e-3, 0, turbine="iea15mw")
     assert iea["wind"]["rotor_radius_m"] == 120.97
@@ -88,7 +89,7 @@ def test_the_matrix_has_every_actuator_fault_type_and_names_the_fdi_variants():
     assert all(tabs[0]["type"] == f for f, tabs in compare.FAULTS.items() if tabs)
     assert [c for c, v in compare.CONTROLLERS.items() if v.uses_fdi] == [
         "physical_fdi", "drivetrain_fdi", "paper_fdi", "physical_obs_fdi",
-        "physical_obs_ps_fdi"]
+        "physical_obs_ps_fdi", "physical_obs45_ps_fdi"]
     assert "FDI" in config.CASES[compare.FDI_CASE]
     cfg = compare.cell_config("physical_fdi", "lock", "ntm_B_16", 30.0, 1e-3, 0)
     assert (cfg["controller"], cfg["case"]) == ("physical", compare.FDI_CASE)
