@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from derivation import fuzzy, nrel5mw
-from derivation.layout import N_MF, Entry
+from derivation.layout import N_MF, Entry, rule_count
 
 
 @dataclass
@@ -58,7 +58,7 @@ class ControllerDesign:
         bases, groups = (([self.rule_base], [self.weights]) if self.rule_base is not None
                          else (self.rule_bases, self.weight_groups))
         if len(bases) != len(groups) or any(
-                rb.i != k + 1 or len(g) != N_MF**rb.i
+                rb.i != k + 1 or len(g) != rule_count(rb.i)
                 for k, (rb, g) in enumerate(zip(bases, groups, strict=False))):
             raise ValueError("rule base k (1-based) must read the first k fuzzy inputs, with "
                              f"N_MF**k weights: got {[rb.i for rb in bases]} and "

@@ -50,9 +50,10 @@ def derive() -> design_.ControllerDesign:
     """The paper's controller in the uniform form; see the module docstring."""
     d = bs.derive()
     groups = weight_groups()
+    coefficients = bs.adaptive_law_coefficients(d)
     theta_dot = []
     for i, (rb, group) in enumerate(zip(d.rule_bases, groups, strict=True)):
-        _, r_i = bs.adaptive_law_coefficients(d)[i]
+        _, r_i = coefficients[i]
         theta_dot += [adapt_gain[i] * rb.phi(m) - r_i * sp.Symbol(w, real=True)
                       for m, w in enumerate(group)]
     beta_mean = sum(beta_meas) / lay.N_BLADES
@@ -63,4 +64,4 @@ def derive() -> design_.ControllerDesign:
         rule_bases=d.rule_bases, fuzzy_inputs=[x.name for x in bs.xhat],
         weight_groups=groups, signals=[(bs.y, omega_r)],
         intermediates=[(adapt_gain[i], g) for i, (g, _) in
-                       enumerate(bs.adaptive_law_coefficients(d))])
+                       enumerate(coefficients)])
