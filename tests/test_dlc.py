@@ -208,14 +208,21 @@ def test_the_openfast_dlc_examples_list_what_their_headers_say():
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent / "examples"
-    for name, n_runs, turbine in (("dlc12_openfast.toml", 132, None),
-                                  ("dlc21_openfast.toml", 192, None),
-                                  ("dlc12_openfast_iea15mw.toml", 132, "iea15mw"),
-                                  ("dlc21_openfast_iea15mw.toml", 192, "iea15mw")):
+    for name, n_runs, turbine in (("dlc12_openfast.toml", 88, None),
+                                  ("dlc21_openfast.toml", 144, None),
+                                  ("dlc12_openfast_iea15mw.toml", 88, "iea15mw"),
+                                  ("dlc21_openfast_iea15mw.toml", 144, "iea15mw")):
         runs, _ = sweep.expand(sweep.load_sweep(root / name))
-        assert len([r for r in runs if r["controller"] != "rosco"]) == n_runs, name
+        ours = [r for r in runs if not r["controller"].startswith("rosco")]
+        assert len(ours) == n_runs, name
         assert all(r["config"]["engine"] == "openfast" for r in runs)
         assert all(r["config"].get("turbine") == turbine for r in runs), name
-        shaved = [r for r in runs if r["controller"] == "physical_obs_ps_fdi"]
+        shaved = [r for r in runs if r["controller"] == "physical_obs45_ps_fdi"]
         assert shaved and all(r["config"]["controller_params"]["phys_ps_pitch"] == 0.0349
+                              and r["config"]["controller_params"]["phys_obs_omega"] == 4.5
                               for r in shaved)
+        matched = [r for r in runs if r["controller"] == "rosco_matched"]
+        # one run per scenario, where ROSCO is installed (as here: `make test` gets it)
+        assert len(matched) == n_runs // len({r["controller"] for r in ours}), name
+        assert all(r["config"]["tuning"] == {"omega_n_rad_s": 0.7, "zeta": 0.85}
+                   for r in matched)

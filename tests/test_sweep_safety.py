@@ -11,6 +11,7 @@ the one retry below starts a cluster (a one-run sweep of 2 s)."""
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import stat
 from pathlib import Path
@@ -547,3 +548,37 @@ def test_a_batch_is_read_into_the_schema_columns_missing_as_nulls_wrong_types_re
     bad = pa.Table.from_pydict({"seed": pa.array(["three"])})
     with pytest.raises(pa.ArrowInvalid):
         store._conform(bad)
+
+
+def test_a_campaign_resumes_across_an_edit_of_the_sources_but_not_of_the_code(
+        tmp_path, monkeypatch):
+    """A results folder resumes on the same generated artefacts: an edit of derivation/
+    that leaves every artefact as it was (a comment, a refactor: the manifest's sources
+    change) resumes; a changed artefact, or a folder that recorded only the whole manifest's
+    hash (before issue 34), is refused in one line naming --out."""
+    from wtftc.artefacts import loader
+
+    f, out = _sweep_file(tmp_path), tmp_path / "out"
+    _results_folder(f, out, ("ok",))
+    sw, real = sweep.load_sweep(f), loader.manifest()
+
+    def resume():
+        lock = store._prepare(out, sw, f.read_text(), overwrite=False)[1]
+        store.release(lock)
+
+    edited = {**real, "sources": {k: "0" * 64 for k in real["sources"]}}
+    monkeypatch.setattr(loader, "manifest", lambda: edited)
+    resume()
+    name = sorted(real["artefacts"])[0]
+    changed = {**real, "artefacts": {**real["artefacts"], name: "0" * 64}}
+    monkeypatch.setattr(loader, "manifest", lambda: changed)
+    with pytest.raises(ConfigError) as e:
+        resume()
+    assert e.value.field == "--out" and "generated/ changed" in str(e.value)
+    monkeypatch.setattr(loader, "manifest", lambda: real)
+    meta = out / "sweep.json"
+    old = json.loads(meta.read_text())
+    old["versions"]["generated_manifest_sha256"] = old["versions"].pop("generated_code_sha256")
+    meta.write_text(json.dumps(old))
+    with pytest.raises(ConfigError, match="generated/ changed"):
+        resume()

@@ -29,6 +29,7 @@ from pathlib import Path
 
 from wtftc import config
 from wtftc.campaign import cluster
+from wtftc.campaign.compare import CONTROLLERS
 from wtftc.campaign.sweep.record import CASES, check_path
 from wtftc.campaign.sweep.spec import (
     FAULT_TYPES,
@@ -138,19 +139,23 @@ class Interrupted(Exception):
 def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
     """Every run's configuration is valid, and ROSCO installed where it runs, before any
     runs; the optional controllers skipped are noted."""
+    def uses_rosco(pt: dict) -> bool:  # ROSCO itself or a variant of it (rosco_matched)
+        return CONTROLLERS[pt["controller"]].controller == "rosco"
+
     for pt in runs:
-        if pt["controller"] != "rosco":  # ROSCO's availability is checked below
+        if not uses_rosco(pt):  # ROSCO's availability is checked below
             # (a [tuning] target is solved where the run runs: one out of reach fails
             # that run, with its cause)
             raw = {k: v for k, v in pt["config"].items() if k != "tuning"}
             ensure_field(raw)  # each TurbSim field a run reads, made once, before the runs
             config.make_config(raw)
-    if any(pt["controller"] == "rosco" for pt in runs):
+    if any(uses_rosco(pt) for pt in runs):
         from wtftc.sim import rosco
 
         reason = rosco.available()
         if reason:
-            raise ConfigError("controllers", "rosco", reason)
+            first = next(pt["controller"] for pt in runs if uses_rosco(pt))
+            raise ConfigError("controllers", first, reason)
     if sw.engine == "openfast":  # OpenFAST itself, in one line (exit code 4)
         from wtftc.openfast import install
 

@@ -314,7 +314,8 @@ def _controllers(raw: dict, mode: str) -> Axis:
     ctrl = _axis("controllers", raw["controllers"], "str", mode, choices=tuple(CONTROLLERS))
     if "optional_controllers" in raw:  # run where installed (ROSCO), skipped elsewhere
         optional = _axis("optional_controllers", raw["optional_controllers"], "str", mode,
-                         choices=("rosco",))
+                         choices=tuple(c for c, v in CONTROLLERS.items()
+                                       if v.controller == "rosco"))
         from wtftc.sim import rosco
 
         extra = tuple(c for c in optional.values if c not in ctrl.values)

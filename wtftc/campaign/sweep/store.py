@@ -47,7 +47,9 @@ STATUS = ("ok", "diverged", "failed")
 
 def versions() -> dict:
     """What made the results: the versions of wtftc and its dependencies, and the hash of
-    the generated code's manifest."""
+    the generated code (its artefacts' hashes in the manifest: what the runs compute, not
+    the derivation's sources, so an edit that leaves every artefact as it was, a comment or
+    a refactor, does not stop a campaign from resuming)."""
     import casadi
     import dask
     import distributed
@@ -56,11 +58,12 @@ def versions() -> dict:
     from wtftc import __version__
     from wtftc.artefacts.loader import manifest
 
-    gen = hashlib.sha256(json.dumps(manifest(), sort_keys=True).encode()).hexdigest()[:16]
+    code = manifest()["artefacts"]
+    gen = hashlib.sha256(json.dumps(code, sort_keys=True).encode()).hexdigest()[:16]
     return {"wtftc": __version__, "python": platform.python_version(),
             "numpy": np.__version__, "casadi": casadi.__version__, "dask": dask.__version__,
             "distributed": distributed.__version__, "pyarrow": pyarrow.__version__,
-            "generated_manifest_sha256": gen}
+            "generated_code_sha256": gen}
 
 
 def schema():
@@ -374,7 +377,8 @@ def _check_folder(out_dir: Path, sw: Sweep, overwrite: bool, rec: Record,
                               "away, or --out another folder)")
     try:
         old = json.loads(read_user_text(meta, "--out", MAX_TOML_BYTES))
-        old["sweep_id"], old["versions"]["generated_manifest_sha256"]  # noqa: B018
+        if not isinstance(old["versions"], dict) or "sweep_id" not in old:
+            raise TypeError("not a sweep's sweep.json")
     except (ConfigError, ValueError, KeyError, TypeError):
         if not overwrite:
             raise ConfigError("--out", str(out_dir), "a sweep's results folder with a "
@@ -401,8 +405,10 @@ def _check_same_sweep(out_dir: Path, old: dict, sweep_id: str, overwrite: bool,
                           "file: it holds sweep " + old["sweep_id"] + ", this file is "
                           f"{sweep_id} (changed); pass --overwrite to discard those "
                           "results, or --out a new folder")
-    if (old["versions"]["generated_manifest_sha256"]
-            != now["generated_manifest_sha256"] and not overwrite):
+    # folders made before the hash covered the artefacts only carry the whole manifest's
+    # hash (generated_manifest_sha256): they resume on no code of this version
+    if (old["versions"].get("generated_code_sha256")
+            != now["generated_code_sha256"] and not overwrite):
         raise ConfigError("--out", str(out_dir), "results of the same generated code: "
                           "generated/ changed since they were made; --overwrite or "
                           "--out a new folder")
