@@ -226,3 +226,50 @@ def test_the_openfast_dlc_examples_list_what_their_headers_say():
         assert len(matched) == n_runs // len({r["controller"] for r in ours}), name
         assert all(r["config"]["tuning"] == {"omega_n_rad_s": 0.7, "zeta": 0.85}
                    for r in matched)
+
+
+def _paired_row(controller, wind, seed, fault="lock", status="ok", peak=1.05, **metrics):
+    base = {"controller": controller, "plant": "openfast", "mean_wind_mps": wind,
+            "turbulence_class": "B", "seed": seed, "fault_type": fault, "blade": 1,
+            "fault_sensor": None, "onset_s": 40.0, "rho": 0.5, "stuck_angle_deg": None,
+            "severity": 1.0, "runaway_target_deg": None, "status": status,
+            "overspeed_peak_over_rated": peak, "rms_speed_error_rad_s": 0.02,
+            "shaft_torque_del_1hz_Nm": 5e5, "shaft_torque_std_Nm": 1e5,
+            "tower_base_del_1hz_Nm": 2e7, "pitch_adc": 0.1, "mismatch_inertia": 1.0}
+    return base | metrics
+
+
+def test_the_paired_section_compares_the_same_scenarios_both_held():
+    """summary.md's "Against rosco" (issue 34's goal table): each ratio is over the
+    scenarios both controllers ran and both held; a scenario one lost, or ran past the
+    trip, is counted and left out; a scenario only one ran is not paired."""
+    from wtftc.campaign.sweep import paired
+
+    rows = [_paired_row("rosco", 12.0, 0), _paired_row("rosco", 16.0, 0),
+            _paired_row("rosco", 20.0, 0, status="diverged"),
+            _paired_row("rosco", 24.0, 0, peak=1.3),
+            _paired_row("physical_obs45_ps_fdi", 12.0, 0, rms_speed_error_rad_s=0.01,
+                        pitch_adc=0.3),
+            _paired_row("physical_obs45_ps_fdi", 16.0, 0, rms_speed_error_rad_s=0.014,
+                        pitch_adc=0.2),
+            _paired_row("physical_obs45_ps_fdi", 20.0, 0, rms_speed_error_rad_s=9.0),
+            _paired_row("physical_obs45_ps_fdi", 24.0, 0, peak=1.1),
+            _paired_row("physical_obs45_ps_fdi", 12.0, 1),  # no ROSCO run: not paired
+            # the same wind and seed, another fault type: its own scenario
+            _paired_row("physical_obs45_ps_fdi", 12.0, 0, fault="runaway",
+                        runaway_target_deg=90.0)]
+    lines, csv = paired.section(rows, trip=1.2)
+    rec = {(r["controller"], r["fault"]): r for r in __import__("csv").DictReader(csv)}
+    lock = rec[("physical_obs45_ps_fdi", "lock")]
+    assert (lock["scenarios"], lock["both_held"], lock["lost_by_controller"],
+            lock["lost_by_reference"]) == ("4", "2", "0", "2")
+    assert float(lock["rms_speed_error_rad_s_ratio_median"]) == pytest.approx(0.6)
+    assert float(lock["rms_speed_error_rad_s_ratio_min"]) == pytest.approx(0.5)
+    assert float(lock["rms_speed_error_rad_s_ratio_max"]) == pytest.approx(0.7)
+    assert float(lock["pitch_adc_ratio_median"]) == pytest.approx(2.5)
+    assert float(lock["shaft_torque_std_Nm_ratio_max"]) == pytest.approx(1.0)
+    assert ("physical_obs45_ps_fdi", "runaway_feather") not in rec  # ROSCO never ran it
+    assert rec[("physical_obs45_ps_fdi", "all")]["scenarios"] == "4"
+    assert any("| physical_obs45_ps_fdi | lock | 4 | 2 | 0 | 2 | 0.60 (0.50-0.70) |" in ln
+               for ln in lines)
+    assert paired.section([r for r in rows if r["controller"] != "rosco"], 1.2) == ([], [])

@@ -140,6 +140,9 @@ def test_the_shaft_del_is_the_plants_shaft_torque_counted():
     assert m["shaft_torque_del_1hz_Nm"] == pytest.approx(
         loads.del_1hz(shaft, duration, 3.0), rel=1e-12)
     assert m["shaft_torque_max_abs_Nm"] == pytest.approx(np.max(np.abs(shaft)), rel=1e-12)
+    # σ about the window's own mean (issue 34's fault-free goal against ROSCO)
+    assert m["shaft_torque_std_Nm"] == pytest.approx(np.std(shaft), rel=1e-12)
+    assert 0 < m["shaft_torque_std_Nm"] < 0.2 * np.mean(shaft)
     # the shaft carries the rated torque, 4.18 MN m on the NREL 5-MW's low-speed shaft
     assert 3.5e6 < np.mean(shaft) < 5.0e6
     assert 0 < m["shaft_torque_del_1hz_Nm"] < m["shaft_torque_max_abs_Nm"]

@@ -494,7 +494,8 @@ def _cmd_sweep(args) -> int:
 
     if args.summary is not None:
         print(sweep.summarize(args.summary))
-        extra = "".join(f", {n}" for n in ("summary_dlc.csv", "summary_tuning.csv")
+        extra = "".join(f", {n}" for n in ("summary_dlc.csv", "summary_paired.csv",
+                                                 "summary_tuning.csv")
                         if (Path(args.summary) / n).exists())
         print(f"written: {args.summary}/summary.md, summary.csv, summary_cost.csv{extra}, "
               "figures/")

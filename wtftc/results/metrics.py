@@ -160,6 +160,8 @@ def cost(rc: RunConfig, res: integrate.Result, sig: Signals) -> dict:
         "shaft_torque_del_1hz_Nm": fat["del_1hz"],
         "shaft_torque_damage_per_10min": fat["damage_per_10min"],
         "shaft_torque_max_abs_Nm": fat["max_abs"],
+        # issue 34's goal: the fault-free σ within 1.2 × ROSCO's in every wind bin
+        "shaft_torque_std_Nm": float(np.std(sig.shaft)) if len(sig.shaft) else None,
         "shaft_wohler_exponent": m,
         "pitch_adc": duty["adc"],
         "pitch_travel_rate_deg_s": duty["travel_rate_deg_s"],

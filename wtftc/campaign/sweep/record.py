@@ -51,7 +51,8 @@ LOCK = "sweep.lock"
 CASES = "openfast"
 #: the files a sweep (and its summary) writes at the top of its results folder
 SWEEP_FILES = ("sweep.toml", "sweep.json", LOCK, "summary.md", "summary.csv",
-               "summary_cost.csv", "summary_dlc.csv", "summary_tuning.csv")
+               "summary_cost.csv", "summary_dlc.csv", "summary_tuning.csv",
+               "summary_paired.csv")
 #: every figure the summary writes, figures/<name>.png and .pdf
 FIGURES = ("rms_speed_error", "overspeed", "detection_delay", "dlc_bins", "dlc21_extremes",
            "tradeoff_fault_free", "tradeoff_faulted")
@@ -65,7 +66,8 @@ _CSV_HEADS = {"summary.csv": ("controller,fault,runs,diverged,failed,",),
               "summary_cost.csv": ("controller,fault,runs,",),
               "summary_dlc.csv": ("controller,mean_wind_mps,runs,bin_probability,",
                                   "controller,fault,runs,lost,held,"),
-              "summary_tuning.csv": ("condition,controller,omega_n_rad_s,zeta,runs",)}
+              "summary_tuning.csv": ("condition,controller,omega_n_rad_s,zeta,runs",),
+              "summary_paired.csv": ("controller,reference,fault,scenarios,both_held,",)}
 _MAGIC = {".parquet": (b"PAR1", b"PAR1"), ".png": (b"\x89PNG\r\n\x1a\n", b"IEND\xaeB`\x82"),
           ".pdf": (b"%PDF-", b"%%EOF")}
 

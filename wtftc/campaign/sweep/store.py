@@ -32,7 +32,8 @@ METRICS = [("rms_speed_error_rad_s", "rad/s"), ("max_abs_speed_error_rad_s", "ra
            ("wall_s", "s"),
            # what the regulation cost (issue 18, docs/loads.md)
            ("shaft_torque_del_1hz_Nm", "N m"), ("shaft_torque_damage_per_10min", "(N m)^m"),
-           ("shaft_torque_max_abs_Nm", "N m"), ("pitch_adc", "-"), ("pitch_reversals", "-"),
+           ("shaft_torque_max_abs_Nm", "N m"), ("shaft_torque_std_Nm", "N m"),
+           ("pitch_adc", "-"), ("pitch_reversals", "-"),
            # WEIS's avg_pitch_travel and pitch_duty_cycle, by what they are (issue 31)
            ("pitch_travel_rate_deg_s", "deg/s"), ("pitch_reversals_per_s", "1/s"),
            # the start-up left out of every metric, and the rate they were computed at

@@ -10,7 +10,7 @@ import numpy as np
 
 from wtftc import config
 from wtftc.campaign.compare import CONTROLLERS
-from wtftc.campaign.sweep import dlc, record, tradeoff
+from wtftc.campaign.sweep import dlc, paired, record, tradeoff
 from wtftc.campaign.sweep.record import FIGURES, Record
 from wtftc.campaign.sweep.spec import FAULT_TYPES, expand, parse_sweep
 from wtftc.campaign.sweep.store import read_results
@@ -30,6 +30,7 @@ TABLE = [("controller", "{}"), ("fault", "{}"), ("runs", "{}"), ("diverged", "{}
 COST = [("shaft DEL 1 Hz median [MN m]", "shaft_torque_del_1hz_Nm", 50, 1e-6, "{:.3f}"),
         ("shaft DEL 1 Hz p95 [MN m]", "shaft_torque_del_1hz_Nm", 95, 1e-6, "{:.3f}"),
         ("shaft torque max [MN m]", "shaft_torque_max_abs_Nm", 100, 1e-6, "{:.3f}"),
+        ("shaft torque σ median [MN m]", "shaft_torque_std_Nm", 50, 1e-6, "{:.3f}"),
         ("tower-base DEL 1 Hz median [MN m]", "tower_base_del_1hz_Nm", 50, 1e-6, "{:.2f}"),
         ("tower-base moment max [MN m]", "tower_base_max_abs_Nm", 100, 1e-6, "{:.1f}"),
         ("pitch ADC median [-]", "pitch_adc", 50, 1.0, "{:.3f}"),
@@ -73,17 +74,22 @@ def summarize(out_dir: Path) -> str:
     cost, cost_csv = _cost_table(rows)
     dlc_table = meta["sweep"].get("dlc")
     dlc_lines, dlc_csv = _dlc(rows, dlc_table)
+    trip = dlc.parse_dlc(dlc_table or {})["overspeed_trip"]
+    paired_lines, paired_csv = paired.section(rows, trip)
     family = tradeoff.tuned(rows)
     tuned_lines, tuned_csv = tradeoff.section(rows) if family else ([], [])
     head = [f"# Sweep {meta['sweep_id']}: {len(rows)} of {n_all} runs saved",
             "", f"Results folder `{out_dir}`; made with "
             + ", ".join(f"{k} {v}" for k, v in meta["versions"].items()) + ".", ""]
-    text = "\n".join(head + lines + cost + dlc_lines + tuned_lines + _alarm_rate(rows, meta)
+    text = "\n".join(head + lines + cost + dlc_lines + paired_lines + tuned_lines
+                     + _alarm_rate(rows, meta)
                      + _failures(rows)) + "\n"
     outputs = {"summary.md": text, "summary.csv": "\n".join(csv) + "\n",
                "summary_cost.csv": "\n".join(cost_csv) + "\n"}
     if dlc_csv:
         outputs["summary_dlc.csv"] = "\n".join(dlc_csv) + "\n"
+    if paired_csv:
+        outputs["summary_paired.csv"] = "\n".join(paired_csv) + "\n"
     if tuned_csv:
         outputs["summary_tuning.csv"] = "\n".join(tuned_csv) + "\n"
     data = {rel: t.encode() for rel, t in outputs.items()}

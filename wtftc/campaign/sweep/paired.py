@@ -1,0 +1,100 @@
+"""Each controller against a reference on the same runs (issue 34's goals): for every
+scenario both ran (same wind, turbulence class, seed, plant, mismatch and fault: type,
+blade, onset, runaway target) and both held, the ratio controller / reference of each
+metric, then per fault type the median and the range of those ratios.
+
+A ratio of medians over different runs compares different weather; a paired ratio does
+not, and its range shows whether one controller wins on every run or only on average.
+"Held" is DLC 2.1's: the rotor never left the envelope (status ok) nor passed the
+overspeed trip; a scenario one of the two lost is counted, not compared, since its
+metrics describe a rotor that stopped."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from wtftc.campaign.compare import CONTROLLERS
+from wtftc.campaign.sweep.dlc import fault_label
+
+#: the reference of the paired section: ROSCO at its deck's tuning, where it ran
+REFERENCE = "rosco"
+#: the metrics compared: (run key, header)
+PAIRED = [("rms_speed_error_rad_s", "RMS ω error"),
+          ("overspeed_peak_over_rated", "peak ω"),
+          ("shaft_torque_del_1hz_Nm", "shaft DEL"),
+          ("shaft_torque_std_Nm", "shaft torque σ"),
+          ("tower_base_del_1hz_Nm", "tower-base DEL"),
+          ("pitch_adc", "pitch ADC")]
+#: what pairs two runs: every axis of a scenario but the controller (and its tuning)
+SCENARIO = ("plant", "mean_wind_mps", "turbulence_class", "seed", "blade", "fault_sensor",
+            "onset_s", "rho", "stuck_angle_deg", "severity", "runaway_target_deg")
+
+
+def scenario(r: dict) -> tuple:
+    """The key two runs of different controllers share when they ran the same case."""
+    return (fault_label(r), *(r.get(k) for k in SCENARIO),
+            *(v for k, v in sorted(r.items()) if k.startswith("mismatch_")))
+
+
+def held(r: dict, trip: float) -> bool:
+    return r["status"] == "ok" and (r["overspeed_peak_over_rated"] or 0.0) <= trip
+
+
+def pairs(rows: list[dict], c: str, ref: str) -> dict[str, list[tuple[dict, dict]]]:
+    """fault type → the (run of ``c``, run of ``ref``) on each scenario both ran; a
+    scenario a controller ran twice (a duplicate row) is paired once."""
+    by_ref = {scenario(r): r for r in rows if r["controller"] == ref}
+    out: dict[str, list] = {}
+    for r in rows:
+        if r["controller"] == c and scenario(r) in by_ref:
+            out.setdefault(fault_label(r), []).append((r, by_ref[scenario(r)]))
+    return out
+
+
+def ratios(pp: list[tuple[dict, dict]], key: str, trip: float) -> list[float]:
+    """``key``'s ratio on each pair both held and both have a value for (a tower-less
+    plant has no tower-base DEL; a zero reference gives no ratio)."""
+    return [a[key] / b[key] for a, b in pp if held(a, trip) and held(b, trip)
+            and a.get(key) is not None and b.get(key)]
+
+
+def _cell(vals: list[float]) -> str:
+    if not vals:
+        return "—"
+    return f"{np.median(vals):.2f} ({min(vals):.2f}-{max(vals):.2f})"
+
+
+def section(rows: list[dict], trip: float, ref: str = REFERENCE
+            ) -> tuple[list[str], list[str]]:
+    """The summary's paired section: Markdown lines and CSV lines (the median, min and
+    max ratio per controller, fault type and metric); nothing without the reference."""
+    if not any(r["controller"] == ref for r in rows):
+        return [], []
+    head = ["controller", "fault", "scenarios", "both held", "lost by it", f"lost by {ref}"]
+    lines = ["", f"## Against {ref}, on the same runs", "",
+             f"Each cell is the median ratio controller / {ref} over the scenarios both ran "
+             f"and both held (never above {trip:g} × rated, rotor kept), with its min-max "
+             f"in brackets: below 1, lower than {ref}'s on those runs. `peak ω` is the ratio "
+             "of the peak rotor speeds. `summary_paired.csv` has the numbers.", "",
+             "| " + " | ".join(head + [h for _, h in PAIRED]) + " |",
+             "|" + "---|" * (len(head) + len(PAIRED))]
+    csv = ["controller,reference,fault,scenarios,both_held,lost_by_controller,"
+           "lost_by_reference," + ",".join(f"{k}_ratio_{s}" for k, _ in PAIRED
+                                           for s in ("median", "min", "max"))]
+    ctrls = [c for c in CONTROLLERS if c != ref and any(r["controller"] == c for r in rows)]
+    for c in ctrls:
+        by_fault = pairs(rows, c, ref)
+        if not by_fault:
+            continue
+        for f, pp in [*sorted(by_fault.items()), ("all", [p for v in by_fault.values()
+                                                          for p in v])]:
+            counts = [len(pp), sum(held(a, trip) and held(b, trip) for a, b in pp),
+                      sum(not held(a, trip) for a, _ in pp),
+                      sum(not held(b, trip) for _, b in pp)]
+            vals = [ratios(pp, k, trip) for k, _ in PAIRED]
+            lines.append(f"| {c} | {f} | " + " | ".join(map(str, counts)) + " | "
+                         + " | ".join(_cell(v) for v in vals) + " |")
+            csv.append(",".join([c, ref, f, *map(str, counts)] + [
+                "" if not v else repr(float(s)) for v in vals
+                for s in ((np.median(v), min(v), max(v)) if v else (None,) * 3)]))
+    return lines, csv
