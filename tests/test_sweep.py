@@ -446,3 +446,16 @@ controllers = ["pi"]
     assert p.returncode == 0, p.stderr
     assert sweep.read_results(out).num_rows == 1
     assert not (out / "sweep.lock").exists()
+
+
+@pytest.mark.parametrize("ctrl", ["rosco", "rosco_matched"])
+def test_rosco_and_its_variants_are_refused_on_the_paper_plant(ctrl):
+    """ROSCO's DISCON.IN is the NREL 5-MW's: ROSCO, or a variant of it (issue 34's
+    rosco_matched, allowed as an optional controller), on plant paper is refused when the
+    sweep file is read, not run by run."""
+    for raw in ({**BASE, "controllers": ["pi", ctrl], "plants": ["paper"]},
+                {**BASE, "controllers": ["pi"], "optional_controllers": [ctrl],
+                 "plants": ["paper"]}):
+        with pytest.raises(ConfigError) as e:
+            sweep.parse_sweep(raw)
+        assert e.value.field == "plants" and ctrl in e.value.allowed

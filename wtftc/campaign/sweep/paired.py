@@ -1,13 +1,15 @@
 """Each controller against a reference on the same runs (issue 34's goals): for every
-scenario both ran (same wind, turbulence class, seed, plant, mismatch and fault: type,
-blade, onset, runaway target) and both held, the ratio controller / reference of each
-metric, then per fault type the median and the range of those ratios.
+scenario both ran (same wind, turbulence class, seed, plant, mismatch, fault: type,
+blade, sensor, onset and size, and the same [tuning] target where the sweep has one) and
+both held, the ratio controller / reference of each metric, then per fault type the
+median and the range of those ratios.
 
 A ratio of medians over different runs compares different weather; a paired ratio does
 not, and its range shows whether one controller wins on every run or only on average.
 "Held" is DLC 2.1's: the rotor never left the envelope (status ok) nor passed the
 overspeed trip; a scenario one of the two lost is counted, not compared, since its
-metrics describe a rotor that stopped."""
+metrics describe a rotor that stopped. A scenario either failed on (an error, not the
+rotor) is counted apart and not compared."""
 
 from __future__ import annotations
 
@@ -15,8 +17,10 @@ import numpy as np
 
 from wtftc.campaign.compare import CONTROLLERS
 from wtftc.campaign.sweep.dlc import fault_label
+from wtftc.campaign.sweep.spec import MAGNITUDE_COLUMN
 
-#: the reference of the paired section: ROSCO at its deck's tuning, where it ran
+#: the reference of the paired section: ROSCO, at its deck's tuning or at the sweep's
+#: [tuning] target (each tuned run is paired with ROSCO's at the same target)
 REFERENCE = "rosco"
 #: the metrics compared: (run key, header)
 PAIRED = [("rms_speed_error_rad_s", "RMS ω error"),
@@ -25,9 +29,9 @@ PAIRED = [("rms_speed_error_rad_s", "RMS ω error"),
           ("shaft_torque_std_Nm", "shaft torque σ"),
           ("tower_base_del_1hz_Nm", "tower-base DEL"),
           ("pitch_adc", "pitch ADC")]
-#: what pairs two runs: every axis of a scenario but the controller (and its tuning)
+#: what pairs two runs: every axis of a scenario but the controller
 SCENARIO = ("plant", "mean_wind_mps", "turbulence_class", "seed", "blade", "fault_sensor",
-            "onset_s", "rho", "stuck_angle_deg", "severity", "runaway_target_deg")
+            "onset_s", *MAGNITUDE_COLUMN.values(), "tuning_omega_n_rad_s", "tuning_zeta")
 
 
 def scenario(r: dict) -> tuple:
@@ -36,18 +40,26 @@ def scenario(r: dict) -> tuple:
             *(v for k, v in sorted(r.items()) if k.startswith("mismatch_")))
 
 
+def label(c: str, r: dict) -> str:
+    """A controller's row: its name, and its [tuning] target where it has one."""
+    w = r.get("tuning_omega_n_rad_s")
+    return c if w is None else f"{c} at ({w:g} rad/s, ζ {r['tuning_zeta']:g})"
+
+
 def held(r: dict, trip: float) -> bool:
     return r["status"] == "ok" and (r["overspeed_peak_over_rated"] or 0.0) <= trip
 
 
-def pairs(rows: list[dict], c: str, ref: str) -> dict[str, list[tuple[dict, dict]]]:
-    """fault type → the (run of ``c``, run of ``ref``) on each scenario both ran; a
-    scenario a controller ran twice (a duplicate row) is paired once."""
+def pairs(rows: list[dict], c: str, ref: str) -> dict[str, dict[str, list]]:
+    """Row label (``c`` and its tuning) → fault type → the (run of ``c``, run of ``ref``)
+    on each scenario both ran, each scenario once (a duplicate row is paired once)."""
     by_ref = {scenario(r): r for r in rows if r["controller"] == ref}
-    out: dict[str, list] = {}
-    for r in rows:
-        if r["controller"] == c and scenario(r) in by_ref:
-            out.setdefault(fault_label(r), []).append((r, by_ref[scenario(r)]))
+    mine = {scenario(r): r for r in rows if r["controller"] == c}
+    out: dict[str, dict[str, list]] = {}
+    for key, r in mine.items():
+        if key in by_ref:
+            out.setdefault(label(c, r), {}).setdefault(fault_label(r), []).append(
+                (r, by_ref[key]))
     return out
 
 
@@ -67,34 +79,39 @@ def _cell(vals: list[float]) -> str:
 def section(rows: list[dict], trip: float, ref: str = REFERENCE
             ) -> tuple[list[str], list[str]]:
     """The summary's paired section: Markdown lines and CSV lines (the median, min and
-    max ratio per controller, fault type and metric); nothing without the reference."""
-    if not any(r["controller"] == ref for r in rows):
-        return [], []
-    head = ["controller", "fault", "scenarios", "both held", "lost by it", f"lost by {ref}"]
+    max ratio per controller, fault type and metric); nothing where no run pairs."""
+    head = ["controller", "fault", "scenarios", "failed", "both held", "lost by it",
+            f"lost by {ref}"]
     lines = ["", f"## Against {ref}, on the same runs", "",
              f"Each cell is the median ratio controller / {ref} over the scenarios both ran "
              f"and both held (never above {trip:g} × rated, rotor kept), with its min-max "
-             f"in brackets: below 1, lower than {ref}'s on those runs. `peak ω` is the ratio "
-             "of the peak rotor speeds. `summary_paired.csv` has the numbers.", "",
-             "| " + " | ".join(head + [h for _, h in PAIRED]) + " |",
+             f"in brackets: below 1, lower than {ref}'s on those runs. A tuned controller "
+             f"meets {ref} at the same [tuning] target. `peak ω` is the ratio of the peak "
+             "rotor speeds; \"failed\" counts the scenarios either run failed on (an error, "
+             "not the rotor), left out of the rest. `summary_paired.csv` has the numbers.",
+             "", "| " + " | ".join(head + [h for _, h in PAIRED]) + " |",
              "|" + "---|" * (len(head) + len(PAIRED))]
-    csv = ["controller,reference,fault,scenarios,both_held,lost_by_controller,"
+    csv = ["controller,reference,fault,scenarios,failed,both_held,lost_by_controller,"
            "lost_by_reference," + ",".join(f"{k}_ratio_{s}" for k, _ in PAIRED
                                            for s in ("median", "min", "max"))]
-    ctrls = [c for c in CONTROLLERS if c != ref and any(r["controller"] == c for r in rows)]
-    for c in ctrls:
-        by_fault = pairs(rows, c, ref)
-        if not by_fault:
+    for c in CONTROLLERS:
+        if c == ref:
             continue
-        for f, pp in [*sorted(by_fault.items()), ("all", [p for v in by_fault.values()
-                                                          for p in v])]:
-            counts = [len(pp), sum(held(a, trip) and held(b, trip) for a, b in pp),
-                      sum(not held(a, trip) for a, _ in pp),
-                      sum(not held(b, trip) for _, b in pp)]
-            vals = [ratios(pp, k, trip) for k, _ in PAIRED]
-            lines.append(f"| {c} | {f} | " + " | ".join(map(str, counts)) + " | "
-                         + " | ".join(_cell(v) for v in vals) + " |")
-            csv.append(",".join([c, ref, f, *map(str, counts)] + [
-                "" if not v else repr(float(s)) for v in vals
-                for s in ((np.median(v), min(v), max(v)) if v else (None,) * 3)]))
-    return lines, csv
+        for lbl, by_fault in sorted(pairs(rows, c, ref).items()):
+            for f, pp in [*sorted(by_fault.items()),
+                          ("all", [p for v in by_fault.values() for p in v])]:
+                counts, vals = _counts(pp, trip), [ratios(pp, k, trip) for k, _ in PAIRED]
+                lines.append(f"| {lbl} | {f} | " + " | ".join(map(str, counts)) + " | "
+                             + " | ".join(_cell(v) for v in vals) + " |")
+                csv.append(",".join([lbl.replace(",", ";"), ref, f, *map(str, counts)] + [
+                    "" if not v else repr(float(x)) for v in vals
+                    for x in ((np.median(v), min(v), max(v)) if v else (None,) * 3)]))
+    return (lines, csv) if len(csv) > 1 else ([], [])
+
+
+def _counts(pp: list[tuple[dict, dict]], trip: float) -> list[int]:
+    """Scenarios, failed on either side, both held, lost by the controller, lost by the
+    reference (a failed scenario counts only as failed)."""
+    ok = [(a, b) for a, b in pp if "failed" not in (a["status"], b["status"])]
+    return [len(pp), len(pp) - len(ok), sum(held(a, trip) and held(b, trip) for a, b in ok),
+            sum(not held(a, trip) for a, _ in ok), sum(not held(b, trip) for _, b in ok)]

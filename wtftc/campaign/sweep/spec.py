@@ -393,10 +393,11 @@ def _check_together(by_key: dict[str, Axis], t_final: float) -> None:
     if faulty and max(onsets.grid() if onsets.values else [onsets.range[1]]) >= t_final:
         raise ConfigError("fault.onset_s", list(onsets.values or onsets.range),
                           f"onsets before t_final_s = {t_final:g} s")
-    if "rosco" in (by_key["controllers"].values or ()) and "paper" in (
-            by_key["plants"].values or ()):
-        raise ConfigError("plants", "paper", "nrel5mw or tower when controllers include rosco "
-                          "(ROSCO's DISCON.IN is tuned for the NREL 5-MW)")
+    roscos = [c for c in by_key["controllers"].values or ()
+              if CONTROLLERS[c].controller == "rosco"]  # ROSCO or a variant of it
+    if roscos and "paper" in (by_key["plants"].values or ()):
+        raise ConfigError("plants", "paper", f"nrel5mw or tower when controllers include "
+                          f"{roscos[0]} (ROSCO's DISCON.IN is tuned for the NREL 5-MW)")
 
 
 #: the most runs one sweep may hold (before duplicates are dropped): about a week of the

@@ -406,9 +406,12 @@ def _check_same_sweep(out_dir: Path, old: dict, sweep_id: str, overwrite: bool,
                           "file: it holds sweep " + old["sweep_id"] + ", this file is "
                           f"{sweep_id} (changed); pass --overwrite to discard those "
                           "results, or --out a new folder")
-    # folders made before the hash covered the artefacts only carry the whole manifest's
-    # hash (generated_manifest_sha256): they resume on no code of this version
-    if (old["versions"].get("generated_code_sha256")
+    if "generated_code_sha256" not in old["versions"] and not overwrite:
+        raise ConfigError("--out", str(out_dir), "results this wtftc can check against its "
+                          "code: these were made by an earlier wtftc, which recorded the "
+                          "whole manifest's hash (generated_manifest_sha256), so they cannot "
+                          "be resumed here; --overwrite or --out a new folder")
+    if (old["versions"]["generated_code_sha256"]
             != now["generated_code_sha256"] and not overwrite):
         raise ConfigError("--out", str(out_dir), "results of the same generated code: "
                           "generated/ changed since they were made; --overwrite or "
