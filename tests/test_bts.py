@@ -142,7 +142,9 @@ def test_the_blades_turn_at_the_operating_speed_of_the_mean_wind():
     saved configuration); a run on the blades' wind reads blade_series at the run's times."""
     from wtftc.config import blade_speed
 
-    rc = config.make_config({**NATIVE, "wind": {**NATIVE["wind"], "rotor_wind": "blades"}})
+    blades = {**NATIVE, "wind": {**NATIVE["wind"], "rotor_wind": "blades"}}
+    turbsim.ensure_field(blades)  # as every command does first (a fresh cache has none)
+    rc = config.make_config(blades)
     assert rc.raw["wind"]["blade_speed_rad_s"] == pytest.approx(rc.param("omega_g_rated"))
     slow = blade_speed(rc.loop.p_turbine, rc.loop.table, 8.0)
     assert slow == pytest.approx(rc.loop.table.cp_max()[1] * 8.0 / 63.0)

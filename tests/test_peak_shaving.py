@@ -73,11 +73,14 @@ def test_the_pi_takes_the_same_floor():
 def _openfast_12(ps_pitch: float, tmp) -> dict:
     """The physical AFTC on its observer in OpenFAST, NTM B 12 m/s (TurbSim, seed 0), 60 s,
     the benchmark actuator, realistic sensors, the baseline torque law."""
-    rc = config.make_config({
-        "engine": "openfast", "profile": "realistic", "controller": "physical", "case": 1,
-        "t_final_s": 60.0, "seed": 0, "turbine_params": {"gen_torque_law": 1.0},
-        "wind": {"kind": "ntm", "mean_mps": 12.0, "turbulence_class": "B"},
-        "controller_params": {"phys_obs_omega": 6.0, "phys_ps_pitch": ps_pitch}})
+    from wtftc.openfast import turbsim
+
+    cfg = {"engine": "openfast", "profile": "realistic", "controller": "physical", "case": 1,
+           "t_final_s": 60.0, "seed": 0, "turbine_params": {"gen_torque_law": 1.0},
+           "wind": {"kind": "ntm", "mean_mps": 12.0, "turbulence_class": "B"},
+           "controller_params": {"phys_obs_omega": 6.0, "phys_ps_pitch": ps_pitch}}
+    turbsim.ensure_field(cfg)  # as every command does first: make_config cannot run TurbSim
+    rc = config.make_config(cfg)
     return metrics(rc, cases.run(rc, progress=False, openfast_dir=tmp / f"ps{ps_pitch:g}"))
 
 
