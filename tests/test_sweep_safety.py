@@ -328,6 +328,24 @@ def test_summary_replaces_its_own_files_and_records_them(tmp_path):
     assert Record.open(out, "--summary").ours("figures/rms_speed_error.png")
 
 
+def test_summary_pairs_each_controller_with_rosco_in_its_own_csv(tmp_path):
+    """With ROSCO among the controllers, summary.md has the paired section and
+    summary_paired.csv its numbers, recorded as the summary's (every metric 1.0 in these
+    rows: each ratio 1)."""
+    f = _sweep_file(tmp_path, THREE_RUNS.replace('["pi"]', '["pi", "rosco"]'))
+    out = tmp_path / "res"
+    _results_folder(f, out, ("ok",) * 6)
+    text = sweep.summarize(out)
+    assert "## Against rosco, on the same runs" in text
+    rows = (out / "summary_paired.csv").read_text().splitlines()
+    assert rows[0].startswith("controller,reference,fault,scenarios,failed,both_held,")
+    cells = dict(zip(rows[0].split(","), rows[-1].split(","), strict=True))
+    assert (cells["controller"], cells["fault"], cells["scenarios"], cells["both_held"]) == (
+        "pi", "all", "3", "3")
+    assert float(cells["rms_speed_error_rad_s_ratio_median"]) == 1.0
+    assert Record.open(out, "--summary").ours("summary_paired.csv")
+
+
 @pytest.mark.parametrize("link", ["figures", "figures/overspeed.png", "summary.md", "runs",
                                   "runs/part"])
 def test_summary_never_follows_a_symbolic_link(link, tmp_path, capsys):
