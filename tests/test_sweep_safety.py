@@ -343,7 +343,8 @@ def test_summary_pairs_each_controller_with_rosco_in_its_own_csv(tmp_path):
     assert (cells["controller"], cells["fault"], cells["scenarios"], cells["both_held"]) == (
         "pi", "all", "3", "3")
     assert float(cells["rms_speed_error_rad_s_ratio_median"]) == 1.0
-    assert Record.open(out, "--summary").ours("summary_paired.csv")
+    assert all(Record.open(out, "--summary").ours(rel) for rel in (
+        "summary_paired.csv", "figures/paired_tradeoff.png", "figures/paired_tradeoff.pdf"))
 
 
 @pytest.mark.parametrize("link", ["figures", "figures/overspeed.png", "summary.md", "runs",

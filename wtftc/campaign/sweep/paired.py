@@ -88,7 +88,8 @@ def section(rows: list[dict], trip: float, ref: str = REFERENCE
              f"in brackets: below 1, lower than {ref}'s on those runs. A tuned controller "
              f"meets {ref} at the same [tuning] target. `peak ω` is the ratio of the peak "
              "rotor speeds; \"failed\" counts the scenarios either run failed on (an error, "
-             "not the rotor), left out of the rest. `summary_paired.csv` has the numbers.",
+             "not the rotor), left out of the rest. `summary_paired.csv` has the numbers; "
+             "`figures/paired_tradeoff.png` each run both held.",
              "", "| " + " | ".join(head + [h for _, h in PAIRED]) + " |",
              "|" + "---|" * (len(head) + len(PAIRED))]
     csv = ["controller,reference,fault,scenarios,failed,both_held,lost_by_controller,"
@@ -115,3 +116,58 @@ def _counts(pp: list[tuple[dict, dict]], trip: float) -> list[int]:
     ok = [(a, b) for a, b in pp if "failed" not in (a["status"], b["status"])]
     return [len(pp), len(pp) - len(ok), sum(held(a, trip) and held(b, trip) for a, b in ok),
             sum(not held(a, trip) for a, _ in ok), sum(not held(b, trip) for _, b in ok)]
+
+
+#: the trade-off panels: what the regulation cost (y) against what it bought (x), each a
+#: ratio to the reference on the same run
+COSTS = [("shaft_torque_del_1hz_Nm", "shaft DEL"), ("tower_base_del_1hz_Nm", "tower-base DEL"),
+         ("pitch_adc", "pitch ADC")]
+GAINS = [("rms_speed_error_rad_s", "RMS ω error"), ("overspeed_peak_over_rated", "peak ω")]
+
+
+def figure(rows: list[dict], trip: float, ref: str = REFERENCE):
+    """Each run both held, as a point per controller: a cost ratio to ``ref`` (columns:
+    shaft DEL, tower-base DEL, ADC) against a regulation ratio (rows: RMS speed error,
+    peak speed); below and left of the dashed lines, that run beat ``ref`` on both. The
+    caller saves it (figures/paired_tradeoff)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import FuncFormatter
+
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
+    sparse = FuncFormatter(lambda v, _: f"{v:g}" if f"{v:.0e}"[0] in "25" else "")
+    fig, axes = plt.subplots(len(GAINS), len(COSTS), figsize=(14, 8.5), squeeze=False)
+    for k, c in enumerate(c for c in CONTROLLERS if c != ref):
+        pp = [p for by_fault in pairs(rows, c, ref).values() for v in by_fault.values()
+              for p in v if held(p[0], trip) and held(p[1], trip)]
+        for (gx, _), row in zip(GAINS, axes, strict=True):
+            for (cy, _), ax in zip(COSTS, row, strict=True):
+                pts = [(a[gx] / b[gx], a[cy] / b[cy]) for a, b in pp
+                       if all(x.get(key) for x in (a, b) for key in (gx, cy))]
+                if pts:
+                    ax.plot(*zip(*pts, strict=True), "o", ms=4, alpha=0.7, color=f"C{k}",
+                            label=f"{c} ({len(pts)} runs)")
+    for (_, gl), row in zip(GAINS, axes, strict=True):
+        for (_, cl), ax in zip(COSTS, row, strict=True):
+            # ratios on log axes (2 × and 0.5 × as far from 1), but the peak speed's,
+            # within a few per cent of 1
+            ax.set_yscale("log")
+            logs = [ax.yaxis]
+            if gl != "peak ω":
+                ax.set_xscale("log")
+                logs.append(ax.xaxis)
+            for axis in logs:  # 0.5, 2, 10: not 5 × 10^-1
+                axis.set_major_formatter(plain)
+                axis.set_minor_formatter(sparse)
+            ax.axhline(1.0, color="k", lw=0.8, ls="--")
+            ax.axvline(1.0, color="k", lw=0.8, ls="--")
+            ax.set_xlabel(f"{gl} / {ref}'s on the same run [-]")
+            ax.set_ylabel(f"{cl} / {ref}'s on the same run [-]")
+            ax.grid(alpha=0.3)
+    axes[0][0].legend(fontsize=7)
+    fig.suptitle(f"What each controller's regulation cost against {ref}, run by run (runs "
+                 f"both held; below and left of the dashed lines: better on both)",
+                 fontsize=9)
+    return fig

@@ -55,6 +55,7 @@ SWEEP_FILES = ("sweep.toml", "sweep.json", LOCK, "summary.md", "summary.csv",
                "summary_paired.csv")
 #: every figure the summary writes, figures/<name>.png and .pdf
 FIGURES = ("rms_speed_error", "overspeed", "detection_delay", "dlc_bins", "dlc21_extremes",
+           "paired_tradeoff",
            "tradeoff_fault_free", "tradeoff_faulted")
 #: a batch of the dataset, runs/<this>
 PART = re.compile(r"part-[0-9a-f]{16}\.parquet")

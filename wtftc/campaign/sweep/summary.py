@@ -96,6 +96,8 @@ def summarize(out_dir: Path) -> str:
     if rows:
         _figures(data, rows)
         _extra_figures(data, rows, dlc_table, family)
+        if paired_csv:
+            _save(paired.figure(rows, trip), data, "paired_tradeoff")
     rec.refuse_unless_ours(data)  # all checked before any is written
     for rel, content in data.items():
         rec.write(rel, content)
