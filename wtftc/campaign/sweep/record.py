@@ -68,7 +68,7 @@ _CSV_HEADS = {"summary.csv": ("controller,fault,runs,diverged,failed,",),
               "summary_dlc.csv": ("controller,mean_wind_mps,runs,bin_probability,",
                                   "controller,fault,runs,lost,held,"),
               "summary_tuning.csv": ("condition,controller,omega_n_rad_s,zeta,runs",),
-              "summary_paired.csv": ("controller,reference,fault,scenarios,both_held,",)}
+              "summary_paired.csv": ("controller,reference,fault,scenarios,failed,both_held,",)}
 _MAGIC = {".parquet": (b"PAR1", b"PAR1"), ".png": (b"\x89PNG\r\n\x1a\n", b"IEND\xaeB`\x82"),
           ".pdf": (b"%PDF-", b"%%EOF")}
 
