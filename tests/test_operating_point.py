@@ -154,3 +154,18 @@ def test_closed_loop_rest_is_a_boolean_and_false_keeps_the_controllers_own_start
     off = _rc("physical", "nrel5mw", 25.0, initial={"closed_loop_rest": False}).initial_state()
     # the physical AFTC rests off the plant's point at 25 m/s: +0.65 % speed (see above)
     assert on[0] == pytest.approx(1.0065 * off[0], rel=1e-3)
+
+
+def test_a_first_second_below_cut_in_starts_at_the_lowest_wind_with_a_point():
+    """A turbulent field whose first second is below cut-in (OpenFAST's 4-m/s NTM B,
+    seed 0, starts at 2.67 m/s: every DLC 1.2 run of that bin was refused) starts at the
+    operating point of the lowest wind between it and the run's mean that has one; a run
+    whose mean has none either (a constant wind below cut-in) is still refused."""
+    loop = _rc("pi", "nrel5mw", 8.0).loop
+    w = trim.start_wind(loop, 2.67, 4.0)
+    assert 2.67 < w < 4.0
+    trim.operating_point(loop, w)  # it has one
+    with pytest.raises(ConfigError, match="operating point"):
+        trim.operating_point(loop, w - 2e-3)  # and 2 mm/s below, none
+    assert trim.start_wind(loop, 4.0, 5.0) == 4.0  # a wind with a point: itself
+    assert trim.start_wind(loop, 2.0, 2.5) == 2.0  # none up to the mean: refused later

@@ -224,8 +224,11 @@ class RunConfig:
             from wtftc.sim.rosco import discon_values
 
             rosco = discon_values(self.rosco_discon)
+        # the run's mean wind: where the first second has no operating point (below
+        # cut-in in a turbulent field), the run starts at the lowest wind up to it that has
+        mean = float(np.mean(self.wind(np.linspace(0.0, self.t_final, 401))))
         return trim(self.loop, self.p_ctrl, float(self.wind(0.0)), self.omega_offset,
-                    self.yd if self.closed_loop_rest else None, rosco)
+                    self.yd if self.closed_loop_rest else None, rosco, wind_mean=mean)
 
     @property
     def control_interval(self) -> float:

@@ -17,7 +17,8 @@ from wtftc.sim.stability import _jacobian_function, fault_free_args
 
 
 def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0,
-         yd: np.ndarray | None = None, rosco: dict | None = None) -> np.ndarray:
+         yd: np.ndarray | None = None, rosco: dict | None = None,
+         wind_mean: float | None = None) -> np.ndarray:
     """Initial state: the plant at the operating point of the initial wind ``wind0`` [m/s]
     (:func:`operating_point`: above rated, rated speed (plus offset) and the pitch that
     balances rated torque; below rated, the torque law's equilibrium at the minimum pitch),
@@ -30,6 +31,8 @@ def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0
     """
     tp = lay.values("turbine_params", loop.p_turbine)
     aero.schedule_points(loop.table, loop.p_turbine)  # a table with no pitch range: named
+    if rosco is None and wind_mean is not None:
+        wind0 = start_wind(loop, wind0, wind_mean)
     omega, torque, beta0 = (operating_point(loop, wind0, omega_offset) if rosco is None
                             else rosco_operating_point(loop, wind0, rosco))
     plant = dict.fromkeys(lay.names(PLANTS[loop.plant]["states"]), 0.0)
@@ -97,6 +100,34 @@ def closed_loop_rest(loop: Loop, x: np.ndarray, wind: float, yd, p_ctrl) -> np.n
     if abs(z[i_w] / x[i_w] - 1) > 0.05 or np.max(np.abs(z[blk] - x[blk])) > np.radians(2):
         return x
     return np.concatenate([z, x[n:]])
+
+
+def start_wind(loop: Loop, wind0: float, wind_mean: float) -> float:
+    """The wind whose operating point a run starts at: ``wind0``, or, where it has none
+    with a variable-speed torque law but the run's mean wind ``wind_mean`` has one (a
+    turbulent field's first second below cut-in: the NREL 5-MW at 2.7 m/s in a 4-m/s NTM,
+    its region-1 speed beyond the Cp table's tip-speed ratios), the lowest wind between
+    the two that has one (to 1 mm/s): the rotor turning slowly as the wind starts to carry
+    it; the start-up window (30 s) is left out of every metric. A run whose mean wind has
+    no point either (a constant wind below cut-in), or a fixed rated torque the wind cannot
+    carry, is refused by :func:`operating_point`, naming the wind."""
+    tp = lay.values("turbine_params", loop.p_turbine)
+
+    def has_point(w: float) -> bool:
+        try:
+            operating_point(loop, w)
+        except ConfigError:
+            return False
+        return True
+
+    if (not PLANTS[loop.plant]["loaded"] or tp["gen_torque_law"] < 0.5
+            or wind_mean <= wind0 or has_point(wind0) or not has_point(wind_mean)):
+        return wind0  # as it is: its point, or operating_point's refusal naming it
+    lo, hi = wind0, wind_mean
+    while hi - lo > 1e-3:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if has_point(mid) else (mid, hi)
+    return hi
 
 
 def operating_point(loop: Loop, wind: float, omega_offset: float = 0.0) \
