@@ -22,7 +22,7 @@ from wtftc.model.faults import DEFAULT_FAULT, parse_faults
 from wtftc.model.wind import field_default, wind_from_config
 from wtftc.sim import fdi, rhs
 from wtftc.sim.integrate import Envelope
-from wtftc.sim.trim import trim
+from wtftc.sim.trim import start_wind, trim
 
 CASES = {1: "no fault", 2: "fault, controller unaware", 3: "fault known to eq (49)",
          4: "fault detected and estimated by wtftc's FDI"}
@@ -224,11 +224,18 @@ class RunConfig:
             from wtftc.sim.rosco import discon_values
 
             rosco = discon_values(self.rosco_discon)
-        # the run's mean wind: where the first second has no operating point (below
-        # cut-in in a turbulent field), the run starts at the lowest wind up to it that has
-        mean = float(np.mean(self.wind(np.linspace(0.0, self.t_final, 401))))
-        return trim(self.loop, self.p_ctrl, float(self.wind(0.0)), self.omega_offset,
-                    self.yd if self.closed_loop_rest else None, rosco, wind_mean=mean)
+        yd = self.yd if self.closed_loop_rest else None
+        wind0 = float(self.wind(0.0))
+        try:
+            return trim(self.loop, self.p_ctrl, wind0, self.omega_offset, yd, rosco)
+        except ConfigError:
+            # no operating point at the first second (below cut-in in a turbulent field):
+            # the lowest wind up to the run's mean that has one, where there is one
+            mean = float(np.mean(self.wind(np.linspace(0.0, self.t_final, 401))))
+            start = start_wind(self.loop, wind0, mean)
+            if start == wind0:
+                raise
+            return trim(self.loop, self.p_ctrl, start, self.omega_offset, yd, rosco)
 
     @property
     def control_interval(self) -> float:

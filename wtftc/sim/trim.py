@@ -17,8 +17,7 @@ from wtftc.sim.stability import _jacobian_function, fault_free_args
 
 
 def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0,
-         yd: np.ndarray | None = None, rosco: dict | None = None,
-         wind_mean: float | None = None) -> np.ndarray:
+         yd: np.ndarray | None = None, rosco: dict | None = None) -> np.ndarray:
     """Initial state: the plant at the operating point of the initial wind ``wind0`` [m/s]
     (:func:`operating_point`: above rated, rated speed (plus offset) and the pitch that
     balances rated torque; below rated, the torque law's equilibrium at the minimum pitch),
@@ -31,8 +30,6 @@ def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0
     """
     tp = lay.values("turbine_params", loop.p_turbine)
     aero.schedule_points(loop.table, loop.p_turbine)  # a table with no pitch range: named
-    if rosco is None and wind_mean is not None:
-        wind0 = start_wind(loop, wind0, wind_mean)
     omega, torque, beta0 = (operating_point(loop, wind0, omega_offset) if rosco is None
                             else rosco_operating_point(loop, wind0, rosco))
     plant = dict.fromkeys(lay.names(PLANTS[loop.plant]["states"]), 0.0)
