@@ -125,8 +125,10 @@ Q_BMIN, Q_BMAX, Q_GMIN, Q_RMAX = (_PP["phys_pitch_min"], _PP["phys_pitch_max"],
                                   _PP["phys_dTdbeta_min"], _PP["phys_rate_max"])
 Q_W, Q_OFF, Q_SC = _PP["mf_width"], _PP["x_offset_1"], _PP["x_scale_1"]
 Q_CEN = _family("physical_params", "mf_centre", N_MF)
+Q_TDC = _PP["phys_td_corner"]
 N_C_PHYSICAL = len(lay.names("physical_states"))
-assert N_C_PHYSICAL == N_MF + 2  # the weights, then the speed observer's ω̂_r, η (off)
+# the weights, then the speed observer's ω̂_r, η (off), then the tower damper's ŝ (off)
+assert N_C_PHYSICAL == N_MF + 3
 
 # paper controller parameters (eq (49)'s ρ̂, σ̂, ū are replaced by the known_fault input)
 P_K = _family("controller_params", "K_obs", 4)
@@ -436,6 +438,9 @@ def _ctrl_physical(z, bm1, bm2, bm3, yd, sched, pc, kf, zdot, o, ws):
     # its innovation η decays at 1/s
     zdot[o + N_P + N] = omega_r - z[N_P + N]
     zdot[o + N_P + N + 1] = -z[N_P + N + 1]
+    # the tower damper off (phys_td_gain = 0, the default; no tower: no acceleration): its
+    # state decays at the high-pass corner
+    zdot[o + N_P + N + 2] = -pc[Q_TDC] * z[N_P + N + 2]
     return (3.0 * _fmin(_fmax(U, b_min), b_max) - lock_sum) / gain
 
 

@@ -36,7 +36,10 @@ MEAS = ["omega_r", "omega_g_hss", *[f"beta_meas_{j}" for j in range(1, lay.N_BLA
 MEAS_UNITS = ["rad/s", "rad/s", *["rad"] * lay.N_BLADES]
 #: where verification draws each measurement (the pitch beyond 0..90°)
 MEAS_SAMPLES = [(1.0, 1.5), (100.0, 145.0), *[(-0.05, 1.65)] * lay.N_BLADES]
-SCHED = ["dT_dbeta"]
+#: what the runtime computes for the controllers beside the measurements: the pitch
+#: sensitivity ∂T_aero/∂β at the measured mean pitch (wtftc.model.aero) and the tower-top
+#: fore-aft acceleration (the tower damper's; derivation/design.py, tower_fa_acc)
+SCHED = ["dT_dbeta", "tower_fa_acc"]
 N_DIAG = 4
 
 
@@ -89,7 +92,7 @@ def design_translator(module, sym: dict) -> tuple[Translator, object]:
     meas = {n: sym["meas"][k] for k, n in enumerate(MEAS)}
     kf = sym["known_fault"]
     names = {**meas, **{f"yd_{m}": sym["yd"][m] for m in range(len(lay.REFERENCE))},
-             "dT_dbeta": sym["sched"][0], **params, **states,
+             **{n: sym["sched"][k] for k, n in enumerate(SCHED)}, **params, **states,
              **{f"{kind}_{j + 1}": kf[k * lay.N_BLADES + j]
                 for k, kind in enumerate(("rho_hat", "lock_hat", "ubar_hat"))
                 for j in range(lay.N_BLADES)},
@@ -254,7 +257,7 @@ def design_checks(name: str, module) -> list[ca.Function]:
     d = module.derive()
     n_x = len(module.STATES)
     sym = {"x_ctrl": ca.SX.sym("x_ctrl", n_x), "meas": ca.SX.sym("meas", len(MEAS)),
-           "yd": ca.SX.sym("yd", len(lay.REFERENCE)), "sched": ca.SX.sym("sched", 1),
+           "yd": ca.SX.sym("yd", len(lay.REFERENCE)), "sched": ca.SX.sym("sched", len(SCHED)),
            "p_ctrl": ca.SX.sym("p_ctrl", len(module.PARAMS)),
            "known_fault": ca.DM([e.default for e in lay.FAULT_INPUTS]),
            **{s.name: ca.SX.sym(s.name) for s in d.check_inputs}}
@@ -268,7 +271,7 @@ def design_checks(name: str, module) -> list[ca.Function]:
     z = ca.SX.sym("z", n_m + n_x)
     dsx = ca.SX.sym("d")
     base = {**{s.name: z[k] for k, s in enumerate(dm["states"])}, dist.name: dsx,
-            "dT_dbeta": sym["sched"][0],
+            **{n: sym["sched"][k] for k, n in enumerate(SCHED)},
             **{e.name: sym["p_ctrl"][k] for k, e in enumerate(module.PARAMS)}}
     trm = Translator(base)
     s2 = {**sym, "x_ctrl": z[n_m:], "meas": ca.vertcat(*[trm(dm["meas"][n]) for n in MEAS])}

@@ -5,7 +5,8 @@ A controller derived in SymPy (derivation/drivetrain.py, say) returns a
 uniform ``ctrl_<name>``/``init_<name>`` functions. The symbols it may use are bound by name:
 
 * the measurements ``omega_r``, ``omega_g_hss``, ``beta_meas_1..3``;
-* the reference ``yd_0..yd_4`` (y_d and its derivatives), the schedule ``dT_dbeta``;
+* the reference ``yd_0..yd_4`` (y_d and its derivatives), the schedule ``dT_dbeta`` and
+  the tower-top fore-aft acceleration ``tower_fa_acc`` (the runtime's inputs ``sched``);
 * the eq (49) fault estimates ``rho_hat_j``, ``lock_hat_j``, ``ubar_hat_j``;
 * its own states and parameters, by their layout names;
 * the fuzzy symbols L/B/φ of its rule base (inputs: the named measurements, signals or
@@ -127,6 +128,49 @@ def peak_shaving_params(prefix: str) -> list[Entry]:
         Entry(f"{prefix}_ps_speed", nrel5mw.RATED_SPEED / 1.1, "rad/s",
               "peak shaving: the rotor speed from which the floor rises (the torque law's "
               "region 2½ starts at ω_rated/(1 + slip), slip 10 %: Jonkman 2009)"),
+    ]
+
+
+#: the tower-top fore-aft acceleration [m/s^2]: a runtime input beside the ∂T/∂β schedule
+#: (the plant's in wtftc, avrSWAP #53 in a DISCON host; 0 on a plant without a tower),
+#: read by the tower damper only; not a sensor, the FDI does not vote on it
+tower_fa_acc = sp.Symbol("tower_fa_acc", real=True)
+
+
+def tower_damper(prefix: str) -> tuple[sp.Expr, sp.Expr, sp.Expr]:
+    """Tower fore-aft damping (issue 34), ROSCO's structure (ForeAftDamping, ROSCO 2.x:
+    the acceleration high-passed, integrated, times a gain, added to every blade's pitch):
+    the high-pass at ω_h followed by the integrator is the lag ŝ̇ = a − ω_h ŝ, whose ŝ
+    follows the tower-top speed above ω_h; Δβ = clip(K ŝ, ±Δβ_max). Pitching to feather
+    while the tower moves downwind lowers the thrust against the motion: damping.
+
+    Returns (Δβ, its rate, the rate of ŝ). Added to the desired pitch α1 of a backstepping
+    design, it enters α̇1 exactly (a is an input): the design's z2 tracks it, rather than
+    fight it as a disturbance on β̄. The clip's rate is written out (K ŝ̇ inside the clip,
+    0 on it), not left to SymPy, whose derivative of Min/Max is a Heaviside with a value
+    at 0 of its own choosing."""
+    gain, corner, limit = sp.symbols(f"{prefix}_td_gain {prefix}_td_corner {prefix}_td_max",
+                                     real=True)
+    s_hat = sp.Symbol(f"{prefix}_td_speed", real=True)
+    s_rate = tower_fa_acc - corner * s_hat
+    pitch = gain * s_hat
+    return (sp.Min(sp.Max(pitch, -limit), limit),
+            sp.Piecewise((gain * s_rate, sp.Abs(pitch) < limit), (0, True)), s_rate)
+
+
+def tower_damper_params(prefix: str) -> list[Entry]:
+    """The parameters of :func:`tower_damper`, off by default (gain 0)."""
+    return [
+        Entry(f"{prefix}_td_gain", 0.0, "rad s/m",
+              "tower damper: pitch per tower-top fore-aft speed (ROSCO's FA_KI); 0: none "
+              "(as before)", sample=(0.0, 0.1)),
+        Entry(f"{prefix}_td_corner", 0.2, "rad/s",
+              "tower damper: the acceleration's high-pass corner (ROSCO's "
+              "FA_HPFCornerFreq), below the first tower mode (2 rad/s on the NREL 5-MW, "
+              "1.1 on the IEA 15-MW)", sample=(0.1, 0.5)),
+        Entry(f"{prefix}_td_max", 0.0349, "rad",
+              "tower damper: the largest pitch it adds or takes, 2° (ROSCO's FA_IntSat)",
+              sample=(0.01, 0.1)),
     ]
 
 

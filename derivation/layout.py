@@ -226,9 +226,11 @@ _ANGLE = (-math.pi / 2, math.pi / 2, False, False)
 CONTROLLER_VALID = {
     **dict.fromkeys(("c", "gamma", "theta_max", "inertia", "J_r", "J_g", "k_s", "d_s",
                      "gearbox_ratio", "tau_a", "dTdbeta_min", "rate_max", "mf_width", "x_scale",
-                     "omega_n", "zeta", "tau_young", "tau_b_model", "obs_zeta", "ps_speed"),
+                     "omega_n", "zeta", "tau_young", "tau_b_model", "obs_zeta", "ps_speed",
+                     "td_corner"),
                     _POSITIVE),
-    **dict.fromkeys(("sigma", "r", "gen_torque", "lpf_corner", "obs_omega"), _NONNEG),
+    **dict.fromkeys(("sigma", "r", "gen_torque", "lpf_corner", "obs_omega", "td_gain",
+                     "td_max"), _NONNEG),
     **dict.fromkeys(("K_obs", "mf_centre", "x_offset", "b"), _ANY),
     **dict.fromkeys(("pitch_min", "pitch_max", "ubar_hat", "ps_pitch"), _ANGLE),
     "control_sign": (-1.0, 1.0, False, False),

@@ -430,6 +430,7 @@ def design_reference(cname: str, name: str, args: dict[str, np.ndarray]) -> dict
         vals.update({f"{n}_{j + 1}": float(kf[3 * k + j]) for j in range(3)})
     if "sched" in args:
         vals["dT_dbeta"] = float(_flat(args, "sched")[0])
+        vals["tower_fa_acc"] = float(_flat(args, "sched")[1])
     if "yd" in args:
         vals.update({f"yd_{m}": float(x) for m, x in enumerate(_flat(args, "yd"))})
     model = name.startswith("closed_loop_")

@@ -20,7 +20,7 @@ def _ctrl(x_ctrl, omega_r, corner):
     p[lay.index("pi_params", "pi_lpf_corner")] = corner
     meas = [omega_r, omega_r * 97.0, 0.2, 0.2, 0.2]
     out = load("ctrl_pi", "interpreted")(x_ctrl=x_ctrl, meas=meas, yd=[1.26711, 0, 0, 0, 0],
-                                          sched=[-3.0e7], p_ctrl=p, known_fault=np.zeros(
+                                          sched=[-3.0e7, 0.0], p_ctrl=p, known_fault=np.zeros(
                                               len(lay.names("fault_inputs"))))
     return float(out["u0"]), np.asarray(out["x_ctrl_dot"]).ravel()
 

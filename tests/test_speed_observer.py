@@ -24,14 +24,14 @@ def _ctrl(x_ctrl, omega_r, **params):
     p = lay.vector("physical_params", params)
     meas = [omega_r, omega_r * 97.0, 0.2, 0.2, 0.2]
     out = load("ctrl_physical", "interpreted")(
-        x_ctrl=x_ctrl, meas=meas, yd=[1.26711, 0, 0, 0, 0], sched=[-3.0e7], p_ctrl=p,
+        x_ctrl=x_ctrl, meas=meas, yd=[1.26711, 0, 0, 0, 0], sched=[-3.0e7, 0.0], p_ctrl=p,
         known_fault=lay.defaults("fault_inputs"))
     return (float(out["u0"]), np.asarray(out["x_ctrl_dot"]).ravel(),
             np.asarray(out["diag"]).ravel())
 
 
 def _state(w_hat, eta):
-    return [*[0.05] * N_W, w_hat, eta]
+    return [*[0.05] * N_W, w_hat, eta, 0.0]  # the tower damper at rest
 
 
 def test_alpha1_dot_with_the_observer_against_central_differences():

@@ -40,6 +40,7 @@ from wtftc.sim.rhs import (
     measure,
     plant_block,
     rhs_function,
+    tower_acceleration,
     true_signals,
 )
 from wtftc.sim.stability import _jacobian_function
@@ -114,6 +115,7 @@ def _block_functions(loop) -> ca.Function:
     v, wind = ca.SX.sym("v", lay.n_blades()), sym["wind"]
     true = true_signals(loop, xp, sym["p_turbine"])  # exact sensors: no lag, no noise
     readings = measure(true, true, ca.DM.zeros(len(lay.layout()["sensors"])), sym)
+    sym["tower_fa_acc"] = tower_acceleration(loop, xp, sym)  # the tower damper's input
     ctl = controller_block(loop, xc, ca.SX.zeros(0), readings, sym)
     pl = plant_block(loop, xp, v, sym)
     f_p, f_c = pl["x_plant_dot"], ctl["x_ctrl_dot"]

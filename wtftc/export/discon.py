@@ -209,9 +209,10 @@ def _n_params(controller: str) -> int:
 
 
 def step_function(rc: config.RunConfig) -> ca.Function:
-    """One control interval: (readings, x_ctrl, x_fdi, p, T, sched) → (pitch demands,
-    x_ctrl and x_fdi at the next call, generator torque demand on the HSS, logged FDI
-    outputs)."""
+    """One control interval: (readings, x_ctrl, x_fdi, p, T, sched, tower_fa_acc) → (pitch
+    demands, x_ctrl and x_fdi at the next call, generator torque demand on the HSS, logged
+    FDI outputs); ``tower_fa_acc`` the host's tower-top fore-aft acceleration (#53), which
+    only a tower damper reads."""
     loop = rc.loop
     n_sub = loop.interval
     sym = loop_symbols(loop, 0)
@@ -219,8 +220,9 @@ def step_function(rc: config.RunConfig) -> ca.Function:
     rd = ca.SX.sym("readings", len(lay.layout()["sensors"]))
     xc, xf, T = ca.SX.sym("x_ctrl", n_c), ca.SX.sym("x_fdi", n_f), ca.SX.sym("T")
     p, tab = ca.SX.sym("p", _n_params(loop.controller)), ca.SX.sym("sched", SCHED_LEN)
+    acc = ca.SX.sym("tower_fa_acc")
     parts = _split(p, loop.controller)
-    args = {**sym, "p_ctrl": parts["controller"], "p_fdi": parts["fdi_params"],
+    args = {**sym, "tower_fa_acc": acc, "p_ctrl": parts["controller"], "p_fdi": parts["fdi_params"],
             "p_sensors": parts["sensor_params"], "yd": parts["reference"],
             "use_fdi": ca.DM(1.0 if loop.fdi else 0.0),
             "ctrl_fault": ca.DM(lay.defaults("fault_inputs")), **_runtime_values(parts, tab)}
@@ -240,8 +242,8 @@ def step_function(rc: config.RunConfig) -> ca.Function:
     logged = ca.vertcat(*ctl["fdi"][:len(LOGGED)]) if loop.fdi else ca.DM.zeros(0)
     outs = [ctl["v"], xc_next, xf_next, t_gen / gear, logged]
     outs = ca.cse(outs)
-    return ca.Function("wtftc_step", [rd, xc, xf, p, T, tab], outs,
-                       ["readings", "x_ctrl", "x_fdi", "p", "T", "sched"],
+    return ca.Function("wtftc_step", [rd, xc, xf, p, T, tab, acc], outs,
+                       ["readings", "x_ctrl", "x_fdi", "p", "T", "sched", "tower_fa_acc"],
                        ["pitch", "x_ctrl_next", "x_fdi_next", "torque_hss", "logged"])
 
 
@@ -252,15 +254,17 @@ def init_function(rc: config.RunConfig) -> ca.Function:
     reg = controllers()[loop.controller]
     rd = ca.SX.sym("readings", len(lay.layout()["sensors"]))
     p, tab = ca.SX.sym("p", _n_params(loop.controller)), ca.SX.sym("sched", SCHED_LEN)
+    acc = ca.SX.sym("tower_fa_acc")
     parts = _split(p, loop.controller)
     sym = {**loop_symbols(loop, 0), "p_sensors": parts["sensor_params"],
-           **_runtime_values(parts, tab)}
+           "tower_fa_acc": acc, **_runtime_values(parts, tab)}
     m = virtual(loop, rd, ca.DM.zeros(rd.numel()), sym)
     xc0 = load(reg["init"], "interpreted")(meas=m["meas"], sched=m["sched"],
                                             p_ctrl=parts["controller"])["x_ctrl0"]
     xf0 = load("init_fdi", "interpreted")(beta_meas=m["sensors"])["x_fdi0"] if loop.fdi \
         else ca.DM.zeros(0)
-    return ca.Function("wtftc_init", [rd, p, tab], [xc0, xf0], ["readings", "p", "sched"],
+    return ca.Function("wtftc_init", [rd, p, tab, acc], [xc0, xf0],
+                       ["readings", "p", "sched", "tower_fa_acc"],
                        ["x_ctrl0", "x_fdi0"])
 
 

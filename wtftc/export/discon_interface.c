@@ -392,6 +392,19 @@ static int readings(const float *avrSWAP, double *rd, char *err, size_t n_err)
     return 0;
 }
 
+/* The tower-top fore-aft acceleration (#53, m/s^2), which only a tower damper reads, or
+ * -1 if it is not finite. */
+static int tower_acceleration(const float *avrSWAP, double *acc, char *err, size_t n_err)
+{
+    *acc = avrSWAP[52];
+    if (!isfinite(*acc)) {
+        snprintf(err, n_err, "the measured tower-top fore-aft acceleration (#53) is %g: a "
+                 "finite value is needed", *acc);
+        return -1;
+    }
+    return 0;
+}
+
 /* The schedule's runtime table from the Cp file (a flat one when the controller has no
  * schedule): ∂T/∂β at the first breakpoint, then each segment's start, width and slope;
  * unused segments have slope 0 (wtftc/export/discon.py, runtime_schedule). */
@@ -439,14 +452,16 @@ static int first_call(float *avrSWAP, const char *accINFILE, char *err, size_t n
                  "(#42-#44); set Ptch_Cntrl 1 (individual pitch) in ServoDyn", avrSWAP[27]);
         return -1;
     }
-    double rd[WTFTC_N_READINGS];
+    double rd[WTFTC_N_READINGS], acc;
     if (readings(avrSWAP, rd, err, n_err) != 0) return -1;
+    if (tower_acceleration(avrSWAP, &acc, err, n_err) != 0) return -1;
     /* the rate limit starts from where the blades are (#4, #33, #34) */
     instance->last[0] = avrSWAP[3], instance->last[1] = avrSWAP[32],
     instance->last[2] = avrSWAP[33];
     instance->arg[0] = rd;
     instance->arg[1] = instance->p;
     instance->arg[2] = instance->sched;
+    instance->arg[3] = &acc;
     instance->res[0] = instance->x_ctrl;
     instance->res[1] = instance->x_fdi;
     if (wtftc_init(instance->arg, instance->res, instance->iw, instance->w, 0) != 0) {
@@ -498,14 +513,16 @@ static int step(float *avrSWAP, char *err, size_t n_err)
 {
     double rd[WTFTC_N_READINGS], pitch[3], torque, logged[WTFTC_N_LOG > 0 ? WTFTC_N_LOG : 1];
     double dt = WTFTC_DT;
-    double xc[WTFTC_N_CTRL], xf[WTFTC_N_FDI > 0 ? WTFTC_N_FDI : 1];
+    double xc[WTFTC_N_CTRL], xf[WTFTC_N_FDI > 0 ? WTFTC_N_FDI : 1], acc;
     if (readings(avrSWAP, rd, err, n_err) != 0) return -1;
+    if (tower_acceleration(avrSWAP, &acc, err, n_err) != 0) return -1;
     instance->arg[0] = rd;
     instance->arg[1] = instance->x_ctrl;
     instance->arg[2] = instance->x_fdi;
     instance->arg[3] = instance->p;
     instance->arg[4] = &dt;
     instance->arg[5] = instance->sched;
+    instance->arg[6] = &acc;
     instance->res[0] = pitch;
     instance->res[1] = xc;
     instance->res[2] = xf;

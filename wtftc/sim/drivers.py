@@ -225,7 +225,9 @@ def intervals_source(loop: Loop, m: int, name: str) -> tuple[list[ca.Function], 
     def col(x: str, i: str) -> str:  # column i of input x (NULL: an input left out)
         return f"(arg[{idx[x]}] ? arg[{idx[x]}] + {i} * {iv.size1_in(idx[x])} : 0)"
 
-    interval = {**at, "z": "zc", "T": "&T", **{x: col(x, "j") for x in sampled.PER_INTERVAL}}
+    # the sample's wind: the first of wind3's at the interval's first plant step
+    interval = {**at, "z": "zc", "T": "&T", "wind": col("wind3", "j * n"),
+                **{x: col(x, "j") for x in sampled.PER_INTERVAL}}
     plant = {**interval, "x": "xa", "v": "va", "held": "held",
              **{x: col(x, "k") for x in sampled.PER_STEP}}
     inputs = [(x, iv.size1_in(i), cols[x]) for i, x in enumerate(ins)]

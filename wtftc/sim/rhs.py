@@ -269,7 +269,7 @@ def output_row(loop: Loop, xp, readings, ctl: dict, pl: dict, sym: dict) -> ca.S
            m["meas"][measurement_index("omega_g_hss")],
            m["meas"][measurement_index("omega_r")], xp[lay.block(states, "beta")],
            m["sensors"], ctl["u0"], ctl["v"], sym["wind"], pl["tsr"], pl["cp"], pl["T_aero"],
-           pl["T_gen"], pl["P_gen"], m["sched"], sym["yd"][lay.index("reference", "yd_0")],
+           pl["T_gen"], pl["P_gen"], m["sched"][0], sym["yd"][lay.index("reference", "yd_0")],
            readings]
     return ca.vertcat(*out, *ctl.get("fdi", []), *pl.get("tower", []), ctl["diag"])
 
@@ -291,6 +291,7 @@ def _closed_loop_rhs(loop: Loop) -> ca.Function:
     xp, xc, xf = z[:n_p], z[n_p:n_p + n_c], z[n_p + n_c:]
     true = true_signals(loop, xp, sym["p_turbine"])
     readings = measure(true, true, ca.DM.zeros(true.numel()), sym)
+    sym["tower_fa_acc"] = tower_acceleration(loop, xp, sym)
     ctl = controller_block(loop, xc, xf, readings, sym)
     pl = plant_block(loop, xp, ctl["v"], sym)
     names = ["z", "wind", *_INPUT_GROUPS, "p_ctrl", "cp_scale"] + (
@@ -377,7 +378,20 @@ def virtual(loop: Loop, readings: ca.SX, excluded: ca.SX, sym: dict) -> dict:
     sched_fn = sym.get("sched_fn") or sched_loop_function(loop.table,
                                                           np.array(loop.p_turbine))
     return {"meas": meas, "sensors": sensors,
-            "sched": sched_fn(ca.sum1(sensors) / lay.n_blades())}
+            "sched": ca.vertcat(sched_fn(ca.sum1(sensors) / lay.n_blades()),
+                                sym["tower_fa_acc"])}
+
+
+def tower_acceleration(loop: Loop, xp, sym: dict) -> ca.SX:
+    """The tower-top fore-aft acceleration the tower damper reads (derivation/design.py,
+    ``tower_fa_acc``): the plant's, exactly (an ideal accelerometer, as OpenFAST's
+    avrSWAP #53), in ``sym["wind"]``; 0 on a plant without a tower. The blades' commands
+    drive only the actuators' states, so the acceleration is the same whatever they are."""
+    spec = PLANTS[loop.plant]
+    if not spec.get("tower"):
+        return ca.DM(0.0)
+    rates = plant_block(loop, xp, ca.DM.zeros(lay.n_blades()), sym)["x_plant_dot"]
+    return rates[lay.index(spec["states"], "tower_v")]
 
 
 def measurement_index(name: str) -> int:

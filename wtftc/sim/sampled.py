@@ -40,6 +40,7 @@ from wtftc.sim.rhs import (
     output_row,
     plant_block,
     sensor_names,
+    tower_acceleration,
     true_signals,
 )
 
@@ -96,6 +97,8 @@ def _sample(loop: Loop) -> ca.Function:
     o = n["p"] + n["c"] + n["f"]
     true = true_signals(loop, xp, sym["p_turbine"])
     readings = measure(true, z[o:o + n["s"]], noise, sym)
+    # the tower damper's acceleration, sampled with the sensors, in the wind at t_k
+    sym["tower_fa_acc"] = tower_acceleration(loop, xp, sym)
 
     xc, xf = z[n["p"]:n["p"] + n["c"]], z[n["p"] + n["c"]:o]
     ctl = controller_block(loop, xc, xf, readings, sym)
@@ -107,11 +110,12 @@ def _sample(loop: Loop) -> ca.Function:
     v_applied = z[o + n["s"]:] if loop.delay else v_now
     xc_next = _rk4(lambda x: controller_block(loop, x, xf, readings, sym)["x_ctrl_dot"], xc,
                    T)
-    held = ca.vertcat(readings, m["meas"], ctl["u0"], ctl["v"], m["sched"],
+    held = ca.vertcat(readings, m["meas"], ctl["u0"], ctl["v"], m["sched"][0],
                       *ctl.get("fdi", []), ctl["diag"])
     assert held.numel() == _held_size(loop)
     names = ["z", "noise", "sensor_faults", "ctrl_fault", "yd", "p_turbine", "p_sensors",
-             "p_ctrl", *(["use_fdi", "p_fdi"] if loop.fdi else []), "test_pulse", "T"]
+             "p_ctrl", *(["use_fdi", "p_fdi"] if loop.fdi else []), "test_pulse", "T",
+             "wind", "cp_scale"]
     args = {**sym, "noise": noise, "T": T, "test_pulse": pulse}
     xc_next, held = ca.cse([xc_next, held])
     # the command the actuators hold over the interval (and the FDI's model with them),
@@ -195,13 +199,14 @@ def interval_function(loop: Loop) -> ca.Function:
     controller's as sampled until the last column, which is z_next)."""
     n, steps = _sizes(loop), loop.interval
     sample, plant = _sample(loop), _plant_step(loop).mapaccum("plant_steps", steps)
-    ins = {k: ca.MX.sym(k, sample.sparsity_in(k)) for k in sample.name_in() if k != "T"}
+    ins = {k: ca.MX.sym(k, sample.sparsity_in(k)) for k in sample.name_in()
+           if k not in ("T", "wind")}
     ins |= {"wind3": ca.MX.sym("wind3", 3, steps),
             "actuator_faults": ca.MX.sym("actuator_faults", lay.size("actuator_faults"), steps),
             "cp_scale": ca.MX.sym("cp_scale"), "dt": ca.MX.sym("dt")}
     z = ins["z"]
-    s = sample.call({**{k: ins[k] for k in sample.name_in() if k != "T"},
-                     "T": steps * ins["dt"]})
+    s = sample.call({**{k: ins[k] for k in sample.name_in() if k not in ("T", "wind")},
+                     "T": steps * ins["dt"], "wind": ins["wind3"][0, 0]})
     o = n["p"] + n["c"] + n["f"]
     xps0 = ca.vertcat(z[:n["p"]], z[o:o + n["s"]])
     v_apply, v_new = s["v_applied"], s["v_now"]

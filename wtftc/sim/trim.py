@@ -47,7 +47,8 @@ def trim(loop: Loop, p_ctrl: np.ndarray, wind0: float, omega_offset: float = 0.0
     meas0 = np.array([meas[m["name"]] for m in lay.layout()["measurements"]])
     sched0 = float(aero.pitch_sensitivity_schedule(loop.table, loop.p_turbine)(beta0))
     init = load(controllers()[loop.controller]["init"])
-    xc = np.array(init(meas=meas0, sched=sched0, p_ctrl=p_ctrl)["x_ctrl0"]).ravel()
+    # the runtime inputs: the schedule, and the tower at rest (no acceleration)
+    xc = np.array(init(meas=meas0, sched=[sched0, 0.0], p_ctrl=p_ctrl)["x_ctrl0"]).ravel()
     x = np.concatenate([list(plant.values()), xc])
     if yd is not None and omega_offset == 0.0 and loop.controller != "external":
         x = closed_loop_rest(loop, x, wind0, yd, p_ctrl)

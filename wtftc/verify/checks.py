@@ -140,6 +140,9 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
     readings = true * (1 + 0.05 * rs.standard_normal(true.size)
                        * (rs.uniform(size=true.size) < 0.33))
     rt = np.random.default_rng(int(rng.bit_generator.state["state"]["state"]) % 2**61 + 1)
+    # the tower-top acceleration (issue 34's tower damper) from a stream of its own: every
+    # other draw stays what it was
+    ra = np.random.default_rng(int(rng.bit_generator.state["state"]["state"]) % 2**61 + 2)
     return {
         "x_plant_sized": _tower_plant_states(rng, rt, x_plant),
         "ct": np.array([rt.uniform(-0.1, 1.2)]),
@@ -165,7 +168,7 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
         "omega_g": np.array([rs.uniform(0.5, 1.6)]),
         "p_sensors": _draw(lay.layout()["sensor_params"], rs)
         * (rs.uniform(size=lay.size("sensor_params")) > 0.3),
-        "sched": np.array([-rng.uniform(2e6, 3e7)]),
+        "sched": np.array([-rng.uniform(2e6, 3e7), ra.uniform(-1.0, 1.0)]),
         "known_fault": _draw(lay.layout()["fault_inputs"], rng),
         "dcp_dbeta": np.array([rng.uniform(-2.0, 0.2)]),
         "omega_dot": np.array([rng.uniform(-0.2, 0.2)]),
