@@ -113,6 +113,15 @@ ISSUE34 = {
                                      "rated) and wtftc's own FDI",
                                      params=(("phys_obs_omega", 4.5),
                                              ("phys_ps_pitch", 0.0349))),
+    # the same with its tower damper (0.12 rad s/m: the tower mode's ζ from 0.06 to 0.135
+    # on wtftc's linear model at 16 m/s, 1.4 dB of gain margin spent; docs/controllers.md)
+    "physical_obs45_ps_td_fdi": Variant("physical", FDI_CASE, "physical AFTC on its speed "
+                                        "observer at 4.5 rad/s with peak shaving (2° near "
+                                        "rated), its tower damper (0.12 rad s/m) and "
+                                        "wtftc's own FDI",
+                                        params=(("phys_obs_omega", 4.5),
+                                                ("phys_ps_pitch", 0.0349),
+                                                ("phys_td_gain", 0.12))),
     # the physical AFTC's dominant pitch-loop mode on its observer with peak shaving:
     # ω_n 0.60-0.73 rad/s, ζ 0.78-1.0 at 12-24 m/s (wtftc linearize, tower_edge, the
     # baseline torque law; docs/controllers.md): ROSCO's deck is tuned for 0.6, 0.7
