@@ -255,7 +255,8 @@ def _run_todo(sw, runs, dup, done, out_dir, client, local, scheduler, workers, t
             client, local = cluster.client(None, workers)
         if not quiet:
             n_workers = len(client.scheduler_info()["workers"])
-            print(f"Dask: {scheduler or 'local cluster'}, {n_workers} workers", flush=True)
+            print(f"Dask: {scheduler or 'local cluster'}, {n_workers} worker"
+                  f"{'' if n_workers == 1 else 's'}", flush=True)
         futures = [client.submit(run_task, b, traces, str(case_root), pure=False)
                    for b in batches(todo, sw.batch_size)]
         if not quiet:
