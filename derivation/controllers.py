@@ -10,8 +10,10 @@ and lists it under "controllers" in generated/layout.json, from which wtftc read
 
 * meas = [ω_r, ω_g (HSS), β_meas,1..3]: what a turbine measures; never the plant state;
 * yd = the rotor-speed reference and its four derivatives;
-* sched = [∂T_aero/∂β] at the measured mean pitch on the steady operating curve, from
-  the Cp table (the runtime builds it; see wtftc.model.aero.pitch_sensitivity_schedule);
+* sched = [∂T_aero/∂β at the measured mean pitch on the steady operating curve, from
+  the Cp table (wtftc.model.aero.pitch_sensitivity_schedule); the tower-top fore-aft
+  acceleration (the tower damper's: wtftc.sim.rhs.tower_acceleration, #53 in a DISCON
+  host)], both built by the runtime;
 * known_fault = [ρ̂_j, σ̂_j, ū_j] as eq (49) is told (nominal when the fault is unknown);
 * v = the three blade pitch commands [rad]; u0 = the controller's scalar command;
 * diag = four controller-specific diagnostics (named in the registry).

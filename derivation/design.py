@@ -167,7 +167,7 @@ def tower_damper_params(prefix: str) -> list[Entry]:
         Entry(f"{prefix}_td_corner", 0.2, "rad/s",
               "tower damper: the acceleration's high-pass corner (ROSCO's "
               "FA_HPFCornerFreq), below the first tower mode (2 rad/s on the NREL 5-MW, "
-              "1.1 on the IEA 15-MW)", sample=(0.1, 0.5)),
+              "1.5 on the IEA 15-MW: wtftc/data)", sample=(0.1, 0.5)),
         Entry(f"{prefix}_td_max", 0.0349, "rad",
               "tower damper: the largest pitch it adds or takes, 2° (ROSCO's FA_IntSat)",
               sample=(0.01, 0.1)),

@@ -4,12 +4,15 @@ compute and a DISCON host gives in #53; off by default."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from discon_host import Host
 
 from wtftc import config
 from wtftc.export import discon
+from wtftc.sim.rhs import rhs_function
 from wtftc.verify import designs
 
 control = pytest.importorskip("control", reason="python-control: pip install "
@@ -62,6 +65,20 @@ def test_the_damper_damps_the_tower_mode_and_keeps_the_margins():
     assert tower_mode(off)["damping"] == pytest.approx(0.06, abs=0.015)
     assert tower_mode(on)["damping"] > 2 * tower_mode(off)["damping"]
     assert lin.summary_row(on)["gain_margin_dB"] > 10
+    # the damper's path from the wind (the acceleration's thrust) is in the closed loop's
+    # wind input: ∂ż/∂w of the loop itself, by central differences
+    assert np.abs(on.F_c).max() > 0 and np.all(off.F_c == 0)
+    rc = config.make_config({**TOWER, "controller_params": params, "case": 1, "fault": []})
+    loop = replace(rc.loop, fdi=False)
+    vals = dict(zip(lin._PARAMS, lin._values(rc, loop), strict=True))
+    rhs = rhs_function(loop)
+
+    def zdot(w):
+        return np.array(rhs.call({"z": on.z, "wind": w, **vals})["z_dot"]).ravel()
+
+    fd = (zdot(16.0 + 1e-4) - zdot(16.0 - 1e-4)) / 2e-4
+    b_w = on.state_spaces()["closed_loop"].B.ravel()
+    assert np.allclose(b_w, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
 
 
 def test_a_discon_host_feeds_the_damper_record_53(tmp_path):

@@ -66,6 +66,10 @@ class OperatingPoint:
     D_c: np.ndarray
     A_cl: np.ndarray
     residual: float  # |ż| at the operating point (its rest)
+    #: the controller's own path from the wind (the tower damper reads the tower-top
+    #: acceleration, which the thrust in the wind sets): ∂ẋ_c/∂w and ∂v/∂w; zero without
+    E_c: np.ndarray | None = None
+    F_c: np.ndarray | None = None
 
     def eigenvalues(self) -> np.ndarray:
         return np.linalg.eigvals(self.A_cl)
@@ -86,8 +90,10 @@ class OperatingPoint:
         L(s) (collective, negative-feedback convention)."""
         import control
 
-        n_p = self.A_p.shape[0]
-        B_w = np.vstack([self.E_p, np.zeros((self.A_c.shape[0], 1))])
+        n_p, n_c = self.A_p.shape[0], self.A_c.shape[0]
+        E_c = np.zeros((n_c, 1)) if self.E_c is None else self.E_c
+        F_c = np.zeros((self.B_p.shape[1], 1)) if self.F_c is None else self.F_c
+        B_w = np.vstack([self.E_p + self.B_p @ F_c, E_c])
         C_w = np.hstack([self.C_p, np.zeros((1, self.A_c.shape[0]))])
         return {"plant": control.ss(self.A_p, np.hstack([self.B_p, self.E_p]), self.C_p, 0),
                 "controller": control.ss(self.A_c, self.B_c, self.C_c, self.D_c),
@@ -124,7 +130,8 @@ def _block_functions(loop) -> ca.Function:
                                "p_turbine", "p_sensors", "p_ctrl", "cp_scale")]
     outs = [ca.jacobian(f_p, xp), ca.jacobian(f_p, v), ca.jacobian(f_p, wind),
             ca.jacobian(omega, xp), ca.jacobian(f_c, xc), ca.jacobian(f_c, xp),
-            ca.jacobian(ctl["v"], xc), ca.jacobian(ctl["v"], xp), ctl["v"]]
+            ca.jacobian(ctl["v"], xc), ca.jacobian(ctl["v"], xp), ctl["v"],
+            ca.jacobian(f_c, wind), ca.jacobian(ctl["v"], wind)]
     return ca.Function("linear_blocks", [xp, xc, v, wind, *params], outs)
 
 
@@ -208,8 +215,8 @@ def operating_point(raw: dict, wind: float, z: np.ndarray | None = None) -> Oper
     vals = _values(rc, loop)
     blocks = _block_functions(loop)
     v0 = np.array(blocks(xp, xc, np.zeros(lay.n_blades()), wind, *vals)[8]).ravel()
-    mats = [np.array(m) for m in blocks(xp, xc, v0, wind, *vals)[:8]]
-    A_p, B_p, E_p, C_p, A_c, B_c, C_c, D_c = mats
+    out = [np.array(m) for m in blocks(xp, xc, v0, wind, *vals)]
+    A_p, B_p, E_p, C_p, A_c, B_c, C_c, D_c = out[:8]
     A_cl = np.block([[A_p + B_p @ D_c, B_p @ C_c], [B_c, A_c]])
     rhs = rhs_function(loop)
     zdot = np.array(rhs.call({"z": z, "wind": wind, **dict(zip(_PARAMS, vals, strict=True))})[
@@ -218,7 +225,7 @@ def operating_point(raw: dict, wind: float, z: np.ndarray | None = None) -> Oper
     residual = float(np.abs(zdot).max())
     _check_rest(rc, wind, z, residual)
     return OperatingPoint(wind, z, float(np.mean(beta)), A_p, B_p, E_p, C_p, A_c, B_c, C_c,
-                          D_c, A_cl, residual)
+                          D_c, A_cl, residual, E_c=out[9], F_c=out[10])
 
 
 #: the largest max |ż| [SI] of a point reported as at rest: the operating points of the
@@ -372,7 +379,7 @@ def _write_linearize(raw: dict, winds, out, progress: bool) -> list[dict]:
             "real", "imag", "omega_n_rad_s", "damping"))]) for m in modes(op)]
         atomic_savez(out / f"linear_{w:g}mps.npz", **{
             k: getattr(op, k) for k in ("A_p", "B_p", "E_p", "C_p", "A_c", "B_c", "C_c",
-                                        "D_c", "A_cl", "z")}, wind_mps=op.wind)
+                                        "D_c", "E_c", "F_c", "A_cl", "z")}, wind_mps=op.wind)
         if progress:
             r = rows[-1]
             print(f"  {w:g} m/s: pitch {r['pitch_deg']:.2f}°, dominant mode "

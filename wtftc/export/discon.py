@@ -117,7 +117,8 @@ def exportable() -> list[str]:
 def needs_cp(controller: str) -> bool:
     """Whether the controller reads the ∂T/∂β schedule (then the .IN names a Cp file)."""
     f = load(controllers()[controller]["function"], "interpreted")
-    return any(f.which_depends("sched", [o], 1, True)[0] for o in f.name_out())
+    # the schedule is sched[0]; sched[1] (the tower-top acceleration) needs no Cp file
+    return any(f.which_depends("sched", [o], 1, False)[0] for o in f.name_out())
 
 
 def runtime_schedule(tab: ca.SX, beta: ca.SX) -> ca.SX:
