@@ -137,7 +137,6 @@ def figure(rows: list[dict], trip: float, ref: str = REFERENCE):
     from matplotlib.ticker import FuncFormatter
 
     plain = FuncFormatter(lambda v, _: f"{v:g}")
-    sparse = FuncFormatter(lambda v, _: f"{v:g}" if f"{v:.0e}"[0] in "25" else "")
     fig, axes = plt.subplots(len(GAINS), len(COSTS), figsize=(14, 8.5), squeeze=False)
     for k, c in enumerate(c for c in CONTROLLERS if c != ref):
         pp = [p for by_fault in pairs(rows, c, ref).values() for v in by_fault.values()
@@ -160,7 +159,7 @@ def figure(rows: list[dict], trip: float, ref: str = REFERENCE):
                 logs.append(ax.xaxis)
             for axis in logs:  # 0.5, 2, 10: not 5 × 10^-1
                 axis.set_major_formatter(plain)
-                axis.set_minor_formatter(sparse)
+                axis.set_minor_formatter(_minor_labels(axis))
             ax.axhline(1.0, color="k", lw=0.8, ls="--")
             ax.axvline(1.0, color="k", lw=0.8, ls="--")
             ax.set_xlabel(f"{gl} / {ref}'s on the same run [-]")
@@ -171,3 +170,16 @@ def figure(rows: list[dict], trip: float, ref: str = REFERENCE):
                  f"both held; below and left of the dashed lines: better on both)",
                  fontsize=9)
     return fig
+
+
+def _minor_labels(axis):
+    """The minor ticks' labels of a log axis: each of them while the axis spans less than
+    a factor of 3 (a cluster of runs near 1 would otherwise show no number but 1), else
+    only 2 and 5 (0.2, 0.5, 2, 5...)."""
+    def label(v, _):
+        lo, hi = sorted(axis.get_view_interval())
+        every = lo > 0 and hi / lo < 3.0
+        return f"{v:g}" if every or f"{v:.0e}"[0] in "25" else ""
+    from matplotlib.ticker import FuncFormatter
+
+    return FuncFormatter(label)
