@@ -190,7 +190,8 @@ TURBINE_PARAMS = [*PLANT_PARAMS, *[nrel5mw.entry(Entry, n, u) for n, u in (
     ("tower_modal_mass", "kg"), ("tower_stiffness", "N/m"), ("tower_damping_ratio", "-"),
     ("tower_moment_arm", "m"),
     ("edge_modal_mass", "kg"), ("edge_stiffness", "N/m"), ("edge_damping_ratio", "-"),
-    ("edge_coupling_cos", "kg m"), ("edge_coupling_sin", "kg m"), ("edge_torque_share", "1/m"))]]
+    ("edge_coupling_cos", "kg m"), ("edge_coupling_sin", "kg m"), ("edge_torque_share", "1/m"),
+    ("vs_constant_torque", "-"))]]
 #: The physical range of every turbine parameter (docs/running.md, "Errors and exit codes").
 #: Positive where the derivation declares the symbol positive (a zero inertia, stiffness,
 #: time constant or slip divides by zero); upper limits only where physics sets one (air
@@ -212,7 +213,8 @@ TURBINE_VALID = {
     "vs_slip": (0.0, 1.0, True, True),
     "pitch_min": (-math.pi / 2, math.pi / 2, False, False),  # ±90°
     "pitch_max": (-math.pi / 2, math.pi / 2, False, False),
-    **dict.fromkeys(("gen_constant_power", "gen_torque_law"), (0.0, 1.0, False, False)),
+    **dict.fromkeys(("gen_constant_power", "gen_torque_law", "vs_constant_torque"),
+                    (0.0, 1.0, False, False)),
 }
 #: The physical range of a controller parameter, by its role: the name without the
 #: controller's prefix (phys_, dt_, pi_) and blade or step number. Gains, rates, time

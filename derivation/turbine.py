@@ -51,6 +51,7 @@ rotor_radius = sp.Symbol("rotor_radius", positive=True)  # [m]
 gearbox_ratio = sp.Symbol("gearbox_ratio", positive=True)  # [-]
 gen_torque_rated = sp.Symbol("gen_torque_rated", positive=True)  # LSS [N m]
 gen_constant_power = sp.Symbol("gen_constant_power", real=True)  # 0 torque, 1 power
+vs_constant_torque = sp.Symbol("vs_constant_torque", real=True)  # the law's region 3
 omega_n0 = sp.Symbol("omega_n_nominal", positive=True)  # nominal actuator [rad/s]
 zeta0 = sp.Symbol("zeta_nominal", positive=True)
 pitch_min = sp.Symbol("pitch_min", real=True)  # [rad]
@@ -140,7 +141,10 @@ def baseline_torque_law() -> sp.Expr:
     section 7.1): 0 below cut-in; region 1½ the line from cut-in to k ω² at the start of
     region 2; region 2 k ω² (optimal tip-speed ratio); region 2½ the line through the
     synchronous speed ω_rated/(1 + slip) that reaches P_rated/ω_rated at ω_rated; region 3
-    constant power P_rated/ω; capped at the maximum torque. Written as one continuous
+    constant power P_rated/ω (Jonkman's), or with ``vs_constant_torque`` 1 constant torque
+    P_rated/ω_rated (issue 34: constant power on the unfiltered generator speed, dT/dω =
+    -P/ω², takes damping from the drivetrain mode; docs/controllers.md); capped at the
+    maximum torque. Written as one continuous
     min/max expression of ω_g: regions by speed only (the original also enters region 3
     when the pitch exceeds 1°), and without its torque-rate limit of 15 kN m/s (HSS)."""
     w = omega_g
@@ -149,7 +153,8 @@ def baseline_torque_law() -> sp.Expr:
     region15 = k * w_r2**2 / (w_r2 - w_ci) * (w - w_ci)
     region2 = k * w**2
     region25 = vs_rated_power / vs_rated_speed / (vs_rated_speed - w_sync) * (w - w_sync)
-    region3 = vs_rated_power / w
+    region3 = sp.Piecewise((vs_rated_power / vs_rated_speed, vs_constant_torque > 0.5),
+                           (vs_rated_power / w, True))
     law = sp.Max(sp.Min(region15, region2), region25)
     return sp.Min(vs_max_torque, sp.Max(0, sp.Min(region3, law)))
 

@@ -125,7 +125,7 @@ TURBINE_RANGES = _ranges("turbine_params")
 #: and the torque law's region 1½ (its slope divides by region2 - cut-in speed)
 TURBINE_ORDER = (("pitch_min", "pitch_max"), ("vs_cut_in_speed", "vs_region2_speed"))
 #: turbine parameters that switch a behaviour on (1) or off (0)
-TURBINE_FLAGS = ("gen_torque_law", "gen_constant_power")
+TURBINE_FLAGS = ("gen_torque_law", "gen_constant_power", "vs_constant_torque")
 #: controller parameters that are switches
 CONTROLLER_FLAGS = ("phys_actuator_model",)
 

@@ -45,6 +45,9 @@ class Variant:
     tuning: tuple[float, float] | None = None
     #: the design's options other than its defaults, (name, value) of [controller_params]
     params: tuple[tuple[str, float], ...] = ()
+    #: [turbine_params] beyond the baseline torque law every wtftc pitch controller runs
+    #: with (variant_config), (name, value)
+    turbine: tuple[tuple[str, float], ...] = ()
 
     @property
     def uses_fdi(self) -> bool:
@@ -122,6 +125,29 @@ ISSUE34 = {
                                         params=(("phys_obs_omega", 4.5),
                                                 ("phys_ps_pitch", 0.0349),
                                                 ("phys_td_gain", 0.12))),
+    # the two with the baseline torque law's region 3 at constant torque instead of
+    # constant power (vs_constant_torque): in OpenFAST the constant-power law on the
+    # unfiltered generator speed drives the drivetrain mode (docs/controllers.md)
+    "physical_obs45_ps_ct_fdi": Variant("physical", FDI_CASE, "physical AFTC on its speed "
+                                        "observer at 4.5 rad/s with peak shaving (2° near "
+                                        "rated) and wtftc's own FDI; constant torque above "
+                                        "rated",
+                                        params=(("phys_obs_omega", 4.5),
+                                                ("phys_ps_pitch", 0.0349)),
+                                        turbine=(("vs_constant_torque", 1.0),)),
+    "physical_obs45_ps_td_ct_fdi": Variant("physical", FDI_CASE, "physical AFTC on its "
+                                           "speed observer at 4.5 rad/s with peak shaving "
+                                           "(2° near rated), its tower damper (0.12 rad s/m) "
+                                           "and wtftc's own FDI; constant torque above rated",
+                                           params=(("phys_obs_omega", 4.5),
+                                                   ("phys_ps_pitch", 0.0349),
+                                                   ("phys_td_gain", 0.12)),
+                                           turbine=(("vs_constant_torque", 1.0),)),
+    "pi_lpf_ps_ct": Variant("pi", UNAWARE_CASE, "gain-scheduled PI on the rotor speed "
+                            "low-passed at 6 rad/s, with peak shaving (2° near rated); "
+                            "constant torque above rated",
+                            params=(("pi_lpf_corner", 6.0), ("pi_ps_pitch", 0.0349)),
+                            turbine=(("vs_constant_torque", 1.0),)),
     # the physical AFTC's dominant pitch-loop mode on its observer with peak shaving:
     # ω_n 0.60-0.73 rad/s, ζ 0.78-1.0 at 12-24 m/s (wtftc linearize, tower_edge, the
     # baseline torque law; docs/controllers.md): ROSCO's deck is tuned for 0.6, 0.7
@@ -220,7 +246,7 @@ def variant_config(controller: str, faults: list | None, wind: dict, t_final: fl
         # ROSCO commands the generator torque itself; every other pitch controller runs with
         # the NREL 5-MW baseline variable-speed torque law (Jonkman 2009, 7.1), so that all
         # compete on the same plant with a standard torque controller (docs/compare.md)
-        cfg["turbine_params"] = {"gen_torque_law": 1.0}
+        cfg["turbine_params"] = {"gen_torque_law": 1.0, **dict(variant.turbine)}
     return cfg
 
 

@@ -171,9 +171,17 @@ def _rosco_tuning(tab, where: str) -> tuple | None:
     return tuple(float(v) for v in vals)
 
 
+#: run options a turbine file written before them may leave out: their value then
+#: (the behaviour of the wtftc that wrote the file)
+OPTIONAL = {"vs_constant_torque": (0.0, "the baseline torque law's region 3 at constant "
+                                        "power (not in the file: the default)")}
+
+
 def _entry(params: dict, name: str, unit: str, where: str) -> tuple[float, str]:
     e = params.get(name)
     field = f"params.{name}"
+    if e is None and name in OPTIONAL:
+        return OPTIONAL[name]
     if e is None:
         hint = (" (the blades' edgewise mode, new in wtftc's issue 33: `wtftc turbine "
                 "import` writes it from the ElastoDyn blade file; docs/turbines.md)"

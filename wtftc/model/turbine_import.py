@@ -467,7 +467,8 @@ def _defaults(values: dict, sources: dict) -> None:
     nrel = "the NREL 5-MW's proportions (Jonkman 2009, 7.1)"
     values.update({
         "omega_n_nominal": on, "zeta_nominal": zeta, "tau_b": 2 * zeta / on,
-        "gen_constant_power": 0.0, "gen_torque_law": 0.0, "vs_slip": 0.1,
+        "gen_constant_power": 0.0, "gen_torque_law": 0.0, "vs_constant_torque": 0.0,
+        "vs_slip": 0.1,
         "vs_region2_speed": values["vs_cut_in_speed"] * (91.21091 / 70.16224),
         "vs_rated_speed": values["omega_g_rated"] * (121.6805 / 122.90967)})
     sources.update({
@@ -477,6 +478,8 @@ def _defaults(values: dict, sources: dict) -> None:
         "tau_b": "2ζ/ω_n of the actuator (its first-order equivalent)",
         "gen_constant_power": "constant torque above rated (a run option)",
         "gen_torque_law": "rated torque (a run option; 1: the baseline law below)",
+        "vs_constant_torque": "the baseline law's region 3 at constant power (a run option; "
+                              "1: constant torque)",
         "vs_slip": f"10 %, {nrel}",
         "vs_region2_speed": f"VS_MinOMSpd × 91.21091/70.16224, {nrel}",
         "vs_rated_speed": f"rated speed × 121.6805/122.90967, {nrel}"})
