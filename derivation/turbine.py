@@ -142,9 +142,10 @@ def baseline_torque_law() -> sp.Expr:
     region 2; region 2 k ω² (optimal tip-speed ratio); region 2½ the line through the
     synchronous speed ω_rated/(1 + slip) that reaches P_rated/ω_rated at ω_rated; region 3
     constant power P_rated/ω (Jonkman's), or with ``vs_constant_torque`` 1 constant torque
-    P_rated/ω_rated (issue 34: constant power on the unfiltered generator speed, dT/dω =
-    -P/ω², takes damping from the drivetrain mode; docs/controllers.md); capped at the
-    maximum torque. Written as one continuous
+    P_rated/ω_g,rated, the same torque at the speed the pitch regulates to, hence the same
+    operating point (issue 34: constant power on the unfiltered generator speed, dT/dω =
+    -P/ω², takes damping from the drivetrain mode; docs/controllers.md), which the region-2½
+    line meets just below its ω_rated; capped at the maximum torque. Written as one continuous
     min/max expression of ω_g: regions by speed only (the original also enters region 3
     when the pitch exceeds 1°), and without its torque-rate limit of 15 kN m/s (HSS)."""
     w = omega_g
@@ -153,7 +154,7 @@ def baseline_torque_law() -> sp.Expr:
     region15 = k * w_r2**2 / (w_r2 - w_ci) * (w - w_ci)
     region2 = k * w**2
     region25 = vs_rated_power / vs_rated_speed / (vs_rated_speed - w_sync) * (w - w_sync)
-    region3 = sp.Piecewise((vs_rated_power / vs_rated_speed, vs_constant_torque > 0.5),
+    region3 = sp.Piecewise((vs_rated_power / omega_g_rated, vs_constant_torque > 0.5),
                            (vs_rated_power / w, True))
     law = sp.Max(sp.Min(region15, region2), region25)
     return sp.Min(vs_max_torque, sp.Max(0, sp.Min(region3, law)))

@@ -65,14 +65,19 @@ def test_too_short_a_run_for_the_faults_is_refused(tmp_path):
 
 def test_pitch_controllers_run_with_the_baseline_torque_law_and_rosco_with_its_own():
     """Every pitch controller competes with the NREL 5-MW baseline torque law; ROSCO, at
-    any tuning, commands its own torque (its adapter holds it in gen_torque_rated, law 0)."""
+    any tuning, commands its own torque (its adapter holds it in gen_torque_rated, law 0).
+    The _ct variants run the law's region 3 at constant torque (issue 34)."""
     from wtftc.campaign import compare
+    from wtftc.config import make_config
 
     for name in compare.CONTROLLERS:
         cfg = compare.cell_config(name, "lock", "ntm_B_16", 30.0, 1e-3, 0)
         law = cfg.get("turbine_params", {}).get("gen_torque_law", 0.0)
         rosco = compare.CONTROLLERS[name].controller == "rosco"
         assert law == (0.0 if rosco else 1.0), name
+        region3 = cfg.get("turbine_params", {}).get("vs_constant_torque", 0.0)
+        assert region3 == (1.0 if name.endswith(("_ct", "_ct_fdi")) else 0.0), name
+        assert make_config(cfg).param("vs_constant_torque") == region3, name
         assert cfg["plant"] == "tower" and cfg["wind"]["rotor_radius_m"] == 63.0
     iea = compare.cell_config("pi", "none", "ntm_B_16", 30.0, 1e-3, 0, turbine="iea15mw")
     assert iea["wind"]["rotor_radius_m"] == 120.97

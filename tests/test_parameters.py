@@ -72,6 +72,7 @@ TURBINE = {
     "edge_modal_mass": ("edge", None), "edge_stiffness": ("edge", None),
     "edge_damping_ratio": ("edge", 0.05), "edge_coupling_cos": ("edge", None),
     "edge_coupling_sin": ("edge", None), "edge_torque_share": ("edge", None),
+    "vs_constant_torque": ("above_law", 1.0),
 }
 
 

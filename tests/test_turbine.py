@@ -82,3 +82,31 @@ def test_baseline_torque_law_is_jonkmans(w_hss):
     assert t1 == pytest.approx(_jonkman_torque_hss(w_hss), rel=1e-9, abs=1e-6)
     t0 = float(f(**args, p_turbine=lay.vector("turbine_params"))["T_gen"]) / n
     assert t0 == pytest.approx(43_093.55, rel=1e-12)
+
+
+@pytest.mark.parametrize("w_hss", [100.0, 119.0, 121.0, 121.5, 121.6805, 122.0, 122.90967,
+                                   130.0, 140.0])
+def test_the_laws_region_3_at_constant_torque(w_hss):
+    """vs_constant_torque = 1 (issue 34): the baseline law is Jonkman's until it reaches
+    the rated torque P_rated/ω_g,rated (43,093.55 N m on the HSS, on its region-2½ line
+    just below 121.68 rad/s) and that torque above; at the rated speed, where the pitch
+    holds the rotor, it is Jonkman's constant-power torque (the same operating point). The
+    default 0 is Jonkman's constant power."""
+    from wtftc.artefacts.loader import load
+
+    f = load("turbine_nrel5mw")
+    n = 97.0
+    x = np.array([w_hss / n, 0.0, w_hss / n, 0.1, 0.1, 0.1, 0.0, 0.0, 0.0])
+    args = dict(x_plant=x, v=np.full(3, 0.1), wind=12.0, cp=0.4,
+                actuator_faults=lay.defaults("actuator_faults"))
+    law = {"gen_torque_law": 1.0}
+    t_ct = float(f(**args, p_turbine=lay.vector("turbine_params", law | {
+        "vs_constant_torque": 1.0}))["T_gen"]) / n
+    t_cp = float(f(**args, p_turbine=lay.vector("turbine_params", law))["T_gen"]) / n
+    rated_torque = 5296610.0 / 122.90967
+    assert rated_torque == pytest.approx(43_093.55, rel=1e-5)  # Jonkman, rounded
+    assert t_cp == pytest.approx(_jonkman_torque_hss(w_hss), rel=1e-9)
+    below = _jonkman_torque_hss(w_hss) if w_hss < 121.6805 else np.inf
+    assert t_ct == pytest.approx(min(below, rated_torque), rel=1e-9)
+    if w_hss == 122.90967:
+        assert t_ct == pytest.approx(t_cp, rel=1e-9)

@@ -361,3 +361,15 @@ def test_the_fdi_allows_for_a_mismatched_actuator_at_its_rate_limit():
     assert alarms == [] and ratio < 0.8
     alarms0, ratio0 = _alarm_run(rate_limited_uncertainty=0.0)
     assert sorted(a["blade"] for a in alarms0) == [1, 2, 3] and ratio0 > 1.0
+
+
+def test_a_turbine_file_from_before_vs_constant_torque_still_reads(tmp_path):
+    """A run option added after a turbine file was written (issue 34's
+    vs_constant_torque) takes the behaviour that file had: 0, the law's constant power."""
+    path = _user_file(tmp_path, lambda t: "\n".join(
+        ln for ln in t.splitlines() if not ln.startswith("vs_constant_torque ")))
+    assert "vs_constant_torque" not in path.read_text()
+    t = turbine_file.read(path)
+    assert t.values["vs_constant_torque"] == 0.0
+    assert {k: v for k, v in t.values.items() if k != "vs_constant_torque"} == {
+        k: v for k, v in turbine_file.load("iea15mw").values.items() if k != "vs_constant_torque"}
