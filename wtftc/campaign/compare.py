@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import copy
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -125,29 +125,6 @@ ISSUE34 = {
                                         params=(("phys_obs_omega", 4.5),
                                                 ("phys_ps_pitch", 0.0349),
                                                 ("phys_td_gain", 0.12))),
-    # the two with the baseline torque law's region 3 at constant torque instead of
-    # constant power (vs_constant_torque): in OpenFAST the constant-power law on the
-    # unfiltered generator speed drives the drivetrain mode (docs/controllers.md)
-    "physical_obs45_ps_ct_fdi": Variant("physical", FDI_CASE, "physical AFTC on its speed "
-                                        "observer at 4.5 rad/s with peak shaving (2° near "
-                                        "rated) and wtftc's own FDI; constant torque above "
-                                        "rated",
-                                        params=(("phys_obs_omega", 4.5),
-                                                ("phys_ps_pitch", 0.0349)),
-                                        turbine=(("vs_constant_torque", 1.0),)),
-    "physical_obs45_ps_td_ct_fdi": Variant("physical", FDI_CASE, "physical AFTC on its "
-                                           "speed observer at 4.5 rad/s with peak shaving "
-                                           "(2° near rated), its tower damper (0.12 rad s/m) "
-                                           "and wtftc's own FDI; constant torque above rated",
-                                           params=(("phys_obs_omega", 4.5),
-                                                   ("phys_ps_pitch", 0.0349),
-                                                   ("phys_td_gain", 0.12)),
-                                           turbine=(("vs_constant_torque", 1.0),)),
-    "pi_lpf_ps_ct": Variant("pi", UNAWARE_CASE, "gain-scheduled PI on the rotor speed "
-                            "low-passed at 6 rad/s, with peak shaving (2° near rated); "
-                            "constant torque above rated",
-                            params=(("pi_lpf_corner", 6.0), ("pi_ps_pitch", 0.0349)),
-                            turbine=(("vs_constant_torque", 1.0),)),
     # the physical AFTC's dominant pitch-loop mode on its observer with peak shaving:
     # ω_n 0.60-0.73 rad/s, ζ 0.78-1.0 at 12-24 m/s (wtftc linearize, tower_edge, the
     # baseline torque law; docs/controllers.md): ROSCO's deck is tuned for 0.6, 0.7
@@ -155,6 +132,20 @@ ISSUE34 = {
                              "to the physical AFTC's pitch-loop mode (0.7 rad/s, ζ 0.85)",
                              tuning=(0.7, 0.85)),
 }
+
+
+def _constant_torque(name: str) -> tuple[str, Variant]:
+    """``name``'s variant with the baseline torque law's region 3 at constant torque
+    instead of constant power (vs_constant_torque): in OpenFAST the constant-power law on
+    the unfiltered generator speed drives the drivetrain mode (docs/controllers.md)."""
+    v = ISSUE34[name]
+    ct = (name[:-len("_fdi")] + "_ct_fdi") if name.endswith("_fdi") else name + "_ct"
+    return ct, replace(v, doc=v.doc + "; constant torque above rated",
+                       turbine=(("vs_constant_torque", 1.0),))
+
+
+ISSUE34 |= dict(_constant_torque(n) for n in (
+    "physical_obs45_ps_fdi", "physical_obs45_ps_td_fdi", "pi_lpf_ps"))
 CONTROLLERS |= ISSUE34
 #: the matrix of a bare `wtftc compare`: what it was before issue 32's measured matrix
 #: added paper_fdi and the steady and 12-m/s winds, which run when named (docs/compare.md)
