@@ -230,6 +230,25 @@ def test_the_openfast_dlc_examples_list_what_their_headers_say():
                    for r in matched)
 
 
+def test_the_constant_torque_dlc_examples_run_the_candidate_with_its_options():
+    """examples/dlc12_openfast_ct.toml and dlc21_openfast_ct.toml (issue 34): the candidate
+    with its tower damper and the law's region 3 at constant torque, in OpenFAST, in the
+    run counts their headers give (22 and 48, ROSCO's aside)."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent / "examples"
+    for name, n_runs in (("dlc12_openfast_ct.toml", 22), ("dlc21_openfast_ct.toml", 48)):
+        runs, _ = sweep.expand(sweep.load_sweep(root / name))
+        ours = [r for r in runs if r["controller"] == "physical_obs45_ps_td_ct_fdi"]
+        assert len(ours) == n_runs, name
+        assert {r["controller"] for r in runs} <= {"physical_obs45_ps_td_ct_fdi", "rosco"}
+        assert all(r["config"]["engine"] == "openfast" for r in runs)
+        assert all(r["config"]["turbine_params"] == {"gen_torque_law": 1.0,
+                                                     "vs_constant_torque": 1.0}
+                   and r["config"]["controller_params"]["phys_td_gain"] == 0.12
+                   for r in ours), name
+
+
 def _paired_row(controller, wind, seed, fault="lock", status="ok", peak=1.05, **metrics):
     base = {"controller": controller, "plant": "openfast", "mean_wind_mps": wind,
             "turbulence_class": "B", "seed": seed, "fault_type": fault, "blade": 1,
