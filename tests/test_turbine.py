@@ -110,3 +110,18 @@ def test_the_laws_region_3_at_constant_torque(w_hss):
     assert t_ct == pytest.approx(min(below, rated_torque), rel=1e-9)
     if w_hss == 122.90967:
         assert t_ct == pytest.approx(t_cp, rel=1e-9)
+
+
+def test_constant_torque_without_the_law_is_refused_naming_both():
+    """vs_constant_torque sets the baseline law's region 3: with a fixed torque
+    (gen_torque_law 0, the default above rated) it would change nothing, silently."""
+    from wtftc.config import make_config
+    from wtftc.errors import ConfigError
+
+    raw = {"controller": "physical", "t_final_s": 5.0,
+           "wind": {"kind": "constant", "speed_mps": 16.0},
+           "turbine_params": {"vs_constant_torque": 1.0}}
+    with pytest.raises(ConfigError, match="vs_constant_torque.*gen_torque_law = 1"):
+        make_config(raw)
+    raw["turbine_params"]["gen_torque_law"] = 1.0
+    assert make_config(raw).param("vs_constant_torque") == 1.0

@@ -350,6 +350,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     transient_window(raw, t_final, first_event(faults, wind))
     offset, rest = _initial(raw)
     _torque_law(raw, p_turbine, wind, t_final, table[0])
+    _region3(raw, p_turbine)
     loop = rhs.Loop(raw["plant"], controller, *table, tuple(float(x) for x in p_turbine),
                     interval=interval, delay=raw["control_delay"])
     _check_envelope(loop, ref, offset)
@@ -755,6 +756,17 @@ def _torque_law(raw: dict, p_turbine: np.ndarray, wind, t_final: float, table) -
         return
     raw["turbine_params"] = {**tp, "gen_torque_law": 1.0}
     p_turbine[lay.index("turbine_params", "gen_torque_law")] = 1.0
+
+
+def _region3(raw: dict, p_turbine: np.ndarray) -> None:
+    """vs_constant_torque sets the baseline law's region 3: refused where the law does not
+    run (gen_torque_law 0: a fixed torque, which it would silently leave as it is)."""
+    value = p_turbine[lay.index("turbine_params", "vs_constant_torque")]
+    if value != 0.0 and p_turbine[lay.index("turbine_params", "gen_torque_law")] != 1.0:
+        raise ConfigError("turbine_params.vs_constant_torque",
+                          raw.get("turbine_params", {}).get("vs_constant_torque", value),
+                          "0 unless the baseline torque law runs (gen_torque_law = 1): it "
+                          "sets that law's region 3, and a fixed torque has none")
 
 
 def rated_wind_speed(p_turbine, table) -> float:
