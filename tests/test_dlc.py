@@ -230,22 +230,28 @@ def test_the_openfast_dlc_examples_list_what_their_headers_say():
                    for r in matched)
 
 
-def test_the_constant_torque_dlc_examples_run_the_candidate_with_its_options():
-    """examples/dlc12_openfast_ct.toml and dlc21_openfast_ct.toml (issue 34): the candidate
-    with its tower damper and the law's region 3 at constant torque, in OpenFAST, in the
-    run counts their headers give (22 and 48, ROSCO's aside)."""
+@pytest.mark.parametrize("suffix, candidate, omega_o", [
+    ("ct", "physical_obs45_ps_td_ct_fdi", 4.5), ("obs30", "physical_obs30_ps_td_ct_fdi", 3.0)])
+def test_the_constant_torque_dlc_examples_run_the_candidate_with_its_options(
+        suffix, candidate, omega_o):
+    """examples/dlc12_openfast_{ct,obs30}.toml and dlc21_openfast_{ct,obs30}.toml (issue
+    34): the candidate with its tower damper, the law's region 3 at constant torque and its
+    observer's corner, in OpenFAST, in the run counts their headers give (22 and 48, ROSCO's
+    aside)."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent / "examples"
-    for name, n_runs in (("dlc12_openfast_ct.toml", 22), ("dlc21_openfast_ct.toml", 48)):
+    for name, n_runs in ((f"dlc12_openfast_{suffix}.toml", 22),
+                         (f"dlc21_openfast_{suffix}.toml", 48)):
         runs, _ = sweep.expand(sweep.load_sweep(root / name))
-        ours = [r for r in runs if r["controller"] == "physical_obs45_ps_td_ct_fdi"]
+        ours = [r for r in runs if r["controller"] == candidate]
         assert len(ours) == n_runs, name
-        assert {r["controller"] for r in runs} <= {"physical_obs45_ps_td_ct_fdi", "rosco"}
+        assert {r["controller"] for r in runs} <= {candidate, "rosco"}
         assert all(r["config"]["engine"] == "openfast" for r in runs)
         assert all(r["config"]["turbine_params"] == {"gen_torque_law": 1.0,
                                                      "vs_constant_torque": 1.0}
                    and r["config"]["controller_params"]["phys_td_gain"] == 0.12
+                   and r["config"]["controller_params"]["phys_obs_omega"] == omega_o
                    for r in ours), name
 
 
