@@ -146,7 +146,7 @@ def _constant_torque(name: str) -> tuple[str, Variant]:
 
 ISSUE34 |= dict(_constant_torque(n) for n in (
     "physical_obs45_ps_fdi", "physical_obs45_ps_td_fdi", "pi_lpf_ps"))
-# the candidate with its observer at 3 rad/s: in OpenFAST the pitch moves 25-40 % less
+# the candidate with its observer at 3 rad/s: in OpenFAST the pitch moves 31-34 % less
 # above rated than at 4.5 for 0-19 % more RMS error; on wtftc's linear model the pitch
 # loop never reaches -180° at 12-24 m/s on either turbine (docs/controllers.md)
 ISSUE34["physical_obs30_ps_td_ct_fdi"] = replace(
