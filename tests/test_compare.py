@@ -96,7 +96,7 @@ def test_the_matrix_has_every_actuator_fault_type_and_names_the_fdi_variants():
         "physical_fdi", "drivetrain_fdi", "paper_fdi", "physical_obs_fdi",
         "physical_obs_ps_fdi", "physical_obs45_ps_fdi", "physical_obs45_ps_td_fdi",
         "physical_obs45_ps_ct_fdi", "physical_obs45_ps_td_ct_fdi",
-        "physical_obs30_ps_td_ct_fdi"]
+        "physical_obs30_ps_td_ct_fdi", "physical_obs15_w04_ps_ct_fdi"]
     assert "FDI" in config.CASES[compare.FDI_CASE]
     cfg = compare.cell_config("physical_fdi", "lock", "ntm_B_16", 30.0, 1e-3, 0)
     assert (cfg["controller"], cfg["case"]) == ("physical", compare.FDI_CASE)

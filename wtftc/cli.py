@@ -276,7 +276,7 @@ def _add_compare(sub) -> None:
                     "design fed by wtftc's FDI), issue 34's physical_obs_fdi, "
                     "physical_obs_ps_fdi, physical_obs45_ps_fdi, physical_obs45_ps_td_fdi, "
                     "physical_obs45_ps_ct_fdi, physical_obs45_ps_td_ct_fdi, "
-                    "physical_obs30_ps_td_ct_fdi, pi_lpf, "
+                    "physical_obs30_ps_td_ct_fdi, physical_obs15_w04_ps_ct_fdi, pi_lpf, "
                     "pi_lpf_ps, pi_lpf_ps_ct and "
                     "rosco_matched (docs/compare.md), and the winds steady_16, steady_20, "
                     "ntm_B_12. "

@@ -154,6 +154,17 @@ ISSUE34["physical_obs30_ps_td_ct_fdi"] = replace(
     doc="physical AFTC on its speed observer at 3 rad/s with peak shaving (2° near rated), "
         "its tower damper (0.12 rad s/m), constant torque above rated and wtftc's own FDI",
     params=(("phys_obs_omega", 3.0), ("phys_ps_pitch", 0.0349), ("phys_td_gain", 0.12)))
+# the IEA 15-MW's candidate (docs/controllers.md, "The IEA 15-MW in OpenFAST"): its pitch
+# loop retuned to 0.4 rad/s, ζ 0.85 (the NREL 5-MW's gains scaled put it at 0.69 rad/s,
+# where in OpenFAST it limit-cycles with the tower), the observer at 1.5 rad/s, no tower
+# damper (its high-passed acceleration drove the pitch at 0.3-1.6 Hz there), constant
+# torque above rated
+ISSUE34["physical_obs15_w04_ps_ct_fdi"] = Variant(
+    "physical", FDI_CASE, "physical AFTC retuned to 0.4 rad/s, ζ 0.85, on its speed "
+    "observer at 1.5 rad/s, with peak shaving (2° near rated), constant torque above rated "
+    "and wtftc's own FDI", tuning=(0.4, 0.85),
+    params=(("phys_obs_omega", 1.5), ("phys_ps_pitch", 0.0349)),
+    turbine=(("vs_constant_torque", 1.0),))
 CONTROLLERS |= ISSUE34
 #: the matrix of a bare `wtftc compare`: what it was before issue 32's measured matrix
 #: added paper_fdi and the steady and 12-m/s winds, which run when named (docs/compare.md)
