@@ -578,8 +578,9 @@ def test_a_campaign_resumes_across_an_edit_of_the_sources_but_not_of_the_code(
         tmp_path, monkeypatch):
     """A results folder resumes on the same generated artefacts: an edit of derivation/
     that leaves every artefact as it was (a comment, a refactor: the manifest's sources
-    change) resumes; a changed artefact, or a folder that recorded only the whole manifest's
-    hash (before issue 34), is refused in one line naming --out."""
+    change) resumes; a changed artefact, a folder that recorded only the whole manifest's
+    hash (before issue 34), or one made under other run semantics (store.RUN_SEMANTICS),
+    is refused in one line naming --out."""
     from wtftc.artefacts import loader
 
     f, out = _sweep_file(tmp_path), tmp_path / "out"
@@ -602,7 +603,14 @@ def test_a_campaign_resumes_across_an_edit_of_the_sources_but_not_of_the_code(
     monkeypatch.setattr(loader, "manifest", lambda: real)
     meta = out / "sweep.json"
     old = json.loads(meta.read_text())
+    older = json.loads(meta.read_text())
     old["versions"]["generated_manifest_sha256"] = old["versions"].pop("generated_code_sha256")
     meta.write_text(json.dumps(old))
     with pytest.raises(ConfigError, match="earlier wtftc.*whole manifest's hash"):
+        resume()
+    # a folder made before a change to what runs compute outside the generated code (issue
+    # 34's speed noise scaled to the turbine) records no run semantics, or an older one
+    del older["versions"]["run_semantics"]
+    meta.write_text(json.dumps(older))
+    with pytest.raises(ConfigError, match="run semantics 1, this wtftc's are 2"):
         resume()

@@ -387,8 +387,14 @@ def test_the_speed_noise_is_scaled_to_the_turbines_shafts():
         == pytest.approx(0.05 / (ref["omega_g_rated"] * ref["gearbox_ratio"]), rel=1e-12)
     assert sigma["iea15mw"]["sigma_beta_meas_1_m1"] == sigma["nrel5mw"]["sigma_beta_meas_1_m1"]
     own = config.make_config({**run, "turbine": "iea15mw",
-                              "sensors": {"generator_speed_noise_rad_s": 0.05}})
+                              "sensors": {"generator_speed_noise_rad_s": 0.05,
+                                          "rotor_speed_noise_rad_s": 0.02}})
     assert lay.values("sensor_params", own.p_sensors)["sigma_omega_g_hss_m1"] == 0.05
+    assert lay.values("sensor_params", own.p_sensors)["sigma_omega_r_m1"] == 0.02
+    # the run's configuration records the σ used: read back, the same sensors
+    again = config.make_config(config.make_config({**run, "turbine": "iea15mw"}).raw)
+    assert np.array_equal(again.p_sensors,
+                          config.make_config({**run, "turbine": "iea15mw"}).p_sensors)
 
 
 def test_a_turbine_file_from_before_vs_constant_torque_still_reads(tmp_path):

@@ -46,6 +46,13 @@ METRICS = [("rms_speed_error_rad_s", "rad/s"), ("max_abs_speed_error_rad_s", "ra
 STATUS = ("ok", "diverged", "failed")
 
 
+#: what a run computes outside the generated code, numbered: raised when a change to the
+#: Python side alters the results of a configuration that ran before (2: issue 34's
+#: speed noise scaled to the turbine's shafts, wtftc.config._scale_speed_noise), so that a
+#: results folder made before is not resumed into a mixed dataset
+RUN_SEMANTICS = 2
+
+
 def versions() -> dict:
     """What made the results: the versions of wtftc and its dependencies, and the hash of
     the generated code (its artefacts' hashes in the manifest: what the runs compute, not
@@ -64,7 +71,7 @@ def versions() -> dict:
     return {"wtftc": __version__, "python": platform.python_version(),
             "numpy": np.__version__, "casadi": casadi.__version__, "dask": dask.__version__,
             "distributed": distributed.__version__, "pyarrow": pyarrow.__version__,
-            "generated_code_sha256": gen}
+            "generated_code_sha256": gen, "run_semantics": RUN_SEMANTICS}
 
 
 def schema():
@@ -416,6 +423,12 @@ def _check_same_sweep(out_dir: Path, old: dict, sweep_id: str, overwrite: bool,
         raise ConfigError("--out", str(out_dir), "results of the same generated code: "
                           "generated/ changed since they were made; --overwrite or "
                           "--out a new folder")
+    made = old["versions"].get("run_semantics", 1)
+    if made != now["run_semantics"] and not overwrite:
+        raise ConfigError("--out", str(out_dir), f"results of this wtftc's runs: these were "
+                          f"made under run semantics {made}, this wtftc's are "
+                          f"{now['run_semantics']} (what a run computes changed outside the "
+                          "generated code: docs/sweep.md); --overwrite or --out a new folder")
 
 
 def _save_batch(out_dir: Path, done: set[str], results: list,
