@@ -86,6 +86,11 @@ UNITS = ["rad", "rad/s", "rad^2", "-", "-", "rad^2", "rad", "-", "rad^2", "rad",
 SPEED_PAIRS = [("omega_r", "rad/s", "rad^2/s^2"), ("omega_g_hss", "rad/s", "rad^2/s^2")]
 PER_PAIR = ["residual_filtered_m1", "residual_filtered_m2", "mean_sq_m1", "mean_sq_m2",
             "mean_sq_pair", "sensor_latch_m1", "sensor_latch_m2"]
+#: the start-up alignment's weight (1 at the start, decaying: align_rhs), one for all blades
+a_al = sp.Symbol("align", real=True)
+#: the alignment's pull, integrated over its decay, is this many e-folds of the models'
+#: initial error (e^-5: a 0.5° start-up offset leaves 0.003°)
+ALIGN_FOLDS = 5
 
 
 def states(n_blades: int) -> list[Entry]:
@@ -95,7 +100,9 @@ def states(n_blades: int) -> list[Entry]:
     return blades + [Entry(f"fdi_{n}_{sig}", 0.0,
                            sq if n in squared else ("-" if "latch" in n else u),
                            f"FDI {n} of the {sig} sensors")
-                     for sig, u, sq in SPEED_PAIRS for n in PER_PAIR]
+                     for sig, u, sq in SPEED_PAIRS for n in PER_PAIR] + [
+        Entry("fdi_align", 0.0, "-", "FDI start-up alignment weight (1 at the start, "
+              "decaying at fdi_k_align / 5; align_rhs)")]
 
 
 PARAMS = [
@@ -104,7 +111,8 @@ PARAMS = [
     Entry("fdi_zeta", nrel5mw.ACTUATOR_ZETA, "-", "nominal actuator damping (Odgaard 2013)"),
     Entry("fdi_pitch_min", nrel5mw.PITCH_MIN, "rad", "actuator position limits, as the plant's"),
     Entry("fdi_pitch_max", nrel5mw.PITCH_MAX, "rad", ""),
-    Entry("fdi_rate_max", nrel5mw.PITCH_RATE_MAX, "rad/s", "actuator rate limit, 8°/s"),
+    Entry("fdi_rate_max", nrel5mw.PITCH_RATE_MAX, "rad/s",
+          "actuator rate limit, as the plant's (the NREL 5-MW's 8°/s by default)"),
     Entry("fdi_T_f", 0.5, "s", "residual mean-square window"),
     Entry("fdi_r_thr", 0.0008726646259971648, "rad",
           "smallest detection threshold on the residual RMS: 0.05°, an absolute pitch "
@@ -178,6 +186,12 @@ PARAMS = [
           "after detection, the accommodation is engaged linearly over this time (1.5 "
           "least-squares windows; chosen with T_w among (3, 4) × (2, 3) s on NTM B at 16 and "
           "20 m/s and the paper's wind: docs/fdi.md)"),
+    Entry("fdi_k_align", 0.0, "1/s",
+          "the start-up alignment's initial rate: the actuator models are pulled toward the "
+          "measured pitch at fdi_k_align × the alignment weight, which decays at "
+          "fdi_k_align / 5 (align_rhs). 0 (wtftc's plant, the default): none, its trim "
+          "starts the models at the true pitch; a host starts them at one noisy reading "
+          "(wtftc.config sets 5 for OpenFAST and exported libraries; docs/fdi.md)"),
 ]
 #: The physical range of the FDI's own constants (issue 30): wtftc never lets a user set
 #: one (each is this value or a controller's registry override), but in an exported
@@ -195,6 +209,7 @@ FDI_VALID = {
                      "fdi_thr2_omega_g_hss", "fdi_var_noise", "fdi_speed_floor",
                      "fdi_stop_band", "fdi_stop_gap"), (0.0, None, False, True)),
     "fdi_rho_lock": (0.0, 1.0, False, False),
+    "fdi_k_align": (0.0, None, False, True),
     "fdi_rho_min": lay.CONTROLLER_VALID["rho_hat"],
     **dict.fromkeys(("fdi_omega_pd", "fdi_omega_air"), lay.TURBINE_VALID["omega_n_nominal"]),
     **dict.fromkeys(("fdi_zeta_pd", "fdi_zeta_air"), lay.TURBINE_VALID["zeta_nominal"]),
@@ -207,6 +222,7 @@ T_wf = sp.Symbol("fdi_T_w_fault", real=True)
 h_noise, T_r, delta, var_n, T_s, delta_sat = sp.symbols(
     "fdi_thr2_noise fdi_T_r fdi_delta fdi_var_noise fdi_T_s fdi_delta_rate_limited", real=True)
 stop_band, stop_gap = sp.symbols("fdi_stop_band fdi_stop_gap", real=True)
+k_al = sp.Symbol("fdi_k_align", real=True)
 h_pair, h_rotor, h_gen, speed_floor, gear = sp.symbols(
     "fdi_thr2_pair fdi_thr2_omega_r fdi_thr2_omega_g_hss fdi_speed_floor fdi_gearbox_ratio",
     real=True)
@@ -286,6 +302,8 @@ def blade_rhs() -> list[sp.Expr]:
     pd = actuator_model(bp, bpd, w_pd, z_pd)
     air = actuator_model(ba, bad, w_air, z_air)
     thr_d = pair_threshold_sq(h_pair, sp.sqrt(2) * r_thr)
+    rate, pd[0], air[0] = (r + align_pull(b) for r, b in ((rate, bh), (pd[0], bp),
+                                                           (air[0], ba)))
     return [rate, acc, (r_f**2 - e) / T_f, latch, confidence,
             *[(x - s) / window for x, s in zip(stats, [S_bb, S_b, S_1, S_mb, S_m, S_mm],
                                                 strict=True)],
@@ -295,6 +313,22 @@ def blade_rhs() -> list[sp.Expr]:
             *sensor_latches(e, e2, e_d, L1, L2, thr_d, D >= sp.Rational(1, 2)),
             (at_rate_limit(bhd) - F_sat) / T_f, (beta_v - b_f) / T_r,
             (sp.Piecewise((1, at_stop()), (0, True)) - H_stop) / T_f]
+
+
+def align_pull(model: sp.Expr) -> sp.Expr:
+    """The start-up alignment (ours; issue 34): an actuator model's pull toward the voted
+    measured pitch, k_align × the alignment weight. A host starts the models at its first
+    reading, which is off the blade by the sensors' noise; while model and blade are both
+    held at the rate limit that offset has no restoring dynamics and stays (on the IEA
+    15-MW's 2°/s a 0.49° offset held for 1.5 s and latched a healthy blade). The weight
+    decays, so the pull removes ALIGN_FOLDS e-folds of the initial offset and the model is
+    open loop again within a few seconds: the models' residuals mean what they did."""
+    return k_al * a_al * (beta_v - model)
+
+
+def align_rhs() -> sp.Expr:
+    """The alignment weight's rate: ȧ = −a k_align / ALIGN_FOLDS (1 at the start)."""
+    return -a_al * k_al / ALIGN_FOLDS
 
 
 #: a speed pair's symbols: its sensors' readings, the reference (the other quantity's
@@ -402,3 +436,7 @@ def initial(beta_meas0) -> list[sp.Expr]:
     spread = sp.Rational(1, 10**4)
     return [b0, 0, 0, 0, 0, b0**2 + spread, b0, 1, b0**2 + spread, b0, b0**2 + spread, 0, 0,
             b0, 0, 0, b0, 0, 0, 0, 0, 0, 0, 0, 0, b0, 0]
+
+
+#: the alignment weight at the start (align_rhs)
+ALIGN_INITIAL = 1

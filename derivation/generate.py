@@ -366,7 +366,7 @@ def _fdi_blades(x, v, rd, bv, params) -> dict[str, list]:
                                             "latch", "rms", "w_hat", "z_hat", "thr", "init")}
     for j in range(lay.N_BLADES):
         xs = x[j * n:(j + 1) * n]
-        tr = Translator({**params, "v": v[j], "beta_v": bv[j],
+        tr = Translator({**params, "v": v[j], "beta_v": bv[j], "align": x[x.numel() - 1],
                          "beta_m": rd[names.index(f"beta_meas_{j + 1}_m1")],
                          "beta_m2": rd[names.index(f"beta_meas_{j + 1}_m2")],
                          **{s.name: xs[k] for k, s in enumerate(fdi.STATE_SYMBOLS)}})
@@ -442,7 +442,9 @@ def build_fdi() -> list[ca.Function]:
             latches[f"beta_meas_{j + 1}_m{k}"] = x[j * per + fdi.PER_BLADE.index(
                 f"sensor_latch_m{k}")]
     f = _function("fdi", {"x_fdi": x, "v": v, "readings": rd, "meas": meas, "p_fdi": p},
-                  {"x_fdi_dot": ca.vertcat(*b["rhs"], *speed_rhs),
+                  {"x_fdi_dot": ca.vertcat(*b["rhs"], *speed_rhs,
+                                           Translator({**params, "align": x[x.numel() - 1]})(
+                                               fdi.align_rhs())),
                    "known_fault": ca.vertcat(*b["rho"], *b["lock"], *b["ubar"]),
                    "rho_hat": ca.vertcat(*b["rho_hat"]), "c_hat": ca.vertcat(*b["c_hat"]),
                    "latch": ca.vertcat(*b["latch"]), "residual_rms": ca.vertcat(*b["rms"]),
@@ -452,7 +454,7 @@ def build_fdi() -> list[ca.Function]:
     bm = _vec("beta_meas", lay.N_BLADES)
     init = [Translator({"b": bm[j]})(e) for j in range(lay.N_BLADES)
             for e in fdi.initial(sp.Symbol("b"))]
-    init += [ca.SX(0)] * (len(FDI_STATES) - n_blade)
+    init += [ca.SX(0)] * (len(FDI_STATES) - n_blade - 1) + [ca.SX(fdi.ALIGN_INITIAL)]
     g = _function("init_fdi", {"beta_meas": bm}, {"x_fdi0": ca.vertcat(*init)})
     return [f, g]
 

@@ -348,8 +348,9 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         out = []
         for b in _flat(args, "beta_meas"):
             out.append(evaluate("fdi_init", fdi.initial(sp.Symbol("b")), {"b": float(b)}))
-        n_speed = len(fdi.states(3)) - len(out) * len(fdi.PER_BLADE)
-        return {"x_fdi0": exact(np.concatenate([*out, np.zeros(n_speed)]))}
+        n_speed = len(fdi.states(3)) - len(out) * len(fdi.PER_BLADE) - 1
+        return {"x_fdi0": exact(np.concatenate([*out, np.zeros(n_speed),
+                                                [fdi.ALIGN_INITIAL]]))}
     x, v, p = _flat(args, "x_fdi"), _flat(args, "v"), _flat(args, "p_fdi")
     rd = dict(zip(sensors.SENSOR_NAMES, _flat(args, "readings"), strict=True))
     meas = _flat(args, "meas")
@@ -360,7 +361,8 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     _, r0 = fdi.estimates()
     for j in range(3):
         xs = x[j * n:(j + 1) * n]
-        vals = {**base, "v": float(v[j]), "beta_m": rd[f"beta_meas_{j + 1}_m1"],
+        vals = {**base, "v": float(v[j]), "align": float(x[-1]),
+                "beta_m": rd[f"beta_meas_{j + 1}_m1"],
                 "beta_m2": rd[f"beta_meas_{j + 1}_m2"], "beta_v": float(meas[2 + j]),
                 **{sy.name: float(y) for sy, y in zip(fdi.STATE_SYMBOLS, xs, strict=True)}}
         rhs.append(pair("fdi_rhs", fdi.blade_rhs(), vals))
@@ -378,6 +380,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         for k in (1, 2):
             excluded[f"beta_meas_{j + 1}_m{k}"] = vals[f"sensor_latch_m{k}"]
     rhs += _speed_pairs_reference(x[3 * n:], rd, base, excluded)
+    rhs.append(pair("fdi_align", [fdi.align_rhs()], {**base, "align": float(x[-1])}))
 
     def cat(parts):
         return (np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]))

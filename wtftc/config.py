@@ -547,7 +547,15 @@ FDI_KEYS = {"target_false_alarms_per_hour": (fdi.TARGET_ALARMS_PER_HOUR, 1e-12, 
             "model_uncertainty": (None, 0.0, 1.0, "relative error of the actuator's time "
                                                   "constant the threshold allows for"),
             "rate_limited_uncertainty": (None, 0.0, 10.0, "offset allowed for while the "
-                                         "blade is at its rate limit, in actuator lags")}
+                                         "blade is at its rate limit, in actuator lags"),
+            "align_rate_per_s": (None, 0.0, 100.0, "the start-up alignment's initial rate "
+                                 "[1/s] (0: none)")}
+#: the FDI's start-up alignment rate on a host (derivation/fdi.py ``align_pull``): OpenFAST
+#: and an exported library start the FDI's models at one noisy reading, wtftc's trim at
+#: the true pitch (its default there: 0, none). 5 /s: the initial offset decays e^-5 within
+#: about 3 s, and the pulled model follows the sensor noise by 0.16 σ at a 10-ms interval
+#: (docs/fdi.md)
+HOST_ALIGN_RATE = 5.0
 
 
 def _check_pulse(vals: dict, interval: float) -> None:
@@ -583,9 +591,15 @@ def _fdi(raw: dict, loop: rhs.Loop, p_sensors: np.ndarray,
     _check_pulse(vals, interval)
     pulse = (math.radians(vals["test_pulse_deg"]), vals["test_period_s"],
              vals["test_width_s"]) if vals["test_pulse_deg"] > 0 else None
-    return fdi.run_params(rhs.fdi_params(loop), p_sensors, interval,
-                          vals["target_false_alarms_per_hour"], vals["model_uncertainty"],
-                          vals["rate_limited_uncertainty"]), pulse
+    p = fdi.run_params(rhs.fdi_params(loop), p_sensors, interval,
+                       vals["target_false_alarms_per_hour"], vals["model_uncertainty"],
+                       vals["rate_limited_uncertainty"])
+    align = vals["align_rate_per_s"]
+    if align is None and raw["engine"] == "openfast":
+        align = HOST_ALIGN_RATE
+    if align is not None:
+        p[lay.index("fdi_params", "fdi_k_align")] = align
+    return p, pulse
 
 
 def _openfast_actuator(raw: dict) -> None:

@@ -167,7 +167,8 @@ def run_config(controller: str, interval: float = CONTROL_DT) -> config.RunConfi
     try:
         return config.make_config({"case": 4, "controller": controller,
                                    "profile": "realistic", "dt_s": PLANT_DT,
-                                   "control_interval_s": interval, "t_final_s": t_final})
+                                   "control_interval_s": interval, "t_final_s": t_final,
+                                   "fdi": {"align_rate_per_s": config.HOST_ALIGN_RATE}})
     except ConfigError as exc:  # what the sampled loop refuses is said of --interval
         if exc.field != "control_interval_s":
             raise

@@ -176,7 +176,7 @@ def _turbine_inputs(rng: np.random.Generator) -> dict[str, np.ndarray]:
         "d": np.array([rng.uniform(-0.05, 0.05)]),
         "x_fdi": _fdi_states(rng, rs),
         "beta_meas": rng.uniform(-0.05, 1.65, lay.n_blades()),
-        "p_fdi": lay.defaults("fdi_params") * (1 + 0.1 * _fdi_param_draws(rng, rs)),
+        "p_fdi": _fdi_base() * (1 + 0.1 * _fdi_param_draws(rng, rs)),
     }
 
 
@@ -211,7 +211,16 @@ def _added_last(rng: np.random.Generator, other: np.random.Generator, size: int,
 #: FDI parameters added after the points were fixed: drawn from rs, the others from rng,
 #: so that every function's points stay what they were (the same rule as the sensors')
 FDI_PARAMS_ADDED = ("fdi_delta_rate_limited",  # issue 17
-                    "fdi_stop_band", "fdi_stop_gap", "fdi_T_w_fault")  # issue 18
+                    "fdi_stop_band", "fdi_stop_gap", "fdi_T_w_fault",  # issue 18
+                    "fdi_k_align")  # issue 34
+
+
+def _fdi_base() -> np.ndarray:
+    """The FDI's defaults, the start-up alignment on at a host's rate (its default, 0,
+    would leave the pull's terms unchecked)."""
+    p = lay.defaults("fdi_params")
+    p[lay.index("fdi_params", "fdi_k_align")] = 5.0
+    return p
 
 
 def _fdi_param_draws(rng: np.random.Generator, rs: np.random.Generator) -> np.ndarray:
@@ -236,6 +245,8 @@ def _fdi_states(rng: np.random.Generator, rs: np.random.Generator) -> np.ndarray
         values[f"fdi_rate_limited_fraction_{j}"] = values[f"fdi_latch_{j}"]
         values[f"fdi_pitch_filtered_{j}"] = rp.uniform(-0.05, 1.65)
         values[f"fdi_stop_held_{j}"] = rp.uniform(0, 1)
+    # the start-up alignment's weight (1 → 0), from rp: the draws above stay what they were
+    values["fdi_align"] = rp.uniform(0, 1)
     for n in lay.names("fdi_states"):
         if n not in values:  # the pair tests': residuals, mean squares, latches
             gen = 100.0 if "omega_g_hss" in n else 1.0  # the HSS: N times the rotor's

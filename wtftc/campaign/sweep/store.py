@@ -48,9 +48,10 @@ STATUS = ("ok", "diverged", "failed")
 
 #: what a run computes outside the generated code, numbered: raised when a change to the
 #: Python side alters the results of a configuration that ran before (2: issue 34's
-#: speed noise scaled to the turbine's shafts, wtftc.config._scale_speed_noise), so that a
-#: results folder made before is not resumed into a mixed dataset
-RUN_SEMANTICS = 2
+#: speed noise scaled to the turbine's shafts, wtftc.config._scale_speed_noise; 3: the
+#: FDI's start-up alignment on by default on OpenFAST, wtftc.config.HOST_ALIGN_RATE), so
+#: that a results folder made before is not resumed into a mixed dataset
+RUN_SEMANTICS = 3
 
 
 def versions() -> dict:
