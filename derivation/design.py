@@ -137,25 +137,34 @@ def peak_shaving_params(prefix: str) -> list[Entry]:
 tower_fa_acc = sp.Symbol("tower_fa_acc", real=True)
 
 
-def tower_damper(prefix: str) -> tuple[sp.Expr, sp.Expr, sp.Expr]:
+def tower_damper(prefix: str) -> tuple[sp.Expr, sp.Expr, sp.Expr, sp.Expr]:
     """Tower fore-aft damping (issue 34), ROSCO's structure (ForeAftDamping, ROSCO 2.x:
     the acceleration high-passed, integrated, times a gain, added to every blade's pitch):
-    the high-pass at ω_h followed by the integrator is the lag ŝ̇ = a − ω_h ŝ, whose ŝ
+    the high-pass at ω_h followed by the integrator is the lag ŝ̇ = a_f − ω_h ŝ, whose ŝ
     follows the tower-top speed above ω_h; Δβ = clip(K ŝ, ±Δβ_max). Pitching to feather
     while the tower moves downwind lowers the thrust against the motion: damping.
 
-    Returns (Δβ, its rate, the rate of ŝ). Added to the desired pitch α1 of a backstepping
-    design, it enters α̇1 exactly (a is an input): the design's z2 tracks it, rather than
-    fight it as a disturbance on β̄. The clip's rate is written out (K ŝ̇ inside the clip,
-    0 on it), not left to SymPy, whose derivative of Min/Max is a Heaviside with a value
-    at 0 of its own choosing."""
-    gain, corner, limit = sp.symbols(f"{prefix}_td_gain {prefix}_td_corner {prefix}_td_max",
-                                     real=True)
-    s_hat = sp.Symbol(f"{prefix}_td_speed", real=True)
-    s_rate = tower_fa_acc - corner * s_hat
+    a_f is the acceleration a low-passed at ω_f, ȧ_f = ω_f (a − a_f), or a itself when
+    ω_f = 0 (as before the filter). Added to the desired pitch α1 of a backstepping
+    design, Δβ enters α̇1 exactly: the design's z2 tracks it, rather than fight it as a
+    disturbance on β̄. Its rate K ŝ̇ holds a_f; unfiltered, that is the measured
+    acceleration itself, which the command's inversion of the actuator lag (τ_a α̇1)
+    passed on with a gain of K τ_a at every frequency the accelerometer sees (on the IEA
+    15-MW in OpenFAST: pitch activity at 0.3-1.6 Hz; docs/controllers.md). The low-pass
+    leaves α̇1 a function of states only. The clip's rate is written out (K ŝ̇ inside the
+    clip, 0 on it), not left to SymPy, whose derivative of Min/Max is a Heaviside with a
+    value at 0 of its own choosing.
+
+    Returns (Δβ, its rate, the rate of ŝ, the rate of a_f)."""
+    gain, corner, limit, lpf = sp.symbols(
+        f"{prefix}_td_gain {prefix}_td_corner {prefix}_td_max {prefix}_td_lpf", real=True)
+    s_hat, a_f = sp.symbols(f"{prefix}_td_speed {prefix}_td_acc", real=True)
+    acc = sp.Piecewise((a_f, lpf > 0), (tower_fa_acc, True))
+    s_rate = acc - corner * s_hat
     pitch = gain * s_hat
     return (sp.Min(sp.Max(pitch, -limit), limit),
-            sp.Piecewise((gain * s_rate, sp.Abs(pitch) < limit), (0, True)), s_rate)
+            sp.Piecewise((gain * s_rate, sp.Abs(pitch) < limit), (0, True)), s_rate,
+            lpf * (tower_fa_acc - a_f))
 
 
 def tower_damper_params(prefix: str) -> list[Entry]:
@@ -171,6 +180,11 @@ def tower_damper_params(prefix: str) -> list[Entry]:
         Entry(f"{prefix}_td_max", 0.0349, "rad",
               "tower damper: the largest pitch it adds or takes, 2° (ROSCO's FA_IntSat)",
               sample=(0.01, 0.1)),
+        Entry(f"{prefix}_td_lpf", 0.0, "rad/s",
+              "tower damper: the acceleration's low-pass corner ω_f, above the first tower "
+              "mode; 0: none, the acceleration as measured (as before; its rate then "
+              "reaches the command through the actuator-lag inversion)",
+              sample=(2.0, 10.0)),
     ]
 
 

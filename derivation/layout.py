@@ -232,7 +232,7 @@ CONTROLLER_VALID = {
                      "td_corner"),
                     _POSITIVE),
     **dict.fromkeys(("sigma", "r", "gen_torque", "lpf_corner", "obs_omega", "td_gain",
-                     "td_max"), _NONNEG),
+                     "td_max", "td_lpf"), _NONNEG),
     **dict.fromkeys(("K_obs", "mf_centre", "x_offset", "b"), _ANY),
     **dict.fromkeys(("pitch_min", "pitch_max", "ubar_hat", "ps_pitch"), _ANGLE),
     "control_sign": (-1.0, 1.0, False, False),

@@ -11,6 +11,7 @@ import pytest
 from discon_host import Host
 
 from wtftc import config
+from wtftc.artefacts import layout as lay
 from wtftc.export import discon
 from wtftc.sim.rhs import rhs_function
 from wtftc.verify import designs
@@ -20,6 +21,8 @@ control = pytest.importorskip("control", reason="python-control: pip install "
 from wtftc.campaign import linearize as lin  # noqa: E402
 
 ON = {"phys_td_gain": 0.05}
+#: the damper on the low-passed acceleration (ω_f = 5 rad/s)
+FILTERED = {**ON, "phys_td_lpf": 5.0}
 #: the physical AFTC on its observer with peak shaving (issue 34's candidate) on the plant
 #: with the tower and the drivetrain-edgewise mode
 TOWER = {"controller": "physical", "plant": "tower_edge",
@@ -28,10 +31,12 @@ TOWER = {"controller": "physical", "plant": "tower_edge",
 
 def test_alpha1_dot_with_the_damper_against_central_differences():
     """With the damper on and a tower-top acceleration of 0.3 m/s² (designs.SCHED), the
-    damper's pitch moves along the design model (its state integrates the acceleration):
-    d α1/dt by central differences falls to the generated α̇1 at O(h²), below 1e-6
-    relative at the best h, with the observer off and on."""
-    for params in (ON, {**ON, "phys_obs_omega": 4.5}):
+    damper's pitch moves along the design model (its state integrates the acceleration,
+    or its low-pass): d α1/dt by central differences falls to the generated α̇1 at O(h²),
+    below 1e-6 relative at the best h, with the observer off and on, the acceleration
+    unfiltered and low-passed."""
+    for params in (ON, {**ON, "phys_obs_omega": 4.5}, FILTERED,
+                   {**FILTERED, "phys_obs_omega": 4.5}):
         fd = designs.alpha_dot_fd("physical", params=params)
         assert np.all((1.9 < fd.slopes) & (fd.slopes < 2.1)), (params, fd.slopes)
         assert np.all(fd.errors.min(axis=0) < 1e-6), (params, fd.errors)
@@ -42,7 +47,7 @@ def test_the_damper_adds_its_pitch_to_alpha1_and_nothing_when_off():
     state, within the clip), to rounding; its α̇1 gains K·(a − ω_h ŝ) exactly."""
     on, off = designs.DesignModel("physical", ON), designs.DesignModel("physical")
     z = on.rk4(on.z0, 0.0, 1.0, 2000)
-    s_hat = z[-1]
+    s_hat = z[on.n_model + lay.index("physical_states", "phys_td_speed")]
     a, b = on.check_values(z, 1.0), off.check_values(z, 1.0)
     assert s_hat == pytest.approx(0.3 * (1 - np.exp(-0.2)) / 0.2, rel=1e-6)
     assert a["alpha1"] - b["alpha1"] == pytest.approx(0.05 * s_hat, rel=1e-9)
@@ -107,3 +112,41 @@ def test_a_discon_host_feeds_the_damper_record_53(tmp_path):
     assert expected[-1] == 0.0349  # the clip is reached
     assert np.abs(demands["on"] - demands["on_still"] - expected).max() < 1e-7
     assert np.array_equal(demands["off"], demands["on_still"])
+
+
+def test_the_low_pass_keeps_the_acceleration_out_of_the_command(tmp_path):
+    """Issue 34: unfiltered, the damper's rate K (a − ω_h ŝ) enters α̇1, and the command
+    U = β̄ + τ_a (… + α̇1) inverts the actuator lag on it: the measured acceleration
+    reaches the demand at once, with a gain K τ_a (here 0.1 × 0.108 s × 2 m/s² = 1.2°:
+    OpenFAST's start put the first demand 1.3° off). Low-passed at ω_f the acceleration
+    enters through the state a_f only: the first demand is the one with #53 = 0, and
+    0.1 s later (blades held at 0.2 rad, so z2 carries the damper's pitch) the difference
+    is τ_a K (c2 ŝ + a_f − ω_h ŝ) with a_f and ŝ in closed form, within 2 %."""
+    so = discon.export("physical", tmp_path / "lib") / "libwtftc_physical.so"
+    K, w_f, w_h, acc = 0.1, 5.0, 0.2, 2.0
+    design = lay.values("physical_params", lay.defaults("physical_params"))
+    tau_a, c2 = design["phys_tau_a"], design["phys_c2"]
+    demands = {}
+    for name, over, a in (("raw", {"phys_td_gain": K}, acc),
+                          ("filtered", {"phys_td_gain": K, "phys_td_lpf": w_f}, acc),
+                          ("still", {"phys_td_gain": K, "phys_td_lpf": w_f}, 0.0)):
+        rc_k = config.make_config({"controller": "physical", "case": 1,
+                                   "profile": "realistic", "controller_params": over})
+        host = Host(so, discon.write_input(rc_k, tmp_path / f"{name}.IN",
+                                           demand_rate_limit=0))
+        host.swap[52] = a
+        demands[name] = np.array([host.call(0 if k == 0 else 1, 0.01 * k, 1.26711,
+                                            1.26711 * 97.0, [0.2] * 3)["pitch"][0]
+                                  for k in range(11)])
+    step = demands["raw"][0] - demands["still"][0]
+    assert step == pytest.approx(K * tau_a * acc, rel=0.02)
+    assert abs(demands["filtered"][0] - demands["still"][0]) < 1e-7
+    # 0.1 s in: a_f = a (1 − e^(−ω_f t)); ŝ̇ = a_f − ω_h ŝ, solved in closed form
+    t = 0.1
+    e_f, e_h = np.exp(-w_f * t), np.exp(-w_h * t)
+    s_hat = acc * ((1 - e_h) / w_h - (e_h - e_f) / (w_f - w_h))
+    a_f = acc * (1 - e_f)
+    # U's terms in α1 (the blades held: z2 = β̄ − α1 grows by K ŝ) and in α̇1
+    expected = tau_a * (c2 * K * s_hat + K * (a_f - w_h * s_hat))
+    assert demands["filtered"][10] - demands["still"][10] == pytest.approx(expected,
+                                                                           rel=0.02)

@@ -24,7 +24,8 @@ from wtftc.sim import rhs
 #: the FDI's parameters wtftc sets from a key of a run's [fdi] table: that key's range
 #: (wtftc.config.FDI_KEYS)
 FDI_FROM_CONFIG = {"fdi_delta": "model_uncertainty",
-                   "fdi_delta_rate_limited": "rate_limited_uncertainty"}
+                   "fdi_delta_rate_limited": "rate_limited_uncertainty",
+                   "fdi_k_align": "align_rate_per_s"}
 #: the library's own setting, after the layout's parameters (wtftc.export.discon)
 DEMAND_RATE_LIMIT = "demand_rate_limit"
 #: the FDI's parameter that is the call interval (wtftc.sim.fdi.run_params sets it so)
