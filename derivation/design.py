@@ -198,7 +198,8 @@ def actuator_and_fuzzy_params(prefix: str) -> list[Entry]:
         Entry(f"{prefix}_pitch_max", nrel5mw.PITCH_MAX, "rad", "pitch command upper limit"),
         Entry(f"{prefix}_dTdbeta_min", 1.0e5, "N m/rad", "smallest |∂T/∂β| used (bounds 1/b)"),
         Entry(f"{prefix}_rate_max", nrel5mw.PITCH_RATE_MAX, "rad/s",
-              "actuator rate limit 8°/s, for the anti-windup (Jonkman 2009)"),
+              "actuator rate limit, for the anti-windup (the turbine's pitch_rate_max: "
+              "the NREL 5-MW's 8°/s by default, Jonkman 2009)"),
         Entry("mf_width", 0.6, "-", "Gaussian membership width on normalized ω_r"),
         *[Entry(f"mf_centre_{m}", -1.0 + 2.0 * (m - 1) / (N_MF - 1), "-",
                 f"centre of membership {m}") for m in range(1, N_MF + 1)],

@@ -800,3 +800,22 @@ def test_the_library_checks_every_parameter_with_wtftcs_own_ranges(controller):
         lo, hi, lo_open, hi_open = ranges[name]
         assert lo <= value <= hi and not (lo_open and value == lo) and \
             not (hi_open and value == hi), (name, value)
+
+
+def test_the_input_file_names_each_turbine_parameter_s_own_source():
+    """The .IN's comment beside a turbine parameter is the run's turbine file's source:
+    on the IEA 15-MW its 2°/s rate limit is ROSCO's PC_MaxRat, not the NREL 5-MW's 8°/s
+    (the layout's doc); a value the run set says so, with the file's; the NREL 5-MW's
+    defaults keep its sources."""
+    def docs(cfg):
+        rc = config.make_config({"controller": "physical", "case": 1,
+                                 "profile": "realistic", **cfg})
+        return {n: (v, d) for n, v, _, d in discon.parameters(rc)}
+
+    iea = docs({"turbine": "iea15mw", "turbine_params": {"gen_torque_law": 1.0}})
+    assert iea["pitch_rate_max"][0] == pytest.approx(np.radians(2.0), rel=1e-3)
+    assert "PC_MaxRat" in iea["pitch_rate_max"][1] and "8°/s" not in iea["pitch_rate_max"][1]
+    assert iea["gen_torque_law"][1] == ("set by the run ([turbine_params]; iea15mw's "
+                                        "file: 0)")
+    nrel = docs({})
+    assert "8°/s" in nrel["pitch_rate_max"][1] and "Jonkman" in nrel["pitch_rate_max"][1]

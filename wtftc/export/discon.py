@@ -56,6 +56,7 @@ from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import load
 from wtftc.errors import ConfigError
 from wtftc.export import discon_checks
+from wtftc.model import turbine_file
 from wtftc.model.cp_table import NREL5MW_FILE, NREL5MW_SOURCE, CpTable, write_cp_table
 from wtftc.sim import sampled
 from wtftc.sim.rhs import (
@@ -186,8 +187,23 @@ def parameters(rc: config.RunConfig, demand_rate_limit: int = 1
     out = []
     for section, group in _groups(rc.loop.controller).items():
         for e, v in zip(lay.layout()[group], values[section], strict=True):
-            out.append((e["name"], float(v), e["unit"], e.get("doc", "")))
+            doc = e.get("doc", "")
+            if section == "turbine_params":
+                doc = _turbine_source(rc, e["name"], float(v), doc)
+            out.append((e["name"], float(v), e["unit"], doc))
     return out + _interface_params(demand_rate_limit)
+
+
+def _turbine_source(rc: config.RunConfig, name: str, value: float, doc: str) -> str:
+    """A turbine parameter's source in the .IN: its turbine file's (the layout's doc is
+    the NREL 5-MW's, wrong beside another turbine's value), or, where the run set it
+    otherwise, that."""
+    turbine = turbine_file.load(rc.raw.get("turbine", turbine_file.DEFAULT))
+    if name not in turbine.sources:
+        return doc
+    if value == turbine.values[name]:
+        return turbine.sources[name] or doc
+    return f"set by the run ([turbine_params]; {turbine.name}'s file: {turbine.values[name]:g})"
 
 
 def _split(p: ca.SX, controller: str) -> dict[str, ca.SX]:
