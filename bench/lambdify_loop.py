@@ -179,11 +179,13 @@ class LambdifiedLoop:
     def _physical(self, xc, omega_r, beta_meas, sched, known):
         th, w_hat, eta = xc[:dlay.N_MF], xc[dlay.N_MF], xc[dlay.N_MF + 1]
         s_hat = xc[dlay.N_MF + 2]  # the tower damper's state (off, no tower)
+        a_f = xc[dlay.N_MF + 3]  # its low-passed acceleration (the low-pass off)
         vals = dict(zip(self.p_names, self.pc, strict=True))
         if vals["phys_obs_omega"] != 0.0:
             raise ValueError("the lambdify loop runs the design without its speed observer")
         vals.update({"omega_r": omega_r, "dT_dbeta": sched, "phys_speed_hat": w_hat,
-                     "phys_innovation": eta, "phys_td_speed": s_hat, "tower_fa_acc": 0.0,
+                     "phys_innovation": eta, "phys_td_speed": s_hat, "phys_td_acc": a_f,
+                     "tower_fa_acc": 0.0,
                      **{f"beta_meas_{j + 1}": b for j, b in enumerate(beta_meas)},
                      **{f"yd_{k}": y for k, y in enumerate(self.yd)}})
         for k, n in enumerate(("rho_hat", "lock_hat", "ubar_hat")):
@@ -207,9 +209,11 @@ class LambdifiedLoop:
         v = float(self.v_fun(*[vals[s.name] for s in self.v_args]))
         phi = self.regressors(1, (0,), [omega_r], off, scl, mf)
         theta_dot = kappa * (vals["phys_gamma"] * z1 * phi - vals["phys_sigma"] * th)
-        # the observer off: ω̂_r follows ω_r, η decays; the damper's state decays at ω_h
+        # the observer off: ω̂_r follows ω_r, η decays; the damper's state decays at ω_h,
+        # its low-pass (off: phys_td_lpf = 0) stands still
         return np.full(3, v), np.concatenate([theta_dot, [omega_r - w_hat, -eta,
-                                                          -vals["phys_td_corner"] * s_hat]])
+                                                          -vals["phys_td_corner"] * s_hat,
+                                                          vals["phys_td_lpf"] * -a_f]])
 
     def __call__(self, z, wind, af, sf, known) -> np.ndarray:
         xp, xc = z[:self.n_p], z[self.n_p:]

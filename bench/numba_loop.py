@@ -127,8 +127,9 @@ Q_W, Q_OFF, Q_SC = _PP["mf_width"], _PP["x_offset_1"], _PP["x_scale_1"]
 Q_CEN = _family("physical_params", "mf_centre", N_MF)
 Q_TDC = _PP["phys_td_corner"]
 N_C_PHYSICAL = len(lay.names("physical_states"))
-# the weights, then the speed observer's ω̂_r, η (off), then the tower damper's ŝ (off)
-assert N_C_PHYSICAL == N_MF + 3
+# the weights, then the speed observer's ω̂_r, η (off), then the tower damper's ŝ and its
+# low-passed acceleration a_f (off)
+assert N_C_PHYSICAL == N_MF + 4
 
 # paper controller parameters (eq (49)'s ρ̂, σ̂, ū are replaced by the known_fault input)
 P_K = _family("controller_params", "K_obs", 4)
@@ -441,6 +442,8 @@ def _ctrl_physical(z, bm1, bm2, bm3, yd, sched, pc, kf, zdot, o, ws):
     # the tower damper off (phys_td_gain = 0, the default; no tower: no acceleration): its
     # state decays at the high-pass corner
     zdot[o + N_P + N + 2] = -pc[Q_TDC] * z[N_P + N + 2]
+    # and its acceleration's low-pass off (phys_td_lpf = 0, the default): a_f stands still
+    zdot[o + N_P + N + 3] = 0.0
     return (3.0 * _fmin(_fmax(U, b_min), b_max) - lock_sum) / gain
 
 
