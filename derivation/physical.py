@@ -45,7 +45,8 @@ Three options of issue 34 (all off by default: the design above, bit for bit):
   (relative degree 2): adapting on η is a measured choice (lower loads, docs/controllers.md)
   outside that argument. ż1 = -c1 z1 + b z2 + L η, the last term the observer's bounded
   error. Off (ω_o = 0), ω̂_r follows ω_r and η decays at 1/s, unused, so that
-  ``wtftc linearize`` sees no zero eigenvalue.
+  ``wtftc linearize`` sees no zero eigenvalue. Its corner may be scheduled on the
+  measured mean pitch (``phys_obs_omega_max`` > 0: :func:`observer_corner`).
 * **Peak shaving** (``phys_ps_pitch`` > 0): the command's lower limit rises from the stop
   near rated, scheduled on the speed the design regulates (:func:`pitch_floor`).
 * **No actuator model** (``phys_actuator_model`` = 0), for a host whose blades take the
@@ -106,6 +107,16 @@ PARAMS = [
           "0: none, the measured ω_r (as before issue 34)", sample=(3.0, 9.0)),
     Entry("phys_obs_zeta", 0.7, "-", "damping ratio ζ_o of the speed observer",
           sample=(0.5, 1.0)),
+    Entry("phys_obs_omega_max", 0.0, "rad/s",
+          "the observer's corner scheduled on the measured mean pitch: ω_o rises linearly "
+          "from phys_obs_omega at phys_obs_pitch_min to this at phys_obs_pitch_max "
+          "(observer_corner); 0: none, ω_o constant (as before)", sample=(3.0, 9.0)),
+    Entry("phys_obs_pitch_min", 0.30, "rad",
+          "the mean pitch where the observer's corner starts to rise (17°: about 20 m/s "
+          "on the NREL 5-MW)", sample=(0.0, 0.2)),
+    Entry("phys_obs_pitch_max", 0.38, "rad",
+          "the mean pitch from which the corner is phys_obs_omega_max (22°: about 24 m/s "
+          "on the NREL 5-MW)", sample=(0.25, 0.4)),
     *design_.peak_shaving_params("phys"),
     *design_.tower_damper_params("phys"),
     Entry("phys_actuator_model", 1.0, "-",
@@ -117,9 +128,9 @@ PARAMS = [
     "phys_c1 phys_c2 phys_gamma phys_sigma phys_theta_max phys_inertia phys_gen_torque "
     "phys_tau_a phys_pitch_min phys_pitch_max phys_dTdbeta_min phys_rate_max phys_obs_omega "
     "phys_obs_zeta phys_actuator_model phys_ps_pitch phys_ps_speed", real=True)
+w_obs_max, obs_bmin, obs_bmax = sp.symbols(
+    "phys_obs_omega_max phys_obs_pitch_min phys_obs_pitch_max", real=True)
 observing = w_obs > 0
-L_obs = w_obs / (2 * z_obs)  # the innovation's gain into ω̂̇_r
-L_eta = 2 * z_obs * w_obs  # the innovation filter's corner
 with_actuator = act > sp.Rational(1, 2)
 td_pitch = sp.Symbol("td_pitch", real=True)  # the tower damper's Δβ, until substituted
 
@@ -143,6 +154,22 @@ class PhysicalDesign:
 
 def beta_mean() -> sp.Expr:
     return sum(beta_meas) / N_BLADES
+
+
+def observer_corner() -> sp.Expr:
+    """The observer's corner ω_o (issue 34): phys_obs_omega, or with phys_obs_omega_max > 0
+    scheduled on the measured mean pitch, a proxy of the wind above rated: linear from
+    ω_o at β̄ ≤ β_min to ω_o,max at β̄ ≥ β_max. A lower corner moves the pitch less (ADC)
+    and a higher one holds the rotor closer in the strongest winds, where the extreme
+    overspeed of a fault is made (docs/controllers.md). α1 holds no ω_o, and α̇1 takes
+    the rate of ω̂_r from the observer's equation as the controller computes it, so the
+    schedule leaves α̇1 exact: no rate of ω_o enters."""
+    ramp = sp.Min(sp.Max((beta_mean() - obs_bmin) / (obs_bmax - obs_bmin), 0), 1)
+    return sp.Piecewise((w_obs + (w_obs_max - w_obs) * ramp, w_obs_max > 0), (w_obs, True))
+
+
+L_obs = observer_corner() / (2 * z_obs)  # the innovation's gain into ω̂̇_r
+L_eta = 2 * z_obs * observer_corner()  # the innovation filter's corner
 
 
 @cache

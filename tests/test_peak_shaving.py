@@ -22,7 +22,8 @@ def _command(omega_r: float, **params) -> float:
     for a pitch far below the stop (f̂ = -5 rad/s²), so that the floor is what it gives."""
     p = lay.vector("physical_params", params)
     out = load("ctrl_physical", "interpreted")(
-        x_ctrl=[*[-5.0] * N_W, omega_r, 0.0, 0.0], meas=[omega_r, omega_r * 97.0, 0.1, 0.1, 0.1],
+        x_ctrl=[*[-5.0] * N_W, omega_r, *[0.0] * (lay.size("physical_states") - N_W - 1)],
+        meas=[omega_r, omega_r * 97.0, 0.1, 0.1, 0.1],
         yd=[REF, 0, 0, 0, 0], sched=[-3.0e7, 0.0], p_ctrl=p,
         known_fault=lay.defaults("fault_inputs"))
     return float(np.asarray(out["v"]).ravel()[0])

@@ -31,7 +31,8 @@ def _ctrl(x_ctrl, omega_r, **params):
 
 
 def _state(w_hat, eta):
-    return [*[0.05] * N_W, w_hat, eta, 0.0]  # the tower damper at rest
+    # the tower damper's states (and any after them) at rest
+    return [*[0.05] * N_W, w_hat, eta, *[0.0] * (lay.size("physical_states") - N_W - 2)]
 
 
 def test_alpha1_dot_with_the_observer_against_central_differences():
@@ -82,6 +83,27 @@ def test_with_the_observer_the_measured_speed_reaches_the_pitch_only_through_it(
     c, _, _ = _ctrl(_state(1.35, 0.0), 1.30, phys_obs_omega=6.0)
     assert c > a
     assert _ctrl(_state(1.30, 0.0), 1.30)[0] != _ctrl(_state(1.30, 0.0), 1.40)[0]
+
+
+def test_the_observer_s_corner_scheduled_on_the_mean_pitch():
+    """phys_obs_omega_max > 0: ω_o rises linearly with the measured mean pitch from
+    phys_obs_omega at phys_obs_pitch_min to phys_obs_omega_max at phys_obs_pitch_max, and
+    holds outside: the innovation's rate η̇ = 2 ζ_o ω_o (ω_r − ω̂_r − η) at a pitch of 0.2
+    rad is ω_o = 4.5 halfway up a 0.1-0.3 rad ramp from 3 to 6, 3 below it, 6 above it.
+    With phys_obs_omega_max = 0 (the default) ω_o is phys_obs_omega, bit for bit. α̇1
+    stays exact along the design model (central differences, below 1e-6 relative)."""
+    ramp = {"phys_obs_omega": 3.0, "phys_obs_omega_max": 6.0}
+    for lo, hi, w_o in ((0.1, 0.3, 4.5), (0.25, 0.3, 3.0), (0.05, 0.15, 6.0)):
+        params = {**ramp, "phys_obs_pitch_min": lo, "phys_obs_pitch_max": hi}
+        _, d, _ = _ctrl(_state(1.30, 0.0), 1.40, **params)
+        assert d[N_W + 1] == pytest.approx(2 * 0.7 * w_o * 0.10, rel=1e-12), (lo, hi)
+    fixed = _ctrl(_state(1.30, 0.01), 1.40, phys_obs_omega=3.0)
+    assert np.array_equal(fixed[1], _ctrl(_state(1.30, 0.01), 1.40, phys_obs_omega=3.0,
+                                           phys_obs_pitch_min=0.1)[1])
+    fd = designs.alpha_dot_fd("physical", params={**ramp, "phys_obs_pitch_min": 0.1,
+                                                  "phys_obs_pitch_max": 0.3})
+    assert np.all((1.9 < fd.slopes) & (fd.slopes < 2.1)), fd.slopes
+    assert np.all(fd.errors.min(axis=0) < 1e-6), fd.errors
 
 
 def test_without_an_actuator_model_the_command_is_alpha1():
