@@ -210,10 +210,10 @@ class LambdifiedLoop:
         phi = self.regressors(1, (0,), [omega_r], off, scl, mf)
         theta_dot = kappa * (vals["phys_gamma"] * z1 * phi - vals["phys_sigma"] * th)
         # the observer off: ω̂_r follows ω_r, η decays; the damper's state decays at ω_h,
-        # its low-pass (off: phys_td_lpf = 0) stands still
+        # its low-pass's (off: phys_td_lpf = 0) at 1/s
         return np.full(3, v), np.concatenate([theta_dot, [omega_r - w_hat, -eta,
                                                           -vals["phys_td_corner"] * s_hat,
-                                                          vals["phys_td_lpf"] * -a_f]])
+                                                          -a_f]])
 
     def __call__(self, z, wind, af, sf, known) -> np.ndarray:
         xp, xc = z[:self.n_p], z[self.n_p:]

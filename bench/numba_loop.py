@@ -442,8 +442,8 @@ def _ctrl_physical(z, bm1, bm2, bm3, yd, sched, pc, kf, zdot, o, ws):
     # the tower damper off (phys_td_gain = 0, the default; no tower: no acceleration): its
     # state decays at the high-pass corner
     zdot[o + N_P + N + 2] = -pc[Q_TDC] * z[N_P + N + 2]
-    # and its acceleration's low-pass off (phys_td_lpf = 0, the default): a_f stands still
-    zdot[o + N_P + N + 3] = 0.0
+    # and its acceleration's low-pass off (phys_td_lpf = 0, the default): a_f decays at 1/s
+    zdot[o + N_P + N + 3] = -z[N_P + N + 3]
     return (3.0 * _fmin(_fmax(U, b_min), b_max) - lock_sum) / gain
 
 

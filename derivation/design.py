@@ -144,10 +144,11 @@ def tower_damper(prefix: str) -> tuple[sp.Expr, sp.Expr, sp.Expr, sp.Expr]:
     follows the tower-top speed above ω_h; Δβ = clip(K ŝ, ±Δβ_max). Pitching to feather
     while the tower moves downwind lowers the thrust against the motion: damping.
 
-    a_f is the acceleration a low-passed at ω_f, ȧ_f = ω_f (a − a_f), or a itself when
-    ω_f = 0 (as before the filter). Added to the desired pitch α1 of a backstepping
-    design, Δβ enters α̇1 exactly: the design's z2 tracks it, rather than fight it as a
-    disturbance on β̄. Its rate K ŝ̇ holds a_f; unfiltered, that is the measured
+    a_f is the acceleration a low-passed at ω_f, ȧ_f = ω_f (a − a_f) (ours; issue 34), or
+    a itself when ω_f = 0 (as before the filter; a_f then decays at 1/s, unused, so that
+    ``wtftc linearize`` sees no zero eigenvalue, as the speed observer's states off).
+    Added to the desired pitch α1 of a backstepping design, Δβ enters α̇1 exactly: the
+    design's z2 tracks it, rather than fight it as a disturbance on β̄. Its rate K ŝ̇ holds a_f; unfiltered, that is the measured
     acceleration itself, which the command's inversion of the actuator lag (τ_a α̇1)
     passed on with a gain of K τ_a at every frequency the accelerometer sees (on the IEA
     15-MW in OpenFAST: pitch activity at 0.3-1.6 Hz; docs/controllers.md). The low-pass
@@ -164,7 +165,7 @@ def tower_damper(prefix: str) -> tuple[sp.Expr, sp.Expr, sp.Expr, sp.Expr]:
     pitch = gain * s_hat
     return (sp.Min(sp.Max(pitch, -limit), limit),
             sp.Piecewise((gain * s_rate, sp.Abs(pitch) < limit), (0, True)), s_rate,
-            lpf * (tower_fa_acc - a_f))
+            sp.Piecewise((lpf * (tower_fa_acc - a_f), lpf > 0), (-a_f, True)))
 
 
 def tower_damper_params(prefix: str) -> list[Entry]:
@@ -181,9 +182,9 @@ def tower_damper_params(prefix: str) -> list[Entry]:
               "tower damper: the largest pitch it adds or takes, 2° (ROSCO's FA_IntSat)",
               sample=(0.01, 0.1)),
         Entry(f"{prefix}_td_lpf", 0.0, "rad/s",
-              "tower damper: the acceleration's low-pass corner ω_f, above the first tower "
-              "mode; 0: none, the acceleration as measured (as before; its rate then "
-              "reaches the command through the actuator-lag inversion)",
+              "tower damper: the acceleration's low-pass corner ω_f (ours; issue 34), above "
+              "the first tower mode; 0: none, the acceleration as measured (as before; its "
+              "rate then reaches the command through the actuator-lag inversion)",
               sample=(2.0, 10.0)),
     ]
 

@@ -101,8 +101,8 @@ def states(n_blades: int) -> list[Entry]:
                            sq if n in squared else ("-" if "latch" in n else u),
                            f"FDI {n} of the {sig} sensors")
                      for sig, u, sq in SPEED_PAIRS for n in PER_PAIR] + [
-        Entry("fdi_align", 0.0, "-", "FDI start-up alignment weight (1 at the start, "
-              "decaying at fdi_k_align / 5; align_rhs)")]
+        Entry("fdi_align", 1.0, "-", "FDI start-up alignment weight (1 at the start, "
+              "decaying at fdi_k_align / ALIGN_FOLDS; align_rhs)")]
 
 
 PARAMS = [
@@ -302,9 +302,11 @@ def blade_rhs() -> list[sp.Expr]:
     pd = actuator_model(bp, bpd, w_pd, z_pd)
     air = actuator_model(ba, bad, w_air, z_air)
     thr_d = pair_threshold_sq(h_pair, sp.sqrt(2) * r_thr)
-    rate, pd[0], air[0] = (r + align_pull(b) for r, b in ((rate, bh), (pd[0], bp),
-                                                           (air[0], ba)))
-    return [rate, acc, (r_f**2 - e) / T_f, latch, confidence,
+    # the models' rates with the start-up alignment's pull; R_h (the threshold's model
+    # allowance) keeps the actuator's own rate
+    pulled, pd[0], air[0] = (r + align_pull(b) for r, b in ((rate, bh), (pd[0], bp),
+                                                             (air[0], ba)))
+    return [pulled, acc, (r_f**2 - e) / T_f, latch, confidence,
             *[(x - s) / window for x, s in zip(stats, [S_bb, S_b, S_1, S_mb, S_m, S_mm],
                                                 strict=True)],
             (beta_m - bh - r_f) / T_r, (rate**2 - R_h) / T_f,

@@ -329,6 +329,8 @@ def _build_tower_edge(common: dict, p_t, v, wind, cp, af) -> list[ca.Function]:
 
 
 FDI_STATES = fdi.states(lay.N_BLADES)
+#: the start-up alignment's weight in the FDI's state vector (derivation/fdi.py)
+ALIGN = [e.name for e in FDI_STATES].index("fdi_align")
 SENSOR_FAULTS, SENSOR_PARAMS = sensors.fault_entries(), sensors.param_entries()
 
 
@@ -366,7 +368,7 @@ def _fdi_blades(x, v, rd, bv, params) -> dict[str, list]:
                                             "latch", "rms", "w_hat", "z_hat", "thr", "init")}
     for j in range(lay.N_BLADES):
         xs = x[j * n:(j + 1) * n]
-        tr = Translator({**params, "v": v[j], "beta_v": bv[j], "align": x[x.numel() - 1],
+        tr = Translator({**params, "v": v[j], "beta_v": bv[j], "align": x[ALIGN],
                          "beta_m": rd[names.index(f"beta_meas_{j + 1}_m1")],
                          "beta_m2": rd[names.index(f"beta_meas_{j + 1}_m2")],
                          **{s.name: xs[k] for k, s in enumerate(fdi.STATE_SYMBOLS)}})
@@ -443,7 +445,7 @@ def build_fdi() -> list[ca.Function]:
                 f"sensor_latch_m{k}")]
     f = _function("fdi", {"x_fdi": x, "v": v, "readings": rd, "meas": meas, "p_fdi": p},
                   {"x_fdi_dot": ca.vertcat(*b["rhs"], *speed_rhs,
-                                           Translator({**params, "align": x[x.numel() - 1]})(
+                                           Translator({**params, "align": x[ALIGN]})(
                                                fdi.align_rhs())),
                    "known_fault": ca.vertcat(*b["rho"], *b["lock"], *b["ubar"]),
                    "rho_hat": ca.vertcat(*b["rho_hat"]), "c_hat": ca.vertcat(*b["c_hat"]),
@@ -454,7 +456,8 @@ def build_fdi() -> list[ca.Function]:
     bm = _vec("beta_meas", lay.N_BLADES)
     init = [Translator({"b": bm[j]})(e) for j in range(lay.N_BLADES)
             for e in fdi.initial(sp.Symbol("b"))]
-    init += [ca.SX(0)] * (len(FDI_STATES) - n_blade - 1) + [ca.SX(fdi.ALIGN_INITIAL)]
+    init += [ca.SX(fdi.ALIGN_INITIAL if e.name == "fdi_align" else 0)
+             for e in FDI_STATES[n_blade:]]
     g = _function("init_fdi", {"beta_meas": bm}, {"x_fdi0": ca.vertcat(*init)})
     return [f, g]
 

@@ -30,6 +30,8 @@ from derivation.controllers import MEAS
 X_OFFSET = sp.symbols("x_offset_1:5", real=True)
 X_SCALE = sp.symbols("x_scale_1:5", positive=True)
 FUZZY_PARAMS = [fuzzy.mf_width, *fuzzy.mf_centre]
+#: the FDI's start-up alignment weight's index in its states (derivation/fdi.py)
+ALIGN = [e.name for e in fdi.states(3)].index("fdi_align")
 
 
 @cache
@@ -348,9 +350,9 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         out = []
         for b in _flat(args, "beta_meas"):
             out.append(evaluate("fdi_init", fdi.initial(sp.Symbol("b")), {"b": float(b)}))
-        n_speed = len(fdi.states(3)) - len(out) * len(fdi.PER_BLADE) - 1
-        return {"x_fdi0": exact(np.concatenate([*out, np.zeros(n_speed),
-                                                [fdi.ALIGN_INITIAL]]))}
+        rest = [fdi.ALIGN_INITIAL if e.name == "fdi_align" else 0.0
+                for e in fdi.states(3)[len(out) * len(fdi.PER_BLADE):]]
+        return {"x_fdi0": exact(np.concatenate([*out, rest]))}
     x, v, p = _flat(args, "x_fdi"), _flat(args, "v"), _flat(args, "p_fdi")
     rd = dict(zip(sensors.SENSOR_NAMES, _flat(args, "readings"), strict=True))
     meas = _flat(args, "meas")
@@ -361,7 +363,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     _, r0 = fdi.estimates()
     for j in range(3):
         xs = x[j * n:(j + 1) * n]
-        vals = {**base, "v": float(v[j]), "align": float(x[-1]),
+        vals = {**base, "v": float(v[j]), "align": float(x[ALIGN]),
                 "beta_m": rd[f"beta_meas_{j + 1}_m1"],
                 "beta_m2": rd[f"beta_meas_{j + 1}_m2"], "beta_v": float(meas[2 + j]),
                 **{sy.name: float(y) for sy, y in zip(fdi.STATE_SYMBOLS, xs, strict=True)}}
@@ -380,7 +382,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         for k in (1, 2):
             excluded[f"beta_meas_{j + 1}_m{k}"] = vals[f"sensor_latch_m{k}"]
     rhs += _speed_pairs_reference(x[3 * n:], rd, base, excluded)
-    rhs.append(pair("fdi_align", [fdi.align_rhs()], {**base, "align": float(x[-1])}))
+    rhs.append(pair("fdi_align", [fdi.align_rhs()], {**base, "align": float(x[ALIGN])}))
 
     def cat(parts):
         return (np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]))

@@ -109,7 +109,8 @@ def _start_from_one_reading(k_align: float, offset_deg: float = 0.49) -> list[tu
     blades then read exactly; the blades are the nominal actuator (a second FDI's model,
     started at the true pitch) at the IEA 15-MW's 2°/s rate limit, commanded 3° down
     for 1.5 s (both held at the rate limit), then 3.2°. Returns (t, model − blade 1 [°],
-    latch, residual RMS over threshold, alignment weight) every 10 ms over 5 s."""
+    latch, residual RMS over threshold, alignment weight, the hydraulic models' offsets
+    from the blade's [°]) every 10 ms over 5 s."""
     from wtftc.artefacts.loader import load
     fdi, init = load("fdi"), load("init_fdi")
     p = lay.defaults("fdi_params")
@@ -124,6 +125,7 @@ def _start_from_one_reading(k_align: float, offset_deg: float = 0.49) -> list[tu
     sensed = [s["measures"] for s in lay.layout()["sensors"]]
     virtual = [m["name"] for m in lay.layout()["measurements"]]
     out, dt = [], 1e-3
+    bank = [names.index(f"fdi_{m}_1") for m in ("beta_pd", "beta_air")]
     for i in range(5000):
         v = np.full(3, b0 - np.radians(3.0 if i * dt < 1.5 else 3.2))
         beta = dict(zip((f"beta_meas_{j}" for j in lay.blades()), blades[ib], strict=True))
@@ -133,7 +135,9 @@ def _start_from_one_reading(k_align: float, offset_deg: float = 0.49) -> list[tu
         ob = fdi(x_fdi=blades, v=v, readings=rd, meas=meas, p_fdi=blade_p)
         if i % 10 == 0:
             out.append((i * dt, np.degrees(x[ib[0]] - blades[ib[0]]), float(o["latch"][0]),
-                        float(o["residual_rms"][0] / o["threshold"][0]), x[-1]))
+                        float(o["residual_rms"][0] / o["threshold"][0]),
+                        x[names.index("fdi_align")],
+                        np.degrees(x[bank] - blades[bank])))
         x = x + dt * np.array(o["x_fdi_dot"]).ravel()
         blades = blades + dt * np.array(ob["x_fdi_dot"]).ravel()
     return out
@@ -156,6 +160,9 @@ def test_the_start_up_alignment_removes_the_offset_of_a_host_s_first_reading():
     assert max(r[3] for r in on) < 0.5
     assert abs(on[150][1]) < 0.01 and max(abs(r[1]) for r in on[200:]) < 0.002
     assert on[400][4] == pytest.approx(np.exp(-4.0), rel=0.01)
+    # the hydraulic fault models, started alike, are pulled alike by 1 s (without: they
+    # keep the offset while at the rate limit)
+    assert np.abs(on[100][5]).max() < 0.05 and np.abs(off[100][5]).min() > 0.4
 
 
 def test_the_alignment_is_on_where_the_fdi_starts_from_a_reading():
@@ -177,3 +184,7 @@ def test_the_alignment_is_on_where_the_fdi_starts_from_a_reading():
     with pytest.raises(ConfigError) as exc:
         config.make_config({**base, "fdi": {"align_rate_per_s": -1.0}})
     assert exc.value.field == "fdi.align_rate_per_s"
+    with pytest.raises(ConfigError) as exc:  # 60 /s × 0.02 s: an unstable pull
+        config.make_config({**base, "control_interval_s": 0.02,
+                            "fdi": {"align_rate_per_s": 60.0}})
+    assert exc.value.field == "fdi.align_rate_per_s" and "50 /s here" in exc.value.allowed

@@ -178,9 +178,10 @@ def test_linearize_reads_a_design_from_a_run_configuration(tmp_path):
     assert done.returncode == 0, done.stderr
     assert "not used here: t_final_s" in done.stdout
     m = np.load(out / "linear_16mps.npz")
-    assert m["A_c"].shape[0] == 6  # three weights, ω̂_r and η, the tower damper's ŝ
-    assert np.any(m["A_cl"][:-3, -3:-1] != 0)  # the observer's states act on the loop
-    assert np.all(m["A_cl"][:-1, -1] == 0)  # the damper's (off) does not
+    # three weights, ω̂_r and η, the tower damper's ŝ and its low-passed acceleration
+    assert m["A_c"].shape[0] == 7
+    assert np.any(m["A_cl"][:-4, -4:-2] != 0)  # the observer's states act on the loop
+    assert np.all(m["A_cl"][:-2, -2:] == 0)  # the damper's two (off) do not
     cfg.write_text('controller = "physical"\nt_finale_s = 30.0\n')
     bad = subprocess.run([sys.executable, "-m", "wtftc.cli", "linearize", "--config",
                           str(cfg), "--out", str(tmp_path / "bad")], capture_output=True,

@@ -556,6 +556,9 @@ FDI_KEYS = {"target_false_alarms_per_hour": (fdi.TARGET_ALARMS_PER_HOUR, 1e-12, 
 #: about 3 s, and the pulled model follows the sensor noise by 0.16 σ at a 10-ms interval
 #: (docs/fdi.md)
 HOST_ALIGN_RATE = 5.0
+#: the largest alignment rate × control interval: a held sample pulled harder than this
+#: per interval is not a stable discrete filter (RK4's bound is 2.78; margin kept)
+ALIGN_STEP_MAX = 1.0
 
 
 def _check_pulse(vals: dict, interval: float) -> None:
@@ -597,6 +600,10 @@ def _fdi(raw: dict, loop: rhs.Loop, p_sensors: np.ndarray,
     align = vals["align_rate_per_s"]
     if align is None and raw["engine"] == "openfast":
         align = HOST_ALIGN_RATE
+    if align is not None and align * interval > ALIGN_STEP_MAX:
+        raise ConfigError("fdi.align_rate_per_s", align, f"at most {ALIGN_STEP_MAX:g} / "
+                          f"the control interval ({ALIGN_STEP_MAX / interval:g} /s here): a "
+                          "faster pull is unstable in the sampled FDI")
     if align is not None:
         p[lay.index("fdi_params", "fdi_k_align")] = align
     return p, pulse

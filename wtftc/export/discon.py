@@ -185,25 +185,27 @@ def parameters(rc: config.RunConfig, demand_rate_limit: int = 1
     values = {"controller": rc.p_ctrl, "fdi_params": rc.p_fdi, "sensor_params": rc.p_sensors,
               "turbine_params": rc.p_turbine, "reference": rc.yd}
     out = []
+    turbine = turbine_file.load(rc.raw.get("turbine", turbine_file.DEFAULT))
     for section, group in _groups(rc.loop.controller).items():
         for e, v in zip(lay.layout()[group], values[section], strict=True):
             doc = e.get("doc", "")
             if section == "turbine_params":
-                doc = _turbine_source(rc, e["name"], float(v), doc)
+                doc = _turbine_source(turbine, e["name"], float(v), doc)
             out.append((e["name"], float(v), e["unit"], doc))
     return out + _interface_params(demand_rate_limit)
 
 
-def _turbine_source(rc: config.RunConfig, name: str, value: float, doc: str) -> str:
+def _turbine_source(turbine: turbine_file.Turbine, name: str, value: float, doc: str) -> str:
     """A turbine parameter's source in the .IN: its turbine file's (the layout's doc is
-    the NREL 5-MW's, wrong beside another turbine's value), or, where the run set it
-    otherwise, that."""
-    turbine = turbine_file.load(rc.raw.get("turbine", turbine_file.DEFAULT))
+    the NREL 5-MW's, wrong beside another turbine's value); where the run set another
+    value (its configuration or profile), that, with the file's value and source."""
     if name not in turbine.sources:
         return doc
+    source = turbine.sources[name] or doc
     if value == turbine.values[name]:
-        return turbine.sources[name] or doc
-    return f"set by the run ([turbine_params]; {turbine.name}'s file: {turbine.values[name]:g})"
+        return source
+    return (f"set by the run (its configuration or profile); {turbine.name}'s file: "
+            f"{turbine.values[name]:g}, {source}")
 
 
 def _split(p: ca.SX, controller: str) -> dict[str, ca.SX]:
