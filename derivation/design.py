@@ -148,13 +148,13 @@ def tower_damper(prefix: str) -> tuple[sp.Expr, sp.Expr, sp.Expr, sp.Expr]:
     a itself when ω_f = 0 (as before the filter; a_f then decays at 1/s, unused, so that
     ``wtftc linearize`` sees no zero eigenvalue, as the speed observer's states off).
     Added to the desired pitch α1 of a backstepping design, Δβ enters α̇1 exactly: the
-    design's z2 tracks it, rather than fight it as a disturbance on β̄. Its rate K ŝ̇ holds a_f; unfiltered, that is the measured
-    acceleration itself, which the command's inversion of the actuator lag (τ_a α̇1)
-    passed on with a gain of K τ_a at every frequency the accelerometer sees (on the IEA
-    15-MW in OpenFAST: pitch activity at 0.3-1.6 Hz; docs/controllers.md). The low-pass
-    leaves α̇1 a function of states only. The clip's rate is written out (K ŝ̇ inside the
-    clip, 0 on it), not left to SymPy, whose derivative of Min/Max is a Heaviside with a
-    value at 0 of its own choosing.
+    design's z2 tracks it, rather than fight it as a disturbance on β̄. Its rate K ŝ̇
+    holds a_f; unfiltered, that is the measured acceleration itself, which the command's
+    inversion of the actuator lag (τ_a α̇1) passed on with a gain of K τ_a at every
+    frequency the accelerometer sees (on the IEA 15-MW in OpenFAST: pitch activity at
+    0.3-1.6 Hz; docs/controllers.md). The low-pass leaves α̇1 a function of states only.
+    The clip's rate is written out (K ŝ̇ inside the clip, 0 on it), not left to SymPy,
+    whose derivative of Min/Max is a Heaviside with a value at 0 of its own choosing.
 
     Returns (Δβ, its rate, the rate of ŝ, the rate of a_f)."""
     gain, corner, limit, lpf = sp.symbols(
