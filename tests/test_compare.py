@@ -107,7 +107,8 @@ def test_the_matrix_has_every_actuator_fault_type_and_names_the_fdi_variants():
         "physical_fdi", "drivetrain_fdi", "paper_fdi", "physical_obs_fdi",
         "physical_obs_ps_fdi", "physical_obs45_ps_fdi", "physical_obs45_ps_td_fdi",
         "physical_obs45_ps_ct_fdi", "physical_obs45_ps_td_ct_fdi",
-        "physical_obs30_ps_td_ct_fdi", "physical_obs15_w04_ps_ct_fdi"]
+        "physical_obs30_ps_td_ct_fdi", "physical_obs3to45_ps_td_ct_fdi",
+        "physical_obs15_w04_ps_ct_fdi"]
     assert "FDI" in config.CASES[compare.FDI_CASE]
     cfg = compare.cell_config("physical_fdi", "lock", "ntm_B_16", 30.0, 1e-3, 0)
     assert (cfg["controller"], cfg["case"]) == ("physical", compare.FDI_CASE)
@@ -149,6 +150,11 @@ def test_issue_34s_variants_carry_their_options_and_run_when_named(tmp_path):
     assert not set(compare.ISSUE34) & set(compare.DEFAULT_CONTROLLERS)
     low = compare.cell_config("physical_obs45_ps_fdi", "none", "ntm_B_16", 30.0, 1e-3, 0)
     assert low["controller_params"] == {"phys_obs_omega": 4.5, "phys_ps_pitch": 0.0349}
+    sched = compare.cell_config("physical_obs3to45_ps_td_ct_fdi", "none", "ntm_B_16", 30.0,
+                                1e-3, 0)
+    assert sched["controller_params"] == {"phys_obs_omega": 3.0, "phys_obs_omega_max": 4.5,
+                                          "phys_ps_pitch": 0.0349, "phys_td_gain": 0.12}
+    assert sched["turbine_params"]["vs_constant_torque"] == 1.0
     matched = compare.cell_config("rosco_matched", "lock", "ntm_B_16", 30.0, 1e-3, 0)
     assert matched["controller"] == "rosco" and matched["case"] == compare.UNAWARE_CASE
     assert matched["rosco"] == {"omega_pc_rad_s": 0.7, "zeta_pc": 0.85}

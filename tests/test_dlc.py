@@ -231,13 +231,14 @@ def test_the_openfast_dlc_examples_list_what_their_headers_say():
 
 
 @pytest.mark.parametrize("suffix, candidate, omega_o", [
-    ("ct", "physical_obs45_ps_td_ct_fdi", 4.5), ("obs30", "physical_obs30_ps_td_ct_fdi", 3.0)])
+    ("ct", "physical_obs45_ps_td_ct_fdi", 4.5), ("obs30", "physical_obs30_ps_td_ct_fdi", 3.0),
+    ("obs3to45", "physical_obs3to45_ps_td_ct_fdi", 3.0)])
 def test_the_constant_torque_dlc_examples_run_the_candidate_with_its_options(
         suffix, candidate, omega_o):
-    """examples/dlc12_openfast_{ct,obs30}.toml and dlc21_openfast_{ct,obs30}.toml (issue
-    34): the candidate with its tower damper, the law's region 3 at constant torque and its
-    observer's corner, in OpenFAST, in the run counts their headers give (22 and 48, ROSCO's
-    aside)."""
+    """examples/dlc12_openfast_{ct,obs30,obs3to45}.toml and dlc21_openfast_{...}.toml
+    (issue 34): the candidate with its tower damper, the law's region 3 at constant torque
+    and its observer's corner (scheduled up to 4.5 rad/s in the last), in OpenFAST, in the
+    run counts their headers give (22 and 48, ROSCO's aside)."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent / "examples"
@@ -252,6 +253,8 @@ def test_the_constant_torque_dlc_examples_run_the_candidate_with_its_options(
                                                      "vs_constant_torque": 1.0}
                    and r["config"]["controller_params"]["phys_td_gain"] == 0.12
                    and r["config"]["controller_params"]["phys_obs_omega"] == omega_o
+                   and r["config"]["controller_params"].get("phys_obs_omega_max", 0.0)
+                   == (4.5 if suffix == "obs3to45" else 0.0)
                    for r in ours), name
         # ROSCO's runs are those of the first DLC example's: the same fields, the same ids
         base, _ = sweep.expand(sweep.load_sweep(root / name.replace(f"_{suffix}", "")))
