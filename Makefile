@@ -46,7 +46,7 @@ check-generated: setup
 	$(PY) -m derivation.check_generated
 
 test: setup openfast
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q --durations=25
 
 lint: setup
 	$(VENV)/bin/ruff check .

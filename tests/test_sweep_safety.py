@@ -612,5 +612,6 @@ def test_a_campaign_resumes_across_an_edit_of_the_sources_but_not_of_the_code(
     # 34's speed noise scaled to the turbine) records no run semantics, or an older one
     del older["versions"]["run_semantics"]
     meta.write_text(json.dumps(older))
-    with pytest.raises(ConfigError, match="run semantics 1, this wtftc's are 2"):
+    with pytest.raises(ConfigError, match=f"run semantics 1, this wtftc's are "
+                                          f"{store.RUN_SEMANTICS}"):
         resume()
