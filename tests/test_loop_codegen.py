@@ -346,7 +346,7 @@ def test_runs_keeping_only_their_output_grid_are_the_runs_keeping_every_report(r
 
 
 def test_a_small_step_gets_a_state_only_twin_and_a_large_one_does_not():
-    """integrate._state_step: the physical loop's step (1,600 SX instructions) gets a twin
+    """integrate._state_step: the physical loop's step (4,744 SX instructions) gets a twin
     computing the next state alone, for the steps whose report is not kept, and it gives
     the step's next state bit for bit; the paper's (9,600: two bodies alternating cost it
     instruction fetch) and a step in MX do not."""

@@ -295,8 +295,10 @@ def compiled_chunk(step: ca.Function, n: int, label: str,
 
 #: the largest step (SX instructions) given a state-only twin: two bodies of the paper's
 #: loop (9,600) alternating every few steps cost it 6 % in instruction fetch, where the
-#: physical loop's (1,600) gains 3 % (docs/performance.md)
-STATE_STEP_MAX = 4000
+#: physical loop's (1,600 when measured; 3,948 with issue 34's observer and damper, 4,744
+#: with the damper's low-pass and the observer's schedule, both off by default) gains 3 %
+#: (docs/performance.md; not re-measured at 4,744)
+STATE_STEP_MAX = 6000
 
 
 def _state_step(step: ca.Function) -> ca.Function | None:
