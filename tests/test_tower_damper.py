@@ -86,7 +86,13 @@ def test_the_damper_damps_the_tower_mode_and_keeps_the_margins():
     assert np.allclose(b_w, fd, rtol=1e-5, atol=1e-6 * np.abs(fd).max())
 
 
-def test_a_discon_host_feeds_the_damper_record_53(tmp_path):
+@pytest.fixture(scope="module")
+def library(tmp_path_factory):
+    """The physical AFTC's exported library, compiled once for this module's hosts."""
+    return discon.export("physical", tmp_path_factory.mktemp("lib")) / "libwtftc_physical.so"
+
+
+def test_a_discon_host_feeds_the_damper_record_53(tmp_path, library):
     """The exported library reads the tower-top acceleration from #53: readings held at
     rated with 0.2 rad of pitch, and #53 held at 2 m/s²; with no actuator model in the
     design (U = α1) the demand departs from the one with #53 = 0 by the damper's pitch
@@ -94,7 +100,7 @@ def test_a_discon_host_feeds_the_damper_record_53(tmp_path):
     rounding; with the damper off, #53 changes nothing. Over 0.4 s: beyond it the FDI
     sees blades that do not follow the demand (the host holds them) and isolates them, as
     it should."""
-    so = discon.export("physical", tmp_path / "lib") / "libwtftc_physical.so"
+    so = library
     params = {"phys_actuator_model": 0.0, "phys_td_gain": 0.1}
     demands = {}
     for name, over, acc in (("on", params, 2.0), ("on_still", params, 0.0),
@@ -114,7 +120,7 @@ def test_a_discon_host_feeds_the_damper_record_53(tmp_path):
     assert np.array_equal(demands["off"], demands["on_still"])
 
 
-def test_the_low_pass_keeps_the_acceleration_out_of_the_command(tmp_path):
+def test_the_low_pass_keeps_the_acceleration_out_of_the_command(tmp_path, library):
     """Issue 34: unfiltered, the damper's rate K (a − ω_h ŝ) enters α̇1, and the command
     U = β̄ + τ_a (… + α̇1) inverts the actuator lag on it: the measured acceleration
     reaches the demand at once, with a gain K τ_a (here 0.1 × 0.108 s × 2 m/s² = 1.2°:
@@ -122,7 +128,7 @@ def test_the_low_pass_keeps_the_acceleration_out_of_the_command(tmp_path):
     enters through the state a_f only: the first demand is the one with #53 = 0, and
     0.1 s later (blades held at 0.2 rad, so z2 carries the damper's pitch) the difference
     is τ_a K (c2 ŝ + a_f − ω_h ŝ) with a_f and ŝ in closed form, within 2 %."""
-    so = discon.export("physical", tmp_path / "lib") / "libwtftc_physical.so"
+    so = library
     K, w_f, w_h, acc = 0.1, 5.0, 0.2, 2.0
     design = lay.values("physical_params", lay.defaults("physical_params"))
     tau_a, c2 = design["phys_tau_a"], design["phys_c2"]
