@@ -92,6 +92,23 @@ def library(tmp_path_factory):
     return discon.export("physical", tmp_path_factory.mktemp("lib")) / "libwtftc_physical.so"
 
 
+def _held_host_demands(library, folder, calls: int, cases) -> dict[str, np.ndarray]:
+    """Blade 1's demand from the exported library over ``calls`` 10-ms calls, per (name,
+    controller_params, #53 [m/s²]): readings held at rated speed with 0.2 rad of pitch,
+    the host with the benchmark actuator (no rate limit in the library)."""
+    demands = {}
+    for name, over, acc in cases:
+        rc_k = config.make_config({"controller": "physical", "case": 1,
+                                   "profile": "realistic", "controller_params": over})
+        host = Host(library, discon.write_input(rc_k, folder / f"{name}.IN",
+                                                demand_rate_limit=0))
+        host.swap[52] = acc
+        demands[name] = np.array([host.call(0 if k == 0 else 1, 0.01 * k, 1.26711,
+                                            1.26711 * 97.0, [0.2] * 3)["pitch"][0]
+                                  for k in range(calls)])
+    return demands
+
+
 def test_a_discon_host_feeds_the_damper_record_53(tmp_path, library):
     """The exported library reads the tower-top acceleration from #53: readings held at
     rated with 0.2 rad of pitch, and #53 held at 2 m/s²; with no actuator model in the
@@ -100,19 +117,10 @@ def test_a_discon_host_feeds_the_damper_record_53(tmp_path, library):
     rounding; with the damper off, #53 changes nothing. Over 0.4 s: beyond it the FDI
     sees blades that do not follow the demand (the host holds them) and isolates them, as
     it should."""
-    so = library
     params = {"phys_actuator_model": 0.0, "phys_td_gain": 0.1}
-    demands = {}
-    for name, over, acc in (("on", params, 2.0), ("on_still", params, 0.0),
-                            ("off", {"phys_actuator_model": 0.0}, 2.0)):
-        rc_k = config.make_config({"controller": "physical", "case": 1,
-                                   "profile": "realistic", "controller_params": over})
-        host = Host(so, discon.write_input(rc_k, tmp_path / f"{name}.IN",
-                                           demand_rate_limit=0))
-        host.swap[52] = acc
-        demands[name] = np.array([host.call(0 if k == 0 else 1, 0.01 * k, 1.26711,
-                                            1.26711 * 97.0, [0.2] * 3)["pitch"][0]
-                                  for k in range(40)])
+    demands = _held_host_demands(library, tmp_path, 40, (
+        ("on", params, 2.0), ("on_still", params, 0.0),
+        ("off", {"phys_actuator_model": 0.0}, 2.0)))
     t = 0.01 * np.arange(40)
     expected = np.minimum(0.1 * 2.0 * (1 - np.exp(-0.2 * t)) / 0.2, 0.0349)
     assert expected[-1] == 0.0349  # the clip is reached
@@ -128,22 +136,13 @@ def test_the_low_pass_keeps_the_acceleration_out_of_the_command(tmp_path, librar
     enters through the state a_f only: the first demand is the one with #53 = 0, and
     0.1 s later (blades held at 0.2 rad, so z2 carries the damper's pitch) the difference
     is τ_a K (c2 ŝ + a_f − ω_h ŝ) with a_f and ŝ in closed form, within 2 %."""
-    so = library
     K, w_f, w_h, acc = 0.1, 5.0, 0.2, 2.0
     design = lay.values("physical_params", lay.defaults("physical_params"))
     tau_a, c2 = design["phys_tau_a"], design["phys_c2"]
-    demands = {}
-    for name, over, a in (("raw", {"phys_td_gain": K}, acc),
-                          ("filtered", {"phys_td_gain": K, "phys_td_lpf": w_f}, acc),
-                          ("still", {"phys_td_gain": K, "phys_td_lpf": w_f}, 0.0)):
-        rc_k = config.make_config({"controller": "physical", "case": 1,
-                                   "profile": "realistic", "controller_params": over})
-        host = Host(so, discon.write_input(rc_k, tmp_path / f"{name}.IN",
-                                           demand_rate_limit=0))
-        host.swap[52] = a
-        demands[name] = np.array([host.call(0 if k == 0 else 1, 0.01 * k, 1.26711,
-                                            1.26711 * 97.0, [0.2] * 3)["pitch"][0]
-                                  for k in range(11)])
+    demands = _held_host_demands(library, tmp_path, 11, (
+        ("raw", {"phys_td_gain": K}, acc),
+        ("filtered", {"phys_td_gain": K, "phys_td_lpf": w_f}, acc),
+        ("still", {"phys_td_gain": K, "phys_td_lpf": w_f}, 0.0)))
     step = demands["raw"][0] - demands["still"][0]
     assert step == pytest.approx(K * tau_a * acc, rel=0.02)
     assert abs(demands["filtered"][0] - demands["still"][0]) < 1e-7
