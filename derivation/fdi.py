@@ -101,7 +101,8 @@ def states(n_blades: int) -> list[Entry]:
                            sq if n in squared else ("-" if "latch" in n else u),
                            f"FDI {n} of the {sig} sensors")
                      for sig, u, sq in SPEED_PAIRS for n in PER_PAIR] + [
-        Entry("fdi_align", 1.0, "-", "FDI start-up alignment weight (1 at the start, "
+        Entry("fdi_align", 1.0, "-", "FDI start-up alignment weight (its default, 1, is its "
+              "start: init_fdi; "
               "decaying at fdi_k_align / ALIGN_FOLDS; align_rhs)")]
 
 
@@ -439,6 +440,3 @@ def initial(beta_meas0) -> list[sp.Expr]:
     return [b0, 0, 0, 0, 0, b0**2 + spread, b0, 1, b0**2 + spread, b0, b0**2 + spread, 0, 0,
             b0, 0, 0, b0, 0, 0, 0, 0, 0, 0, 0, 0, b0, 0]
 
-
-#: the alignment weight at the start (align_rhs)
-ALIGN_INITIAL = 1

@@ -456,8 +456,7 @@ def build_fdi() -> list[ca.Function]:
     bm = _vec("beta_meas", lay.N_BLADES)
     init = [Translator({"b": bm[j]})(e) for j in range(lay.N_BLADES)
             for e in fdi.initial(sp.Symbol("b"))]
-    init += [ca.SX(fdi.ALIGN_INITIAL if e.name == "fdi_align" else 0)
-             for e in FDI_STATES[n_blade:]]
+    init += [ca.SX(e.default) for e in FDI_STATES[n_blade:]]  # the pair tests' 0, align's 1
     g = _function("init_fdi", {"beta_meas": bm}, {"x_fdi0": ca.vertcat(*init)})
     return [f, g]
 

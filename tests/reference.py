@@ -350,8 +350,7 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
         out = []
         for b in _flat(args, "beta_meas"):
             out.append(evaluate("fdi_init", fdi.initial(sp.Symbol("b")), {"b": float(b)}))
-        rest = [fdi.ALIGN_INITIAL if e.name == "fdi_align" else 0.0
-                for e in fdi.states(3)[len(out) * len(fdi.PER_BLADE):]]
+        rest = [e.default for e in fdi.states(3)[len(out) * len(fdi.PER_BLADE):]]
         return {"x_fdi0": exact(np.concatenate([*out, rest]))}
     x, v, p = _flat(args, "x_fdi"), _flat(args, "v"), _flat(args, "p_fdi")
     rd = dict(zip(sensors.SENSOR_NAMES, _flat(args, "readings"), strict=True))
