@@ -69,12 +69,14 @@ def magnitude(expr: sp.Expr, memo: dict | None = None) -> sp.Expr:
 
     Floating-point evaluation of e is accurate to about ε·magnitude(e), not ε·|e|: where
     large terms cancel (α̇3 at random states), |e| says nothing about attainable accuracy.
+    Each |·| is left unevaluated: SymPy's sign simplification of it costs seconds on the
+    larger designs and changes no value.
     """
     memo = {} if memo is None else memo
     if expr in memo:
         return memo[expr]
     if expr.is_Add:
-        out = sp.Add(*[sp.Abs(magnitude(a, memo)) for a in expr.args])
+        out = sp.Add(*[sp.Abs(magnitude(a, memo), evaluate=False) for a in expr.args])
     elif expr.is_Mul:
         out = sp.Mul(*[magnitude(a, memo) for a in expr.args])
     elif expr.is_Pow and expr.exp.is_Integer and expr.exp > 0:
@@ -110,7 +112,7 @@ def evaluate(key: str, exprs, values: dict[str, float]) -> np.ndarray:
 
 @cache
 def _magnitudes(exprs: tuple) -> tuple:
-    return tuple(sp.Abs(magnitude(sp.sympify(e))) for e in exprs)
+    return tuple(sp.Abs(magnitude(sp.sympify(e)), evaluate=False) for e in exprs)
 
 
 def scale(key: str, exprs, values: dict[str, float]) -> np.ndarray:
@@ -359,29 +361,28 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
     base = {e.name: float(y) for e, y in zip(fdi.PARAMS, p, strict=True)}
     rhs, known, rho, c, latch, rms, wh, zh, thr = [], [[], [], []], [], [], [], [], [], [], []
     excluded = {}
-    _, r0 = fdi.estimates()
+    ex = _fdi_exprs()
     for j in range(3):
         xs = x[j * n:(j + 1) * n]
         vals = {**base, "v": float(v[j]), "align": float(x[ALIGN]),
                 "beta_m": rd[f"beta_meas_{j + 1}_m1"],
                 "beta_m2": rd[f"beta_meas_{j + 1}_m2"], "beta_v": float(meas[2 + j]),
                 **{sy.name: float(y) for sy, y in zip(fdi.STATE_SYMBOLS, xs, strict=True)}}
-        rhs.append(pair("fdi_rhs", fdi.blade_rhs(), vals))
-        for k, a in enumerate(fdi.accommodation()):
+        rhs.append(pair("fdi_rhs", ex["rhs"], vals))
+        for k, a in enumerate(ex["acc"]):
             known[k].append(pair(f"fdi_acc{k}", [a], vals))
-        rho.append(pair("fdi_rho", [sp.Piecewise((0, fdi.is_locked()), (r0, True))], vals))
-        c.append(pair("fdi_c", [fdi.stuck_angle()], vals))
+        rho.append(pair("fdi_rho", ex["rho"], vals))
+        c.append(pair("fdi_c", ex["c"], vals))
         latch.append(exact([xs[3]]))
         e_used = vals["mean_sq_m2"] if vals["sensor_latch_m1"] >= 0.5 else xs[2]
         rms.append(exact([np.sqrt(max(e_used, 0.0))]))
-        w_hat, z_hat = fdi.dynamics_estimate()
-        wh.append(pair("fdi_wh", [w_hat], vals))
-        zh.append(pair("fdi_zh", [z_hat], vals))
-        thr.append(pair("fdi_thr", [sp.sqrt(fdi.threshold_sq())], vals))
+        wh.append(pair("fdi_wh", ex["wh"], vals))
+        zh.append(pair("fdi_zh", ex["zh"], vals))
+        thr.append(pair("fdi_thr", ex["thr"], vals))
         for k in (1, 2):
             excluded[f"beta_meas_{j + 1}_m{k}"] = vals[f"sensor_latch_m{k}"]
     rhs += _speed_pairs_reference(x[3 * n:], rd, base, excluded)
-    rhs.append(pair("fdi_align", [fdi.align_rhs()], {**base, "align": float(x[ALIGN])}))
+    rhs.append(pair("fdi_align", ex["align"], {**base, "align": float(x[ALIGN])}))
 
     def cat(parts):
         return (np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]))
@@ -391,6 +392,26 @@ def fdi_reference(name: str, args: dict[str, np.ndarray]) -> dict[str, tuple]:
             "residual_rms": cat(rms), "omega_n_hat": cat(wh), "zeta_hat": cat(zh),
             "threshold": cat(thr),
             "excluded": exact([excluded[s] for s in sensors.SENSOR_NAMES])}
+
+
+@cache
+def _fdi_exprs() -> dict[str, tuple]:
+    """The FDI's SymPy expressions per blade, built once: each build is 0.1-0.3 s of SymPy,
+    and fdi_reference is called at hundreds of points."""
+    _, r0 = fdi.estimates()
+    w_hat, z_hat = fdi.dynamics_estimate()
+    return {"rhs": tuple(fdi.blade_rhs()), "acc": tuple(fdi.accommodation()),
+            "rho": (sp.Piecewise((0, fdi.is_locked()), (r0, True)),),
+            "c": (fdi.stuck_angle(),), "wh": (w_hat,), "zh": (z_hat,),
+            "thr": (sp.sqrt(fdi.threshold_sq()),), "align": (fdi.align_rhs(),)}
+
+
+@cache
+def _speed_pair_exprs(sig: str) -> tuple:
+    """One speed sensor pair's test, built once (as _fdi_exprs)."""
+    h = {"omega_r": fdi.h_rotor, "omega_g_hss": fdi.h_gen}
+    floor = {"omega_r": fdi.speed_floor, "omega_g_hss": fdi.speed_floor * fdi.gear}
+    return tuple(fdi.speed_pair_rhs(h[sig], floor[sig]))
 
 
 def _speed_pairs_reference(xs, rd: dict, base: dict, excluded: dict) -> list[tuple]:
@@ -406,14 +427,12 @@ def _speed_pairs_reference(xs, rd: dict, base: dict, excluded: dict) -> list[tup
 
     gear = base["fdi_gearbox_ratio"]
     refs = {"omega_r": healthy("omega_g_hss") / gear, "omega_g_hss": healthy("omega_r") * gear}
-    h = {"omega_r": fdi.h_rotor, "omega_g_hss": fdi.h_gen}
-    floor = {"omega_r": fdi.speed_floor, "omega_g_hss": fdi.speed_floor * fdi.gear}
     out = []
     for k, (sig, *_) in enumerate(fdi.SPEED_PAIRS):
         vals = {**base, "speed_ref": float(refs[sig]), "speed_m1": rd[f"{sig}_m1"],
                 "speed_m2": rd[f"{sig}_m2"],
                 **{s.name: float(xs[k * n + i]) for i, s in enumerate(fdi.PAIR_SYMBOLS)}}
-        out.append(pair(f"fdi_speed_{sig}", fdi.speed_pair_rhs(h[sig], floor[sig]), vals))
+        out.append(pair(f"fdi_speed_{sig}", _speed_pair_exprs(sig), vals))
     return out
 
 
