@@ -45,8 +45,12 @@ regenerate: setup
 check-generated: setup
 	$(PY) -m derivation.check_generated
 
+# the suite's files spread over the cores (pytest-xdist), each file whole on one worker: its
+# module fixtures (a compiled library, an OpenFAST run) are built once; TEST_WORKERS=0 runs
+# it in this process
+TEST_WORKERS ?= auto
 test: setup openfast
-	$(PY) -m pytest -q --durations=25
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=25
 
 lint: setup
 	$(VENV)/bin/ruff check .
