@@ -46,8 +46,8 @@ check-generated: setup
 	$(PY) -m derivation.check_generated
 
 # the suite's files spread over the cores (pytest-xdist), each file whole on one worker: its
-# module fixtures (a compiled library, an OpenFAST run) are built once; TEST_WORKERS=0 runs
-# it in this process
+# module fixtures (a compiled library, an OpenFAST run) are built once. (Not loadgroup:
+# pytest-xdist 3.8's groups do not take under pytest 9.) TEST_WORKERS=0: one process
 TEST_WORKERS ?= auto
 test: setup openfast
 	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile --durations=25
