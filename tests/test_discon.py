@@ -15,6 +15,7 @@ import sys
 import time
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 import pytest
 from conftest import snapshot
@@ -821,29 +822,61 @@ def test_the_input_file_names_each_turbine_parameter_s_own_source():
     assert "8°/s" in nrel["pitch_rate_max"][1] and "Jonkman" in nrel["pitch_rate_max"][1]
 
 
-def test_the_fdi_substeps_are_calls_of_one_function_with_the_written_out_arithmetic():
+def _written_out(step, rc):
+    """The step with its FDI substeps written out in one SX expression, as exported before
+    issue 35, from the step's own controller part and the sampled loop's FDI substep: ten
+    RK4 steps of T/10 chained from the call's x_fdi, the command and samples held."""
+    from wtftc.sim import sampled
+
+    ins = [ca.SX.sym(n, step.size_in(k)) for k, n in enumerate(step.name_in())]
+    v, xc_next, torque, logged, meas, p_fdi = step.get_function("wtftc_ctl")(*ins)
+    sub, xf, h = sampled._fdi_step(rc.loop), ins[2], ins[4] / rc.loop.interval
+    for _ in range(rc.loop.interval):
+        xf = sub(xf, v, ins[0], meas, p_fdi, h)
+    return ca.Function("written_out", ins, [v, xc_next, xf, torque, logged])
+
+
+@pytest.mark.parametrize("controller", discon.exportable())
+def test_the_fdi_substeps_are_calls_of_one_function_with_the_written_out_arithmetic(
+        controller):
     """The exported step calls the FDI's RK4 substep (10 per 10-ms call) as one generated
     function instead of writing the substeps out (issue 35: a fifth of the C, most of the
-    export's compile time). The same operations on the same values: the step and its
-    written-out twin (``expand``) agree bit for bit over 200 calls with the FDI's states
-    carried, from readings near rated with noise, on the tower damper's input too."""
-    rc = discon.run_config("physical")
+    export's compile time). The same operations on the same values: bit for bit (signed
+    zeros too) against the substeps written out, over 200 calls near rated with noisy
+    readings, one per quantity to both sensors as the library votes them, the FDI's states
+    carried, blade 2 held at 0.35 rad from call 60, its latch risen by the end."""
+    rc = discon.run_config(controller)
     step = discon.step_function(rc)
     assert sorted(step.get_function()) == ["fdi_step", "wtftc_ctl"]
-    flat = step.expand()
-    n_p = len(discon.parameters(rc)) - len(discon._interface_params(1))
-    p = np.array([v for _, v, _, _ in discon.parameters(rc)][:n_p])
+    twin = _written_out(step, rc)
+    p = np.array([v for _, v, *_ in discon.parameters(rc)][:discon._n_params(controller)])
+    sched = discon.schedule_table(*schedule_points(rc.loop.table, rc.p_turbine))
+    order = [s["measures"] for s in layout.layout()["sensors"]]
     rng = np.random.default_rng(7)
-    sched = np.concatenate([[3.0], rng.uniform(-0.1, 0.1, discon.SCHED_LEN - 1)])
-    base = np.array([*RATED, RATED[0], RATED[1], *[0.2] * 6])
-    xc, xf = discon.init_function(rc)(base, p, sched, 0.0)
-    moved = 0.0
-    for _ in range(200):
-        args = [base + rng.normal(0.0, 0.01, base.size), xc, xf, p, discon.CONTROL_DT, sched,
+    q = {"omega_r": RATED[0], "omega_g_hss": RATED[1],
+         **{f"beta_meas_{j}": 0.2 for j in (1, 2, 3)}}
+    xc, xf = discon.init_function(rc)(np.array([q[m] for m in order]), p, sched, 0.0)
+    latch = []
+    for k in range(200):
+        q["omega_r"] = RATED[0] * (1 + rng.normal(0.0, 0.01))
+        q["omega_g_hss"] = RATED[1] * (1 + rng.normal(0.0, 0.01))
+        if k >= 60:
+            q["beta_meas_2"] = 0.35
+        args = [np.array([q[m] for m in order]), xc, xf, p, discon.CONTROL_DT, sched,
                 rng.normal(0.0, 0.1)]
-        got, want = step(*args), flat(*args)
+        got, want = step(*args), twin(*args)
         for a, b in zip(got, want, strict=True):
-            np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
-        moved = max(moved, float(np.abs(np.asarray(got[2]) - np.asarray(xf)).max()))
+            a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+            assert np.isfinite(a).all()
+            np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64))
         xc, xf = got[1], got[2]
-    assert moved > 1e-4  # the FDI's states did move: a real comparison
+        pitch = np.asarray(got[0]).ravel()
+        for j in (1, 3):
+            q[f"beta_meas_{j}"] = float(pitch[j - 1]) + rng.normal(0.0, 1e-3)
+        if k < 60:
+            q["beta_meas_2"] = float(pitch[1]) + rng.normal(0.0, 1e-3)
+        latch.append(float(np.asarray(got[4]).ravel()[1]))
+    # the latch's path ran: blade 2 free at the start, latched by the end (the chattering
+    # designs latch it before call 60 here: readings that jump to the demand are no
+    # actuator the FDI knows)
+    assert latch[0] < 0.5 < latch[-1]

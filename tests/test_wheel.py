@@ -8,6 +8,7 @@ from the shared compile cache, keyed by the sha256 of its C source, so the run i
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import venv
@@ -21,12 +22,24 @@ from wtftc import cli
 ROOT = Path(__file__).resolve().parent.parent
 
 
+#: left out of the copy the wheel is built from: what the checkout holds beside its sources
+NOT_SOURCES = {".venv", ".git", "out", "results", "build", ".pytest_cache", ".ruff_cache"}
+
+
+def _ignored(folder: str, names: list[str]) -> set[str]:
+    top = NOT_SOURCES if Path(folder) == ROOT else set()
+    return {n for n in names if n in top or n == "__pycache__" or n.endswith(".egg-info")}
+
+
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory) -> Path:
-    """A wheel built from this checkout, as `pip wheel .` builds it."""
-    dist = tmp_path_factory.mktemp("dist")
+    """A wheel built from this checkout, as `pip wheel .` builds it, from a copy of it: the
+    build writes its egg-info beside the sources, where a wtftc another test starts from
+    the checkout (under pytest-xdist, at the same time) reads its version."""
+    dist, src = tmp_path_factory.mktemp("dist"), tmp_path_factory.mktemp("src") / "wtftc"
+    shutil.copytree(ROOT, src, ignore=_ignored)
     subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(dist),
-                    str(ROOT)], check=True, capture_output=True)
+                    str(src)], check=True, capture_output=True)
     (path,) = dist.glob("wtftc-*.whl")
     return path
 

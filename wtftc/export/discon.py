@@ -269,7 +269,7 @@ def _with_fdi_substeps(head: ca.Function, fdi_step: ca.Function, n_sub: int,
                        names: list[str], outs: list[str]) -> ca.Function:
     """The step as the controller's part, then the FDI's ``n_sub`` RK4 substeps as calls
     of one generated function: the same arithmetic as the substeps written out in one
-    expression (each call is the same operations on the same values), in a tenth of
+    expression (each call is the same operations on the same values), in a fifth of
     the C, which is most of the export's compile time."""
     ins = [ca.MX.sym(n, head.size_in(k)) for k, n in enumerate(names)]
     v, xc_next, torque, logged, meas, p_fdi = head(*ins)
@@ -510,7 +510,7 @@ def write_input(rc: config.RunConfig, path: Path, demand_rate_limit: int = 1) ->
     return path
 
 
-#: the longest a compile may take [s] (the physical controller's: about 20 s at -O2)
+#: the longest a compile may take [s] (the physical controller's: about 4 s at -O2)
 COMPILE_TIMEOUT_S = 600.0
 
 
