@@ -126,12 +126,18 @@ def _check_07(out: Path, stdout: str) -> None:
     head = lines[0].split(",")
     rows = [dict(zip(head, r.split(","), strict=True)) for r in lines[1:]]
     assert [float(r["target_per_h"]) for r in rows] == [1e3, 1e1, 1e-1, 1e-3, 1e-6]
-    # at the default target and below, no false alarm; the loosest target alarms most
+    # at the default target and below, no false alarm; a tighter target never alarms more
+    # (no target alarms on these runs at all: the threshold is conservative, docs/fdi.md)
     assert all(float(r["false_alarms_per_h"]) == 0 for r in rows[3:])
     fa = [float(r["false_alarms_per_h"]) for r in rows]
-    assert fa[0] == max(fa)
-    delays = [float(r["delay_median_s"]) for r in rows]
-    assert all(0 < d < 5 for d in delays) and delays[0] <= delays[-1]
+    assert np.all(np.diff(fa) <= 0), fa
+    # the same runs at every target, each fault found no sooner as the threshold rises:
+    # the median and the 90th percentile of the delays never fall as the target tightens
+    for col in ("delay_median_s", "delay_p90_s"):
+        delays = [float(r[col]) for r in rows]
+        assert all(0 < d < 10 for d in delays), (col, delays)
+        assert np.all(np.diff(delays) >= 0), (col, delays)
+    assert float(rows[-1]["delay_p90_s"]) > float(rows[0]["delay_p90_s"])  # it does move
     assert (out / "fdi_roc.png").read_bytes()[:4] == b"\x89PNG"
 
 
