@@ -283,6 +283,7 @@ def _toml(rng: random.Random, text: str) -> tuple[str, str]:
         lines.insert(rng.randrange(len(lines)), rng.choice([
             "rosco_tuning = { omega_pc_rad_s = 0.6, zeta_pc = 1e400 }",
             "rosco_tuning = { omega_pc_rad_s = 0.6 }", "rosco_tuning = 5",
+            "cut_in_wind_mps = -3.0", 'cut_in_wind_mps = "3"', "cut_in_wind_mps = nan",
             'J_x = { value = 1.0, unit = "-" }', "[params.J_r]", "params = 3"]))
     else:
         lines = [ln.replace("[params]", rng.choice(["[[params]]", "[param]", "[params.x]"]))

@@ -353,7 +353,8 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     _torque_law(raw, p_turbine, wind, t_final, table[0])
     _region3(raw, p_turbine)
     loop = rhs.Loop(raw["plant"], controller, *table, tuple(float(x) for x in p_turbine),
-                    interval=interval, delay=raw["control_delay"])
+                    interval=interval, delay=raw["control_delay"],
+                    cut_in_wind=turbine.cut_in_wind_mps or 0.0)
     _check_envelope(loop, ref, offset)
     p_plant, cp_scale = _mismatch(raw, p_turbine)
     p_fdi, test_pulse = _fdi(raw, loop, p_sensors, interval * dt)

@@ -62,6 +62,11 @@ class Turbine:
     #: wtftc.openfast): relative to the turbine file, or ``rosco:<path>`` in the rosco
     #: package's tree, as ``rosco_discon``
     openfast_deck: str | None = None
+    #: the wind [m/s] from which the turbine makes power (its report's cut-in wind): where
+    #: the Cp table's tip-speed ratios end before the rotor's slowest speed, a run at or
+    #: above it still starts (wtftc.sim.trim.operating_point); None: not known, a start
+    #: needs the table's ratios
+    cut_in_wind_mps: float | None = None
 
     def vector(self) -> np.ndarray:
         """The parameters in the layout's turbine_params order."""
@@ -138,7 +143,18 @@ def parse(text: str, path: Path, cp_must_exist: bool = True) -> Turbine:
     rosco, deck = (s if s is None or s.startswith("rosco:") or Path(s).is_absolute()
                    else str(path.parent / s) for s in (rosco, deck))
     return Turbine(doc["name"], doc["title"], where, values, sources, str(cp), rosco,
-                   _rosco_tuning(doc.get("rosco_tuning"), where), deck)
+                   _rosco_tuning(doc.get("rosco_tuning"), where), deck,
+                   _cut_in_wind(doc.get("cut_in_wind_mps"), where))
+
+
+def _cut_in_wind(v, where: str) -> float | None:
+    """``cut_in_wind_mps = 3.0``, or None."""
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v < 30:
+        raise ConfigError("cut_in_wind_mps", v, "the turbine's cut-in wind in m/s, a number "
+                          "above 0 and below 30", where=where)
+    return float(v)
 
 
 def _params(params, where: str) -> tuple[dict, dict]:

@@ -98,7 +98,9 @@ class Loop:
 
     ``interval``: 0, the controller and the FDI in continuous time inside the RK4 step (the
     paper's loop); n > 0, sampled every n plant steps (zero-order hold, wtftc.sim.sampled);
-    ``delay``: the command of a sample applied one interval later.
+    ``delay``: the command of a sample applied one interval later; ``cut_in_wind``: the
+    turbine's cut-in wind [m/s] (its file's ``cut_in_wind_mps``; 0: not known), which only
+    sets where a run may start (wtftc.sim.trim.operating_point), not what is compiled.
     """
 
     plant: str
@@ -109,6 +111,7 @@ class Loop:
     fdi: bool = True
     interval: int = 0
     delay: bool = False
+    cut_in_wind: float = field(default=0.0, compare=False)
 
     @classmethod
     def default(cls, plant: str = "nrel5mw", controller: str = "paper", fdi: bool = True,

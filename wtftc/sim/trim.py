@@ -139,8 +139,12 @@ def operating_point(loop: Loop, wind: float, omega_offset: float = 0.0) \
     * below rated: the pitch at its minimum and the rotor speed where the aerodynamic torque
       equals the torque law's, the stable equilibrium of the largest speed (regions 1½, 2,
       2½ of the baseline law; ROSCO's region-2 law k ω² is the same by construction);
-    * no equilibrium with the tip-speed ratio inside the Cp table (below cut-in, or a fixed
-      rated torque the wind cannot carry): a ConfigError naming the wind.
+    * no equilibrium with the tip-speed ratio inside the Cp table: at or above the
+      turbine's cut-in wind (``loop.cut_in_wind``, when known) with the variable-speed law,
+      the equilibrium with Cp held at the table's edge, as the plant holds it (the IEA
+      15-MW's slowest speed, 0.5236 rad/s, is a tip-speed ratio of 14.5, the table's last,
+      at 4.3 m/s); else (below cut-in, or a fixed rated torque the wind cannot carry) a
+      ConfigError naming the wind.
 
     The paper's unloaded plant balances T_aero = 0 at rated speed, as before.
     """
@@ -161,21 +165,34 @@ def operating_point(loop: Loop, wind: float, omega_offset: float = 0.0) \
         return rated, torque, aero.steady_pitch(cp_fn, rated, torque, wind, rho, R,
                                                 (beta_min, float(loop.table.pitch_rad[-1])))
     lo = float(loop.table.tsr[0]) * wind / R
-    hi = min(float(loop.table.tsr[-1]) * wind / R, rated)
-    grid = np.linspace(hi, lo, 400) if hi > lo else np.array([])
-    f = np.array([excess(w) for w in grid])
-    # from high speed down: the first crossing from deficit (slows) to excess (speeds up)
-    cross = np.nonzero((f[:-1] < 0) & (f[1:] >= 0))[0]
-    if not len(cross):
+    w = _balance(excess, lo, min(float(loop.table.tsr[-1]) * wind / R, rated))
+    if w is None and tp["gen_torque_law"] >= 0.5 and 0 < loop.cut_in_wind <= wind:
+        # at or above cut-in, the rotor's slowest speed past the table's ratios (the IEA
+        # 15-MW below 4.4 m/s): Cp held at the table's edge, as the plant holds it
+        w = _balance(excess, lo, rated)
+    if w is None:
+        cut_in = (f", the turbine's cut-in wind {loop.cut_in_wind:g} m/s" if loop.cut_in_wind
+                  else "")
         raise ConfigError("wind", wind, "an initial wind at which the rotor has an operating "
                           f"point: at {wind:g} m/s no rotor speed up to rated balances the "
                           "aerodynamic torque against the generator torque law with the tip-"
                           f"speed ratio inside the Cp table ({loop.table.tsr[0]:g}-"
-                          f"{loop.table.tsr[-1]:g}): below cut-in, or a fixed rated torque "
-                          "(turbine_params.gen_torque_law = 0) the wind cannot carry")
-    k = int(cross[0])
-    w = bisect(lambda x: excess(x) >= 0, float(grid[k + 1]), float(grid[k]))
+                          f"{loop.table.tsr[-1]:g}): below cut-in{cut_in}, or a fixed rated "
+                          "torque (turbine_params.gen_torque_law = 0) the wind cannot carry")
     return w, t_gen(w), beta_min
+
+
+def _balance(excess, lo: float, hi: float) -> float | None:
+    """The rotor speed in [lo, hi] [rad/s] where ``excess`` (aerodynamic minus generator
+    torque) crosses from deficit (slows) to excess (speeds up) going down from ``hi``: the
+    stable equilibrium of the largest speed, or None."""
+    grid = np.linspace(hi, lo, 400) if hi > lo else np.array([])
+    f = np.array([excess(w) for w in grid])
+    cross = np.nonzero((f[:-1] < 0) & (f[1:] >= 0))[0]
+    if not len(cross):
+        return None
+    k = int(cross[0])
+    return bisect(lambda x: excess(x) >= 0, float(grid[k + 1]), float(grid[k]))
 
 
 def rosco_operating_point(loop: Loop, wind: float, discon: dict) -> tuple[float, float, float]:
