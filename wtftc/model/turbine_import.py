@@ -385,7 +385,8 @@ _FROM_DISCON = {
     "pitch_rate_max": ("PC_MaxRat", "PC_MaxRat"), "air_density": ("WE_RhoAir", "WE_RhoAir"),
     "vs_cut_in_speed": ("VS_MinOMSpd", "VS_MinOMSpd / GBRatio"),
     "vs_region2_k": ("VS_Rgn2K", "VS_Rgn2K × GBRatio³"),
-    "vs_rated_power": ("VS_RtPwr", "VS_RtPwr"),
+    "vs_rated_power": ("VS_RtPwr", "VS_RtPwr / (VS_GenEff / 100): ROSCO's rated power is "
+                       "electrical, the law's mechanical"),
     "vs_max_torque": ("VS_MaxTq", "VS_MaxTq × GBRatio")}
 
 
@@ -404,7 +405,7 @@ def from_discon(path: Path, gear: float, d: dict | None = None
               "pitch_max": g["PC_MaxPit"], "pitch_rate_max": g["PC_MaxRat"],
               "air_density": g["WE_RhoAir"], "vs_cut_in_speed": g["VS_MinOMSpd"] / gear,
               "vs_region2_k": g["VS_Rgn2K"] * gear * gear * gear,
-              "vs_rated_power": g["VS_RtPwr"],
+              "vs_rated_power": g["VS_RtPwr"] / (g["VS_GenEff"] / 100.0),
               "vs_max_torque": g["VS_MaxTq"] * gear}
     sources = {k: f"{path.name}: {how}" for k, (_, how) in _FROM_DISCON.items()}
     cp = d.get("PerfFileName", "").strip().strip('"').strip("'")
