@@ -615,3 +615,45 @@ def test_a_campaign_resumes_across_an_edit_of_the_sources_but_not_of_the_code(
     with pytest.raises(ConfigError, match=f"run semantics 1, this wtftc's are "
                                           f"{store.RUN_SEMANTICS}"):
         resume()
+
+
+def test_a_campaign_does_not_resume_on_an_edited_turbine_file_or_cp_table(tmp_path):
+    """A run's configuration names its turbine, not its values: a campaign resumed after
+    its turbine file or Cp table changed would mix two turbines (how the IEA 15-MW's rated
+    power was mended, issue 34). sweep.json records their hash; a changed one is refused
+    in one line naming --out, the same again resumes, and a folder made before the hash
+    was recorded resumes unchecked."""
+    from wtftc.model import turbine_file
+
+    iea = turbine_file.path_of("iea15mw")
+    cp = tmp_path / "cp.txt"
+    cp.write_bytes((iea.parent / "Cp_Ct_Cq.IEA15MW.txt").read_bytes())
+    mine = tmp_path / "mine.toml"
+    mine.write_text(iea.read_text().replace('cp_table = "Cp_Ct_Cq.IEA15MW.txt"',
+                                            'cp_table = "cp.txt"'))
+    f = _sweep_file(tmp_path, ONE_RUN + f'turbine = "{mine}"\n')
+    out = tmp_path / "out"
+    _results_folder(f, out, ("ok",))
+    sw = sweep.load_sweep(f)
+
+    def resume():
+        store.release(store._prepare(out, sw, f.read_text(), overwrite=False)[1])
+
+    resume()  # the same turbine
+    text, table = mine.read_text(), cp.read_bytes()
+    for path, edited in ((mine, text.replace("value = 15664814.737457706",
+                                             "value = 15000000.0")),
+                         (cp, table.replace(b"0.", b"1.", 1))):
+        path.write_bytes(edited.encode() if isinstance(edited, str) else edited)
+        with pytest.raises(ConfigError) as e:
+            resume()
+        assert e.value.field == "--out" and "turbine file or its Cp table changed" \
+            in str(e.value)
+        path.write_bytes(text.encode() if path == mine else table)
+        resume()  # as it was: resumes
+    meta = out / "sweep.json"
+    old = json.loads(meta.read_text())
+    del old["turbine_sha256"]
+    meta.write_text(json.dumps(old))
+    mine.write_text(text.replace("value = 15664814.737457706", "value = 15000000.0"))
+    resume()  # no hash recorded: not checked

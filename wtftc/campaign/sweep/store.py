@@ -23,6 +23,7 @@ from wtftc.campaign.sweep.record import CASES, LOCK, PART, RECORD, Record
 from wtftc.campaign.sweep.spec import MISMATCH_KEYS, SENSOR_MAGNITUDES, Sweep
 from wtftc.errors import ConfigError
 from wtftc.files import MAX_TOML_BYTES, read_user_text
+from wtftc.model import turbine_file
 
 #: the metrics kept per run: (key of wtftc.results.metrics.metrics, unit)
 METRICS = [("rms_speed_error_rad_s", "rad/s"), ("max_abs_speed_error_rad_s", "rad/s"),
@@ -73,6 +74,18 @@ def versions() -> dict:
             "numpy": np.__version__, "casadi": casadi.__version__, "dask": dask.__version__,
             "distributed": distributed.__version__, "pyarrow": pyarrow.__version__,
             "generated_code_sha256": gen, "run_semantics": RUN_SEMANTICS}
+
+
+def turbine_sha256(sw: Sweep) -> str:
+    """The hash of what the sweep's turbine is made of: its turbine file and its Cp table,
+    as bytes (a run's configuration names the turbine, not its values, so an edit of the
+    file would otherwise resume a campaign on a different turbine)."""
+    t = turbine_file.load(sw.turbine or turbine_file.DEFAULT)
+    h = hashlib.sha256()
+    for path in (t.path, t.cp_path):
+        data = Path(path).read_bytes()
+        h.update(len(data).to_bytes(8, "little") + data)
+    return h.hexdigest()[:16]
 
 
 def schema():
@@ -313,6 +326,7 @@ def _open(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool, rec: Recor
         rec.write("sweep.toml", sweep_text.encode())
         rec.write("sweep.json", (json.dumps(
             {"sweep_id": sw.sweep_id, "sweep": json.loads(sw.text), "versions": versions(),
+             "turbine_sha256": turbine_sha256(sw),
              "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}, indent=1, sort_keys=True)
             + "\n").encode())
     return _saved_ids(out_dir, rec)
@@ -396,6 +410,18 @@ def _check_folder(out_dir: Path, sw: Sweep, overwrite: bool, rec: Record,
         old = None
     if old is not None:
         _check_same_sweep(out_dir, old, sw.sweep_id, overwrite, sw.engine)
+        _check_same_turbine(out_dir, old, sw, overwrite)
+
+
+def _check_same_turbine(out_dir: Path, old: dict, sw: Sweep, overwrite: bool) -> None:
+    """A results folder resumes only on the turbine file and Cp table its runs were made
+    with (a folder from before the hash was recorded cannot be checked, and is not)."""
+    if overwrite or "turbine_sha256" not in old or old["turbine_sha256"] == turbine_sha256(sw):
+        return
+    name = sw.turbine or turbine_file.DEFAULT
+    raise ConfigError("--out", str(out_dir), f"results of the same turbine: {name}'s turbine "
+                      "file or its Cp table changed since they were made (a resumed "
+                      "campaign would mix two turbines); --overwrite or --out a new folder")
 
 
 def _check_same_sweep(out_dir: Path, old: dict, sweep_id: str, overwrite: bool,
