@@ -459,3 +459,16 @@ def test_rosco_and_its_variants_are_refused_on_the_paper_plant(ctrl):
         with pytest.raises(ConfigError) as e:
             sweep.parse_sweep(raw)
         assert e.value.field == "plants" and ctrl in e.value.allowed
+
+
+def test_the_last_progress_line_has_no_run_in_flight_and_no_negative_eta(capsys):
+    """The watcher reports the runs in OpenFAST every few seconds; its last report can name
+    a run the sweep has just saved. The final line once read "0 remaining (1 in OpenFAST
+    at 310/330 s), ETA -121 s"."""
+    progress = sweep._Progress(2, 1, quiet=False)
+    progress.tty = False
+    progress.show_running([(310.0, 330.0)])
+    progress.update([{"status": "ok"}], end=True)
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert "2/2 runs: 1 ok" in last and "0 remaining," in last, last
+    assert "in OpenFAST" not in last and "ETA 0 s" in last, last

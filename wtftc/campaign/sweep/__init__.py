@@ -98,14 +98,16 @@ class _Progress:
         n = sum(self.counts.values())
         left = self.total - self.already - n - self.lost
         wall = time.perf_counter() - self.t0
-        # a run in flight counts by the share it has simulated (OpenFAST's long runs)
-        part = sum(t / total for t, total in self.running)
+        # a run in flight counts by the share it has simulated (OpenFAST's long runs); the
+        # watcher's last report may still name a run just saved: none is left in flight
+        running = self.running if left > 0 else []
+        part = min(sum(t / total for t, total in running), left)
         eta = f"{(left - part) * wall / (n + part):.0f} s" if n + part > 0 else "?"
         line = (f"[sweep] {self.already + n}/{self.total} runs: {self.counts['ok']} ok, "
                 f"{self.counts['diverged']} diverged, {self.counts['failed']} failed"
                 + (f", {self.lost} lost" if self.lost else "")
                 + f", {left} remaining"
-                + (f" ({cluster.describe(self.running)})" if self.running else "")
+                + (f" ({cluster.describe(running)})" if running else "")
                 + f", {n / max(wall, 1e-9):.2f} runs/s, ETA {eta}")
         if self.tty and not end:
             print("\r" + line, end="", file=sys.stderr, flush=True)
