@@ -354,6 +354,16 @@ def _add_sweep(sub) -> None:
                    help="run again the runs saved as failed (they raised: the cause is in "
                         "the results), instead of keeping them; diverged runs are results "
                         "and stay")
+    w.add_argument("--confirm-openfast", type=_positive_int, metavar="N",
+                   help="screen, then confirm: run the sweep on wtftc's plant (its [wind] "
+                        "field = \"turbsim\", the fields OpenFAST runs on), then its N "
+                        "scenarios that matter most (every lost one, then the worst extreme "
+                        "overspeed, shaft DEL and tower-base DEL in turn) again in OpenFAST, "
+                        "every controller of each, and write both engines side by side with "
+                        "their ranking agreement, confirm.md in --confirm-out")
+    w.add_argument("--confirm-out", type=Path, metavar="DIR",
+                   help="the OpenFAST runs' results folder of --confirm-openfast (default: "
+                        "<--out>_openfast)")
     w.add_argument("--summary", type=Path, metavar="DIR",
                    help="summarize a results folder instead of running")
     w.add_argument("--show", metavar="RUN_ID",
@@ -517,6 +527,11 @@ def _cmd_sweep(args) -> int:
     load_toml(args.sweep_file, "SWEEP.toml")  # unreadable: refused naming it, before any work
     out = args.out or Path("out/sweep") / args.sweep_file.stem
     ensure_writable_dir(out, "--out", create=False)
+    if args.confirm_openfast is not None:
+        return _confirm(args, out)
+    if args.confirm_out is not None:
+        raise ConfigError("--confirm-out", str(args.confirm_out), "given with "
+                          "--confirm-openfast N only")
     try:
         done = sweep.run_sweep(args.sweep_file, out, workers=args.workers,
                                scheduler=args.scheduler, traces=args.traces,
@@ -537,6 +552,36 @@ def _cmd_sweep(args) -> int:
                                               if counts["failed"] else "")
           + f". Summary: wtftc sweep --summary {out}")
     return 0 if n == done["runs"] else 1
+
+
+def _confirm(args, out: Path) -> int:
+    """``wtftc sweep --confirm-openfast N``: screen on wtftc's plant, confirm in OpenFAST."""
+    from wtftc.campaign import sweep
+    from wtftc.results.io import ensure_writable_dir
+
+    for flag, value, given in (("--engine", args.engine, args.engine not in (None, "wtftc")),
+                               ("--traces", True, args.traces)):
+        if given:
+            raise ConfigError(flag, value, "left out with --confirm-openfast (the screen runs "
+                              "on wtftc's plant, the confirmation in OpenFAST, no traces)")
+    if args.confirm_out is not None:
+        ensure_writable_dir(args.confirm_out, "--confirm-out", create=False)
+    try:
+        done = sweep.run_confirm(args.sweep_file, out, args.confirm_openfast, args.confirm_out,
+                                 workers=args.workers, scheduler=args.scheduler,
+                                 overwrite=args.overwrite, quiet=args.quiet,
+                                 retry_failed=args.retry_failed)
+    except sweep.Interrupted as exc:
+        print(f"\nwtftc sweep: interrupted ({exc}); the finished runs are saved in {out} "
+              "and its confirmation folder; run the same command to resume", file=sys.stderr)
+        return 130
+    print(done["report"], end="")
+    whole = [sweep.count_status(d) for d in (out, done["confirm_out"])]
+    saved = [sum(c.values()) for c in whole]
+    print(f"written: {done['confirm_out']}/confirm.md, confirm.csv, confirm.json; "
+          f"{saved[0]} of {done['screen']['runs']} screen runs saved in {out}, "
+          f"{saved[1]} OpenFAST runs in {done['confirm_out']}")
+    return 0 if saved[0] == done["screen"]["runs"] else 1
 
 
 def _cmd_verify(args) -> int:

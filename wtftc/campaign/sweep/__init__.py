@@ -30,6 +30,7 @@ from pathlib import Path
 from wtftc import config
 from wtftc.campaign import cluster
 from wtftc.campaign.compare import CONTROLLERS
+from wtftc.campaign.sweep import confirm
 from wtftc.campaign.sweep.record import CASES, check_path
 from wtftc.campaign.sweep.spec import (
     FAULT_TYPES,
@@ -61,9 +62,8 @@ from wtftc.openfast.turbsim import ensure_field
 
 __all__ = ["FAULT_TYPES", "METRICS", "PLANTS", "STATUS", "TURBULENCE_CLASSES", "Axis",
            "Interrupted", "Sweep", "batches", "count_status", "expand", "load_sweep",
-           "parse_sweep",
-           "read_results", "run_sweep", "run_task", "schema", "show_run", "summarize",
-           "versions"]
+           "parse_sweep", "read_results", "run_confirm", "run_sweep", "run_task", "schema",
+           "show_run", "summarize", "versions"]
 
 
 class _Progress:
@@ -224,6 +224,54 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
                          scheduler, workers, traces, quiet, retried, lock.record)
     finally:
         release(lock)
+
+
+def run_confirm(sweep_path: Path, out_dir: Path, n: int, confirm_out: Path | None = None,
+                workers: int = 2, scheduler: str | None = None, overwrite: bool = False,
+                quiet: bool = False, retry_failed: bool = False) -> dict:
+    """``--confirm-openfast N`` (wtftc.campaign.sweep.confirm): the sweep on wtftc's plant
+    into ``out_dir``, then its ``n`` scenarios that matter most in OpenFAST into
+    ``confirm_out`` (default: ``<out_dir>_openfast``), then the report, confirm.md there.
+    Both folders resume as a sweep's do. Returns both calls' counts, the report and where."""
+    sweep_path = Path(sweep_path)
+    sw = load_sweep(sweep_path)
+    confirm.check_screen(sw, n)
+    sw_of = confirm.openfast_sweep(sw.raw)
+    confirm_out = Path(confirm_out or f"{Path(out_dir)}_openfast")
+    check_path(confirm_out, "--confirm-out")
+    if confirm_out.resolve() == Path(out_dir).resolve():
+        raise ConfigError("--confirm-out", str(confirm_out), "a folder other than --out")
+    t0 = time.perf_counter()
+    screen = run_sweep(sweep_path, out_dir, workers, scheduler, overwrite=overwrite,
+                       quiet=quiet, retry_failed=retry_failed)
+    walls = {"screen": time.perf_counter() - t0}
+    trip = confirm.trip_of(sw)
+    chosen = confirm.pick(read_results(out_dir).to_pylist(), n, trip)
+    runs = confirm.confirm_runs(sw_of, chosen)
+    if not quiet:
+        print(f"confirming {len(chosen)} scenarios in OpenFAST ({len(runs)} runs): "
+              + "; ".join(why for _, why in chosen), flush=True)
+    _check_runs(sw_of, runs, quiet)
+    from wtftc.openfast import install
+
+    install.require()
+    client, local = cluster.client(scheduler, workers) if scheduler else (None, None)
+    t0 = time.perf_counter()
+    try:
+        text = read_user_text(sweep_path, "SWEEP.toml", MAX_TOML_BYTES)
+        done, lock, retried = _prepare(confirm_out, sw_of, text, overwrite, retry_failed)
+    except BaseException:
+        cluster.close(client, local)
+        raise
+    try:
+        checked = _run_todo(sw_of, runs, 0, done, confirm_out, client, local, scheduler,
+                            workers, False, quiet, retried, lock.record)
+    finally:
+        release(lock)
+    walls["confirm"] = time.perf_counter() - t0
+    report = confirm.report(Path(out_dir), confirm_out, chosen, trip, walls)
+    return {"screen": screen, "confirm": checked, "report": report,
+            "confirm_out": confirm_out, "confirm_runs": len(runs)}
 
 
 def _run_todo(sw, runs, dup, done, out_dir, client, local, scheduler, workers, traces,

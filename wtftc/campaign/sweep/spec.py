@@ -26,7 +26,7 @@ TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "ou
 #: the [mismatch] table's keys: the plant's factors against the controllers' model
 #: (config.MISMATCH), each an axis like any other (1.0: none)
 MISMATCH_KEYS = tuple(config.MISMATCH)
-WIND_KEYS = {"mean_mps", "turbulence_class", "seed", "rotor_radius_m"}
+WIND_KEYS = {"mean_mps", "turbulence_class", "seed", "rotor_radius_m", "field"}
 #: one fault per run, an actuator's or a sensor's (model/faults.py's list), or none
 FAULT_TYPES = ("none", *faults.ACTUATOR_FAULT_TYPES, *faults.SENSOR_FAULT_TYPES)
 #: the fault table key each fault type reads its magnitude from
@@ -109,6 +109,9 @@ class Sweep:
     rotor_radius: float | None = None
     #: the engine every run is simulated in (config.ENGINES): wtftc's plants, or OpenFAST
     engine: str = "wtftc"
+    #: where wtftc's plant takes every run's NTM from ([wind] field): None, its own
+    #: synthesis; "turbsim", the TurbSim field OpenFAST runs on (in OpenFAST: always)
+    wind_field: str | None = None
 
     @property
     def sweep_id(self) -> str:
@@ -232,7 +235,22 @@ def _settings(raw: dict) -> dict:
         "turbine": _turbine(raw.get("turbine")),
         "rotor_radius": _rotor_radius(raw),
         "engine": engine,
+        "wind_field": _wind_field(raw),
     }
+
+
+def _wind_field(raw: dict) -> str | None:
+    """[wind] field: "spectral" (wtftc's own NTM, the default) or "turbsim" (the TurbSim
+    field OpenFAST runs on: a screen whose worst scenarios OpenFAST confirms), one value
+    for the sweep; None for the default (the run ids of earlier sweeps)."""
+    tab = raw.get("wind", {})
+    value = tab.get("field") if isinstance(tab, dict) else None
+    if value is None or value == "spectral":
+        return None
+    if value != "turbsim":
+        raise ConfigError("wind.field", value, 'one of "spectral", "turbsim" for every run '
+                          "(not an axis)")
+    return value
 
 
 def _engine(raw: dict) -> str:
@@ -505,6 +523,8 @@ def _point(sw: Sweep, values: dict) -> dict:
                 "turbulence_class": p["turbulence_class"]}
     if sw.rotor_radius:  # (absent: the run ids of earlier sweeps)
         wind_tab["rotor_radius_m"] = sw.rotor_radius
+    if sw.wind_field and sw.engine == "wtftc":  # (OpenFAST's runs read it anyway: their ids
+        wind_tab["field"] = sw.wind_field       # are those of the same file without it)
     cfg = variant_config(p["controller"], fault_tabs, wind_tab, sw.t_final, sw.dt, p["seed"],
                          "", profile=sw.profile)
     # OpenFAST's plant is the turbine's deck (config: engine = "openfast")

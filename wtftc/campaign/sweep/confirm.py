@@ -1,0 +1,197 @@
+"""Screen on wtftc's plant, confirm in OpenFAST (issue 35 item 4):
+``wtftc sweep SWEEP.toml --confirm-openfast N``.
+
+The sweep runs on wtftc's plant first (every scenario, minutes). Then the N scenarios that
+matter most are run again in OpenFAST, every controller of each, on the same wind (the
+screen reads the TurbSim field OpenFAST runs on: ``[wind] field = "turbsim"``), fault and
+seed, into a second results folder; the report sets both engines side by side with the
+ranking agreement of issue 23 (wtftc.campaign.ranking).
+
+A scenario is every axis of a run but the controller and the plant (paired.scenario
+without the plant: wtftc's plant and OpenFAST's deck are the two engines). Which matter
+most, in this order: those a controller lost (past the overspeed trip, or the rotor out of
+its envelope), the worst first by their extreme speed; then, taken in turn, the worst
+extreme overspeed, the worst shaft DEL and the worst tower-base DEL (each the worst over
+the scenario's controllers), until N are chosen.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from wtftc.campaign import ranking
+from wtftc.campaign.sweep import paired, record
+from wtftc.campaign.sweep.dlc import fault_label, parse_dlc
+from wtftc.campaign.sweep.record import Record
+from wtftc.campaign.sweep.spec import MAGNITUDE_COLUMN, Sweep, expand, parse_sweep
+from wtftc.campaign.sweep.store import read_results
+from wtftc.errors import ConfigError
+
+#: every axis of a scenario but the controller and the plant (and the controller's tuning)
+AXES = ("mean_wind_mps", "turbulence_class", "seed", "blade", "fault_sensor", "onset_s",
+        *MAGNITUDE_COLUMN.values())
+#: what ranks the scenarios after the lost ones: (run key, the reason's words)
+WORST = [("overspeed_peak_over_rated", "worst extreme overspeed"),
+         ("shaft_torque_del_1hz_Nm", "worst shaft DEL"),
+         ("tower_base_del_1hz_Nm", "worst tower-base DEL")]
+#: the report's columns: (run key, header, scale, format)
+COLUMNS = [("overspeed_peak_over_rated", "peak ω / rated [-]", 1.0, "{:.3f}"),
+           ("rms_speed_error_rad_s", "RMS ω error [rad/s]", 1.0, "{:.4f}"),
+           ("shaft_torque_del_1hz_Nm", "shaft DEL [MN m]", 1e-6, "{:.3f}"),
+           ("tower_base_del_1hz_Nm", "tower-base DEL [MN m]", 1e-6, "{:.1f}"),
+           ("pitch_adc", "pitch ADC [-]", 1.0, "{:.3f}")]
+REPORT = "confirm.md"
+
+
+def scenario(r: dict) -> tuple:
+    """The key a run shares with the runs of the same case on either engine."""
+    return (fault_label(r), *(r.get(k) for k in AXES),
+            *(v for k, v in sorted(r.items()) if k.startswith("mismatch_")))
+
+
+def describe(r: dict) -> str:
+    """A scenario in words: wind, seed and fault."""
+    s = f"{r['mean_wind_mps']:g} m/s, seed {r['seed']}, {fault_label(r)}"
+    if r["fault_type"] != "none":
+        s += (f" on blade {r['blade']}" if r.get("blade") is not None else "") + \
+            f" at {r['onset_s']:g} s"
+    return s
+
+
+def _worst(rs: list[dict], key: str) -> float | None:
+    vals = [r[key] for r in rs if isinstance(r.get(key), int | float)
+            and math.isfinite(r[key])]
+    return max(vals) if vals else None
+
+
+def pick(rows: list[dict], n: int, trip: float) -> list[tuple[tuple, str]]:
+    """The ``n`` scenarios of ``rows`` that matter most, each with why (module doc)."""
+    by: dict[tuple, list[dict]] = {}
+    for r in rows:
+        by.setdefault(scenario(r), []).append(r)
+    peak = {k: _worst(rs, "overspeed_peak_over_rated") or 0.0 for k, rs in by.items()}
+    chosen: dict[tuple, str] = {}
+    lost = {k: [r["controller"] for r in rs if not paired.held(r, trip)]
+            for k, rs in by.items()}
+    for k in sorted((k for k in by if lost[k]), key=lambda k: -peak[k]):
+        chosen.setdefault(k, "lost by " + ", ".join(sorted(set(lost[k]))))
+    ranked = [sorted((k for k in by if _worst(by[k], key) is not None),
+                     key=lambda k, key=key: -_worst(by[k], key)) for key, _ in WORST]
+    for i in range(len(by)):
+        for (_, why), order in zip(WORST, ranked, strict=True):
+            if i < len(order):
+                chosen.setdefault(order[i], f"{why} (#{i + 1})")
+    return list(chosen.items())[:n]
+
+
+def openfast_sweep(raw: dict) -> Sweep:
+    """The same sweep in OpenFAST: its plants, batch size and engine dropped (the deck is
+    the plant, one run a task)."""
+    return parse_sweep({k: v for k, v in raw.items()
+                        if k not in ("plants", "batch_size", "engine")} | {"engine": "openfast"})
+
+
+def check_screen(sw: Sweep, n: int) -> None:
+    """A sweep that can be screened and confirmed, refused in one line naming the key."""
+    if sw.engine != "wtftc":
+        raise ConfigError("--confirm-openfast", n, "a sweep on wtftc's plant to screen "
+                          f"(this one's engine is {sw.engine}): leave engine out of the "
+                          "sweep file, or run it in OpenFAST without --confirm-openfast")
+    if sw.wind_field != "turbsim":
+        raise ConfigError("wind.field", sw.wind_field or "spectral", '"turbsim" with '
+                          "--confirm-openfast: the screen must run on the TurbSim fields "
+                          "OpenFAST confirms on (docs/sweep.md)")
+    if any(k.startswith("mismatch") for k in sw.raw):
+        raise ConfigError("mismatch", sw.raw["mismatch"], "no [mismatch] with "
+                          "--confirm-openfast: OpenFAST's plant is the turbine's deck")
+
+
+def confirm_runs(sw_of: Sweep, chosen: list[tuple[tuple, str]]) -> list[dict]:
+    """The OpenFAST runs of the chosen scenarios: every controller of each."""
+    keys = {k for k, _ in chosen}
+    return [pt for pt in expand(sw_of)[0] if scenario(pt) in keys]
+
+
+def report(screen_dir: Path, confirm_dir: Path, chosen: list[tuple[tuple, str]],
+           trip: float, walls: dict) -> str:
+    """confirm.md (and confirm.csv) in ``confirm_dir``: each chosen scenario's runs on both
+    engines, and the engines' ranking agreement over them; returns the Markdown."""
+    a = read_results(screen_dir).to_pylist()
+    b = read_results(confirm_dir).to_pylist()
+    keys = [k for k, _ in chosen]
+    why = dict(chosen)
+    on = [{scenario(r): {} for r in rows} for rows in (a, b)]
+    for rows, table in ((a, on[0]), (b, on[1])):
+        for r in rows:
+            table[scenario(r)][paired.label(r["controller"], r)] = r
+    n_screen = len(on[0])
+    md = [f"# Screened on wtftc's plant, confirmed in OpenFAST: {len(keys)} of {n_screen} "
+          "scenarios", "",
+          f"Screen: `{screen_dir}` ({len(a)} runs, {walls.get('screen', 0):.0f} s); "
+          f"confirmation: `{confirm_dir}` ({len(b)} runs, {walls.get('confirm', 0):.0f} s). "
+          f"Each cell is wtftc / OpenFAST; \"lost\": past {trip:g} × rated or the rotor out "
+          "of its envelope (the run's metrics then describe a rotor that stopped).", "",
+          "| scenario | why | controller | held | "
+          + " | ".join(h for _, h, _, _ in COLUMNS) + " |",
+          "|---" * (4 + len(COLUMNS)) + "|"]
+    csv = ["scenario,why,controller,engine,held," + ",".join(k for k, *_ in COLUMNS)]
+    for k in keys:
+        runs = on[0].get(k, {})
+        for c in sorted(runs):
+            pair = [on[0].get(k, {}).get(c), on[1].get(k, {}).get(c)]
+            held = " / ".join("—" if r is None else ("yes" if paired.held(r, trip)
+                                                     else "lost") for r in pair)
+            cells = [" / ".join(_fmt(r, key, scale, f) for r in pair)
+                     for key, _, scale, f in COLUMNS]
+            name = describe(next(iter(runs.values())))
+            md.append(f"| {name} | {why[k]} | {c} | {held} | " + " | ".join(cells) + " |")
+            for eng, r in zip(("wtftc", "openfast"), pair, strict=True):
+                if r is not None:
+                    csv.append(",".join(f'"{x}"' for x in (name, why[k], c)) + f",{eng},"
+                               f"{int(paired.held(r, trip))},"
+                               + ",".join(_raw(r, key) for key, *_ in COLUMNS))
+    rows = _agreement(on, keys)
+    md += ["", "## Ranking agreement (issue 23: ties within each metric's tolerance count "
+           "as agreement)", "", ranking.summary_markdown(rows) if rows else
+           "No scenario has two controllers on both engines.", "",
+           ranking.rows_markdown(rows, "wtftc", "OpenFAST") if rows else ""]
+    text = "\n".join(md).rstrip() + "\n"
+    _write(confirm_dir, {REPORT: text.encode(), "confirm.csv": ("\n".join(csv) + "\n").encode(),
+                         "confirm.json": (json.dumps(
+                             {"scenarios": [{"scenario": list(k), "why": w} for k, w in chosen],
+                              "wall_s": walls}, indent=1) + "\n").encode()})
+    return text
+
+
+def _agreement(on: list[dict], keys: list[tuple]) -> list[dict]:
+    """ranking.agreement_table over the chosen scenarios both engines ran."""
+    tables = []
+    for table in on:
+        tables.append({describe(next(iter(table[k].values()))): {
+            c: r for c, r in table[k].items()} for k in keys if table.get(k)})
+    return ranking.agreement_table(*tables)
+
+
+def _fmt(r: dict | None, key: str, scale: float, f: str) -> str:
+    v = None if r is None else r.get(key)
+    return "—" if not isinstance(v, int | float) or not math.isfinite(v) else f.format(v * scale)
+
+
+def _raw(r: dict, key: str) -> str:
+    v = r.get(key)
+    return "" if not isinstance(v, int | float) or not math.isfinite(v) else repr(float(v))
+
+
+def _write(folder: Path, data: dict[str, bytes]) -> None:
+    """Through the folder's record, atomically, refusing a file it did not write."""
+    rec = Record.open(folder, "--confirm-out", record.scan(folder, "--confirm-out"))
+    rec.refuse_unless_ours(data)
+    for rel, content in data.items():
+        rec.write(rel, content)
+
+
+def trip_of(sw: Sweep) -> float:
+    """The sweep's overspeed trip ([dlc] overspeed_trip; 1.2 × rated by default)."""
+    return parse_dlc(sw.raw.get("dlc") or {})["overspeed_trip"]
