@@ -145,11 +145,11 @@ def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
         return CONTROLLERS[pt["controller"]].controller == "rosco"
 
     for pt in runs:
+        # (a [tuning] target is solved where the run runs: one out of reach fails that
+        # run, with its cause)
+        raw = {k: v for k, v in pt["config"].items() if k != "tuning"}
+        ensure_field(raw)  # each TurbSim field a run reads, made once, before the runs
         if not uses_rosco(pt):  # ROSCO's availability is checked below
-            # (a [tuning] target is solved where the run runs: one out of reach fails
-            # that run, with its cause)
-            raw = {k: v for k, v in pt["config"].items() if k != "tuning"}
-            ensure_field(raw)  # each TurbSim field a run reads, made once, before the runs
             config.make_config(raw)
     if any(uses_rosco(pt) for pt in runs):
         from wtftc.sim import rosco
