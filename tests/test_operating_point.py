@@ -140,7 +140,7 @@ def test_below_cut_in_there_is_no_operating_point_and_the_run_is_refused(capsys)
     assert err.startswith("wtftc: error: wind = 2") and err.count("\n") == 1, err
     assert out == ""  # refused before the run's first line
     loop = _rc("pi", "iea15mw", 8.0).loop
-    with pytest.raises(ConfigError, match="below cut-in, the turbine's cut-in wind 3 m/s"):
+    with pytest.raises(ConfigError, match="below the turbine's cut-in wind, 3 m/s"):
         trim.operating_point(loop, 2.99)
     trim.operating_point(loop, 3.0)  # from its cut-in wind, it has one
 

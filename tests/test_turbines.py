@@ -327,6 +327,21 @@ def test_a_discon_in_alone_is_refused_naming_what_it_lacks(tmp_path):
                            str(discon), "--name", "x", "--out", str(tmp_path / "x.toml")],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 2 and "WE_Jtot = 'missing'" in done.stderr, done.stderr
+    # the law's rated power divides by the efficiency: 0 refused, a fraction for a percent
+    # (0.944 for 94.4) contradicts VS_RtTq by 100 ×; both named, in one line
+    discon.write_text(discon.read_text().replace("! WE_Jx", "! WE_Jtot"))
+    for eff, named in (("0.0", "VS_GenEff = 0.0"), ("-0.0", "VS_GenEff = -0.0"),
+                       ("0.944", "VS_RtTq = 43093.55")):
+        discon.write_text(discon.read_text().replace("94.4   ! VS_GenEff",
+                                                     f"{eff}   ! VS_GenEff"))
+        done = subprocess.run([sys.executable, "-m", "wtftc.cli", "turbine", "import",
+                               "--rosco", str(discon), "--name", "x", "--out",
+                               str(tmp_path / "x.toml")], capture_output=True, text=True,
+                              timeout=300)
+        assert done.returncode == 2 and done.stderr.count("\n") == 1, done.stderr
+        assert named in done.stderr and "Traceback" not in done.stderr, done.stderr
+        discon.write_text(discon.read_text().replace(f"{eff}   ! VS_GenEff",
+                                                     "94.4   ! VS_GenEff"))
 
 
 def test_the_compare_gust_comes_at_the_turbines_rated_wind():

@@ -371,6 +371,22 @@ def _number(d: dict, key: str, path: Path) -> float:
     return v
 
 
+def _check_rated(g: dict, path: Path) -> None:
+    """VS_GenEff a percentage, and the rated torque the law reaches, VS_RtPwr / (VS_GenEff
+    / 100) / PC_RefSpd, VS_RtTq's to 1 % (ROSCO's tuning computes it so; an efficiency
+    written as a fraction, 0.944 for 94.4, would otherwise pass 100 × the power)."""
+    eff = g["VS_GenEff"]
+    if not 0 < eff <= 100:
+        raise ConfigError("VS_GenEff", eff, "the generator efficiency in percent, in (0, "
+                          "100]", where=str(path))
+    if g["PC_RefSpd"] > 0 and g["VS_RtTq"] > 0:
+        law = g["VS_RtPwr"] / (eff / 100.0) / g["PC_RefSpd"]
+        if not _agrees(law, g["VS_RtTq"], 0.01):
+            raise ConfigError("VS_RtTq", g["VS_RtTq"], "VS_RtPwr / (VS_GenEff / 100) / "
+                              f"PC_RefSpd within 1 % ({law:.6g} N m: the files contradict, "
+                              "or VS_GenEff is not in percent)", where=str(path))
+
+
 def _agrees(a: float, b: float, rel: float) -> bool:
     """|a - b| <= rel |b|, False for NaN (every comparison with NaN is)."""
     return abs(a - b) <= rel * abs(b)
@@ -400,6 +416,7 @@ def from_discon(path: Path, gear: float, d: dict | None = None
         raise ConfigError("WE_GearboxRatio", g["WE_GearboxRatio"],
                           f"the deck's GBRatio {gear:g} within 0.5 % (the files contradict)",
                           where=str(path))
+    _check_rated(g, path)
     values = {"omega_g_rated": g["PC_RefSpd"] / gear, "gen_torque_rated": g["VS_RtTq"] * gear,
               "gen_efficiency": g["VS_GenEff"] / 100.0, "pitch_min": g["PC_MinPit"],
               "pitch_max": g["PC_MaxPit"], "pitch_rate_max": g["PC_MaxRat"],

@@ -143,8 +143,9 @@ def operating_point(loop: Loop, wind: float, omega_offset: float = 0.0) \
       turbine's cut-in wind (``loop.cut_in_wind``, when known) with the variable-speed law,
       the equilibrium with Cp held at the table's edge, as the plant holds it (the IEA
       15-MW's slowest speed, 0.5236 rad/s, is a tip-speed ratio of 14.5, the table's last,
-      at 4.3 m/s); else (below cut-in, or a fixed rated torque the wind cannot carry) a
-      ConfigError naming the wind.
+      at 4.33 m/s, and its rotor rests a little faster: the table ends below 4.45 m/s);
+      else (below cut-in, or a fixed rated torque the wind cannot carry) a ConfigError
+      naming the wind.
 
     The paper's unloaded plant balances T_aero = 0 at rated speed, as before.
     """
@@ -168,17 +169,18 @@ def operating_point(loop: Loop, wind: float, omega_offset: float = 0.0) \
     w = _balance(excess, lo, min(float(loop.table.tsr[-1]) * wind / R, rated))
     if w is None and tp["gen_torque_law"] >= 0.5 and 0 < loop.cut_in_wind <= wind:
         # at or above cut-in, the rotor's slowest speed past the table's ratios (the IEA
-        # 15-MW below 4.4 m/s): Cp held at the table's edge, as the plant holds it
+        # 15-MW below 4.45 m/s): Cp held at the table's edge, as the plant holds it
         w = _balance(excess, lo, rated)
     if w is None:
-        cut_in = (f", the turbine's cut-in wind {loop.cut_in_wind:g} m/s" if loop.cut_in_wind
-                  else "")
+        why = ("below the turbine's cut-in wind, "
+               f"{loop.cut_in_wind:g} m/s"
+               if wind < loop.cut_in_wind else "below cut-in, or a fixed rated torque "
+               "(turbine_params.gen_torque_law = 0) the wind cannot carry")
         raise ConfigError("wind", wind, "an initial wind at which the rotor has an operating "
                           f"point: at {wind:g} m/s no rotor speed up to rated balances the "
                           "aerodynamic torque against the generator torque law with the tip-"
                           f"speed ratio inside the Cp table ({loop.table.tsr[0]:g}-"
-                          f"{loop.table.tsr[-1]:g}): below cut-in{cut_in}, or a fixed rated "
-                          "torque (turbine_params.gen_torque_law = 0) the wind cannot carry")
+                          f"{loop.table.tsr[-1]:g}): {why}")
     return w, t_gen(w), beta_min
 
 

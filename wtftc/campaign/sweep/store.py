@@ -50,9 +50,11 @@ STATUS = ("ok", "diverged", "failed")
 #: what a run computes outside the generated code, numbered: raised when a change to the
 #: Python side alters the results of a configuration that ran before (2: issue 34's
 #: speed noise scaled to the turbine's shafts, wtftc.config._scale_speed_noise; 3: the
-#: FDI's start-up alignment on by default on OpenFAST, wtftc.config.HOST_ALIGN_RATE), so
+#: FDI's start-up alignment on by default on OpenFAST, wtftc.config.HOST_ALIGN_RATE; 4: a
+#: run starts from its turbine's cut-in wind where the Cp table's ratios end, and the IEA
+#: 15-MW's torque law at its mechanical rated power, wtftc.sim.trim, iea15mw.toml), so
 #: that a results folder made before is not resumed into a mixed dataset
-RUN_SEMANTICS = 3
+RUN_SEMANTICS = 4
 
 
 def versions() -> dict:
