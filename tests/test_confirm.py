@@ -42,6 +42,29 @@ def test_lost_scenarios_come_first_then_the_worst_of_each_metric_in_turn():
     assert [k[1] for k, _ in confirm.pick(rows, 1, TRIP)] == [14.0]  # N caps the lost too
 
 
+def test_a_failed_run_is_not_lost_and_each_fault_size_is_its_own_scenario():
+    """A run that raised (failed: an error, not the rotor) is not a lost scenario; two
+    locks at different angles are two scenarios, named apart, and a lost run's metrics are
+    not ranked."""
+    lock = {"fault_type": "lock", "blade": 1, "onset_s": 40.0}
+    rows = [{**_row("a", 12.0, 1.01, status="failed"), **lock, "stuck_angle_deg": "current"},
+            {**_row("b", 12.0, 1.02), **lock, "stuck_angle_deg": "current"},
+            {**_row("a", 12.0, 1.05), **lock, "stuck_angle_deg": "5.0"},
+            {**_row("b", 12.0, 1.25), **lock, "stuck_angle_deg": "5.0"}]
+    chosen = confirm.pick(rows, 5, TRIP)
+    assert [w for _, w in chosen][0] == "lost by b" and len(chosen) == 2
+    assert not any(w.startswith("lost by a") for _, w in chosen)
+    names = {confirm.describe(r) for r in rows}
+    assert len(names) == 2 and all("stuck_angle_deg" in n for n in names), names
+    assert [confirm.state(r, TRIP) for r in rows] == ["failed", "yes", "yes", "lost"]
+    on = [{confirm.scenario(r): {} for r in rows}]
+    for r in rows:
+        on[0][confirm.scenario(r)][r["controller"]] = r
+    table = confirm._agreement(on * 2, [confirm.scenario(r) for r in rows[::2]], TRIP)
+    peak = [t for t in table if t["metric"] == "overspeed_peak_over_rated"]
+    assert len(peak) == 2 and all(t["missing"] == 1 for t in peak)  # failed, lost: unranked
+
+
 def wtftc(*args, **kw):
     return subprocess.run([sys.executable, "-m", "wtftc.cli", *map(str, args)],
                           capture_output=True, text=True, **kw)
@@ -64,6 +87,8 @@ field = "turbsim"
     (SCREEN.replace('plants = ["tower"]\n', 'engine = "openfast"\n'), (), "--confirm-openfast"),
     (SCREEN, ("--traces",), "--traces"),
     (SCREEN, ("--confirm-openfast", 0), "--confirm-openfast"),
+    (SCREEN.replace('["tower"]', '["tower", "tower_edge"]'), (), "plants"),
+    (SCREEN + "[mismatch]\nJ_r = 1.1\n", (), "mismatch"),
 ])
 def test_what_cannot_be_screened_and_confirmed_is_refused_in_one_line(tmp_path, text, args,
                                                                        field):
@@ -110,10 +135,17 @@ def test_the_worst_scenario_of_a_screen_is_rerun_in_openfast_on_the_same_field(t
         eng = "openfast" if r["plant"] == "openfast" else "wtftc"
         cell = next(t for t in table if t["controller"] == r["controller"]
                     and t["engine"] == eng)
-        assert float(cell["overspeed_peak_over_rated"]) == r["overspeed_peak_over_rated"]
-        assert float(cell["shaft_torque_del_1hz_Nm"]) == r["shaft_torque_del_1hz_Nm"]
+        assert float(cell["overspeed_peak_over_rated [-]"]) == r["overspeed_peak_over_rated"]
+        assert float(cell["shaft_torque_del_1hz_Nm [N m]"]) == r["shaft_torque_del_1hz_Nm"]
+        assert cell["outcome"] == "yes"
     report = (conf / "confirm.md").read_text()
-    assert f"{worst:g} m/s, seed 0, none" in report and "Ranking agreement" in report
+    for c in ("pi", "physical_fdi"):  # each cell: wtftc's value, then OpenFAST's
+        mine = next(r for r in screen if r["controller"] == c and r["mean_wind_mps"] == worst)
+        of_ = next(r for r in rows if r["controller"] == c)
+        line = next(ln for ln in report.splitlines() if f"| {c} |" in ln)
+        assert f"| yes / yes | {mine['overspeed_peak_over_rated']:.3f} / " \
+            f"{of_['overspeed_peak_over_rated']:.3f} |" in line, line
+    assert f"{worst:g} m/s NTM B, seed 0, none" in report and "Ranking agreement" in report
     again = wtftc("sweep", f, "--out", out, "--confirm-openfast", 1, timeout=300)
     assert again.returncode == 0, again.stderr
     assert "0 to run" in again.stdout and "4 already in" in again.stdout
@@ -162,3 +194,17 @@ def test_the_screen_example_confirms_runs_the_kept_openfast_campaign_also_made()
     saved = {r["run_id"] for r in sweep.read_results(
         root.parent / "docs" / "campaigns" / "dlc21_openfast_obs3to45_nrel5mw").to_pylist()}
     assert twin <= saved and len(twin) in (48, 96)  # ROSCO's where it is installed
+
+
+def test_a_confirmation_folder_that_is_not_a_sweeps_is_refused_before_the_screen(tmp_path):
+    f = tmp_path / "s.toml"
+    f.write_text(SCREEN)
+    other = tmp_path / "notes"
+    other.mkdir()
+    (other / "mine.txt").write_text("a user's file")
+    p = wtftc("sweep", f, "--out", tmp_path / "out", "--confirm-openfast", 1,
+              "--confirm-out", other, timeout=120)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
+    assert p.stderr.startswith("wtftc: error: --confirm-out") and "Traceback" not in p.stderr
+    assert not (tmp_path / "out").exists()  # nothing screened
+    assert sorted(x.name for x in other.iterdir()) == ["mine.txt"]

@@ -575,13 +575,17 @@ def _confirm(args, out: Path) -> int:
         print(f"\nwtftc sweep: interrupted ({exc}); the finished runs are saved in {out} "
               "and its confirmation folder; run the same command to resume", file=sys.stderr)
         return 130
+    except sweep.Incomplete as exc:
+        print(f"wtftc sweep: the screen is incomplete ({exc}: tasks were lost); nothing is "
+              "picked from part of it: run the same command again", file=sys.stderr)
+        return 1
     print(done["report"], end="")
-    whole = [sweep.count_status(d) for d in (out, done["confirm_out"])]
-    saved = [sum(c.values()) for c in whole]
     print(f"written: {done['confirm_out']}/confirm.md, confirm.csv, confirm.json; "
-          f"{saved[0]} of {done['screen']['runs']} screen runs saved in {out}, "
-          f"{saved[1]} OpenFAST runs in {done['confirm_out']}")
-    return 0 if saved[0] == done["screen"]["runs"] else 1
+          f"{done['screen']['runs']} screen runs in {out}, {done['confirmed']} of "
+          f"{done['confirm_runs']} confirmation runs in {done['confirm_out']}"
+          + ("" if done["confirmed"] == done["confirm_runs"] else
+             " (tasks were lost: run the same command again)"))
+    return 0 if done["confirmed"] == done["confirm_runs"] else 1
 
 
 def _cmd_verify(args) -> int:

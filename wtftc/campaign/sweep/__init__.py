@@ -61,7 +61,7 @@ from wtftc.files import MAX_TOML_BYTES, read_user_text
 from wtftc.openfast.turbsim import ensure_field
 
 __all__ = ["FAULT_TYPES", "METRICS", "PLANTS", "STATUS", "TURBULENCE_CLASSES", "Axis",
-           "Interrupted", "Sweep", "batches", "count_status", "expand", "load_sweep",
+           "Incomplete", "Interrupted", "Sweep", "batches", "count_status", "expand", "load_sweep",
            "parse_sweep", "read_results", "run_confirm", "run_sweep", "run_task", "schema",
            "show_run", "summarize", "versions"]
 
@@ -226,27 +226,37 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
         release(lock)
 
 
+class Incomplete(Exception):
+    """A screen with runs missing (tasks lost): nothing is picked from part of it."""
+
+
 def run_confirm(sweep_path: Path, out_dir: Path, n: int, confirm_out: Path | None = None,
                 workers: int = 2, scheduler: str | None = None, overwrite: bool = False,
                 quiet: bool = False, retry_failed: bool = False) -> dict:
     """``--confirm-openfast N`` (wtftc.campaign.sweep.confirm): the sweep on wtftc's plant
     into ``out_dir``, then its ``n`` scenarios that matter most in OpenFAST into
     ``confirm_out`` (default: ``<out_dir>_openfast``), then the report, confirm.md there.
-    Both folders resume as a sweep's do. Returns both calls' counts, the report and where."""
+    Both folders are checked before anything runs, and resume as a sweep's do. Raises
+    Incomplete when the screen has runs missing. Returns both calls' counts, the report,
+    where, and whether every confirmation run is saved."""
     sweep_path = Path(sweep_path)
     sw = load_sweep(sweep_path)
     confirm.check_screen(sw, n)
     sw_of = confirm.openfast_sweep(sw.raw)
     confirm_out = Path(confirm_out or f"{Path(out_dir)}_openfast")
-    check_path(confirm_out, "--confirm-out")
     if confirm_out.resolve() == Path(out_dir).resolve():
         raise ConfigError("--confirm-out", str(confirm_out), "a folder other than --out")
+    text = read_user_text(sweep_path, "SWEEP.toml", MAX_TOML_BYTES)
+    _confirm_folder(confirm_out, sw_of, text, overwrite, retry_failed)  # before the screen
     t0 = time.perf_counter()
     screen = run_sweep(sweep_path, out_dir, workers, scheduler, overwrite=overwrite,
                        quiet=quiet, retry_failed=retry_failed)
     walls = {"screen": time.perf_counter() - t0}
+    saved = read_results(out_dir).to_pylist()
+    if len({r["run_id"] for r in saved}) < screen["runs"]:
+        raise Incomplete(f"{len(saved)} of {screen['runs']} screen runs saved in {out_dir}")
     trip = confirm.trip_of(sw)
-    chosen = confirm.pick(read_results(out_dir).to_pylist(), n, trip)
+    chosen = confirm.pick(saved, n, trip)
     runs = confirm.confirm_runs(sw_of, chosen)
     if not quiet:
         print(f"confirming {len(chosen)} scenarios in OpenFAST ({len(runs)} runs): "
@@ -258,20 +268,39 @@ def run_confirm(sweep_path: Path, out_dir: Path, n: int, confirm_out: Path | Non
     client, local = cluster.client(scheduler, workers) if scheduler else (None, None)
     t0 = time.perf_counter()
     try:
-        text = read_user_text(sweep_path, "SWEEP.toml", MAX_TOML_BYTES)
-        done, lock, retried = _prepare(confirm_out, sw_of, text, overwrite, retry_failed)
+        done, lock, retried = _confirm_folder(confirm_out, sw_of, text, False, retry_failed,
+                                              hold=True)
     except BaseException:
         cluster.close(client, local)
         raise
     try:
         checked = _run_todo(sw_of, runs, 0, done, confirm_out, client, local, scheduler,
                             workers, False, quiet, retried, lock.record)
+        walls["confirm"] = time.perf_counter() - t0
+        report = confirm.report(Path(out_dir), confirm_out, chosen, trip, walls)
     finally:
         release(lock)
-    walls["confirm"] = time.perf_counter() - t0
-    report = confirm.report(Path(out_dir), confirm_out, chosen, trip, walls)
+    have = {r["run_id"] for r in read_results(confirm_out).to_pylist()}
     return {"screen": screen, "confirm": checked, "report": report,
-            "confirm_out": confirm_out, "confirm_runs": len(runs)}
+            "confirm_out": confirm_out, "confirm_runs": len(runs),
+            "confirmed": sum(pt["run_id"] in have for pt in runs)}
+
+
+def _confirm_folder(folder: Path, sw_of, text: str, overwrite: bool, retry_failed: bool,
+                    hold: bool = False):
+    """The confirmation's results folder opened as a sweep's (refusals name --confirm-out),
+    and released at once unless ``hold``."""
+    try:
+        check_path(folder, "--confirm-out")
+        done, lock, retried = _prepare(folder, sw_of, text, overwrite, retry_failed)
+    except ConfigError as exc:
+        if exc.field != "--out":
+            raise
+        raise ConfigError("--confirm-out", exc.value, exc.allowed, exc.where) from None
+    if hold:
+        return done, lock, retried
+    release(lock)
+    return None
 
 
 def _run_todo(sw, runs, dup, done, out_dir, client, local, scheduler, workers, traces,

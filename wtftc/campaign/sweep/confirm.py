@@ -43,6 +43,8 @@ COLUMNS = [("overspeed_peak_over_rated", "peak ω / rated [-]", 1.0, "{:.3f}"),
            ("tower_base_del_1hz_Nm", "tower-base DEL [MN m]", 1e-6, "{:.1f}"),
            ("pitch_adc", "pitch ADC [-]", 1.0, "{:.3f}")]
 REPORT = "confirm.md"
+#: the SI units of COLUMNS' run keys, in confirm.csv's header
+UNITS = ["-", "rad/s", "N m", "N m", "-"]
 
 
 def scenario(r: dict) -> tuple:
@@ -52,12 +54,27 @@ def scenario(r: dict) -> tuple:
 
 
 def describe(r: dict) -> str:
-    """A scenario in words: wind, seed and fault."""
-    s = f"{r['mean_wind_mps']:g} m/s, seed {r['seed']}, {fault_label(r)}"
+    """A scenario in words: wind, turbulence class, seed and the fault with its size."""
+    s = (f"{r['mean_wind_mps']:g} m/s" + (f" NTM {r['turbulence_class']}"
+                                          if r.get("turbulence_class") else "")
+         + f", seed {r['seed']}, {fault_label(r)}")
     if r["fault_type"] != "none":
-        s += (f" on blade {r['blade']}" if r.get("blade") is not None else "") + \
-            f" at {r['onset_s']:g} s"
+        size = [f"{col} {r[col]:g}" if isinstance(r[col], int | float) else f"{col} {r[col]}"
+                for col in MAGNITUDE_COLUMN.values() if r.get(col) is not None]
+        s += ((f" on blade {r['blade']}" if r.get("blade") is not None else "")
+              + (f" on sensor {r['fault_sensor']}" if r.get("fault_sensor") is not None
+                 else "") + f" at {r['onset_s']:g} s" + (f" ({', '.join(size)})" if size
+                                                          else ""))
     return s
+
+
+def state(r: dict | None, trip: float) -> str:
+    """A run's outcome in the report: held, lost (the rotor), failed (an error), absent."""
+    if r is None:
+        return "—"
+    if r["status"] == "failed":
+        return "failed"
+    return "yes" if paired.held(r, trip) else "lost"
 
 
 def _worst(rs: list[dict], key: str) -> float | None:
@@ -73,7 +90,7 @@ def pick(rows: list[dict], n: int, trip: float) -> list[tuple[tuple, str]]:
         by.setdefault(scenario(r), []).append(r)
     peak = {k: _worst(rs, "overspeed_peak_over_rated") or 0.0 for k, rs in by.items()}
     chosen: dict[tuple, str] = {}
-    lost = {k: [r["controller"] for r in rs if not paired.held(r, trip)]
+    lost = {k: [r["controller"] for r in rs if state(r, trip) == "lost"]
             for k, rs in by.items()}
     for k in sorted((k for k in by if lost[k]), key=lambda k: -peak[k]):
         chosen.setdefault(k, "lost by " + ", ".join(sorted(set(lost[k]))))
@@ -106,6 +123,10 @@ def check_screen(sw: Sweep, n: int) -> None:
     if any(k.startswith("mismatch") for k in sw.raw):
         raise ConfigError("mismatch", sw.raw["mismatch"], "no [mismatch] with "
                           "--confirm-openfast: OpenFAST's plant is the turbine's deck")
+    plants = sw.axis("plants").values
+    if len(plants) > 1:
+        raise ConfigError("plants", list(plants), "one plant with --confirm-openfast (each "
+                          "scenario is confirmed once, against one of wtftc's plants)")
 
 
 def confirm_runs(sw_of: Sweep, chosen: list[tuple[tuple, str]]) -> list[dict]:
@@ -131,18 +152,20 @@ def report(screen_dir: Path, confirm_dir: Path, chosen: list[tuple[tuple, str]],
           "scenarios", "",
           f"Screen: `{screen_dir}` ({len(a)} runs, {walls.get('screen', 0):.0f} s); "
           f"confirmation: `{confirm_dir}` ({len(b)} runs, {walls.get('confirm', 0):.0f} s). "
-          f"Each cell is wtftc / OpenFAST; \"lost\": past {trip:g} × rated or the rotor out "
-          "of its envelope (the run's metrics then describe a rotor that stopped).", "",
-          "| scenario | why | controller | held | "
+          f"Each cell is wtftc / OpenFAST. Outcome: \"yes\", held; \"lost\", past {trip:g} × "
+          "rated or the rotor out of its envelope (its metrics describe a rotor that "
+          "stopped: not ranked); \"failed\", an error (the cause: `wtftc sweep --summary`).",
+          "",
+          "| scenario | why | controller | outcome | "
           + " | ".join(h for _, h, _, _ in COLUMNS) + " |",
           "|---" * (4 + len(COLUMNS)) + "|"]
-    csv = ["scenario,why,controller,engine,held," + ",".join(k for k, *_ in COLUMNS)]
+    csv = ["scenario,why,controller,engine,outcome,"
+           + ",".join(f"{k} [{u}]" for (k, *_), u in zip(COLUMNS, UNITS, strict=True))]
     for k in keys:
         runs = on[0].get(k, {})
         for c in sorted(runs):
             pair = [on[0].get(k, {}).get(c), on[1].get(k, {}).get(c)]
-            held = " / ".join("—" if r is None else ("yes" if paired.held(r, trip)
-                                                     else "lost") for r in pair)
+            held = " / ".join(state(r, trip) for r in pair)
             cells = [" / ".join(_fmt(r, key, scale, f) for r in pair)
                      for key, _, scale, f in COLUMNS]
             name = describe(next(iter(runs.values())))
@@ -150,9 +173,9 @@ def report(screen_dir: Path, confirm_dir: Path, chosen: list[tuple[tuple, str]],
             for eng, r in zip(("wtftc", "openfast"), pair, strict=True):
                 if r is not None:
                     csv.append(",".join(f'"{x}"' for x in (name, why[k], c)) + f",{eng},"
-                               f"{int(paired.held(r, trip))},"
+                               f"{state(r, trip)},"
                                + ",".join(_raw(r, key) for key, *_ in COLUMNS))
-    rows = _agreement(on, keys)
+    rows = _agreement(on, keys, trip)
     md += ["", "## Ranking agreement (issue 23: ties within each metric's tolerance count "
            "as agreement)", "", ranking.summary_markdown(rows) if rows else
            "No scenario has two controllers on both engines.", "",
@@ -165,12 +188,15 @@ def report(screen_dir: Path, confirm_dir: Path, chosen: list[tuple[tuple, str]],
     return text
 
 
-def _agreement(on: list[dict], keys: list[tuple]) -> list[dict]:
-    """ranking.agreement_table over the chosen scenarios both engines ran."""
+def _agreement(on: list[dict], keys: list[tuple], trip: float) -> list[dict]:
+    """ranking.agreement_table over the chosen scenarios both engines ran; a run that did
+    not hold (or failed) has no values to rank (its metrics describe a rotor that
+    stopped), so its pairs count as missing."""
     tables = []
     for table in on:
         tables.append({describe(next(iter(table[k].values()))): {
-            c: r for c, r in table[k].items()} for k in keys if table.get(k)})
+            c: (r if state(r, trip) == "yes" else {}) for c, r in table[k].items()}
+            for k in keys if table.get(k)})
     return ranking.agreement_table(*tables)
 
 
