@@ -126,7 +126,7 @@ DEFECTS = {
                               [FILES["discon"], "PC_MinPit, PC_MaxPit = (0.5, 0.2)",
                                "PC_MinPit < PC_MaxPit"], []),
     "VS_GenEff 150": (DISCON, value("VS_GenEff", "150"), [],
-                      [FILES["discon"], "VS_GenEff = 150.0", "(0, 1]"], []),
+                      [FILES["discon"], "VS_GenEff = 150.0", "in percent, in (0, 100]"], []),
     "WE_RhoAir 0": (DISCON, value("WE_RhoAir", "0"), [],
                     [FILES["discon"], "WE_RhoAir = 0.0", "(0, 2]"], []),
     "DTTorSpr 0": (ED, value("DTTorSpr", "0"), [], [FILES["ed"], "DTTorSpr = 0.0", "k_s"], []),
