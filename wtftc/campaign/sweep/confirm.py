@@ -18,7 +18,6 @@ the scenario's controllers), until N are chosen.
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 from wtftc.campaign import ranking
@@ -29,9 +28,10 @@ from wtftc.campaign.sweep.spec import MAGNITUDE_COLUMN, Sweep, expand, parse_swe
 from wtftc.campaign.sweep.store import read_results
 from wtftc.errors import ConfigError
 
-#: every axis of a scenario but the controller and the plant (and the controller's tuning)
-AXES = ("mean_wind_mps", "turbulence_class", "seed", "blade", "fault_sensor", "onset_s",
-        *MAGNITUDE_COLUMN.values())
+#: every axis of a scenario but the controller and the plant (and the controller's tuning):
+#: paired.SCENARIO's, the engines' plants left out
+AXES = tuple(k for k in paired.SCENARIO
+             if k not in ("plant", "tuning_omega_n_rad_s", "tuning_zeta"))
 #: what ranks the scenarios after the lost ones: (run key, the reason's words)
 WORST = [("overspeed_peak_over_rated", "worst extreme overspeed"),
          ("shaft_torque_del_1hz_Nm", "worst shaft DEL"),
@@ -78,8 +78,7 @@ def state(r: dict | None, trip: float) -> str:
 
 
 def _worst(rs: list[dict], key: str) -> float | None:
-    vals = [r[key] for r in rs if isinstance(r.get(key), int | float)
-            and math.isfinite(r[key])]
+    vals = [v for v in (ranking._value(r.get(key)) for r in rs) if v is not None]
     return max(vals) if vals else None
 
 
@@ -201,13 +200,13 @@ def _agreement(on: list[dict], keys: list[tuple], trip: float) -> list[dict]:
 
 
 def _fmt(r: dict | None, key: str, scale: float, f: str) -> str:
-    v = None if r is None else r.get(key)
-    return "—" if not isinstance(v, int | float) or not math.isfinite(v) else f.format(v * scale)
+    v = None if r is None else ranking._value(r.get(key))
+    return "—" if v is None else f.format(v * scale)
 
 
 def _raw(r: dict, key: str) -> str:
-    v = r.get(key)
-    return "" if not isinstance(v, int | float) or not math.isfinite(v) else repr(float(v))
+    v = ranking._value(r.get(key))
+    return "" if v is None else repr(v)
 
 
 def _write(folder: Path, data: dict[str, bytes]) -> None:
