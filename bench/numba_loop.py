@@ -1124,13 +1124,22 @@ def run(prep: Prepared, n_steps: int | None = None,
 
 def omega_trajectory(prep: Prepared, problem=None, dt: float | None = None,
                      t_final: float | None = None, every: int | None = None,
-                     interval: int = 0) -> np.ndarray:
+                     interval: int = 0, wind_inside: bool = False) -> np.ndarray:
     """ω_r [rad/s] every ``every`` steps of dt from t = 0 over [0, t_final) (defaults: the
     configuration's), in one numba call, the controller sampled every ``interval`` steps
     (> 0; 0: continuous); the per-step inputs of a new dt are built on the first call and
-    reused. ``problem`` (the benchmark's) is not needed: the inputs come from prep's
+    reused, but with ``wind_inside`` the wind at each step's three times is evaluated in
+    this call, as wtftc's run_loops does in the call the bench times (the fault rows,
+    constant between onsets, stay built: run_loops writes one column per chunk for them).
+    ``problem`` (the benchmark's) is not needed: the inputs come from prep's
     configuration, the one the problem was made from."""
     dt = prep.dt if dt is None else float(dt)
     n = prep.n_steps if t_final is None else int(round(t_final / dt))
-    z, _ = prep.loop(interval)(*prep.args(n, dt, every, interval))
+    args = prep.args(n, dt, every, interval)
+    if wind_inside:
+        tk = np.arange(n) * dt
+        wind = prep.config.wind
+        args = (args[0], np.column_stack([wind(tk), wind(tk + dt / 2), wind(tk + dt)]),
+                *args[2:])
+    z, _ = prep.loop(interval)(*args)
     return z[:, 0].copy()

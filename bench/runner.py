@@ -461,7 +461,7 @@ def _numba(p: Problem, dt: float, reps: int, base, ref, numba) -> list[Timing]:
     numba_loop, setup, prep = numba
     with PeakMemory() as pm:
         walls, om, warm = _timed(lambda: numba_loop.omega_trajectory(
-            setup, p, dt, p.t_final, every=int(round(OUT_DT / dt))), reps)
+            setup, p, dt, p.t_final, every=int(round(OUT_DT / dt)), wind_inside=True), reps)
     n = int(round(p.t_final / dt))
     return [_timing("numba: hand-written RK4 loop (@njit)", f"dt = {dt:g}", p.t_final, n, walls,
                     None, pm.mb, warm + prep, rel_error(om, ref), rel_error(om, base),
@@ -478,7 +478,8 @@ def _numba_sampled(p: Problem, dt: float, reps: int, ref, numba, compiled: Timin
     interval = sampled_interval(dt)
     with PeakMemory() as pm:
         walls, om, warm = _timed(lambda: numba_loop.omega_trajectory(
-            setup, p, dt, p.t_final, every=int(round(OUT_DT / dt)), interval=interval), reps)
+            setup, p, dt, p.t_final, every=int(round(OUT_DT / dt)), interval=interval,
+            wind_inside=True), reps)
     n = int(round(p.t_final / dt))
     row = _timing(f"numba: hand-written sampled loop at {1 / SAMPLED_INTERVAL_S:g} Hz (@njit)",
                   f"dt = {dt:g}", p.t_final, n, walls, None, pm.mb, warm + prep,

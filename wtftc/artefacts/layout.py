@@ -124,7 +124,13 @@ def paper_table1(key: str) -> np.ndarray:
 
 
 def _check_group(group: str) -> None:
-    groups = [k for k, v in layout().items()
-              if isinstance(v, list) and v and isinstance(v[0], dict) and "default" in v[0]]
-    if group not in groups:
-        raise KeyError(f"unknown layout group {group!r}; allowed: {', '.join(groups)}")
+    if group not in _groups():
+        raise KeyError(f"unknown layout group {group!r}; allowed: {', '.join(_groups())}")
+
+
+@cache
+def _groups() -> tuple[str, ...]:
+    """The layout's groups of named entries with defaults (looked up on every loop chunk:
+    built once)."""
+    return tuple(k for k, v in layout().items()
+                 if isinstance(v, list) and v and isinstance(v[0], dict) and "default" in v[0])

@@ -198,6 +198,11 @@ def _lean_cell_c(table: np.ndarray, x0: float, x1: float, hx: float, ihx: float,
                              row=r(float(nx - 1)), last=r(float(table.size - 16)))
 
 
+#: the lean bodies are inlined into their callers (4 calls an RK4 step, through pointer
+#: arrays the caller fills: inlined, the values stay in registers)
+INLINED = "static inline __attribute__((always_inline)) "
+
+
 def lean_c(code: str) -> str:
     """CasADi's C ``code`` with the body of each function of LEAN_C it holds replaced by
     the lean one (its comment line names it: ``/* name:(...)->(...) */``)."""
@@ -209,7 +214,9 @@ def lean_c(code: str) -> str:
         if m is None:
             continue
         end = code.index("\n}\n", m.end())
-        code = code[:m.end()] + body + code[end:]
+        start = code.index("static int casadi_f", m.start())
+        code = code[:start] + INLINED + code[start + len("static "):m.end()] + body + \
+            code[end:]
     return code
 
 

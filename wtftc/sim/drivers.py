@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from wtftc.sim import sampled
+from wtftc.sim import sampled, specialise
 from wtftc.sim.rhs import Loop
 
 _INTERFACE = """
@@ -145,12 +145,16 @@ CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casa
    * outputs; plant steps an interval, intervals a chunk */
   const casadi_int nz = {nz}, np = {np}, nc = {nc}, nf = {nf}, ns = {ns}, nb = {nb}, nh = {nh};
   const casadi_int nm = {nm}, no = {no}, n = {steps}, m = {m}, o = np + nc + nf;
-  const casadi_real** sarg = arg + {n_in};
+  const casadi_real** sarg = arg + {n_in} + {n_report};
   casadi_real** sres = res + {n_out};
   casadi_real *zc, *xa, *xb, *fa, *fb, *xcn, *held, *va, *vn, *rd, *me, *col, *outs, *t;
   casadi_real T, dt = arg[{i_dt}] ? arg[{i_dt}][0] : 0;
-  casadi_int j, i, k, q;
+  casadi_int j, i, k, q, every = 1, next = 0, kept = 0;
 {max_work}
+  /* the report of every out_every-th plant step from step out_first, in its first columns
+   * (left out: every step's); the other steps take the state-only plant step */
+  if (arg[{n_in}] && arg[{n_in}][0] > 1) every = (casadi_int) arg[{n_in}][0];
+  if (arg[{n_in} + 1] && arg[{n_in} + 1][0] > 0) next = (casadi_int) arg[{n_in} + 1][0];
   if (!arg[0]) return 1; /* no initial state */
   zc = w + ww; xa = zc + nz; xb = xa + np + ns; fa = xb + np + ns; fb = fa + nf;
   xcn = fb + nf; held = xcn + nc; va = held + nh; vn = va + nb; rd = vn + nb; me = rd + ns;
@@ -169,8 +173,15 @@ CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casa
       k = j * n + i;
       /* the plant (and the sensors' lags) over one step of dt, the command held */
 {plant_args}
-      sres[0] = xb; sres[1] = res[1] ? res[1] + k * no : outs;
-      if ({plant}(sarg, sres, iw, w, mem)) return 1;
+      sres[0] = xb;
+      if (res[1] && k == next) {{
+        sres[1] = res[1] + kept++ * no;
+        next += every;
+        if ({plant}(sarg, sres, iw, w, mem)) return 1;
+      }} else {{
+        sres[1] = outs;
+        if ({plant_state}(sarg, sres, iw, w, mem)) return 1;
+      }}
 {fdi_call}
       /* the state after the step: the controller's as sampled until the last step */
       t = res[2] ? res[2] + k * nz : col;
@@ -194,28 +205,31 @@ _FDI_CALL = """      sarg[0] = fa; sarg[1] = va; sarg[2] = rd; sarg[3] = me;
       if ({fdi}(sarg, sres, iw, w, mem)) return 1;"""
 
 
-def _renamed(f: ca.Function, name: str) -> ca.Function:
-    """The SX function f under another name (its C symbol in a chunk's library)."""
-    x = f.sx_in()
-    return ca.Function(name, x, f.call(x), f.name_in(), f.name_out())
-
-
 def _args(fn: ca.Function, given: dict[str, str], indent: str) -> str:
     """C statements pointing sarg[i] at each of fn's inputs (``given``: C expressions)."""
     return "\n".join(f"{indent}sarg[{i}] = {given[x]};" for i, x in enumerate(fn.name_in()))
 
 
-def intervals_source(loop: Loop, m: int, name: str) -> tuple[list[ca.Function], str]:
+def intervals_source(loop: Loop, m: int, name: str,
+                     fixed: dict[str, dict[int, float]] | None = None,
+                     ) -> tuple[list[ca.Function], str]:
     """The functions of the sampled loop (sample, plant step, FDI step: their code comes
     first, in this order) and the C of the chunk ``name``: ``m`` control intervals, as
     :func:`wtftc.sim.sampled.interval_function` mapped by mapaccum computes them, with
-    the same inputs (the held ones as one column) and outputs."""
+    the same inputs (the held ones as one column) and outputs, then REPORT_INPUTS (as
+    :func:`steps_source`'s: given, only the reports of the output grid are computed and
+    written, the other plant steps taking the plant step's state-only twin, the same next
+    state bit for bit); ``fixed``: the functions specialised to these switch values
+    (:func:`wtftc.sim.specialise.folded`)."""
     iv = sampled.interval_function(loop)
     sz = sampled._sizes(loop)
-    fns = [_renamed(sampled._sample(loop), f"{name}_sample"),
-           _renamed(sampled._plant_step(loop), f"{name}_plant")]
+    parts = [("sample", sampled._sample(loop)), ("plant", sampled._plant_step(loop))]
     if loop.fdi:
-        fns.append(_renamed(sampled._fdi_step(loop), f"{name}_fdi"))
+        parts.append(("fdi", sampled._fdi_step(loop)))
+    fns = [specialise.folded(f, fixed or {}, f"{name}_{part}") for part, f in parts]
+    x = fns[1].sx_in()  # the plant step computing its next state alone (no report)
+    fns.append(ca.Function(f"{name}_plant_state", x, [fns[1].call(x)[0]], fns[1].name_in(),
+                           [fns[1].name_out(0)]))
     steps = loop.interval
     ins = iv.name_in()
     idx = {x: i for i, x in enumerate(ins)}
@@ -237,7 +251,8 @@ def intervals_source(loop: Loop, m: int, name: str) -> tuple[list[ca.Function], 
                f"{sampled._held_size(loop)} + 2 * {sz['b']} + {sz['s']} + {sz['m']} + "
                f"{iv.size1_out(1)}")
     body = _INTERVALS.format(
-        name=name, n_in=len(ins), n_out=3, i_dt=idx["dt"], nz=sz["z"], np=sz["p"],
+        name=name, n_in=len(ins), n_report=len(REPORT_INPUTS), n_out=3,
+        plant_state=fns[-1].name(), i_dt=idx["dt"], nz=sz["z"], np=sz["p"],
         nc=sz["c"], nf=sz["f"] if loop.fdi else 0, ns=sz["s"], nb=sz["b"],
         nh=sampled._held_size(loop), nm=sz["m"], no=iv.size1_out(1), steps=steps, m=m,
         max_work=_max_work([f.name() for f in fns]), sample=fns[0].name(),
@@ -245,4 +260,5 @@ def intervals_source(loop: Loop, m: int, name: str) -> tuple[list[ca.Function], 
         plant_args=_args(fns[1], plant, "      "),
         fdi_call=_FDI_CALL.format(i_p_fdi=idx.get("p_fdi", -1), fdi=fns[2].name())
         if loop.fdi else "")
-    return fns, _interface(name, inputs, outputs, [f.name() for f in fns], scratch) + body
+    return fns, _interface(name, inputs + [(x, 1, 1) for x in REPORT_INPUTS], outputs,
+                           [f.name() for f in fns], scratch) + body

@@ -32,6 +32,7 @@ from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import cache_dir, compiled_library, compiler, external_of
 from wtftc.model import spline
 from wtftc.model.faults import nominal_actuator
+from wtftc.sim import specialise
 from wtftc.sim.drivers import REPORT_INPUTS, intervals_source, steps_source
 from wtftc.sim.rhs import PLANTS, Loop, fdi_params, output_spec, rhs_function, sensor_names
 from wtftc.sim.sampled import interval_function
@@ -61,7 +62,8 @@ def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out",
     """Classical RK4 over one step dt (Kutta 1901) of rhs's ``z_dot``: the ``exogenous``
     input at t, t + dt/2, t + dt (given as <exogenous>3), the other inputs held over the
     step; the ``report`` output at the start of the step. ``fixed``: inputs given as
-    values (a specialised step: :func:`chunk_function`), kept as inputs that are not read.
+    values, whole or by entry ({entry: value}: :mod:`wtftc.sim.specialise`) (a specialised
+    step: :func:`chunk_function`), kept as inputs that are not read.
 
     ``shared``: written in SX, the four stages in one graph with their common work shared
     (what depends on the parameters alone, or on the wind at t + dt/2, is computed once a
@@ -71,8 +73,7 @@ def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out",
     sym = ca.SX if shared else ca.MX
     if fixed and not shared:  # the values folded into the right-hand side itself
         ins = rhs.sx_in()
-        given = [ca.SX(ca.DM(fixed[n])) if n in fixed else x
-                 for n, x in zip(rhs.name_in(), ins, strict=True)]
+        given = [_fixed_value(x, fixed.get(n)) for n, x in zip(rhs.name_in(), ins, strict=True)]
         rhs = ca.Function(f"{rhs.name()}_fixed", ins, ca.cse(rhs(*given)), rhs.name_in(),
                           rhs.name_out())
     z = sym.sym("z", rhs.sparsity_in("z"))
@@ -80,7 +81,8 @@ def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out",
     held = [n for n in rhs.name_in() if n not in ("z", exogenous)]
     others = {n: sym.sym(n, rhs.sparsity_in(n)) for n in held}
     dt = sym.sym("dt")
-    values = {**others, **{n: ca.SX(ca.DM(v)) for n, v in (fixed or {}).items() if shared}}
+    values = {**others, **{n: _fixed_value(others[n], v) for n, v in (fixed or {}).items()
+                           if shared}}
 
     def f(zz, w):
         return rhs.call({"z": zz, exogenous: w, **values})
@@ -94,6 +96,15 @@ def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out",
     outs = ca.cse([z_next, out]) if shared else [z_next, out]
     return ca.Function(name, [z, w3, *others.values(), dt], outs,
                        ["z", f"{exogenous}3", *held, "dt"], ["z_next", report])
+
+
+def _fixed_value(x: ca.SX, value) -> ca.SX:
+    """The input x given ``value``: None (x itself), {entry: value} or the whole value."""
+    if value is None:
+        return x
+    if isinstance(value, dict):
+        return specialise.given(x, value)
+    return ca.SX(ca.DM(value))
 
 
 def rk4_path(rhs, z0, t0: float, t1: float, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -120,9 +131,13 @@ def rk4_path(rhs, z0, t0: float, t1: float, n: int) -> tuple[np.ndarray, np.ndar
 #: flags of the closed-loop chunks (the verified generated functions keep CFLAGS):
 #: -fno-semantic-interposition lets gcc inline CasADi's helpers (fmin, fmax, sq) instead of
 #: calling them through the PLT; -fno-math-errno lets it treat sqrt, exp, ... as pure
-#: functions (inline sqrtsd, no errno bookkeeping): 1.4-1.9× on the paper's loop. Both are
-#: bit-identical to plain -O2 (docs/performance.md, tests/test_bench.py)
-LOOP_CFLAGS = ("-O2", "-fno-semantic-interposition", "-fno-math-errno", "-fPIC", "-shared")
+#: functions (inline sqrtsd, no errno bookkeeping): 1.4-1.9× on the paper's loop;
+#: -fno-trapping-math lets it compute both sides of a branch on doubles (no operation
+#: traps here: nothing enables FP exceptions), 3-7 % (issue 35). All are bit-identical to
+#: plain -O2: no operation is reordered, fused or replaced (docs/performance.md,
+#: tests/test_bench.py)
+LOOP_CFLAGS = ("-O2", "-fno-semantic-interposition", "-fno-math-errno", "-fno-trapping-math",
+               "-fPIC", "-shared")
 
 #: opt-in: -ffast-math's code generation (reassociation, reciprocals, no NaN/inf, no signed
 #: zeros): 1.05-1.2× more on the loops (docs/performance.md); results differ at
@@ -256,27 +271,34 @@ PER_STEP = ("wind3", "actuator_faults", "sensor_faults", "ctrl_fault")
 
 @cache
 def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False,
-                   quiet: bool = False, exact: bool = False) -> ca.Function:
+                   quiet: bool = False, exact: bool = False,
+                   switches: tuple[specialise.Switch, ...] = ()) -> ca.Function:
     """``n`` RK4 steps of ``loop`` in one compiled call (mapaccum over the step, or over
     the control interval of a sampled loop: n rounded down to whole intervals);
     ``fast_math``: compiled with FAST_MATH_CFLAGS instead of LOOP_CFLAGS; ``quiet``: no
     note when it is compiled; ``exact`` (a continuous loop): specialised for exact sensors
     without sensor faults (:func:`exact_sensors`), their inputs taken as the layout's
     defaults and not read (the same numbers as the general chunk given those values, bit
-    for bit; a third fewer operations on the physical loop: docs/performance.md)."""
-    tag = "" if loop.fdi else "_nofdi"
+    for bit; a third fewer operations on the physical loop: docs/performance.md);
+    ``switches``: specialised to these values of the loop's switches
+    (:mod:`wtftc.sim.specialise`: the options switched off folded away), likewise not
+    read."""
+    tag = ("" if loop.fdi else "_nofdi")
+    fixed = specialise.by_input(switches)
     if loop.sampled:
-        tag += f"_s{loop.interval}{'d' if loop.delay else ''}"
+        tag += f"_s{loop.interval}{'d' if loop.delay else ''}{specialise.tag(switches)}"
         m = max(1, n // loop.interval)
         label = f"loop_{loop.plant}_{loop.controller}{tag}_{loop.table_key}_{m * loop.interval}"
-        fns, driver = intervals_source(loop, m, label)
+        fns, driver = intervals_source(loop, m, label, fixed)
         return _driven(fns, driver, label, loop_flags(fast_math), quiet,
                        lambda: interval_function(loop).mapaccum(label, m))
-    tag += "_exact" if exact else ""
+    tag += ("_exact" if exact else "") + specialise.tag(switches)
     label = f"loop_{loop.plant}_{loop.controller}{tag}_{loop.table_key}_{n}"
-    fixed = {"p_sensors": lay.defaults("sensor_params"),
-             "sensor_faults": lay.defaults("sensor_faults")} if exact else None
-    step = rk4_step(rhs_function(loop), fixed=fixed, name=f"{label}_step", shared=not loop.fdi)
+    if exact:
+        fixed |= {"p_sensors": lay.defaults("sensor_params"),
+                  "sensor_faults": lay.defaults("sensor_faults")}
+    step = rk4_step(rhs_function(loop), fixed=fixed or None, name=f"{label}_step",
+                    shared=not loop.fdi)
     return compiled_chunk(step, n, label, loop_flags(fast_math), quiet)
 
 
@@ -344,6 +366,15 @@ def exact_sensors(loop: Loop, runs: list[Run]) -> bool:
     return all((r.p_sensors is None or np.array_equal(r.p_sensors, default))
                and (r.schedule is None or not r.schedule.has_sensor_faults)
                for r in runs)
+
+
+def run_switches(loop: Loop, runs: list[Run]) -> tuple[specialise.Switch, ...]:
+    """The switches of ``loop`` (:mod:`wtftc.sim.specialise`) that every run gives alike,
+    from the values :func:`_put_static` passes."""
+    return specialise.shared_switches(loop, {
+        "p_ctrl": [r.p_ctrl for r in runs],
+        "p_turbine": [plant_params(loop, r) for r in runs],
+        "use_fdi": [[float(r.use_fdi)] for r in runs]})
 
 
 class Buffered:
@@ -707,8 +738,10 @@ def _fault_columns(r: Run, nominal: dict, held: dict | None, tf: np.ndarray,
             x is None or x.constant_between(held["t"], tf[0]) for x in (s, c)):
         return held["cols"]
     told = lay.prefix("fault_inputs", of="actuator_faults")
+    # a schedule without sensor faults gives the nominal rows (the layout's defaults)
     cols = {"actuator_faults": s.actuator(tf) if s else nominal["actuator_faults"],
-            "sensor_faults": s.sensor(ts) if s else nominal["sensor_faults"],
+            "sensor_faults": s.sensor(ts) if s and s.has_sensor_faults
+            else nominal["sensor_faults"],
             "ctrl_fault": c.actuator(ts)[told] if c else nominal["fault_inputs"]}
     if held is not None:
         held.update(t=float(tf[0]), cols=cols)
@@ -747,7 +780,7 @@ def _bind_locks(runs: list[Run], k: int, dt: float, z: np.ndarray, pitch: slice,
 def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: int = 1,
               progress: bool = True, keep_states: bool = False, threads: int = 1,
               fast_math: bool = False, hook: ChunkHook | None = None,
-              metric_states: bool = True) -> list[Result]:
+              metric_states: bool = True, specialised: bool = True) -> list[Result]:
     """Integrate independent runs of one loop (same plant, controller, turbine, dt) together:
     each compiled chunk call advances all of them (``Function.map``).
 
@@ -761,13 +794,16 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     only): acts between chunks of ``hook.steps`` steps (see :class:`ChunkHook`).
     ``metric_states``: keep METRIC_STATES at every step (``Result.full``), which the
     metrics read; False saves their memory, and the metrics fall back to the outputs.
+    ``specialised``: the chunk specialised to the switches every run gives alike
+    (:func:`run_switches`); False: the general chunk (the same numbers).
     """
     if hook is not None and len(runs) != 1:
         raise ValueError("a chunk hook drives one run at a time")
     n_steps = int(round(t_final / dt))
     f = hook.function if hook is not None and hook.function is not None else \
         chunk_function(loop, n=hook.steps if hook else chunk_steps(loop), fast_math=fast_math,
-                       quiet=not progress, exact=exact_sensors(loop, runs))
+                       quiet=not progress, exact=exact_sensors(loop, runs),
+                       switches=run_switches(loop, runs) if specialised else ())
     shards = _shards(len(runs), threads)
     tracker = _Tracker(n_steps, dt, [len(s) for s in shards], progress)
     args = (loop, f, n_steps, dt, decimate, keep_states, metric_states)

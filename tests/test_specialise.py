@@ -1,0 +1,91 @@
+"""Chunks specialised to the switches their runs share (issue 35, wtftc.sim.specialise):
+the options switched off cost nothing, and every number stays the general chunk's."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from wtftc import config
+from wtftc.artefacts import layout as lay
+from wtftc.campaign import cases
+from wtftc.sim import integrate, specialise
+from wtftc.sim.rhs import rhs_function
+
+#: the physical AFTC with issue 34's options on (the NREL 5-MW candidate's) and off
+OPTIONS_ON = {"phys_obs_omega": 3.0, "phys_obs_omega_max": 4.5, "phys_ps_pitch": 0.02,
+              "phys_td_gain": 0.02, "phys_td_lpf": 2.0}
+
+
+def _prepared(raw: dict):
+    rc = config.make_config(raw)
+    return rc, cases._prepare(rc, check=False)[0]
+
+
+def test_the_switches_are_the_options_and_the_torque_law_by_name():
+    rc, _ = _prepared({"controller": "physical", "case": 4})
+    found = specialise.switch_entries(rc.loop)
+    ctrl = [lay.names("physical_params")[i] for i in found["p_ctrl"]]
+    assert sorted(ctrl) == sorted([*OPTIONS_ON, "phys_actuator_model"])
+    turbine = [lay.names("turbine_params")[i] for i in found["p_turbine"]]
+    assert turbine == ["gen_torque_law", "gen_constant_power", "vs_constant_torque"]
+    assert found["use_fdi"] == [0]
+    pi, _ = _prepared({"controller": "pi", "case": 2})
+    assert [lay.names("pi_params")[i] for i in specialise.switch_entries(pi.loop)["p_ctrl"]] \
+        == ["pi_lpf_corner", "pi_ps_pitch"]
+
+
+def test_only_the_switches_every_run_gives_alike_are_folded():
+    rc, off = _prepared({"controller": "physical", "case": 2})
+    _, on = _prepared({"controller": "physical", "case": 2, "controller_params": {
+        "phys_td_gain": 0.02}})
+    alone = dict(((n, i), v) for n, i, v in integrate.run_switches(rc.loop, [off]))
+    both = dict(((n, i), v) for n, i, v in integrate.run_switches(rc.loop, [off, on]))
+    td = ("p_ctrl", lay.index("physical_params", "phys_td_gain"))
+    assert alone[td] == 0.0 and td not in both
+    assert set(alone) - set(both) == {td}
+    assert both[("p_turbine", lay.index("turbine_params", "gen_torque_law"))] == \
+        rc.loop.p_turbine[lay.index("turbine_params", "gen_torque_law")]
+    # a tag names the values: another value, another compiled chunk
+    assert specialise.tag(integrate.run_switches(rc.loop, [off])) != ""
+    assert specialise.tag(((*td, 0.0),)) != specialise.tag(((*td, 0.02),))
+    assert specialise.tag(()) == ""
+
+
+def test_the_options_off_are_folded_out_of_the_physical_step():
+    """The physical step with issue 34's options off and the fixed torque of the bench
+    (its run's switches folded): about half the operations of the general step."""
+    rc, run = _prepared({"controller": "physical", "case": 3,
+                         "turbine_params": {"gen_torque_law": 0.0}})
+    loop = replace(rc.loop, fdi=False)  # the loop of a run without the FDI: one SX step
+    general = integrate.rk4_step(rhs_function(loop))
+    fixed = specialise.by_input(integrate.run_switches(loop, [run]))
+    folded = integrate.rk4_step(rhs_function(loop), fixed=fixed)
+    assert folded.name_in() == general.name_in()
+    assert folded.n_instructions() < 0.7 * general.n_instructions(), (
+        folded.n_instructions(), general.n_instructions())
+
+
+@pytest.mark.parametrize("raw", [
+    # continuous, exact sensors, the options off and the fixed torque (the bench's loop)
+    {"controller": "physical", "case": 3, "t_final_s": 20.0,
+     "turbine_params": {"gen_torque_law": 0.0},
+     "fault": [{"type": "loss_of_effectiveness", "blade": 2, "rho": 0.5, "onset_s": 5.0}]},
+    # sampled, noisy sensors and the FDI, the options on (the candidate's), a lock
+    {"controller": "physical", "case": 4, "t_final_s": 20.0, "profile": "realistic",
+     "controller_params": OPTIONS_ON, "wind": {"kind": "ntm", "mean_mps": 16.0},
+     "fault": [{"type": "lock", "blade": 1, "onset_s": 8.0}]},
+])
+def test_the_specialised_chunk_gives_the_general_ones_numbers(raw, monkeypatch):
+    """Bit for bit, outputs, the states the metrics read and the final state."""
+    rc = config.make_config(raw)
+    real = integrate.run_loops
+    got = {}
+    for spec in (True, False):
+        monkeypatch.setattr(integrate, "run_loops", lambda *a, _s=spec, **k: real(
+            *a, **{**k, "specialised": _s}))
+        got[spec] = cases.run_batch([rc], progress=False)[0]
+    assert got[True].steps == got[False].steps == round(raw["t_final_s"] / rc.dt)
+    np.testing.assert_array_equal(got[True].outputs, got[False].outputs)
+    np.testing.assert_array_equal(got[True].full, got[False].full)
+    np.testing.assert_array_equal(got[True].z_final, got[False].z_final)
