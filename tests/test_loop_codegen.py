@@ -68,6 +68,9 @@ def _runs(raw: dict, exact: bool, monkeypatch) -> list:
      "fault": [{"type": "lock", "blade": 1, "onset_s": 12.31},
                {"type": "loss_of_effectiveness", "blade": 3, "rho": 0.5, "onset_s": 6.0}]},
     {"controller": "paper", "case": 3, "t_final_s": 25.0, "plant": "tower"},
+    # sampled: the sensors' lags, noise and faults folded away, no noise drawn
+    {"controller": "physical", "case": 4, "t_final_s": 25.0, "control_interval_s": 0.01,
+     "fault": [{"type": "lock", "blade": 2, "onset_s": 8.0}]},
 ])
 def test_the_chunk_specialised_for_exact_sensors_gives_the_general_ones_numbers(
         raw, monkeypatch):
@@ -92,8 +95,11 @@ def test_the_specialised_chunk_is_chosen_only_where_it_is_exact():
     faulty = inputs({"fault": [{"type": "rotor_speed_sensor_offset", "sensor": 2,
                                 "onset_s": 5.0}]})
     assert not integrate.exact_sensors(faulty[0], [run, faulty[1]])
-    sampled = inputs({"profile": "realistic"})
-    assert not integrate.exact_sensors(*sampled[:1], [sampled[1]])
+    realistic = inputs({"profile": "realistic"})  # noisy sensors
+    assert not integrate.exact_sensors(*realistic[:1], [realistic[1]])
+    exact_sampled = inputs({"control_interval_s": 0.01})
+    assert exact_sampled[0].sampled
+    assert integrate.exact_sensors(*exact_sampled[:1], [exact_sampled[1]])
 
 
 def test_a_held_column_is_written_again_once_another_one_was():

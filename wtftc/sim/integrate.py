@@ -73,7 +73,7 @@ def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out",
     sym = ca.SX if shared else ca.MX
     if fixed and not shared:  # the values folded into the right-hand side itself
         ins = rhs.sx_in()
-        given = [_fixed_value(x, fixed.get(n)) for n, x in zip(rhs.name_in(), ins, strict=True)]
+        given = [specialise.given(x, fixed.get(n)) for n, x in zip(rhs.name_in(), ins, strict=True)]
         rhs = ca.Function(f"{rhs.name()}_fixed", ins, ca.cse(rhs(*given)), rhs.name_in(),
                           rhs.name_out())
     z = sym.sym("z", rhs.sparsity_in("z"))
@@ -81,7 +81,7 @@ def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out",
     held = [n for n in rhs.name_in() if n not in ("z", exogenous)]
     others = {n: sym.sym(n, rhs.sparsity_in(n)) for n in held}
     dt = sym.sym("dt")
-    values = {**others, **{n: _fixed_value(others[n], v) for n, v in (fixed or {}).items()
+    values = {**others, **{n: specialise.given(others[n], v) for n, v in (fixed or {}).items()
                            if shared}}
 
     def f(zz, w):
@@ -96,15 +96,6 @@ def rk4_step(rhs: ca.Function, exogenous: str = "wind", report: str = "out",
     outs = ca.cse([z_next, out]) if shared else [z_next, out]
     return ca.Function(name, [z, w3, *others.values(), dt], outs,
                        ["z", f"{exogenous}3", *held, "dt"], ["z_next", report])
-
-
-def _fixed_value(x: ca.SX, value) -> ca.SX:
-    """The input x given ``value``: None (x itself), {entry: value} or the whole value."""
-    if value is None:
-        return x
-    if isinstance(value, dict):
-        return specialise.given(x, value)
-    return ca.SX(ca.DM(value))
 
 
 def rk4_path(rhs, z0, t0: float, t1: float, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -285,8 +276,12 @@ def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False,
     read."""
     tag = ("" if loop.fdi else "_nofdi")
     fixed = specialise.by_input(switches)
+    if exact:
+        fixed |= {"p_sensors": lay.defaults("sensor_params"),
+                  "sensor_faults": lay.defaults("sensor_faults")}
     if loop.sampled:
-        tag += f"_s{loop.interval}{'d' if loop.delay else ''}{specialise.tag(switches)}"
+        tag += (f"_s{loop.interval}{'d' if loop.delay else ''}{'_exact' if exact else ''}"
+                f"{specialise.tag(switches)}")
         m = max(1, n // loop.interval)
         label = f"loop_{loop.plant}_{loop.controller}{tag}_{loop.table_key}_{m * loop.interval}"
         fns, driver = intervals_source(loop, m, label, fixed)
@@ -294,9 +289,6 @@ def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False,
                        lambda: interval_function(loop).mapaccum(label, m))
     tag += ("_exact" if exact else "") + specialise.tag(switches)
     label = f"loop_{loop.plant}_{loop.controller}{tag}_{loop.table_key}_{n}"
-    if exact:
-        fixed |= {"p_sensors": lay.defaults("sensor_params"),
-                  "sensor_faults": lay.defaults("sensor_faults")}
     step = rk4_step(rhs_function(loop), fixed=fixed or None, name=f"{label}_step",
                     shared=not loop.fdi)
     return compiled_chunk(step, n, label, loop_flags(fast_math), quiet)
@@ -360,8 +352,6 @@ def exact_sensors(loop: Loop, runs: list[Run]) -> bool:
     """Whether every run of a continuous loop has exact sensors (the layout's default
     sensor parameters: no noise, bias, resolution or lag) and no sensor fault: the
     specialised chunk then computes the same numbers."""
-    if loop.sampled:
-        return False
     default = lay.defaults("sensor_params")
     return all((r.p_sensors is None or np.array_equal(r.p_sensors, default))
                and (r.schedule is None or not r.schedule.has_sensor_faults)
@@ -687,11 +677,13 @@ def _nominal_inputs(loop: Loop, runs: list[Run]) -> list[dict[str, np.ndarray]]:
             for r in runs]
 
 
-def _noise_streams(loop: Loop, runs: list[Run]) -> list[list[np.random.Generator]]:
+def _noise_streams(loop: Loop, runs: list[Run], exact: bool = False,
+                   ) -> list[list[np.random.Generator]]:
     """Per run, one generator per measured signal (deterministic from the run's noise
     seed, independent across signals): the draws of a signal do not depend on how the
-    run is cut into chunks."""
-    if not loop.sampled:
+    run is cut into chunks. None for a chunk specialised to exact sensors, which does not
+    read its noise."""
+    if not loop.sampled or exact:
         return [[] for _ in runs]
     return [[np.random.default_rng(np.random.SeedSequence(r.noise_seed, spawn_key=(7, k)))
              for k in range(len(sensor_names()))] for r in runs]
@@ -711,18 +703,20 @@ def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: 
     tf = tk[:1] if held else tk
     ts = tf[::loop.interval] if loop.sampled and not held else tf
     n_runs = len(runs)
-    for b, r in enumerate(runs):  # stacked as the buffer lies: a contiguous copy
-        w3 = np.stack([np.broadcast_to(np.asarray(r.wind(t), dtype=float), tk.shape)
-                       for t in (tk, tk + dt / 2, tk + dt)], axis=1)
-        call.put("wind3", w3.T, b, n_runs)
+    # each step's t, t + dt/2, t + dt in a row, as the buffer lies: one evaluation a run
+    t3 = (tk[:, None] + np.array([0.0, dt / 2, dt])).reshape(-1)
+    for b, r in enumerate(runs):
+        w3 = np.broadcast_to(np.asarray(r.wind(t3), dtype=float), t3.shape)
+        call.put("wind3", w3.reshape(-1, 3).T, b, n_runs)
         cols = _fault_columns(r, nominal[b], held_cols[b] if held else None, tf, ts)
         for name in ("actuator_faults", "sensor_faults", "ctrl_fault"):
             call.put(name, cols[name], b, n_runs, same=True)
         if loop.sampled:  # draws for the intervals this chunk uses, in order
             n_int = n_c // loop.interval
             used = -(-m // loop.interval)
-            draws = np.zeros((len(noise[b]), n_int))
-            draws[:, :used] = [g.standard_normal(used) for g in noise[b]]
+            draws = np.zeros((len(sensor_names()), n_int))  # none drawn: exact sensors
+            if noise[b]:
+                draws[:, :used] = [g.standard_normal(used) for g in noise[b]]
             call.put("noise", draws, b, n_runs)
             call.put("test_pulse", _pulse(r.test_pulse, tk[::loop.interval])[None, :], b,
                      n_runs)
@@ -800,13 +794,15 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     if hook is not None and len(runs) != 1:
         raise ValueError("a chunk hook drives one run at a time")
     n_steps = int(round(t_final / dt))
-    f = hook.function if hook is not None and hook.function is not None else \
-        chunk_function(loop, n=hook.steps if hook else chunk_steps(loop), fast_math=fast_math,
-                       quiet=not progress, exact=exact_sensors(loop, runs),
-                       switches=run_switches(loop, runs) if specialised else ())
+    own = hook is None or hook.function is None  # the loop's own chunk
+    exact = own and exact_sensors(loop, runs)
+    f = chunk_function(loop, n=hook.steps if hook else chunk_steps(loop), fast_math=fast_math,
+                       quiet=not progress, exact=exact,
+                       switches=run_switches(loop, runs) if specialised else ()) \
+        if own else hook.function
     shards = _shards(len(runs), threads)
     tracker = _Tracker(n_steps, dt, [len(s) for s in shards], progress)
-    args = (loop, f, n_steps, dt, decimate, keep_states, metric_states)
+    args = (loop, f, n_steps, dt, decimate, keep_states, metric_states, exact)
     if len(shards) == 1:
         batches = [_advance(*args, runs, hook, lambda k: tracker.tick(0, k))]
     else:
@@ -881,10 +877,10 @@ class _Tracker:
 
 
 def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
-             keep_states: bool, metric_states: bool, runs: list[Run],
+             keep_states: bool, metric_states: bool, exact: bool, runs: list[Run],
              hook: ChunkHook | None, tick) -> _Batch:
     """Advance ``runs`` side by side, chunk by chunk, to n_steps (or until all diverged);
-    ``tick(k)`` after each chunk."""
+    ``tick(k)`` after each chunk. ``exact``: ``f`` is specialised to exact sensors."""
     call = Buffered(_mapped(f, len(runs)))
     n_c, i_out = f.size2_out("out"), f.index_out("out")  # steps per chunk
     every = loop.interval if loop.sampled else 1
@@ -899,7 +895,7 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
     events = _event_steps(runs, dt, every)
     pitch = lay.block(PLANTS[loop.plant]["states"], "beta")
     _put_static(call, loop, runs, dt)
-    nominal, noise = _nominal_inputs(loop, runs), _noise_streams(loop, runs)
+    nominal, noise = _nominal_inputs(loop, runs), _noise_streams(loop, runs, exact)
     held_cols: list[dict] = [{} for _ in runs]
     # a chunk with the C steps driver keeps only the reports on the output grid
     compact = hook is None and decimate > 1 and REPORT_INPUTS[0] in f.name_in()

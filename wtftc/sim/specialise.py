@@ -79,10 +79,10 @@ def by_input(switches: tuple[Switch, ...]) -> dict[str, dict[int, float]]:
     return out
 
 
-def folded(f: ca.Function, fixed: dict[str, dict[int, float]], name: str | None = None,
-           ) -> ca.Function:
-    """The SX function ``f`` with the entries of ``fixed`` ({input: {entry: value}}) as
-    constants: the same inputs, those entries passed and not read."""
+def folded(f: ca.Function, fixed: dict, name: str | None = None) -> ca.Function:
+    """The SX function ``f`` with the values of ``fixed`` ({input: {entry: value}} or
+    {input: whole value}) as constants: the same inputs, those values passed and not
+    read."""
     if not fixed:
         return f if name is None else ca.Function(name, f.sx_in(), f.call(f.sx_in()),
                                                   f.name_in(), f.name_out())
@@ -91,8 +91,11 @@ def folded(f: ca.Function, fixed: dict[str, dict[int, float]], name: str | None 
     return ca.Function(name or f.name(), ins, f.call(values), f.name_in(), f.name_out())
 
 
-def given(x: ca.SX, entries: dict[int, float] | None) -> ca.SX:
-    if not entries:
+def given(x: ca.SX, value) -> ca.SX:
+    """The input x given ``value``: None (x itself), {entry: value} (those entries) or the
+    whole value."""
+    if value is None:
         return x
-    return ca.vertcat(*[ca.SX(entries[i]) if i in entries else x[i]
-                        for i in range(x.numel())])
+    if not isinstance(value, dict):
+        return ca.SX(ca.DM(value))
+    return ca.vertcat(*[ca.SX(value[i]) if i in value else x[i] for i in range(x.numel())])
