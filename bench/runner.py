@@ -292,13 +292,22 @@ def rk4_python_loop(p: Problem, f, dt: float, t_final: float) -> np.ndarray:
     return np.array(out)
 
 
+#: a timed row repeats its run until its repeats took at least this much wall time: a
+#: 60-s run of a compiled loop takes 10-40 ms, and five of them can all fall in one burst
+#: of this virtual machine's host noise (a row's spread was 355-495 ns a step, issue 35)
+MIN_TIMED_S = 1.0
+#: and at most this many times
+MAX_REPEATS = 200
+
+
 def _timed(fn, repeats: int) -> tuple[list[float], object, float]:
-    """(wall times of `repeats` runs after one warm-up, last result, warm-up wall)."""
+    """(wall times of at least ``repeats`` runs after one warm-up, and as many more as
+    make MIN_TIMED_S (at most MAX_REPEATS), last result, warm-up wall)."""
     t0 = time.perf_counter()
     res = fn()
     warm = time.perf_counter() - t0
     walls = []
-    for _ in range(repeats):
+    while len(walls) < repeats or (sum(walls) < MIN_TIMED_S and len(walls) < MAX_REPEATS):
         t0 = time.perf_counter()
         res = fn()
         walls.append(time.perf_counter() - t0)
