@@ -56,3 +56,20 @@ def no_hang(seconds: int = 30):
     finally:
         signal.alarm(0)
         signal.signal(signal.SIGALRM, old)
+
+
+#: the files that take longest from an empty compile cache (pytest --durations, issue 35),
+#: longest first: pytest-xdist hands out whole files (--dist loadfile) in collection order,
+#: so these go first and a long file never starts last, with one worker left idle
+LONGEST_FILES = ("test_bench.py", "test_sympy_vs_generated.py", "test_openfast_engine.py",
+                 "test_sweep.py", "test_examples.py", "test_peak_shaving.py",
+                 "test_discon.py", "test_modes.py", "test_parameters.py", "test_wheel.py",
+                 "test_loop_codegen.py", "test_confirm.py", "test_turbines.py",
+                 "test_linearize.py", "test_compare.py", "test_openfast_iea15mw.py",
+                 "test_openfast_campaigns.py", "test_cache.py")
+
+
+def pytest_collection_modifyitems(config, items):
+    """The longest files first (LONGEST_FILES), the others in their order after them."""
+    rank = {name: i for i, name in enumerate(LONGEST_FILES)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
