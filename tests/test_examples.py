@@ -146,6 +146,12 @@ CHECKS = {"01_paper_cases": _check_01, "02_custom_fault": _check_02, "03_wind_fi
           "07_fdi_roc": _check_07}
 
 
+#: the examples' own options for a smaller run where the check holds on it: 07's ROC on
+#: 2 runs a target instead of 4 (14 s against 31 s; its delays still rise with the
+#: target and its 90th percentiles still move, measured on the CSV)
+SMALLER = {"07_fdi_roc": ("--runs", "2")}
+
+
 def test_every_example_is_checked():
     assert [p.stem for p in EXAMPLES] == sorted(CHECKS)
 
@@ -154,7 +160,7 @@ def test_every_example_is_checked():
 def test_example_runs_and_delivers(script, tmp_path):
     text = script.read_text()
     assert text.startswith('"""') and "docs/" in text.split('"""')[1]  # says where to read on
-    proc = _run(script, tmp_path, tmp_path / "out")
+    proc = _run(script, tmp_path, tmp_path / "out", *SMALLER.get(script.stem, ()))
     assert [p.name for p in tmp_path.iterdir()] == ["out"]  # writes only where it is told
     assert "written" in proc.stdout or "runs done" in proc.stdout
     CHECKS[script.stem](tmp_path / "out", proc.stdout)
