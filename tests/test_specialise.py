@@ -25,30 +25,36 @@ def _prepared(raw: dict):
 def test_the_switches_are_the_options_and_the_torque_law_by_name():
     rc, _ = _prepared({"controller": "physical", "case": 4})
     found = specialise.switch_entries(rc.loop)
-    ctrl = [lay.names("physical_params")[i] for i in found["p_ctrl"]]
-    assert sorted(ctrl) == sorted([*OPTIONS_ON, "phys_actuator_model"])
-    turbine = [lay.names("turbine_params")[i] for i in found["p_turbine"]]
-    assert turbine == ["gen_torque_law", "gen_constant_power", "vs_constant_torque"]
-    assert found["use_fdi"] == [0]
+    ctrl = {lay.names("physical_params")[i]: v for i, v in found["p_ctrl"].items()}
+    assert ctrl == {**dict.fromkeys(OPTIONS_ON, 0.0), "phys_actuator_model": 1.0}
+    turbine = {lay.names("turbine_params")[i]: v for i, v in found["p_turbine"].items()}
+    assert turbine == dict.fromkeys(["gen_torque_law", "gen_constant_power",
+                                     "vs_constant_torque"], 0.0)
+    assert found["use_fdi"] == {0: 0.0}
     pi, _ = _prepared({"controller": "pi", "case": 2})
     assert [lay.names("pi_params")[i] for i in specialise.switch_entries(pi.loop)["p_ctrl"]] \
         == ["pi_lpf_corner", "pi_ps_pitch"]
 
 
-def test_only_the_switches_every_run_gives_alike_are_folded():
+def test_only_the_switches_every_run_leaves_off_are_folded():
     rc, off = _prepared({"controller": "physical", "case": 2})
     _, on = _prepared({"controller": "physical", "case": 2, "controller_params": {
         "phys_td_gain": 0.02}})
+    _, on2 = _prepared({"controller": "physical", "case": 2, "controller_params": {
+        "phys_td_gain": 0.03}})
     alone = dict(((n, i), v) for n, i, v in integrate.run_switches(rc.loop, [off]))
     both = dict(((n, i), v) for n, i, v in integrate.run_switches(rc.loop, [off, on]))
     td = ("p_ctrl", lay.index("physical_params", "phys_td_gain"))
     assert alone[td] == 0.0 and td not in both
     assert set(alone) - set(both) == {td}
-    assert both[("p_turbine", lay.index("turbine_params", "gen_torque_law"))] == \
-        rc.loop.p_turbine[lay.index("turbine_params", "gen_torque_law")]
-    # a tag names the values: another value, another compiled chunk
-    assert specialise.tag(integrate.run_switches(rc.loop, [off])) != ""
-    assert specialise.tag(((*td, 0.0),)) != specialise.tag(((*td, 0.02),))
+    assert both[("p_turbine", lay.index("turbine_params", "gen_torque_law"))] == 0.0
+    # an option on stays an input whatever its value: one chunk for every value
+    assert integrate.run_switches(rc.loop, [on]) == integrate.run_switches(rc.loop, [on2])
+    assert integrate.run_switches(rc.loop, [on]) == integrate.run_switches(rc.loop,
+                                                                           [off, on])
+    # a tag names the switches folded: another set, another compiled chunk
+    assert specialise.tag(integrate.run_switches(rc.loop, [off])) != \
+        specialise.tag(integrate.run_switches(rc.loop, [on]))
     assert specialise.tag(()) == ""
 
 

@@ -245,6 +245,7 @@ def test_unreachable_scheduler_is_a_clear_error(tmp_path):
               "--scheduler", "tcp://127.0.0.1:9", timeout=120)
     assert p.returncode == 2, p.stderr
     assert "--scheduler = 'tcp://127.0.0.1:9' is not allowed" in p.stderr
+    assert "connection was refused" in p.stderr  # said at once, not after Dask's 10 s
     assert "Traceback" not in p.stderr
     assert not (tmp_path / "x").exists()  # refused before anything was written
 

@@ -46,12 +46,14 @@ def wheel(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def installed(wheel, tmp_path_factory) -> Path:
-    """The bin/ folder of a fresh virtual environment with the wheel installed."""
+    """The bin/ folder of a fresh virtual environment with the wheel installed (by this
+    environment's pip, pointed at it with --python: the same install, without the 3 s of
+    bootstrapping a pip of its own)."""
     tmp = tmp_path_factory.mktemp("venv")
-    venv.create(tmp / "venv", with_pip=True)
+    venv.create(tmp / "venv", with_pip=False)
     bin_dir = tmp / "venv" / "bin"
-    subprocess.run([str(bin_dir / "pip"), "install", "-q", str(wheel)], check=True,
-                   capture_output=True)
+    subprocess.run([sys.executable, "-m", "pip", "--python", str(bin_dir / "python"),
+                    "install", "-q", str(wheel)], check=True, capture_output=True)
     return bin_dir
 
 

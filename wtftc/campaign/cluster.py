@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import re
+import socket
 import stat
 import threading
 from pathlib import Path
@@ -34,6 +35,7 @@ def client(scheduler: str | None, workers: int):
     from dask.distributed import Client, LocalCluster
 
     if scheduler:
+        _refused(scheduler)
         try:
             return Client(scheduler, timeout="10s"), None
         except (OSError, TimeoutError, ValueError) as exc:
@@ -43,6 +45,23 @@ def client(scheduler: str | None, workers: int):
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                            dashboard_address=":0", silence_logs=logging.ERROR)
     return Client(cluster), cluster
+
+
+def _refused(scheduler: str) -> None:
+    """A ConfigError at once where nothing listens at a tcp:// scheduler's address (the
+    connection refused), instead of after Dask's 10-s attempt to connect."""
+    m = re.fullmatch(r"tcp://\[?([^\]/]+?)\]?:(\d+)/?", scheduler)
+    if m is None:
+        return
+    try:
+        with socket.create_connection((m.group(1), int(m.group(2))), timeout=10):
+            return
+    except ConnectionRefusedError:
+        raise ConfigError("--scheduler", scheduler, "the address of a running Dask "
+                          "scheduler, tcp://HOST:PORT (nothing listens there: the connection "
+                          "was refused)") from None
+    except (OSError, ValueError):
+        return  # Dask's own attempt says what is wrong
 
 
 def close(cl, cluster) -> None:

@@ -5,9 +5,9 @@ torque law or the FDI's feed are parameters that switch a part of the loop on or
 ``Piecewise`` on them computes both branches at every call, and an option off still costs
 its operations (the physical AFTC's RK4 step: 3,380 SX instructions with every option
 symbolic, 1,710 with the options of the bench's run folded in). A chunk specialised to the
-values that every run of its batch gives the switches is built with those values as
-constants: CasADi folds each switched-off branch away when it builds the graph. The inputs
-stay the same (the switches are passed and not read), so nothing else changes.
+switches that every run of its batch leaves off (at their defaults) is built with those
+values as constants: CasADi folds each switched-off branch away when it builds the graph.
+The inputs stay the same (the switches are passed and not read), so nothing else changes.
 
 The numbers are the general chunk's given those values, bit for bit, wherever they are
 finite: a folded branch is the same operations on the same values, and the one identity
@@ -36,30 +36,35 @@ TURBINE_SWITCHES = ("gen_torque_law", "gen_constant_power", "vs_constant_torque"
 Switch = tuple[str, int, float]
 
 
-def switch_entries(loop: Loop) -> dict[str, list[int]]:
-    """The switches of ``loop``'s step, by input: the entries of p_ctrl and p_turbine,
-    and use_fdi (an FDI loop's)."""
-    ctrl = lay.names(controllers()[loop.controller]["params"])
-    turbine = lay.names("turbine_params")
-    out = {"p_ctrl": [i for i, n in enumerate(ctrl) if n.endswith(CONTROLLER_SWITCHES)],
-           "p_turbine": [turbine.index(n) for n in TURBINE_SWITCHES]}
+def switch_entries(loop: Loop) -> dict[str, dict[int, float]]:
+    """The switches of ``loop``'s step, by input, with their defaults (off): the entries
+    of p_ctrl and p_turbine, and use_fdi (an FDI loop's)."""
+    group = controllers()[loop.controller]["params"]
+    ctrl, ctrl_default = lay.names(group), lay.defaults(group)
+    turbine, turbine_default = lay.names("turbine_params"), lay.defaults("turbine_params")
+    out = {"p_ctrl": {i: float(ctrl_default[i]) for i, n in enumerate(ctrl)
+                      if n.endswith(CONTROLLER_SWITCHES)},
+           "p_turbine": {turbine.index(n): float(turbine_default[turbine.index(n)])
+                         for n in TURBINE_SWITCHES}}
     if loop.fdi:
-        out["use_fdi"] = [0]
+        out["use_fdi"] = {0: 0.0}
     return out
 
 
 def shared_switches(loop: Loop, values: dict[str, list[np.ndarray]]) -> tuple[Switch, ...]:
-    """The switches whose value every run gives alike (``values``: each input's value per
-    run), sorted: what a chunk for these runs can be specialised to."""
+    """The switches that every run leaves at their default (``values``: each input's value
+    per run), sorted: what a chunk for these runs is specialised to. A switch some run
+    sets otherwise stays an input: one chunk serves every value of an option on, and a
+    loop gets a compiled chunk per set of options on, not per value (the test suite's
+    runs had made 42 more chunks, one per value)."""
     shared = []
     for name, entries in switch_entries(loop).items():
         if any(v is None for v in values[name]):
             continue
         rows = np.array([np.atleast_1d(np.asarray(v, dtype=float)) for v in values[name]])
-        for i in entries:
-            column = rows[:, i]
-            if np.isfinite(column[0]) and np.all(column == column[0]):
-                shared.append((name, i, float(column[0])))
+        for i, default in entries.items():
+            if np.all(rows[:, i] == default):
+                shared.append((name, i, default))
     return tuple(sorted(shared))
 
 
