@@ -36,23 +36,28 @@ def test_the_switches_are_the_options_and_the_torque_law_by_name():
         == ["pi_lpf_corner", "pi_ps_pitch"]
 
 
-def test_only_the_switches_every_run_leaves_off_are_folded():
+def test_the_options_are_folded_all_off_or_not_at_all_and_the_torque_law_as_shared():
     rc, off = _prepared({"controller": "physical", "case": 2})
     _, on = _prepared({"controller": "physical", "case": 2, "controller_params": {
         "phys_td_gain": 0.02}})
     _, on2 = _prepared({"controller": "physical", "case": 2, "controller_params": {
-        "phys_td_gain": 0.03}})
-    alone = dict(((n, i), v) for n, i, v in integrate.run_switches(rc.loop, [off]))
-    both = dict(((n, i), v) for n, i, v in integrate.run_switches(rc.loop, [off, on]))
-    td = ("p_ctrl", lay.index("physical_params", "phys_td_gain"))
-    assert alone[td] == 0.0 and td not in both
-    assert set(alone) - set(both) == {td}
-    assert both[("p_turbine", lay.index("turbine_params", "gen_torque_law"))] == 0.0
-    # an option on stays an input whatever its value: one chunk for every value
-    assert integrate.run_switches(rc.loop, [on]) == integrate.run_switches(rc.loop, [on2])
-    assert integrate.run_switches(rc.loop, [on]) == integrate.run_switches(rc.loop,
-                                                                           [off, on])
-    # a tag names the switches folded: another set, another compiled chunk
+        "phys_obs_omega": 3.0}})
+    law_rc, law = _prepared({"controller": "physical", "case": 2,
+                             "turbine_params": {"gen_torque_law": 1.0}})
+    options = {i for i, _ in specialise.switch_entries(rc.loop)["p_ctrl"].items()}
+
+    def folded(runs, loop=rc.loop):
+        return {(n, i): v for n, i, v in integrate.run_switches(loop, runs)}
+
+    alone = folded([off])
+    assert {i for n, i in alone if n == "p_ctrl"} == options
+    # any option on: none folded, so every option set and value shares one chunk
+    assert not {i for n, i in folded([on]) if n == "p_ctrl"}
+    assert folded([on]) == folded([on2]) == folded([off, on])
+    torque_law = ("p_turbine", lay.index("turbine_params", "gen_torque_law"))
+    # the turbine's switches are the loop's (its turbine), folded at their value
+    assert alone[torque_law] == 0.0 and folded([law], law_rc.loop)[torque_law] == 1.0
+    # a tag names what is folded: another set, another compiled chunk
     assert specialise.tag(integrate.run_switches(rc.loop, [off])) != \
         specialise.tag(integrate.run_switches(rc.loop, [on]))
     assert specialise.tag(()) == ""

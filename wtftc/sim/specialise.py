@@ -5,9 +5,9 @@ torque law or the FDI's feed are parameters that switch a part of the loop on or
 ``Piecewise`` on them computes both branches at every call, and an option off still costs
 its operations (the physical AFTC's RK4 step: 3,380 SX instructions with every option
 symbolic, 1,710 with the options of the bench's run folded in). A chunk specialised to the
-switches that every run of its batch leaves off (at their defaults) is built with those
-values as constants: CasADi folds each switched-off branch away when it builds the graph.
-The inputs stay the same (the switches are passed and not read), so nothing else changes.
+switches its batch's runs share (:func:`shared_switches`) is built with those values as
+constants: CasADi folds each switched-off branch away when it builds the graph. The inputs
+stay the same (the switches are passed and not read), so nothing else changes.
 
 The numbers are the general chunk's given those values, bit for bit, wherever they are
 finite: a folded branch is the same operations on the same values, and the one identity
@@ -52,19 +52,26 @@ def switch_entries(loop: Loop) -> dict[str, dict[int, float]]:
 
 
 def shared_switches(loop: Loop, values: dict[str, list[np.ndarray]]) -> tuple[Switch, ...]:
-    """The switches that every run leaves at their default (``values``: each input's value
-    per run), sorted: what a chunk for these runs is specialised to. A switch some run
-    sets otherwise stays an input: one chunk serves every value of an option on, and a
-    loop gets a compiled chunk per set of options on, not per value (the test suite's
-    runs had made 42 more chunks, one per value)."""
+    """The switches a chunk for these runs is specialised to (``values``: each input's
+    value per run), sorted: the torque law's and use_fdi, where every run gives them
+    alike (two values each in practice: 0 or 1); the controller's options only all
+    together, where every run leaves them all off (their defaults). A batch with an
+    option on keeps every option an input, so one compiled chunk serves all the option
+    sets and values of a loop: specialised per set, the test suite's runs had made 38
+    more chunks from an empty cache (129 against 91)."""
     shared = []
     for name, entries in switch_entries(loop).items():
         if any(v is None for v in values[name]):
             continue
         rows = np.array([np.atleast_1d(np.asarray(v, dtype=float)) for v in values[name]])
-        for i, default in entries.items():
-            if np.all(rows[:, i] == default):
-                shared.append((name, i, default))
+        if name == "p_ctrl":
+            if all(np.all(rows[:, i] == d) for i, d in entries.items()):
+                shared += [(name, i, d) for i, d in entries.items()]
+            continue
+        for i in entries:
+            column = rows[:, i]
+            if np.isfinite(column[0]) and np.all(column == column[0]):
+                shared.append((name, i, float(column[0])))
     return tuple(sorted(shared))
 
 
