@@ -22,45 +22,34 @@ def _prepared(raw: dict):
     return rc, cases._prepare(rc, check=False)[0]
 
 
-def test_the_switches_are_the_options_and_the_torque_law_by_name():
+def test_the_switches_are_the_options_by_name_with_their_defaults():
     rc, _ = _prepared({"controller": "physical", "case": 4})
-    found = specialise.switch_entries(rc.loop)
-    ctrl = {lay.names("physical_params")[i]: v for i, v in found["p_ctrl"].items()}
-    assert ctrl == {**dict.fromkeys(OPTIONS_ON, 0.0), "phys_actuator_model": 1.0}
-    turbine = {lay.names("turbine_params")[i]: v for i, v in found["p_turbine"].items()}
-    assert turbine == dict.fromkeys(["gen_torque_law", "gen_constant_power",
-                                     "vs_constant_torque"], 0.0)
-    assert found["use_fdi"] == {0: 0.0}
+    found = {lay.names("physical_params")[i]: v
+             for i, v in specialise.switch_entries(rc.loop).items()}
+    assert found == {**dict.fromkeys(OPTIONS_ON, 0.0), "phys_actuator_model": 1.0}
     pi, _ = _prepared({"controller": "pi", "case": 2})
-    assert [lay.names("pi_params")[i] for i in specialise.switch_entries(pi.loop)["p_ctrl"]] \
-        == ["pi_lpf_corner", "pi_ps_pitch"]
+    assert [lay.names("pi_params")[i] for i in specialise.switch_entries(pi.loop)] == \
+        ["pi_lpf_corner", "pi_ps_pitch"]
+    paper, _ = _prepared({"controller": "paper", "case": 3})
+    assert specialise.switch_entries(paper.loop) == {}
 
 
-def test_the_options_are_folded_all_off_or_not_at_all_and_the_torque_law_as_shared():
+def test_the_options_are_folded_all_off_or_not_at_all():
     rc, off = _prepared({"controller": "physical", "case": 2})
     _, on = _prepared({"controller": "physical", "case": 2, "controller_params": {
         "phys_td_gain": 0.02}})
     _, on2 = _prepared({"controller": "physical", "case": 2, "controller_params": {
         "phys_obs_omega": 3.0}})
-    law_rc, law = _prepared({"controller": "physical", "case": 2,
-                             "turbine_params": {"gen_torque_law": 1.0}})
-    options = {i for i, _ in specialise.switch_entries(rc.loop)["p_ctrl"].items()}
-
-    def folded(runs, loop=rc.loop):
-        return {(n, i): v for n, i, v in integrate.run_switches(loop, runs)}
-
-    alone = folded([off])
-    assert {i for n, i in alone if n == "p_ctrl"} == options
-    # any option on: none folded, so every option set and value shares one chunk
-    assert not {i for n, i in folded([on]) if n == "p_ctrl"}
-    assert folded([on]) == folded([on2]) == folded([off, on])
-    torque_law = ("p_turbine", lay.index("turbine_params", "gen_torque_law"))
-    # the turbine's switches are the loop's (its turbine), folded at their value
-    assert alone[torque_law] == 0.0 and folded([law], law_rc.loop)[torque_law] == 1.0
-    # a tag names what is folded: another set, another compiled chunk
-    assert specialise.tag(integrate.run_switches(rc.loop, [off])) != \
-        specialise.tag(integrate.run_switches(rc.loop, [on]))
-    assert specialise.tag(()) == ""
+    options = set(specialise.switch_entries(rc.loop))
+    alone = integrate.run_switches(rc.loop, [off])
+    assert {i for _, i, _ in alone} == options
+    assert {(i, v) for _, i, v in alone} == set(specialise.switch_entries(rc.loop).items())
+    # any option on in the batch: none folded, so every option set and value shares the
+    # one general chunk
+    assert integrate.run_switches(rc.loop, [on]) == integrate.run_switches(rc.loop, [on2]) \
+        == integrate.run_switches(rc.loop, [off, on]) == ()
+    # a tag names what is folded: the folded chunk is compiled apart from the general one
+    assert specialise.tag(alone) != "" and specialise.tag(()) == ""
 
 
 def test_the_options_off_are_folded_out_of_the_physical_step():

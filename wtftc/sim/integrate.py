@@ -359,12 +359,9 @@ def exact_sensors(loop: Loop, runs: list[Run]) -> bool:
 
 
 def run_switches(loop: Loop, runs: list[Run]) -> tuple[specialise.Switch, ...]:
-    """The switches of ``loop`` (:mod:`wtftc.sim.specialise`) that every run gives alike,
-    from the values :func:`_put_static` passes."""
-    return specialise.shared_switches(loop, {
-        "p_ctrl": [r.p_ctrl for r in runs],
-        "p_turbine": [plant_params(loop, r) for r in runs],
-        "use_fdi": [[float(r.use_fdi)] for r in runs]})
+    """The switches of ``loop`` (:mod:`wtftc.sim.specialise`) its chunk for ``runs`` is
+    specialised to."""
+    return specialise.shared_switches(loop, [r.p_ctrl for r in runs])
 
 
 class Buffered:
@@ -788,8 +785,8 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     only): acts between chunks of ``hook.steps`` steps (see :class:`ChunkHook`).
     ``metric_states``: keep METRIC_STATES at every step (``Result.full``), which the
     metrics read; False saves their memory, and the metrics fall back to the outputs.
-    ``specialised``: the chunk specialised to the switches every run gives alike
-    (:func:`run_switches`); False: the general chunk (the same numbers).
+    ``specialised``: the chunk specialised to the controller's options where every run
+    leaves them off (:func:`run_switches`); False: the general chunk (the same numbers).
     """
     if hook is not None and len(runs) != 1:
         raise ValueError("a chunk hook drives one run at a time")

@@ -1,13 +1,14 @@
 """Loops specialised to the switches their runs share (issue 35).
 
-Options such as issue 34's speed observer, peak shaving and tower damper, the generator's
-torque law or the FDI's feed are parameters that switch a part of the loop on or off: a
-``Piecewise`` on them computes both branches at every call, and an option off still costs
-its operations (the physical AFTC's RK4 step: 3,380 SX instructions with every option
-symbolic, 1,710 with the options of the bench's run folded in). A chunk specialised to the
-switches its batch's runs share (:func:`shared_switches`) is built with those values as
-constants: CasADi folds each switched-off branch away when it builds the graph. The inputs
-stay the same (the switches are passed and not read), so nothing else changes.
+Issue 34's options (the speed observer and its schedule, peak shaving, the tower damper
+and its low-pass, the actuator model; the PI's filter and peak shaving) are controller
+parameters that switch a part of the design on or off: a ``Piecewise`` on them computes
+both branches at every call, and an option off still costs its operations (the physical
+AFTC's RK4 step: 3,380 SX instructions with every option an input, 1,710 with them off
+and folded in). A chunk for runs that all leave every option off
+(:func:`shared_switches`) is built with those values as constants: CasADi folds each
+switched-off branch away when it builds the graph. The inputs stay the same (the
+switches are passed and not read), so nothing else changes.
 
 The numbers are the general chunk's given those values, bit for bit, wherever they are
 finite: a folded branch is the same operations on the same values, and the one identity
@@ -29,50 +30,33 @@ from wtftc.sim.rhs import Loop, controllers
 #: or off: derivation/physical.py, design.py, pi_baseline.py
 CONTROLLER_SWITCHES = ("_obs_omega", "_obs_omega_max", "_ps_pitch", "_td_gain", "_td_lpf",
                        "_actuator_model", "_lpf_corner")
-#: turbine parameters that switch the generator's torque law (derivation/turbine.py)
-TURBINE_SWITCHES = ("gen_torque_law", "gen_constant_power", "vs_constant_torque")
 
 #: one switch folded into a chunk: (the step's input, the entry, its value)
 Switch = tuple[str, int, float]
 
 
-def switch_entries(loop: Loop) -> dict[str, dict[int, float]]:
-    """The switches of ``loop``'s step, by input, with their defaults (off): the entries
-    of p_ctrl and p_turbine, and use_fdi (an FDI loop's)."""
+def switch_entries(loop: Loop) -> dict[int, float]:
+    """The switches of ``loop``'s controller: their entries in p_ctrl, with their defaults
+    (off)."""
     group = controllers()[loop.controller]["params"]
-    ctrl, ctrl_default = lay.names(group), lay.defaults(group)
-    turbine, turbine_default = lay.names("turbine_params"), lay.defaults("turbine_params")
-    out = {"p_ctrl": {i: float(ctrl_default[i]) for i, n in enumerate(ctrl)
-                      if n.endswith(CONTROLLER_SWITCHES)},
-           "p_turbine": {turbine.index(n): float(turbine_default[turbine.index(n)])
-                         for n in TURBINE_SWITCHES}}
-    if loop.fdi:
-        out["use_fdi"] = {0: 0.0}
-    return out
+    names, defaults = lay.names(group), lay.defaults(group)
+    return {i: float(defaults[i]) for i, n in enumerate(names) if n.endswith(CONTROLLER_SWITCHES)}
 
 
-def shared_switches(loop: Loop, values: dict[str, list[np.ndarray]]) -> tuple[Switch, ...]:
-    """The switches a chunk for these runs is specialised to (``values``: each input's
-    value per run), sorted: the torque law's and use_fdi, where every run gives them
-    alike (two values each in practice: 0 or 1); the controller's options only all
-    together, where every run leaves them all off (their defaults). A batch with an
-    option on keeps every option an input, so one compiled chunk serves all the option
-    sets and values of a loop: specialised per set, the test suite's runs had made 38
-    more chunks from an empty cache (129 against 91)."""
-    shared = []
-    for name, entries in switch_entries(loop).items():
-        if any(v is None for v in values[name]):
-            continue
-        rows = np.array([np.atleast_1d(np.asarray(v, dtype=float)) for v in values[name]])
-        if name == "p_ctrl":
-            if all(np.all(rows[:, i] == d) for i, d in entries.items()):
-                shared += [(name, i, d) for i, d in entries.items()]
-            continue
-        for i in entries:
-            column = rows[:, i]
-            if np.isfinite(column[0]) and np.all(column == column[0]):
-                shared.append((name, i, float(column[0])))
-    return tuple(sorted(shared))
+def shared_switches(loop: Loop, p_ctrl: list[np.ndarray | None]) -> tuple[Switch, ...]:
+    """The switches a chunk for runs with these controller parameters is specialised to:
+    all of them, where every run leaves them all off (their defaults); else none, so that
+    one compiled chunk serves every option set and value of a loop. (Folding each option
+    at its shared value, and the torque law and use_fdi too, made one chunk per option
+    set and value: from an empty cache the test suite compiled 130 chunks instead of 91,
+    for 3 % fewer operations in the bench's step than the options alone.)"""
+    entries = switch_entries(loop)
+    if not entries or any(p is None for p in p_ctrl):
+        return ()
+    rows = np.array([np.asarray(p, dtype=float) for p in p_ctrl])
+    if not all(np.all(rows[:, i] == d) for i, d in entries.items()):
+        return ()
+    return tuple(("p_ctrl", i, d) for i, d in sorted(entries.items()))
 
 
 def tag(switches: tuple[Switch, ...]) -> str:
