@@ -95,19 +95,22 @@ CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casa
 {per_step}
     sarg[0] = z;
     sres[0] = res[0] ? res[0] + k * nz : zbuf + (k % 2) * nz;
-    if (res[1] && k == next) {{
-      sres[1] = res[1] + col++ * no;
-      next += every;
-      if ({step}(sarg, sres, iw, w, mem)) return 1;
-    }} else {{
-      sres[1] = obuf;
-      if ({state_step}(sarg, sres, iw, w, mem)) return 1;
-    }}
+{report_or_state}
     z = sres[0];
   }}
   return 0;
 }}
 """
+
+def _report_or_state(step: str, state_step: str, col: str, scratch: str, indent: str) -> str:
+    """C: step k's report into the next kept column where k is on the report grid (``step``),
+    else the next state alone (``state_step``, its report into ``scratch``)."""
+    lines = ["if (res[1] && k == next) {", f"  sres[1] = res[1] + {col}++ * no;",
+             "  next += every;", f"  if ({step}(sarg, sres, iw, w, mem)) return 1;",
+             "} else {", f"  sres[1] = {scratch};",
+             f"  if ({state_step}(sarg, sres, iw, w, mem)) return 1;", "}"]
+    return "\n".join(indent + x for x in lines)
+
 
 #: the steps driver's inputs after the step's: which steps' reports it keeps
 REPORT_INPUTS = ("out_every", "out_first")
@@ -130,7 +133,9 @@ def steps_source(step: ca.Function, n: int, name: str, per_step: tuple[str, ...]
     called = [step.name()] + ([state_step.name()] if state_step is not None else [])
     return _interface(name, inputs + [(x, 1, 1) for x in REPORT_INPUTS], outputs,
                       called, f"3 * {max(nz, no)}") + \
-        _STEPS.format(name=name, step=step.name(), state_step=called[-1], n=n,
+        _STEPS.format(name=name, n=n,
+                      report_or_state=_report_or_state(step.name(), called[-1], "col",
+                                                       "obuf", "    "),
                       n_in=len(ins), n_report=len(REPORT_INPUTS), n_out=len(outs),
                       per_step="\n".join(
                           f"    if (arg[{j}]) sarg[{j}] = arg[{j}] + k * {r};"
@@ -174,14 +179,7 @@ CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casa
       /* the plant (and the sensors' lags) over one step of dt, the command held */
 {plant_args}
       sres[0] = xb;
-      if (res[1] && k == next) {{
-        sres[1] = res[1] + kept++ * no;
-        next += every;
-        if ({plant}(sarg, sres, iw, w, mem)) return 1;
-      }} else {{
-        sres[1] = outs;
-        if ({plant_state}(sarg, sres, iw, w, mem)) return 1;
-      }}
+{report_or_state}
 {fdi_call}
       /* the state after the step: the controller's as sampled until the last step */
       t = res[2] ? res[2] + k * nz : col;
@@ -252,11 +250,12 @@ def intervals_source(loop: Loop, m: int, name: str,
                f"{iv.size1_out(1)}")
     body = _INTERVALS.format(
         name=name, n_in=len(ins), n_report=len(REPORT_INPUTS), n_out=3,
-        plant_state=fns[-1].name(), i_dt=idx["dt"], nz=sz["z"], np=sz["p"],
+        report_or_state=_report_or_state(fns[1].name(), fns[-1].name(), "kept", "outs",
+                                         "      "), i_dt=idx["dt"], nz=sz["z"], np=sz["p"],
         nc=sz["c"], nf=sz["f"] if loop.fdi else 0, ns=sz["s"], nb=sz["b"],
         nh=sampled._held_size(loop), nm=sz["m"], no=iv.size1_out(1), steps=steps, m=m,
         max_work=_max_work([f.name() for f in fns]), sample=fns[0].name(),
-        sample_args=_args(fns[0], interval, "    "), plant=fns[1].name(),
+        sample_args=_args(fns[0], interval, "    "),
         plant_args=_args(fns[1], plant, "      "),
         fdi_call=_FDI_CALL.format(i_p_fdi=idx.get("p_fdi", -1), fdi=fns[2].name())
         if loop.fdi else "")
