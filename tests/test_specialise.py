@@ -53,8 +53,9 @@ def test_the_options_are_folded_all_off_or_not_at_all():
 
 
 def test_the_options_off_are_folded_out_of_the_physical_step():
-    """The physical step with issue 34's options off and the fixed torque of the bench
-    (its run's switches folded): about half the operations of the general step."""
+    """The physical step with issue 34's options off and folded (the bench's loop, without
+    its exact sensors): two thirds of the operations of the general step (4,744 → 3,074
+    SX instructions when written)."""
     rc, run = _prepared({"controller": "physical", "case": 3,
                          "turbine_params": {"gen_torque_law": 0.0}})
     loop = replace(rc.loop, fdi=False)  # the loop of a run without the FDI: one SX step
@@ -71,14 +72,17 @@ def test_the_options_off_are_folded_out_of_the_physical_step():
     {"controller": "physical", "case": 3, "t_final_s": 20.0,
      "turbine_params": {"gen_torque_law": 0.0},
      "fault": [{"type": "loss_of_effectiveness", "blade": 2, "rho": 0.5, "onset_s": 5.0}]},
-    # sampled, noisy sensors and the FDI, the options on (the candidate's), a lock
+    # sampled, noisy sensors and the FDI feeding the accommodation, a lock (the realistic
+    # profile, its options off)
     {"controller": "physical", "case": 4, "t_final_s": 20.0, "profile": "realistic",
-     "controller_params": OPTIONS_ON, "wind": {"kind": "ntm", "mean_mps": 16.0},
+     "wind": {"kind": "ntm", "mean_mps": 16.0},
      "fault": [{"type": "lock", "blade": 1, "onset_s": 8.0}]},
 ])
 def test_the_specialised_chunk_gives_the_general_ones_numbers(raw, monkeypatch):
-    """Bit for bit, outputs, the states the metrics read and the final state."""
+    """Outputs, the states the metrics read and the final state, in raw bits (signed zeros
+    included: CasADi's folding of x + 0 could part them, and does not on these runs)."""
     rc = config.make_config(raw)
+    assert integrate.run_switches(rc.loop, [cases._prepare(rc, check=False)[0]]) != ()
     real = integrate.run_loops
     got = {}
     for spec in (True, False):
@@ -86,6 +90,6 @@ def test_the_specialised_chunk_gives_the_general_ones_numbers(raw, monkeypatch):
             *a, **{**k, "specialised": _s}))
         got[spec] = cases.run_batch([rc], progress=False)[0]
     assert got[True].steps == got[False].steps == round(raw["t_final_s"] / rc.dt)
-    np.testing.assert_array_equal(got[True].outputs, got[False].outputs)
-    np.testing.assert_array_equal(got[True].full, got[False].full)
-    np.testing.assert_array_equal(got[True].z_final, got[False].z_final)
+    for name in ("outputs", "full", "z_final"):
+        a, b = getattr(got[True], name), getattr(got[False], name)
+        np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64), err_msg=name)

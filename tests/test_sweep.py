@@ -3,8 +3,10 @@
 import json
 import os
 import signal
+import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -248,6 +250,46 @@ def test_unreachable_scheduler_is_a_clear_error(tmp_path):
     assert "connection was refused" in p.stderr  # said at once, not after Dask's 10 s
     assert "Traceback" not in p.stderr
     assert not (tmp_path / "x").exists()  # refused before anything was written
+
+
+def _answering_not_dask() -> tuple[socket.socket, threading.Thread]:
+    """A local TCP server that answers every connection with bytes that are not Dask's."""
+    server = socket.create_server(("127.0.0.1", 0))
+
+    def serve():
+        while True:
+            try:
+                conn, _ = server.accept()
+            except OSError:  # closed
+                return
+            with conn:
+                conn.sendall(b"\xff" * 64)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    return server, thread
+
+
+@pytest.mark.parametrize("what", ["not_dask", "port"])
+def test_a_scheduler_address_that_cannot_be_dask_is_a_clear_error(tmp_path, what):
+    server = None
+    if what == "not_dask":
+        server, _ = _answering_not_dask()
+        # Dask reads its reply as a frame of absurd length: a ValueError here, a
+        # MemoryError behind a proxy that answered with more bytes
+        address, said = f"tcp://127.0.0.1:{server.getsockname()[1]}", "tcp://HOST:PORT ("
+    else:
+        address, said = "tcp://127.0.0.1:99999999999999999999", "outside 1-65535"
+    try:
+        p = wtftc("sweep", ROOT / "examples" / "sweep_small.toml", "--out", tmp_path / "x",
+                  "--scheduler", address, timeout=120)
+    finally:
+        if server is not None:
+            server.close()
+    assert p.returncode == 2, p.stderr
+    assert f"--scheduler = '{address}' is not allowed" in p.stderr and said in p.stderr
+    assert "Traceback" not in p.stderr
+    assert not (tmp_path / "x").exists()
 
 
 def test_summary_of_a_folder_that_is_not_a_sweep(tmp_path):

@@ -42,26 +42,43 @@ def client(scheduler: str | None, workers: int):
             raise ConfigError("--scheduler", scheduler, "the address of a running Dask "
                               f"scheduler, tcp://HOST:PORT ({type(exc).__name__}: {exc})"
                               ) from None
+        except Exception as exc:  # noqa: BLE001 (something answered that is not Dask:
+            # its reply read as a frame length of exabytes, MemoryError)
+            raise ConfigError("--scheduler", scheduler, "the address of a running Dask "
+                              "scheduler, tcp://HOST:PORT (something answered there, not a "
+                              f"Dask scheduler: {type(exc).__name__})") from None
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                            dashboard_address=":0", silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
+#: how long the address of a tcp:// scheduler is given to answer before Dask is asked [s]
+PROBE_S = 5.0
+
+
 def _refused(scheduler: str) -> None:
-    """A ConfigError at once where nothing listens at a tcp:// scheduler's address (the
-    connection refused), instead of after Dask's 10-s attempt to connect."""
+    """A ConfigError at once where a tcp:// scheduler's address cannot be a scheduler: a
+    port outside 1-65535, nothing listening there (the connection refused), or no answer
+    within PROBE_S; Dask's own attempt (10 s) says what else is wrong."""
     m = re.fullmatch(r"tcp://\[?([^\]/]+?)\]?:(\d+)/?", scheduler)
     if m is None:
         return
-    try:
-        with socket.create_connection((m.group(1), int(m.group(2))), timeout=10):
+    why = None
+    port = int(m.group(2))
+    if not 1 <= port <= 65535:
+        why = f"port {port} is outside 1-65535"
+    else:
+        try:
+            with socket.create_connection((m.group(1), port), timeout=PROBE_S):
+                return
+        except ConnectionRefusedError:
+            why = "nothing listens there: the connection was refused"
+        except TimeoutError:
+            why = f"no answer from there within {PROBE_S:g} s"
+        except (OSError, ValueError):
             return
-    except ConnectionRefusedError:
-        raise ConfigError("--scheduler", scheduler, "the address of a running Dask "
-                          "scheduler, tcp://HOST:PORT (nothing listens there: the connection "
-                          "was refused)") from None
-    except (OSError, ValueError):
-        return  # Dask's own attempt says what is wrong
+    raise ConfigError("--scheduler", scheduler, "the address of a running Dask scheduler, "
+                      f"tcp://HOST:PORT ({why})")
 
 
 def close(cl, cluster) -> None:

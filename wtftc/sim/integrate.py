@@ -678,8 +678,8 @@ def _noise_streams(loop: Loop, runs: list[Run], exact: bool = False,
                    ) -> list[list[np.random.Generator]]:
     """Per run, one generator per measured signal (deterministic from the run's noise
     seed, independent across signals): the draws of a signal do not depend on how the
-    run is cut into chunks. None for a chunk specialised to exact sensors, which does not
-    read its noise."""
+    run is cut into chunks. None (empty lists) for a chunk specialised to exact sensors,
+    which does not read its noise."""
     if not loop.sampled or exact:
         return [[] for _ in runs]
     return [[np.random.default_rng(np.random.SeedSequence(r.noise_seed, spawn_key=(7, k)))
@@ -786,7 +786,8 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     ``metric_states``: keep METRIC_STATES at every step (``Result.full``), which the
     metrics read; False saves their memory, and the metrics fall back to the outputs.
     ``specialised``: the chunk specialised to the controller's options where every run
-    leaves them off (:func:`run_switches`); False: the general chunk (the same numbers).
+    leaves them off (:func:`run_switches`; not with a hook); False: not specialised to
+    them (the same numbers; exact sensors are still folded where every run has them).
     """
     if hook is not None and len(runs) != 1:
         raise ValueError("a chunk hook drives one run at a time")
@@ -795,7 +796,9 @@ def run_loops(loop: Loop, runs: list[Run], t_final: float, dt: float, decimate: 
     exact = own and exact_sensors(loop, runs)
     f = chunk_function(loop, n=hook.steps if hook else chunk_steps(loop), fast_math=fast_math,
                        quiet=not progress, exact=exact,
-                       switches=run_switches(loop, runs) if specialised else ()) \
+                       # a hook may write any input: none is folded under one
+                       switches=run_switches(loop, runs) if specialised and hook is None
+                       else ()) \
         if own else hook.function
     shards = _shards(len(runs), threads)
     tracker = _Tracker(n_steps, dt, [len(s) for s in shards], progress)

@@ -10,10 +10,11 @@ and folded in). A chunk for runs that all leave every option off
 switched-off branch away when it builds the graph. The inputs stay the same (the
 switches are passed and not read), so nothing else changes.
 
-The numbers are the general chunk's given those values, bit for bit, wherever they are
-finite: a folded branch is the same operations on the same values, and the one identity
-CasADi applies that IEEE arithmetic does not, 0·x = 0, differs only for an infinite or
-NaN x, where a run has already diverged (tests/test_specialise.py).
+The numbers are the general chunk's given those values: a folded branch is the same
+operations on the same values. The identities CasADi applies as it folds that IEEE
+arithmetic does not are 0·x = 0 (not so for an infinite or NaN x, where a run has
+already diverged) and x + 0 = x (not so for the sign of a zero x, which the runs of
+tests/test_specialise.py never meet: they compare in raw bits).
 """
 
 from __future__ import annotations
