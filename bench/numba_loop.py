@@ -1050,6 +1050,12 @@ def sched_data(table, p_turbine: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return grid.copy(), values.copy()
 
 
+def wind_rows(wind, dt: float, n_steps: int) -> np.ndarray:
+    """(n_steps, 3): the wind at t_k, t_k + dt/2 and t_k + dt of every step."""
+    tk = np.arange(n_steps) * dt
+    return np.column_stack([wind(tk), wind(tk + dt / 2), wind(tk + dt)])
+
+
 def step_inputs(rc, dt: float, n_steps: int) -> StepInputs:
     """The wind at t_k, t_k + dt/2, t_k + dt and the fault rows at t_k of
     wtftc.sim.integrate.run_loops (the plant's schedule; eq (49)'s in case 3, nominal otherwise),
@@ -1057,7 +1063,7 @@ def step_inputs(rc, dt: float, n_steps: int) -> StepInputs:
     from wtftc.model.faults import Schedule, nominal_actuator
 
     tk = np.arange(n_steps) * dt
-    wind3 = np.column_stack([rc.wind(tk), rc.wind(tk + dt / 2), rc.wind(tk + dt)])
+    wind3 = wind_rows(rc.wind, dt, n_steps)
     tp = rc.loop.p_turbine
     schedule = Schedule(copy.deepcopy(rc.faults), tp) if rc.faults else None
     ctrl_schedule = Schedule(copy.deepcopy(rc.faults), tp) if rc.told_fault else None
@@ -1137,9 +1143,6 @@ def omega_trajectory(prep: Prepared, problem=None, dt: float | None = None,
     n = prep.n_steps if t_final is None else int(round(t_final / dt))
     args = prep.args(n, dt, every, interval)
     if wind_inside:
-        tk = np.arange(n) * dt
-        wind = prep.config.wind
-        args = (args[0], np.column_stack([wind(tk), wind(tk + dt / 2), wind(tk + dt)]),
-                *args[2:])
+        args = (args[0], wind_rows(prep.config.wind, dt, n), *args[2:])
     z, _ = prep.loop(interval)(*args)
     return z[:, 0].copy()

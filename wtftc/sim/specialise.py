@@ -32,8 +32,8 @@ from wtftc.sim.rhs import Loop, controllers
 CONTROLLER_SWITCHES = ("_obs_omega", "_obs_omega_max", "_ps_pitch", "_td_gain", "_td_lpf",
                        "_actuator_model", "_lpf_corner")
 
-#: one switch folded into a chunk: (the step's input, the entry, its value)
-Switch = tuple[str, int, float]
+#: one switch folded into a chunk: (its entry in p_ctrl, its value)
+Switch = tuple[int, float]
 
 
 def switch_entries(loop: Loop) -> dict[int, float]:
@@ -57,32 +57,21 @@ def shared_switches(loop: Loop, p_ctrl: list[np.ndarray | None]) -> tuple[Switch
     rows = np.array([np.asarray(p, dtype=float) for p in p_ctrl])
     if not all(np.all(rows[:, i] == d) for i, d in entries.items()):
         return ()
-    return tuple(("p_ctrl", i, d) for i, d in sorted(entries.items()))
+    return tuple(sorted(entries.items()))
 
 
 def tag(switches: tuple[Switch, ...]) -> str:
     """The part of a chunk's label naming its switches ('' for none)."""
     if not switches:
         return ""
-    text = ";".join(f"{n}[{i}]={v!r}" for n, i, v in switches)
+    text = ";".join(f"p_ctrl[{i}]={v!r}" for i, v in switches)
     return "_sw" + hashlib.sha256(text.encode()).hexdigest()[:10]
-
-
-def by_input(switches: tuple[Switch, ...]) -> dict[str, dict[int, float]]:
-    """The switches as {input: {entry: value}}."""
-    out: dict[str, dict[int, float]] = {}
-    for name, i, v in switches:
-        out.setdefault(name, {})[i] = v
-    return out
 
 
 def folded(f: ca.Function, fixed: dict, name: str | None = None) -> ca.Function:
     """The SX function ``f`` with the values of ``fixed`` ({input: {entry: value}} or
     {input: whole value}) as constants: the same inputs, those values passed and not
     read."""
-    if not fixed:
-        return f if name is None else ca.Function(name, f.sx_in(), f.call(f.sx_in()),
-                                                  f.name_in(), f.name_out())
     ins = f.sx_in()
     values = [given(x, fixed.get(n)) for n, x in zip(f.name_in(), ins, strict=True)]
     return ca.Function(name or f.name(), ins, f.call(values), f.name_in(), f.name_out())
