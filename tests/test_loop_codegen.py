@@ -160,7 +160,8 @@ def test_the_c_drivers_are_mapaccum_bit_for_bit(raw, monkeypatch):
     continuous loop's steps) against the same functions chained by CasADi's mapaccum,
     both compiled: a realistic (noisy, sampled, FDI) run with a lock and a sensor fault,
     a sampled run with the command delayed on the tower, a continuous run with a speed
-    sensor's fault."""
+    sensor's fault; the drivers' lean record (wtftc.sim.drivers.LEAN_OUTPUTS) against
+    the states of every step that mapaccum gives."""
     rc = config.make_config(raw)
     integrate.chunk_function.cache_clear()
     driven = cases.run(rc, progress=False)
@@ -177,6 +178,9 @@ def test_the_c_drivers_are_mapaccum_bit_for_bit(raw, monkeypatch):
     assert driven.diverged is None
     np.testing.assert_array_equal(driven.outputs, chained.outputs)
     np.testing.assert_array_equal(driven.z_final, chained.z_final)
+    # the metrics' states at every step: the drivers' lean record against mapaccum's states
+    assert driven.every_step and driven.full.shape == chained.full.shape
+    np.testing.assert_array_equal(driven.full, chained.full)
 
 
 def test_the_stage_shared_step_and_four_calls_of_the_rhs_agree_bit_for_bit(monkeypatch):
@@ -300,7 +304,8 @@ def test_the_loops_divide_less_and_compute_the_same_to_rounding():
 def test_the_steps_driver_keeps_the_reports_asked_for():
     """REPORT_INPUTS: every 4th step's report from step 1 lands in the report's first
     columns, the same bits as that step's report when every step's is kept; the states of
-    every step as before."""
+    every step as before. LEAN_INPUTS: the first 600 steps run, their lean record the
+    same bits as the states of every step."""
     from dataclasses import replace
 
     from bench import runner
@@ -309,7 +314,7 @@ def test_the_steps_driver_keeps_the_reports_asked_for():
     p = Problem("physical_case3", *LOOPS["physical_case3"])
     loop = replace(p.config.loop, fdi=False)
     f = integrate.chunk_function(loop, n=1000, quiet=True, exact=True)
-    assert f.name_in()[-2:] == list(integrate.REPORT_INPUTS)
+    assert f.name_in()[-4:] == list(integrate.REPORT_INPUTS + integrate.LEAN_INPUTS)
     w3, af, sf, ck = runner.step_inputs(p, 0.001, 1000)
     args = dict(z=p.z0, wind3=w3, actuator_faults=af, sensor_faults=sf, ctrl_fault=ck,
                 yd=p.yd, p_turbine=loop.p_turbine, p_ctrl=p.config.p_ctrl, cp_scale=1.0,
@@ -317,11 +322,21 @@ def test_the_steps_driver_keeps_the_reports_asked_for():
     call = integrate.Buffered(f)
     for name, value in args.items():
         call.put(name, value)
-    z_all, o_all = (a.copy() for a in call.evaluate())
-    integrate._report_grid(call, 1, 4, 1)
-    z_some, o_some = call.evaluate()
+    z_all, o_all, _, _ = (a.copy() for a in call.evaluate())
+    integrate._driver_modes(call, 1, 4, 1, 1000, False)
+    z_some, o_some, _, _ = call.evaluate()
     np.testing.assert_array_equal(z_some, z_all)
     np.testing.assert_array_equal(o_some[:, :250], o_all[:, 1::4])
+    # the lean record of the first 600 steps: the metrics' rows of the state before each
+    # step, the state after the last, nothing out of bounds, the rotor speed's extremes
+    integrate._driver_modes(call, 1, 4, 1, 600, True)
+    _, _, kept, check = call.evaluate()
+    rows, watch = integrate.lean_rows(loop)
+    before = np.hstack([p.z0[:, None], z_all[:, :599]])
+    np.testing.assert_array_equal(kept[:, :600], before[list(rows)])
+    nz = len(p.z0)
+    np.testing.assert_array_equal(check[:nz, 0], z_all[:, 599])
+    assert list(check[nz:, 0]) == [0.0, z_all[watch, :600].max(), z_all[watch, :600].min()]
 
 
 @pytest.mark.parametrize("raw", [
@@ -341,7 +356,7 @@ def test_runs_keeping_only_their_output_grid_are_the_runs_keeping_every_report(r
     rc = config.make_config(DIVERGING_RUN if raw == "diverging" else raw)
     assert rc.decimate > 1
     compact = cases.run(rc, progress=False)
-    monkeypatch.setattr(integrate, "REPORT_INPUTS", ("not_an_input", "not_an_input"))
+    monkeypatch.setattr(integrate, "LEAN_INPUTS", ("not_an_input", "not_an_input"))
     full = cases.run(rc, progress=False)
     np.testing.assert_array_equal(compact.outputs, full.outputs)
     np.testing.assert_array_equal(compact.t, full.t)

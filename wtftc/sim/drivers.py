@@ -82,22 +82,24 @@ CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casa
   casadi_real** sres = res + {n_out};
   casadi_real *zbuf, *obuf;
   const casadi_real* z = arg[0];
-  casadi_int k, j, every = 1, next = 0, col = 0;
+  casadi_int k, j, every = 1, next = 0, col = 0, used = {n};
+  int lean = 0;
+{declarations}
 {max_work}
-  /* the report of every out_every-th step from step out_first, in its first columns
-   * (left out: every step's) */
-  if (arg[{n_in}] && arg[{n_in}][0] > 1) every = (casadi_int) arg[{n_in}][0];
-  if (arg[{n_in} + 1] && arg[{n_in} + 1][0] > 0) next = (casadi_int) arg[{n_in} + 1][0];
+{modes}
   zbuf = w + ww;
   obuf = zbuf + 2 * nz;
   for (j = 1; j < {n_in}; j++) sarg[j] = arg[j];  /* the held inputs, once */
-  for (k = 0; k < {n}; k++) {{
+  for (k = 0; k < used; k++) {{
 {per_step}
     sarg[0] = z;
-    sres[0] = res[0] ? res[0] + k * nz : zbuf + (k % 2) * nz;
+{keep_before}
+    sres[0] = res[0] && !lean ? res[0] + k * nz : zbuf + (k % 2) * nz;
 {report_or_state}
     z = sres[0];
+{watch_after}
   }}
+{check_end}
   return 0;
 }}
 """
@@ -114,33 +116,98 @@ def _report_or_state(step: str, state_step: str, col: str, scratch: str, indent:
 
 #: the steps driver's inputs after the step's: which steps' reports it keeps
 REPORT_INPUTS = ("out_every", "out_first")
+#: then what it computes and writes: the steps it runs (``n_used``: the first of the
+#: chunk's; 0 or left out: all) and, ``lean`` > 0, the lean record (LEAN_OUTPUTS) in place
+#: of each step's state
+LEAN_INPUTS = ("n_used", "lean")
+#: the drivers' outputs after the chunk's own: the rows ``keep`` of the state before each
+#: step (the metrics' states), and the check: the state after the last step run, then 1
+#: where any state after a step was non-finite or beyond 1e8 (0 else), then the largest
+#: and the smallest value of row ``watch`` (the rotor speed) after a step
+LEAN_OUTPUTS = ("kept", "check")
+
+_MODES = """  /* the report of every out_every-th step from step out_first, in its first columns
+   * (left out: every step's); the steps run; the lean record */
+  if (arg[{a}] && arg[{a}][0] > 1) every = (casadi_int) arg[{a}][0];
+  if (arg[{a} + 1] && arg[{a} + 1][0] > 0) next = (casadi_int) arg[{a} + 1][0];
+  if (arg[{a} + 2] && arg[{a} + 2][0] > 0 && arg[{a} + 2][0] < used)
+    used = (casadi_int) arg[{a} + 2][0];
+  if (arg[{a} + 3] && arg[{a} + 3][0] > 0) lean = 1;"""
+
+_LEAN_DECLARATIONS = """  static const casadi_int kept_rows[] = {{{rows}}};
+  const casadi_int nk = {nk};
+  casadi_real *kept = {kept}, *check = {check}, wmax = -HUGE_VAL, wmin = HUGE_VAL;
+  int bad = 0;"""
+
+
+def _lean_c(lean: tuple[tuple[int, ...], int] | None, n_out: int, before: str, after: str,
+            indent: str, j: str) -> dict[str, str]:
+    """The C of the lean record (``lean``: (keep, watch); LEAN_OUTPUTS, res[n_out] and the
+    next; None: none, its pointers NULL): its declarations, the kept rows of the state
+    ``before`` step k into column k of kept, the check of the state ``after`` it, and the
+    check's column at the end (``j``: a free loop index)."""
+    keep, watch = lean if lean is not None else ((), 0)
+    i2 = indent + "  "
+    return {
+        "declarations": _LEAN_DECLARATIONS.format(
+            rows=", ".join(map(str, keep)) or "0", nk=len(keep),
+            kept=f"res[{n_out}]" if lean else "0", check=f"res[{n_out} + 1]" if lean else "0"),
+        "keep_before": f"{indent}if (kept) for ({j} = 0; {j} < nk; {j}++) "
+                       f"kept[k * nk + {j}] = {before}[kept_rows[{j}]];",
+        "watch_after": "\n".join([
+            f"{indent}if (check) {{",
+            f"{i2}casadi_real v = {after}[{watch}];",
+            f"{i2}for ({j} = 0; {j} < nz; {j}++)",
+            f"{i2}  bad |= !({after}[{j}] <= 1e8 && {after}[{j}] >= -1e8);",
+            f"{i2}if (v > wmax) wmax = v;",
+            f"{i2}if (v < wmin) wmin = v;",
+            f"{indent}}}"]),
+        "check_end": "\n".join([
+            "  if (check && used > 0) {",
+            f"    for ({j} = 0; {j} < nz; {j}++) check[{j}] = {after}[{j}];",
+            "    check[nz] = bad; check[nz + 1] = wmax; check[nz + 2] = wmin;",
+            "  }"])}
 
 
 def steps_source(step: ca.Function, n: int, name: str, per_step: tuple[str, ...],
-                 state_step: ca.Function | None = None) -> str:
+                 state_step: ca.Function | None = None,
+                 lean: tuple[tuple[int, ...], int] | None = None) -> str:
     """C of the chunk ``name``: ``n`` steps of ``step`` (state in and out first, then its
     report) in a loop; the ``per_step`` inputs one column a step, the others held (one
     column); then REPORT_INPUTS: given, the report of every ``out_every``-th step from step
     ``out_first`` only, written to the report's first columns (the others are left as they
     were: a run recording every 40th step stores 1/40 of the reports); left out, every
-    step's. ``state_step`` (the same inputs, the next state alone) takes the steps whose
-    report is not kept. The code of the functions it calls must come before it."""
+    step's; then LEAN_INPUTS. ``state_step`` (the same inputs, the next state alone) takes
+    the steps whose report is not kept. ``lean``: (keep, watch), the rows of LEAN_OUTPUTS
+    (which follow the step's outputs); None: no LEAN_OUTPUTS. The code of the functions it
+    calls must come before it."""
     ins, outs = step.name_in(), step.name_out()
     per = [int(x in per_step) for x in ins]
     nz, no = step.size1_in(0), step.size1_out(1)
     inputs = [(x, step.size1_in(i), n if per[i] else 1) for i, x in enumerate(ins)]
-    outputs = [(x, step.size1_out(i), n) for i, x in enumerate(outs)]
+    outputs = [(x, step.size1_out(i), n) for i, x in enumerate(outs)] + _lean_outputs(
+        lean, nz, n)
     called = [step.name()] + ([state_step.name()] if state_step is not None else [])
-    return _interface(name, inputs + [(x, 1, 1) for x in REPORT_INPUTS], outputs,
-                      called, f"3 * {max(nz, no)}") + \
+    return _interface(name, inputs + [(x, 1, 1) for x in REPORT_INPUTS + LEAN_INPUTS],
+                      outputs, called, f"3 * {max(nz, no)}") + \
         _STEPS.format(name=name, n=n,
                       report_or_state=_report_or_state(step.name(), called[-1], "col",
                                                        "obuf", "    "),
-                      n_in=len(ins), n_report=len(REPORT_INPUTS), n_out=len(outs),
+                      n_in=len(ins), n_report=len(REPORT_INPUTS + LEAN_INPUTS),
+                      n_out=len(outputs), modes=_MODES.format(a=len(ins)),
                       per_step="\n".join(
                           f"    if (arg[{j}]) sarg[{j}] = arg[{j}] + k * {r};"
                           for j, (_, r, _) in enumerate(inputs) if per[j]),
-                      nz=nz, no=no, max_work=_max_work(called))
+                      nz=nz, no=no, max_work=_max_work(called),
+                      **_lean_c(lean, len(outs), "z", "z", "    ", "j"))
+
+
+def _lean_outputs(lean: tuple[tuple[int, ...], int] | None, nz: int, n: int,
+                  ) -> list[tuple[str, int, int]]:
+    """LEAN_OUTPUTS as (name, rows, columns), or none without ``lean``."""
+    if lean is None:
+        return []
+    return [(LEAN_OUTPUTS[0], len(lean[0]), n), (LEAN_OUTPUTS[1], nz + 3, 1)]
 
 
 _INTERVALS = """
@@ -154,19 +221,20 @@ CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casa
   casadi_real** sres = res + {n_out};
   casadi_real *zc, *xa, *xb, *fa, *fb, *xcn, *held, *va, *vn, *rd, *me, *col, *outs, *t;
   casadi_real T, dt = arg[{i_dt}] ? arg[{i_dt}][0] : 0;
-  casadi_int j, i, k, q, every = 1, next = 0, kept = 0;
+  casadi_int j, i, k, q, every = 1, next = 0, reported = 0, used = n * m;
+  int lean = 0;
+{declarations}
 {max_work}
-  /* the report of every out_every-th plant step from step out_first, in its first columns
-   * (left out: every step's); the other steps take the state-only plant step */
-  if (arg[{n_in}] && arg[{n_in}][0] > 1) every = (casadi_int) arg[{n_in}][0];
-  if (arg[{n_in} + 1] && arg[{n_in} + 1][0] > 0) next = (casadi_int) arg[{n_in} + 1][0];
+  /* the steps not on the report grid take the state-only plant step */
+{modes}
   if (!arg[0]) return 1; /* no initial state */
   zc = w + ww; xa = zc + nz; xb = xa + np + ns; fa = xb + np + ns; fb = fa + nf;
   xcn = fb + nf; held = xcn + nc; va = held + nh; vn = va + nb; rd = vn + nb; me = rd + ns;
   col = me + nm; outs = col + nz;
   for (q = 0; q < nz; q++) zc[q] = arg[0][q];
   T = n * dt;
-  for (j = 0; j < m; j++) {{
+  t = zc;
+  for (j = 0; j * n < used; j++) {{
     /* the sample at the interval's start */
 {sample_args}
     sres[0] = xcn; sres[1] = held; sres[2] = va; sres[3] = vn; sres[4] = rd; sres[5] = me;
@@ -174,25 +242,28 @@ CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casa
     for (q = 0; q < np; q++) xa[q] = zc[q];
     for (q = 0; q < ns; q++) xa[np + q] = zc[o + q];
     for (q = 0; q < nf; q++) fa[q] = zc[np + nc + q];
-    for (i = 0; i < n; i++) {{
+    for (i = 0; i < n && j * n + i < used; i++) {{
       k = j * n + i;
+{keep_before}
       /* the plant (and the sensors' lags) over one step of dt, the command held */
 {plant_args}
       sres[0] = xb;
 {report_or_state}
 {fdi_call}
       /* the state after the step: the controller's as sampled until the last step */
-      t = res[2] ? res[2] + k * nz : col;
+      t = res[2] && !lean ? res[2] + k * nz : col;
       for (q = 0; q < np; q++) t[q] = xb[q];
       for (q = 0; q < nc; q++) t[np + q] = i < n - 1 ? zc[np + q] : xcn[q];
       for (q = 0; q < nf; q++) t[np + nc + q] = fb[q];
       for (q = 0; q < ns; q++) t[o + q] = xb[np + q];
       for (q = o + ns; q < nz; q++) t[q] = vn[q - o - ns];
       {{ casadi_real* s = xa; xa = xb; xb = s; s = fa; fa = fb; fb = s; }}
+{watch_after}
     }}
     for (q = 0; q < nz; q++) zc[q] = t[q];
     if (res[0]) for (q = 0; q < nz; q++) res[0][j * nz + q] = zc[q];
   }}
+{check_end}
   return 0;
 }}
 """
@@ -210,6 +281,7 @@ def _args(fn: ca.Function, given: dict[str, str], indent: str) -> str:
 
 def intervals_source(loop: Loop, m: int, name: str,
                      fixed: dict[str, dict[int, float]] | None = None,
+                     lean: tuple[tuple[int, ...], int] | None = None,
                      ) -> tuple[list[ca.Function], str]:
     """The functions of the sampled loop (sample, plant step, FDI step: their code comes
     first, in this order) and the C of the chunk ``name``: ``m`` control intervals, as
@@ -217,7 +289,8 @@ def intervals_source(loop: Loop, m: int, name: str,
     the same inputs (the held ones as one column) and outputs, then REPORT_INPUTS (as
     :func:`steps_source`'s: given, only the reports of the output grid are computed and
     written, the other plant steps taking the plant step's state-only twin, the same next
-    state bit for bit); ``fixed``: the functions specialised to these switch values
+    state bit for bit); then LEAN_INPUTS, and LEAN_OUTPUTS after its own with ``lean`` (as
+    :func:`steps_source`'s); ``fixed``: the functions specialised to these switch values
     (:func:`wtftc.sim.specialise.folded`)."""
     iv = sampled.interval_function(loop)
     sz = sampled._sizes(loop)
@@ -244,13 +317,14 @@ def intervals_source(loop: Loop, m: int, name: str,
              **{x: col(x, "k") for x in sampled.PER_STEP}}
     inputs = [(x, iv.size1_in(i), cols[x]) for i, x in enumerate(ins)]
     outputs = [("z_next", sz["z"], m), ("out", iv.size1_out(1), steps * m),
-               ("z_steps", sz["z"], steps * m)]
+               ("z_steps", sz["z"], steps * m)] + _lean_outputs(lean, sz["z"], steps * m)
     scratch = (f"{sz['z']} * 2 + 2 * ({sz['p']} + {sz['s']}) + 2 * {sz['f']} + {sz['c']} + "
                f"{sampled._held_size(loop)} + 2 * {sz['b']} + {sz['s']} + {sz['m']} + "
                f"{iv.size1_out(1)}")
     body = _INTERVALS.format(
-        name=name, n_in=len(ins), n_report=len(REPORT_INPUTS), n_out=3,
-        report_or_state=_report_or_state(fns[1].name(), fns[-1].name(), "kept", "outs",
+        name=name, n_in=len(ins), n_report=len(REPORT_INPUTS + LEAN_INPUTS),
+        n_out=len(outputs), modes=_MODES.format(a=len(ins)),
+        report_or_state=_report_or_state(fns[1].name(), fns[-1].name(), "reported", "outs",
                                          "      "), i_dt=idx["dt"], nz=sz["z"], np=sz["p"],
         nc=sz["c"], nf=sz["f"] if loop.fdi else 0, ns=sz["s"], nb=sz["b"],
         nh=sampled._held_size(loop), nm=sz["m"], no=iv.size1_out(1), steps=steps, m=m,
@@ -258,6 +332,6 @@ def intervals_source(loop: Loop, m: int, name: str,
         sample_args=_args(fns[0], interval, "    "),
         plant_args=_args(fns[1], plant, "      "),
         fdi_call=_FDI_CALL.format(i_p_fdi=idx.get("p_fdi", -1), fdi=fns[2].name())
-        if loop.fdi else "")
-    return fns, _interface(name, inputs + [(x, 1, 1) for x in REPORT_INPUTS], outputs,
-                           [f.name() for f in fns], scratch) + body
+        if loop.fdi else "", **_lean_c(lean, 3, "t", "t", "      ", "q"))
+    return fns, _interface(name, inputs + [(x, 1, 1) for x in REPORT_INPUTS + LEAN_INPUTS],
+                           outputs, [f.name() for f in fns], scratch) + body

@@ -33,7 +33,13 @@ from wtftc.artefacts.loader import cache_dir, compiled_library, compiler, extern
 from wtftc.model import spline
 from wtftc.model.faults import nominal_actuator
 from wtftc.sim import specialise
-from wtftc.sim.drivers import REPORT_INPUTS, intervals_source, steps_source
+from wtftc.sim.drivers import (
+    LEAN_INPUTS,
+    LEAN_OUTPUTS,
+    REPORT_INPUTS,
+    intervals_source,
+    steps_source,
+)
 from wtftc.sim.rhs import PLANTS, Loop, fdi_params, output_spec, rhs_function, sensor_names
 from wtftc.sim.sampled import interval_function
 
@@ -284,28 +290,37 @@ def chunk_function(loop: Loop, n: int = CHUNK, fast_math: bool = False,
                 f"{specialise.tag(switches)}")
         m = max(1, n // loop.interval)
         label = f"loop_{loop.plant}_{loop.controller}{tag}_{loop.table_key}_{m * loop.interval}"
-        fns, driver = intervals_source(loop, m, label, fixed)
+        fns, driver = intervals_source(loop, m, label, fixed, lean_rows(loop))
         return _driven(fns, driver, label, loop_flags(fast_math), quiet,
                        lambda: interval_function(loop).mapaccum(label, m))
     tag += ("_exact" if exact else "") + specialise.tag(switches)
     label = f"loop_{loop.plant}_{loop.controller}{tag}_{loop.table_key}_{n}"
     step = rk4_step(rhs_function(loop), fixed=fixed or None, name=f"{label}_step",
                     shared=not loop.fdi)
-    return compiled_chunk(step, n, label, loop_flags(fast_math), quiet)
+    return compiled_chunk(step, n, label, loop_flags(fast_math), quiet, lean=lean_rows(loop))
 
 
 def compiled_chunk(step: ca.Function, n: int, label: str,
                    flags: tuple[str, ...] | None = None, quiet: bool = False,
-                   extra_c: str = "") -> ca.Function:
+                   extra_c: str = "", lean: tuple[tuple[int, ...], int] | None = None,
+                   ) -> ca.Function:
     """``n`` steps of ``step`` in one compiled call (the C driver of
     :func:`wtftc.sim.drivers.steps_source` around the step's generated code, then
-    ``extra_c``); where no compiler or cache is usable, the same steps through
-    ``mapaccum`` on CasADi's virtual machine (the same numbers, per-step columns of the
-    held inputs)."""
+    ``extra_c``; ``lean``: its lean record's rows); where no compiler or cache is usable,
+    the same steps through ``mapaccum`` on CasADi's virtual machine (the same numbers,
+    per-step columns of the held inputs)."""
     state_step = _state_step(step)
     fns = [step] + ([state_step] if state_step is not None else [])
-    return _driven(fns, steps_source(step, n, label, PER_STEP, state_step) + extra_c, label,
-                   flags or loop_flags(), quiet, lambda: step.mapaccum(label, n))
+    return _driven(fns, steps_source(step, n, label, PER_STEP, state_step, lean) + extra_c,
+                   label, flags or loop_flags(), quiet, lambda: step.mapaccum(label, n))
+
+
+def lean_rows(loop: Loop) -> tuple[tuple[int, ...], int]:
+    """The rows of the C drivers' lean record (wtftc.sim.drivers.LEAN_OUTPUTS) for
+    ``loop``: those of METRIC_STATES it has, in that order, and the rotor speed's (the
+    envelope's)."""
+    names = loop.state_names()
+    return tuple(names.index(s) for s in METRIC_STATES if s in names), Envelope.of(loop).row
 
 #: the largest step (SX instructions) given a state-only twin: two bodies of the paper's
 #: loop (9,600) alternating every few steps cost it 6 % in instruction fetch, where the
@@ -597,40 +612,66 @@ class _Batch:
         happened (the run then stops at its last finite state). A compact chunk that looks
         wrong is not kept (False): its caller runs it again with every step's outputs, from
         which :func:`divergence` finds the step and what failed."""
-        first = (-k) % self.decimate  # the first step of this chunk on the output grid
-        seen = oo[:, :len(range(first, m, self.decimate))] if compact else oo
+        first, seen = self._seen(oo, k, m, compact)
         z_prev = self.z[:, b].copy()
         # |zz| <= 1e8 and finite outputs, without temporaries: max and min propagate NaN
-        # (the comparison is then False); a sum of finite outputs is finite unless it
-        # overflows, where the exact test decides
-        fine = zz.max() <= 1e8 and zz.min() >= -1e8 and (
-            bool(np.isfinite(seen.sum())) or bool(np.isfinite(seen).all()))
+        # (the comparison is then False)
+        fine = zz.max() <= 1e8 and zz.min() >= -1e8 and _finite(seen)
         if not fine or (self.envelope is not None and self.envelope.left(zz)):
             if compact:
                 return False
             i, self.diverged[b] = divergence(zz, oo, z_prev, self.names, self.out_names, k, dt,
                                              self.envelope)
             m = i + 1
-        self.outs[b].append(seen.T.copy() if compact else oo[:, first:m:self.decimate].T.copy())
-        self.ts[b].append(np.arange(k + first, k + m, self.decimate) * dt)
+        full = None
+        if self.full_rows:
+            full = np.empty((m, len(self.full_rows)))
+            full[0] = z_prev[self.full_rows]
+            full[1:] = zz[self.full_rows, :m - 1].T
         if self.keep_states:
             # the state before step i is z (i = 0) or zz[:, i-1]
             z_before = np.hstack([z_prev[:, None], zz[:, :m - 1]])
             self.zs[b].append(z_before[:, first::self.decimate].T.copy())
-        if self.full_rows:
-            rows = self.full_rows
-            full = np.empty((m, len(rows)))
-            full[0] = z_prev[rows]
-            full[1:] = zz[rows, :m - 1].T
-            self.fulls[b].append(full)
-        self.steps[b] = k + m
         # a diverged run is frozen at its last finite state (its column computes on,
         # unread, so that the batch keeps its shape)
-        if self.diverged[b]:
-            self.z[:, b] = zz[:, m - 2] if m > 1 else z_prev
-        else:
-            self.z[:, b] = zz[:, m - 1]
+        z_end = (zz[:, m - 2] if m > 1 else z_prev) if self.diverged[b] else zz[:, m - 1]
+        self._keep(b, seen if compact else oo[:, first:m:self.decimate], k, first, m, dt,
+                   full, z_end)
         return True
+
+    def record_lean(self, b: int, kept: np.ndarray, check: np.ndarray, oo: np.ndarray, k: int,
+                    m: int, dt: float, compact: bool) -> bool:
+        """:meth:`record` from a C driver's lean record (wtftc.sim.drivers.LEAN_OUTPUTS:
+        ``kept``, the metrics' states before each step; ``check``, the state after the last
+        and its checks): False where the chunk looks wrong, which its caller then runs
+        again with every step's state and report."""
+        nz = self.z.shape[0]
+        first, seen = self._seen(oo, k, m, compact)
+        bad, w_max, w_min = check[nz:nz + 3]
+        env = self.envelope
+        if bad or not _finite(seen) or (env is not None and (w_max > env.high
+                                                             or w_min < env.low)):
+            return False
+        self._keep(b, seen if compact else seen[:, first::self.decimate], k, first, m, dt,
+                   kept[:, :m].T.copy() if self.full_rows else None, check[:nz])
+        return True
+
+    def _seen(self, oo: np.ndarray, k: int, m: int, compact: bool) -> tuple[int, np.ndarray]:
+        """The first step of the chunk on the output grid, and the outputs the chunk
+        computed (``compact``: those of the grid only, in the first columns)."""
+        first = (-k) % self.decimate
+        return first, oo[:, :len(range(first, m, self.decimate))] if compact else oo[:, :m]
+
+    def _keep(self, b: int, grid: np.ndarray, k: int, first: int, m: int, dt: float,
+              full: np.ndarray | None, z_end: np.ndarray) -> None:
+        """Keep run b's steps k .. k + m - 1: the outputs on the grid, the metrics' states
+        (``full``, a row a step) and the state it ends at."""
+        self.outs[b].append(grid.T.copy())
+        self.ts[b].append(np.arange(k + first, k + m, self.decimate) * dt)
+        if full is not None:
+            self.fulls[b].append(full)
+        self.steps[b] = k + m
+        self.z[:, b] = z_end
 
     def results(self, wall: float) -> list[Result]:
         n_out = len(self.out_names)
@@ -643,6 +684,12 @@ class _Batch:
                              np.zeros((0, len(self.full_rows)))) if self.full_rows else None,
                        full_names=[self.names[i] for i in self.full_rows], dt=self.dt)
                 for b in range(len(self.runs))]
+
+
+def _finite(a: np.ndarray) -> bool:
+    """Whether every value of ``a`` is finite: a sum of finite values is finite unless it
+    overflows, where the exact test decides."""
+    return bool(np.isfinite(a.sum())) or bool(np.isfinite(a).all())
 
 
 def _put_static(call: Buffered, loop: Loop, runs: list[Run], dt: float) -> None:
@@ -889,16 +936,18 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
                    np.column_stack([np.asarray(r.z0, dtype=float) for r in runs]),
                    keep_states, decimate, Envelope.of(loop))
     if metric_states:
-        names = batch.names
-        batch.full_rows = [names.index(s) for s in METRIC_STATES if s in names]
+        batch.full_rows = list(lean_rows(loop)[0])
         batch.dt = dt
     events = _event_steps(runs, dt, every)
     pitch = lay.block(PLANTS[loop.plant]["states"], "beta")
     _put_static(call, loop, runs, dt)
     nominal, noise = _nominal_inputs(loop, runs), _noise_streams(loop, runs, exact)
     held_cols: list[dict] = [{} for _ in runs]
-    # a chunk with the C steps driver keeps only the reports on the output grid
-    compact = hook is None and decimate > 1 and REPORT_INPUTS[0] in f.name_in()
+    # a chunk with a C driver keeps only the reports on the output grid, and its lean
+    # record in place of every step's state (wtftc.sim.drivers)
+    driven = LEAN_INPUTS[0] in f.name_in()
+    compact = driven and hook is None and decimate > 1
+    lean = driven and hook is None and not keep_states and LEAN_OUTPUTS[0] in f.name_out()
     k = 0
     while k < n_steps and not all(batch.diverged):
         if k in events:  # a lock may bind its angle here: its columns change
@@ -909,11 +958,12 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
         stop = min([n_steps, end] + [e for e in events if e > k])
         _put_chunk(call, nominal, runs, k, stop - k, n_c, dt, loop, noise, held_cols)
         call.put("z", batch.z)
-        if compact:
-            _report_grid(call, len(runs), decimate, (-k) % decimate)
+        if driven:
+            _driver_modes(call, len(runs), decimate if compact else 1,
+                          (-k) % decimate if compact else 0, stop - k, lean)
         if hook is not None:
             hook.before(call, k, stop)
-        res = _record_chunk(call, batch, loop, i_out, k, stop, dt, compact)
+        res = _record_chunk(call, batch, loop, i_out, k, stop, dt, compact, lean)
         if hook is not None and not batch.diverged[0]:
             hook.after(k, stop, batch.z[:, 0], res, batch.out_names)
         k = stop
@@ -921,29 +971,40 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
     return batch
 
 
-def _report_grid(call: Buffered, n_runs: int, every: int, first: int) -> None:
-    """The steps driver's REPORT_INPUTS: the report of every ``every``-th step from step
-    ``first`` of the chunk (1, 0: every step's)."""
+def _driver_modes(call: Buffered, n_runs: int, every: int, first: int, used: int,
+                  lean: bool) -> None:
+    """A C driver's REPORT_INPUTS and LEAN_INPUTS: the report of every ``every``-th step from
+    step ``first`` of the chunk (1, 0: every step's), its first ``used`` steps run, and
+    the lean record in place of every step's state (``lean``)."""
     for b in range(n_runs):
-        call.put(REPORT_INPUTS[0], [float(every)], b, n_runs)
-        call.put(REPORT_INPUTS[1], [float(first)], b, n_runs)
+        for name, value in zip(REPORT_INPUTS + LEAN_INPUTS, (every, first, used, lean),
+                               strict=True):
+            call.put(name, [float(value)], b, n_runs)
 
 
 def _record_chunk(call: Buffered, batch: _Batch, loop: Loop, i_out: int, k: int, stop: int,
-                  dt: float, compact: bool) -> list[np.ndarray]:
+                  dt: float, compact: bool, lean: bool = False) -> list[np.ndarray]:
     """Evaluate the chunk (steps k .. stop - 1) and record every live run; where a compact
-    chunk (the reports on the output grid only) looks wrong for a run, evaluate it again
-    with every step's report (the same states, bit for bit: the inputs are as they were)
-    and record from there. The chunk's results."""
+    or lean chunk (the reports on the output grid only; the lean record in place of every
+    step's state) looks wrong for a run, evaluate it again with every step's report and
+    state (the same states, bit for bit: the inputs are as they were) and record from
+    there. The chunk's results."""
     res, n_c, b = call.evaluate(), call.f.size2_out(i_out) // len(batch.runs), 0
+    i_kept = call.f.index_out(LEAN_OUTPUTS[0]) if lean else -1
     while b < len(batch.runs):
         # a sampled chunk's states after every plant step are its third output
         zz_all, oo_all = res[2] if loop.sampled else res[0], res[i_out]
         cols = slice(b * n_c, b * n_c + stop - k)  # views, valid until the next call
-        if not batch.diverged[b] and not batch.record(b, zz_all[:, cols], oo_all[:, cols],
-                                                      k, stop - k, dt, compact):
-            _report_grid(call, len(batch.runs), 1, 0)
-            res, compact = call.evaluate(), False
+        if batch.diverged[b]:
+            fine = True
+        elif lean:
+            fine = batch.record_lean(b, res[i_kept][:, cols], res[i_kept + 1][:, b],
+                                     oo_all[:, cols], k, stop - k, dt, compact)
+        else:
+            fine = batch.record(b, zz_all[:, cols], oo_all[:, cols], k, stop - k, dt, compact)
+        if not fine:
+            _driver_modes(call, len(batch.runs), 1, 0, stop - k, False)
+            res, compact, lean = call.evaluate(), False, False
             continue
         b += 1
     return res
