@@ -323,13 +323,13 @@ def test_the_steps_driver_keeps_the_reports_asked_for():
     for name, value in args.items():
         call.put(name, value)
     z_all, o_all, _, _ = (a.copy() for a in call.evaluate())
-    integrate._driver_modes(call, 1, 4, 1, 1000, False)
+    integrate._driver_modes(call, 4, 1, 1000, False)
     z_some, o_some, _, _ = call.evaluate()
     np.testing.assert_array_equal(z_some, z_all)
     np.testing.assert_array_equal(o_some[:, :250], o_all[:, 1::4])
     # the lean record of the first 600 steps: the metrics' rows of the state before each
     # step, the state after the last, nothing out of bounds, the rotor speed's extremes
-    integrate._driver_modes(call, 1, 4, 1, 600, True)
+    integrate._driver_modes(call, 4, 1, 600, True)
     _, _, kept, check = call.evaluate()
     rows, watch = integrate.lean_rows(loop)
     before = np.hstack([p.z0[:, None], z_all[:, :599]])
@@ -438,3 +438,44 @@ def test_shared_reciprocals_leave_a_function_with_a_sparse_input_alone():
     p = ca.SX.sym("p", ca.Sparsity.triplet(3, 1, [0, 2], [0, 0]))
     f = ca.Function("f", [x, p], [x / p[0] + x * p[2]], ["z", "p"], ["o"])
     assert with_shared_reciprocals(f, ("z",)) is f
+
+
+def test_a_single_runs_chunks_end_around_its_fault_changes():
+    """integrate._change_steps: the first step at or after each change (onset, the ramp's
+    end, the fault's end), or in a sampled loop the interval that holds it and the next;
+    none for a batch, whose runs are held each on its own."""
+    from wtftc.model.faults import Fault, Schedule
+
+    s = Schedule([Fault(blade=1, type="loss_of_effectiveness", onset_s=6.31, end_s=9.0,
+                        ramp_s=0.5, rho=0.5)])
+    assert s.changes() == [6.31, 6.81, 8.5, 9.0]
+    run = integrate.Run(np.zeros(1), lambda t: t, s)
+    # dt = 0.01: 6.31 / 0.01 is 630.999..., the step at or after it is 631
+    assert integrate._change_steps([run], 0.01, 1, 10_000) == [631, 681, 850, 900]
+    # intervals of 20 steps: 631 is in the one from 620, 681 in the one from 680
+    assert integrate._change_steps([run], 0.01, 20, 10_000) == [620, 640, 680, 700, 840,
+                                                                860, 900]
+    assert integrate._change_steps([run], 0.01, 1, 700) == [631, 681]
+    assert integrate._change_steps([run, run], 0.01, 1, 10_000) == []
+
+
+@pytest.mark.parametrize("raw", [
+    {"controller": "physical", "case": 4, "profile": "realistic", "t_final_s": 12.0,
+     "fault": [{"type": "loss_of_effectiveness", "blade": 2, "rho": 0.4, "onset_s": 3.317,
+                "ramp_s": 1.2, "end_s": 9.9},
+               {"type": "pitch_sensor_offset", "blade": 2, "onset_s": 5.005}]},
+    {"controller": "pi", "case": 2, "t_final_s": 12.0,
+     "fault": [{"type": "lock", "blade": 3, "onset_s": 4.0004}]},
+])
+def test_chunks_cut_at_fault_changes_give_the_uncut_runs_numbers(raw, monkeypatch):
+    """A run whose chunks end around its fault changes (each chunk's faults then one
+    column) against the same run cut only every chunk's length: outputs, the metrics'
+    states and the final state, in raw bits."""
+    rc = config.make_config(raw)
+    cut = cases.run(rc, progress=False)
+    monkeypatch.setattr(integrate, "_change_steps", lambda *a: [])
+    uncut = cases.run(rc, progress=False)
+    assert cut.diverged is None and cut.steps == uncut.steps
+    for name in ("outputs", "full", "z_final"):
+        a, b = getattr(cut, name), getattr(uncut, name)
+        np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64), err_msg=name)

@@ -19,8 +19,14 @@ def layout() -> dict:
 
 
 def names(group: str) -> list[str]:
+    return list(_names(group))
+
+
+@cache
+def _names(group: str) -> tuple[str, ...]:
+    """The names of ``group`` (looked up several times a loop chunk: built once)."""
     _check_group(group)
-    return [e["name"] for e in layout()[group]]
+    return tuple(e["name"] for e in layout()[group])
 
 
 def units(group: str) -> list[str]:

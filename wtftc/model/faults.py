@@ -268,6 +268,14 @@ class Schedule:
                 return False
         return True
 
+    def changes(self) -> list[float]:
+        """The finite times at which a fault input starts or stops changing (onsets, ends
+        and their ramps' other ends): constant between two of them, except while a drift
+        is active (:meth:`constant_between`)."""
+        times = {x for f in self.faults for x in (f.onset_s, f.onset_s + f.ramp_s,
+                                                  f.end_s - f.ramp_s, f.end_s)}
+        return sorted(x for x in times if np.isfinite(x))
+
     def bind_current_angles(self, t: float, beta: np.ndarray, dt: float, every: int = 1
                             ) -> None:
         """Lock "wherever the blade is": each such lock whose onset falls on the step at t

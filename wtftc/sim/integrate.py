@@ -420,6 +420,11 @@ class Buffered:
         else:
             seg[...] = v.reshape(1, -1)
 
+    def fill(self, name: str, value: float) -> None:
+        """Every element of input ``name``, for every run, set to ``value`` (an input
+        never written with ``same``)."""
+        self._in[self._index[name]].fill(value)
+
     def evaluate(self) -> list[np.ndarray]:
         """Evaluate on the inputs in place; results as (rows, columns) views of the
         buffers, valid until the next evaluation."""
@@ -591,10 +596,11 @@ class _Batch:
     envelope: Envelope | None = None
     full_rows: list = field(default_factory=list)  # the rows of METRIC_STATES kept
     dt: float = 0.0
+    n_steps: int = 0  # the steps of a run: the size of ``fulls``
     outs: list = field(default_factory=list)
     ts: list = field(default_factory=list)
     zs: list = field(default_factory=list)
-    fulls: list = field(default_factory=list)
+    fulls: list = field(default_factory=list)  # per run: METRIC_STATES, a row a step
     diverged: list = field(default_factory=list)
     steps: list = field(default_factory=list)
 
@@ -602,7 +608,7 @@ class _Batch:
         n = len(self.runs)
         self.outs, self.ts, self.zs = [[] for _ in range(n)], [[] for _ in range(n)], \
             [[] for _ in range(n)]
-        self.fulls = [[] for _ in range(n)]
+        self.fulls = [None] * n
         self.diverged, self.steps = [None] * n, [0] * n
 
     def record(self, b: int, zz: np.ndarray, oo: np.ndarray, k: int, m: int, dt: float,
@@ -653,7 +659,7 @@ class _Batch:
                                                              or w_min < env.low)):
             return False
         self._keep(b, seen if compact else seen[:, first::self.decimate], k, first, m, dt,
-                   kept[:, :m].T.copy() if self.full_rows else None, check[:nz])
+                   kept[:, :m].T if self.full_rows else None, check[:nz])
         return True
 
     def _seen(self, oo: np.ndarray, k: int, m: int, compact: bool) -> tuple[int, np.ndarray]:
@@ -669,9 +675,18 @@ class _Batch:
         self.outs[b].append(grid.T.copy())
         self.ts[b].append(np.arange(k + first, k + m, self.decimate) * dt)
         if full is not None:
-            self.fulls[b].append(full)
+            if self.fulls[b] is None:  # written chunk by chunk, read up to the steps run
+                self.fulls[b] = np.empty((self.n_steps, len(self.full_rows)))
+            self.fulls[b][k:k + m] = full
         self.steps[b] = k + m
         self.z[:, b] = z_end
+
+    def _full(self, b: int) -> np.ndarray:
+        """Run b's METRIC_STATES at the steps it ran."""
+        if self.fulls[b] is None:
+            return np.zeros((0, len(self.full_rows)))
+        full = self.fulls[b]
+        return full if self.steps[b] == len(full) else full[:self.steps[b]].copy()
 
     def results(self, wall: float) -> list[Result]:
         n_out = len(self.out_names)
@@ -680,8 +695,7 @@ class _Batch:
                        z_final=self.z[:, b].copy(), diverged=self.diverged[b], wall_s=wall,
                        steps=self.steps[b], names=self.out_names,
                        z=np.vstack(self.zs[b]) if self.keep_states else None,
-                       full=(np.vstack(self.fulls[b]) if self.fulls[b] else
-                             np.zeros((0, len(self.full_rows)))) if self.full_rows else None,
+                       full=self._full(b) if self.full_rows else None,
                        full_names=[self.names[i] for i in self.full_rows], dt=self.dt)
                 for b in range(len(self.runs))]
 
@@ -742,26 +756,28 @@ def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: 
     time, reused while the schedules stay constant from then (issue 19: the schedules were
     most of this function's time; the same numbers, bit for bit)."""
     tk = (k + np.arange(n_c)) * dt
-    held = all(s is None or s.constant_between(tk[0], tk[m - 1])
-               for r in runs for s in (r.schedule, r.ctrl_schedule))
-    tf = tk[:1] if held else tk
-    ts = tf[::loop.interval] if loop.sampled and not held else tf
     n_runs = len(runs)
     # each step's t, t + dt/2, t + dt in a row, as the buffer lies: one evaluation a run
     t3 = (tk[:, None] + np.array([0.0, dt / 2, dt])).reshape(-1)
     for b, r in enumerate(runs):
         w3 = np.broadcast_to(np.asarray(r.wind(t3), dtype=float), t3.shape)
         call.put("wind3", w3.reshape(-1, 3).T, b, n_runs)
+        # a run's faults constant over the chunk: one column (its own; the others' may not be)
+        held = all(s is None or s.constant_between(tk[0], tk[m - 1])
+                   for s in (r.schedule, r.ctrl_schedule))
+        tf = tk[:1] if held else tk
+        ts = tf[::loop.interval] if loop.sampled and not held else tf
         cols = _fault_columns(r, nominal[b], held_cols[b] if held else None, tf, ts)
         for name in ("actuator_faults", "sensor_faults", "ctrl_fault"):
             call.put(name, cols[name], b, n_runs, same=True)
-        if loop.sampled:  # draws for the intervals this chunk uses, in order
-            n_int = n_c // loop.interval
+        # a sampled loop's draws for the intervals this chunk uses, in order, and its test
+        # movement: none drawn (exact sensors) and no movement leave the buffer's zeros
+        if loop.sampled and noise[b]:
             used = -(-m // loop.interval)
-            draws = np.zeros((len(sensor_names()), n_int))  # none drawn: exact sensors
-            if noise[b]:
-                draws[:, :used] = [g.standard_normal(used) for g in noise[b]]
+            draws = np.zeros((len(noise[b]), n_c // loop.interval))
+            draws[:, :used] = [g.standard_normal(used) for g in noise[b]]
             call.put("noise", draws, b, n_runs)
+        if loop.sampled and r.test_pulse is not None and r.test_pulse[0] != 0:
             call.put("test_pulse", _pulse(r.test_pulse, tk[::loop.interval])[None, :], b,
                      n_runs)
 
@@ -802,6 +818,25 @@ def _event_steps(runs: list[Run], dt: float, every: int) -> list[int]:
     intervals)."""
     return sorted({int(round(e / dt)) // every * every for r in runs if r.schedule
                    for e in r.schedule.events()})
+
+
+def _change_steps(runs: list[Run], dt: float, every: int, n_steps: int) -> list[int]:
+    """Where a single run's chunks end so that none holds a change of its fault inputs
+    (wtftc.model.faults.Schedule.changes): at the first step at or after each change, or
+    in a sampled loop at the start of the interval that holds it and of the next one, so
+    that the chunks around it pass one column (the fault inputs of a chunk holding a change
+    are computed at every step). None for a batch: its runs' changes would cut every run's
+    chunks, and each run is held on its own."""
+    if len(runs) != 1:
+        return []
+    steps = set()
+    for s in (runs[0].schedule, runs[0].ctrl_schedule):
+        for c in s.changes() if s else []:
+            k = max(0, int(np.floor(c / dt)))
+            k += k * dt < c  # the first step at or after the change, as put_chunk's times
+            start = k // every * every
+            steps |= {start, start + every} if start != k else {k}
+    return sorted(x for x in steps if 0 < x < n_steps)
 
 
 def _bind_locks(runs: list[Run], k: int, dt: float, z: np.ndarray, pitch: slice,
@@ -937,8 +972,10 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
                    keep_states, decimate, Envelope.of(loop))
     if metric_states:
         batch.full_rows = list(lean_rows(loop)[0])
-        batch.dt = dt
+        batch.dt, batch.n_steps = dt, n_steps
     events = _event_steps(runs, dt, every)
+    cuts = sorted(set(events) | set(_change_steps(runs, dt, every, n_steps))) \
+        if hook is None else events
     pitch = lay.block(PLANTS[loop.plant]["states"], "beta")
     _put_static(call, loop, runs, dt)
     nominal, noise = _nominal_inputs(loop, runs), _noise_streams(loop, runs, exact)
@@ -955,11 +992,11 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
         _bind_locks(runs, k, dt, batch.z, pitch, every)
         # a hook's chunks end on multiples of its interval, whatever events cut them
         end = (k // n_c + 1) * n_c if hook is not None else k + n_c
-        stop = min([n_steps, end] + [e for e in events if e > k])
+        stop = min([n_steps, end] + [e for e in cuts if e > k])
         _put_chunk(call, nominal, runs, k, stop - k, n_c, dt, loop, noise, held_cols)
         call.put("z", batch.z)
         if driven:
-            _driver_modes(call, len(runs), decimate if compact else 1,
+            _driver_modes(call, decimate if compact else 1,
                           (-k) % decimate if compact else 0, stop - k, lean)
         if hook is not None:
             hook.before(call, k, stop)
@@ -971,15 +1008,13 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
     return batch
 
 
-def _driver_modes(call: Buffered, n_runs: int, every: int, first: int, used: int,
-                  lean: bool) -> None:
+def _driver_modes(call: Buffered, every: int, first: int, used: int, lean: bool) -> None:
     """A C driver's REPORT_INPUTS and LEAN_INPUTS: the report of every ``every``-th step from
     step ``first`` of the chunk (1, 0: every step's), its first ``used`` steps run, and
     the lean record in place of every step's state (``lean``)."""
-    for b in range(n_runs):
-        for name, value in zip(REPORT_INPUTS + LEAN_INPUTS, (every, first, used, lean),
-                               strict=True):
-            call.put(name, [float(value)], b, n_runs)
+    for name, value in zip(REPORT_INPUTS + LEAN_INPUTS, (every, first, used, lean),
+                           strict=True):
+        call.fill(name, float(value))
 
 
 def _record_chunk(call: Buffered, batch: _Batch, loop: Loop, i_out: int, k: int, stop: int,
@@ -1003,7 +1038,7 @@ def _record_chunk(call: Buffered, batch: _Batch, loop: Loop, i_out: int, k: int,
         else:
             fine = batch.record(b, zz_all[:, cols], oo_all[:, cols], k, stop - k, dt, compact)
         if not fine:
-            _driver_modes(call, len(batch.runs), 1, 0, stop - k, False)
+            _driver_modes(call, 1, 0, stop - k, False)
             res, compact, lean = call.evaluate(), False, False
             continue
         b += 1
