@@ -750,14 +750,18 @@ def _noise_streams(loop: Loop, runs: list[Run], exact: bool = False,
 
 
 def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: int, n_c: int,
-               dt: float, loop: Loop, noise: list, held_cols: list[dict]) -> None:
+               dt: float, loop: Loop, noise: list, held_cols: list[dict],
+               exact: bool = False) -> None:
     """Wind at t, t + dt/2, t + dt of every step of the chunk; fault inputs per step, or one
     column held when they are constant over the chunk (the usual case). A sampled loop
     takes the sensor faults, eq (49)'s told fault and one noise draw per signal at each
     interval's start. ``held_cols``: per run, the held columns last computed and their
     time, reused while the schedules stay constant from then (issue 19: the schedules were
-    most of this function's time; the same numbers, bit for bit)."""
+    most of this function's time; the same numbers, bit for bit). ``exact``: the chunk is
+    specialised to exact sensors and does not read their faults, which are not written."""
     tk = (k + np.arange(n_c)) * dt
+    faults = ("actuator_faults", "ctrl_fault") if exact else \
+        ("actuator_faults", "sensor_faults", "ctrl_fault")
     n_runs = len(runs)
     # each step's t, t + dt/2, t + dt in a row, as the buffer lies: one evaluation a run
     # (written by stride: the broadcast sum took 6 times as long)
@@ -774,7 +778,7 @@ def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: 
         tf = tk[:1] if held else tk
         ts = tf[::loop.interval] if loop.sampled and not held else tf
         cols = _fault_columns(r, nominal[b], held_cols[b] if held else None, tf, ts)
-        for name in ("actuator_faults", "sensor_faults", "ctrl_fault"):
+        for name in faults:
             call.put(name, cols[name], b, n_runs, same=True)
         # a sampled loop's draws for the intervals this chunk uses, in order, and its test
         # movement: none drawn (exact sensors) and no movement leave the buffer's zeros
@@ -999,7 +1003,7 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
         # a hook's chunks end on multiples of its interval, whatever events cut them
         end = (k // n_c + 1) * n_c if hook is not None else k + n_c
         stop = min([n_steps, end] + [e for e in cuts if e > k])
-        _put_chunk(call, nominal, runs, k, stop - k, n_c, dt, loop, noise, held_cols)
+        _put_chunk(call, nominal, runs, k, stop - k, n_c, dt, loop, noise, held_cols, exact)
         call.put("z", batch.z)
         if driven:
             _driver_modes(call, decimate if compact else 1,
