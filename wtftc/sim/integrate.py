@@ -758,7 +758,8 @@ def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: 
     interval's start. ``held_cols``: per run, the held columns last computed and their
     time, reused while the schedules stay constant from then (issue 19: the schedules were
     most of this function's time; the same numbers, bit for bit). ``exact``: the chunk is
-    specialised to exact sensors and does not read their faults, which are not written."""
+    specialised to exact sensors and does not read their faults, which are not written (a C
+    driver's: the sampled loop's mapaccum, where there is no compiler, is not specialised)."""
     tk = (k + np.arange(n_c)) * dt
     faults = ("actuator_faults", "ctrl_fault") if exact else \
         ("actuator_faults", "sensor_faults", "ctrl_fault")
@@ -1003,7 +1004,8 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
         # a hook's chunks end on multiples of its interval, whatever events cut them
         end = (k // n_c + 1) * n_c if hook is not None else k + n_c
         stop = min([n_steps, end] + [e for e in cuts if e > k])
-        _put_chunk(call, nominal, runs, k, stop - k, n_c, dt, loop, noise, held_cols, exact)
+        _put_chunk(call, nominal, runs, k, stop - k, n_c, dt, loop, noise, held_cols,
+                   exact and driven)
         call.put("z", batch.z)
         if driven:
             _driver_modes(call, decimate if compact else 1,
