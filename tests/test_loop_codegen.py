@@ -479,3 +479,31 @@ def test_chunks_cut_at_fault_changes_give_the_uncut_runs_numbers(raw, monkeypatc
     for name in ("outputs", "full", "z_final"):
         a, b = getattr(cut, name), getattr(uncut, name)
         np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64), err_msg=name)
+
+
+@pytest.mark.parametrize("fast_math", [False, True])
+def test_the_lean_check_flags_a_nan_state_whatever_the_flags(fast_math):
+    """The drivers' check of every state after every step (drivers._BEYOND) on its bits: a
+    NaN state is flagged in the default chunk and in the fast-math one, where
+    -ffinite-math-only would turn a floating-point comparison into one a NaN passes; the
+    rotor speed still in its bounds."""
+    from dataclasses import replace
+
+    from bench.problem import LOOPS, Problem
+
+    p = Problem("physical_case3", *LOOPS["physical_case3"])
+    loop = replace(p.config.loop, fdi=False)
+    f = integrate.chunk_function(loop, n=1000, quiet=True, exact=True, fast_math=fast_math)
+    call = integrate.Buffered(f)
+    w3, af, sf, ck = __import__("bench.runner", fromlist=["x"]).step_inputs(p, 0.001, 1000)
+    for name, value in dict(wind3=w3, actuator_faults=af, sensor_faults=sf, ctrl_fault=ck,
+                            yd=p.yd, p_turbine=loop.p_turbine, p_ctrl=p.config.p_ctrl,
+                            cp_scale=1.0, dt=0.001).items():
+        call.put(name, value)
+    nz, (_, watch) = len(p.z0), integrate.lean_rows(loop)
+    for z0, bad in ((p.z0, 0.0), (np.where(np.arange(nz) == nz - 1, np.nan, p.z0), 1.0)):
+        call.put("z", z0)
+        integrate._driver_modes(call, 10, 0, 5, True)
+        check = call.evaluate()[3][:, 0]
+        assert check[nz] == bad
+        assert np.isfinite(check[watch]) and np.isfinite(check[nz + 1:]).all()
