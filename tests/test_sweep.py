@@ -515,3 +515,26 @@ def test_the_last_progress_line_has_no_run_in_flight_and_no_negative_eta(capsys)
     last = capsys.readouterr().err.strip().splitlines()[-1]
     assert "2/2 runs: 1 ok" in last and "0 remaining," in last, last
     assert "in OpenFAST" not in last and "ETA 0 s" in last, last
+
+
+def test_a_stop_whose_exception_was_swallowed_still_stops_the_collection(tmp_path,
+                                                                          monkeypatch):
+    """The SIGTERM handler's exception is lost where it lands in a finalizer (a
+    ParquetWriter's __del__ swallowed one, and the sweep ran to its end): _collect checks
+    the signal it recorded, before each task's results and after the last, and stops
+    with it."""
+    import dask.distributed
+
+    from wtftc.campaign import sweep as sw
+
+    monkeypatch.setattr(dask.distributed, "as_completed", iter)  # no cluster needed here
+
+    class Never:  # a task whose results must not be read once the sweep is stopped
+        def result(self):
+            raise AssertionError("read after the stop")
+
+    progress = sw._Progress(1, 0, True)
+    for futures in ([], [Never()]):
+        with pytest.raises(sw.Interrupted, match="SIGTERM"):
+            sw._collect(futures, tmp_path, set(), progress, True, stopped=lambda: "SIGTERM")
+    assert sw._collect([], tmp_path, set(), progress, True) == (0, 0)

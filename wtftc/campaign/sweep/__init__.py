@@ -172,12 +172,17 @@ def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
 
 
 def _collect(futures: list, out_dir: Path, done: set[str], progress: _Progress,
-             quiet: bool, rec=None) -> tuple[int, int]:
-    """Save each task's runs as it finishes; returns (runs saved, tasks lost)."""
+             quiet: bool, rec=None, stopped=lambda: None) -> tuple[int, int]:
+    """Save each task's runs as it finishes; returns (runs saved, tasks lost). ``stopped()``:
+    the signal that asked the sweep to stop, or None; checked between tasks, since the
+    signal handler's exception is lost where it lands in a finalizer (a ParquetWriter's
+    __del__ swallowed one, and a SIGTERMed sweep ran to its end)."""
     from dask.distributed import as_completed
 
     ran = lost = 0
     for fut in as_completed(futures):
+        if stopped():
+            raise Interrupted(stopped())
         try:
             results = fut.result()
         except Interrupted:  # SIGTERM while waiting: the sweep stops, not this task
@@ -192,6 +197,8 @@ def _collect(futures: list, out_dir: Path, done: set[str], progress: _Progress,
         rows = _save_batch(out_dir, done, results, rec)
         ran += len(rows)
         progress.update(rows, lost)
+    if stopped():
+        raise Interrupted(stopped())
     if progress.tty:
         progress.update([], lost, end=True)  # end the line the carriage returns rewrote
     return ran, lost
@@ -322,8 +329,11 @@ def _run_todo(sw, runs, dup, done, out_dir, client, local, scheduler, workers, t
         return summary
     progress = _Progress(len(runs), len(runs) - len(todo), quiet)
 
+    asked: list[str] = []  # the signal that asked the sweep to stop, kept for _collect
+
     def _stop(signum, frame):
-        raise Interrupted(signal.Signals(signum).name)
+        asked.append(signal.Signals(signum).name)
+        raise Interrupted(asked[-1])
 
     old = signal.signal(signal.SIGTERM, _stop)
     # where a run in OpenFAST keeps its case, absolute: the workers run elsewhere
@@ -341,7 +351,7 @@ def _run_todo(sw, runs, dup, done, out_dir, client, local, scheduler, workers, t
         if not quiet:
             watcher.start()
         summary["ran"], summary["lost"] = _collect(futures, out_dir, done, progress, quiet,
-                                                   rec)
+                                                   rec, lambda: asked[0] if asked else None)
     except KeyboardInterrupt:
         raise Interrupted("SIGINT") from None
     finally:
