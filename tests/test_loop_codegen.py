@@ -3,6 +3,7 @@ number as it was."""
 
 import platform
 import struct
+from dataclasses import replace
 from pathlib import Path
 
 import casadi as ca
@@ -314,7 +315,8 @@ def test_the_steps_driver_keeps_the_reports_asked_for():
     p = Problem("physical_case3", *LOOPS["physical_case3"])
     loop = replace(p.config.loop, fdi=False)
     f = integrate.chunk_function(loop, n=1000, quiet=True, exact=True)
-    assert f.name_in()[-4:] == list(integrate.REPORT_INPUTS + integrate.LEAN_INPUTS)
+    assert f.name_in()[-9:] == list(integrate.REPORT_INPUTS + integrate.LEAN_INPUTS
+                                    + integrate.WIND_INPUTS)
     w3, af, sf, ck = runner.step_inputs(p, 0.001, 1000)
     args = dict(z=p.z0, wind3=w3, actuator_faults=af, sensor_faults=sf, ctrl_fault=ck,
                 yd=p.yd, p_turbine=loop.p_turbine, p_ctrl=p.config.p_ctrl, cp_scale=1.0,
@@ -507,3 +509,50 @@ def test_the_lean_check_flags_a_nan_state_whatever_the_flags(fast_math):
         check = call.evaluate()[3][:, 0]
         assert check[nz] == bad
         assert np.isfinite(check[watch]) and np.isfinite(check[nz + 1:]).all()
+
+
+def _winds(dt: float) -> dict:
+    """Winds for the drivers' interpolation: samples every 25 steps from 0.5 s to 9 s, some
+    on a step's time, some on its midpoint (numpy.interp's exact hits), held outside them;
+    samples a third of a step apart (too many for a chunk's window: wind3 from Python); a
+    constant wind (one sample)."""
+    from wtftc.model.wind import ConstantWind, SampledWind
+
+    k = np.arange(250, 4500, 25)
+    t = np.sort(np.concatenate([k * dt, (k[::3] + 12) * dt + dt / 2]))
+    v = np.random.default_rng(5).uniform(8.0, 20.0, t.size)
+    fine = np.arange(0.0, 12.0, dt / 3)
+    return {"samples": SampledWind("file", t, v, parameters={}),
+            "finer than a step": SampledWind("file", fine, 14.0 + np.sin(fine),
+                                             parameters={}),
+            "constant": ConstantWind(14.0, parameters={})}
+
+
+@pytest.mark.parametrize("interval", [None, 0.01])
+def test_the_drivers_interpolate_the_winds_samples_as_numpy_does(interval, monkeypatch):
+    """The C drivers' wind from its samples (wtftc.sim.drivers.WIND_INPUTS) against
+    numpy.interp's in Python (``wind3``), continuous and sampled: outputs, the metrics'
+    states and the final state in raw bits, for samples with exact hits and held ends, for
+    samples too fine for the chunk's window (which take Python's) and for a constant
+    wind."""
+    raw = {"controller": "physical", "case": 4, "t_final_s": 12.0,
+           "fault": [{"type": "lock", "blade": 2, "onset_s": 5.0}],
+           **({"control_interval_s": interval} if interval else {})}
+    rc = config.make_config(raw)
+    run = cases._prepare(rc, check=False)[0]
+    for name, wind in _winds(rc.dt).items():
+        one = replace(run, wind=wind)
+        room = integrate.chunk_function(rc.loop).size1_in(integrate.WIND_INPUTS[3])
+        in_c = integrate._wind_samples(wind, 0.0, 7.0, room) is not None
+        assert in_c == (name != "finer than a step")
+        with monkeypatch.context() as m:
+            if name == "samples":  # the chunks as they are used: none on a fault change
+                m.setattr(integrate, "_change_steps", lambda *a: [])
+            c = integrate.run_loops(rc.loop, [one], 12.0, rc.dt, progress=False)[0]
+            m.setattr(integrate, "WIND_INPUTS", ("none",) * 5)
+            py = integrate.run_loops(rc.loop, [one], 12.0, rc.dt, progress=False)[0]
+        assert c.diverged is None and c.steps == py.steps
+        for part in ("outputs", "full", "z_final"):
+            a, b = getattr(c, part), getattr(py, part)
+            np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64),
+                                          err_msg=f"{name}: {part}")

@@ -85,8 +85,10 @@ CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casa
   casadi_int k, j, every = 1, next = 0, col = 0, used = {n};
   int lean = 0;
 {declarations}
+{wind_declarations}
 {max_work}
 {modes}
+{wind_modes}
   zbuf = w + ww;
   obuf = zbuf + 2 * nz;
   for (j = 1; j < {n_in}; j++) sarg[j] = arg[j];  /* the held inputs, once */
@@ -120,6 +122,17 @@ REPORT_INPUTS = ("out_every", "out_first")
 #: chunk's; 0 or left out: all) and, ``lean`` > 0, the lean record (LEAN_OUTPUTS) in place
 #: of each step's state
 LEAN_INPUTS = ("n_used", "lean")
+#: then, for a step taking ``wind3``, the wind from its samples: ``wind_n`` > 0 samples
+#: (times ``wind_t``, speeds ``wind_v``, in their first entries) from which the driver
+#: interpolates the wind at t, t + dt/2, t + dt of each step, t = (wind_k0 + k) wind_dt for
+#: the chunk's step k, as numpy.interp does (the same numbers, bit for bit:
+#: tests/test_loop_codegen.py), in place of reading ``wind3``; ``wind_n`` 0 or left out:
+#: ``wind3`` is read
+WIND_INPUTS = ("wind_k0", "wind_dt", "wind_n", "wind_t", "wind_v")
+#: the room for samples beyond a chunk's steps: samples no closer than a step need at most
+#: one a step, the one before the first and the one after the last (the wind's run is
+#: interpolated in Python, ``wind3``, where its samples do not fit)
+WIND_ROOM = 3
 #: the drivers' outputs after the chunk's own: the rows ``keep`` of the state before each
 #: step (the metrics' states), and the check: the state after the last step run, then 1
 #: where any state after a step was non-finite or beyond 1e8 (0 else), then the largest
@@ -133,6 +146,77 @@ _MODES = """  /* the report of every out_every-th step from step out_first, in i
   if (arg[{a} + 2] && arg[{a} + 2][0] > 0 && arg[{a} + 2][0] < used)
     used = (casadi_int) arg[{a} + 2][0];
   if (arg[{a} + 3] && arg[{a} + 3][0] > 0) lean = 1;"""
+
+_WIND_MODES = """  /* the wind from its samples (WIND_INPUTS), when given: each step's three into
+   * the scratch after the driver's own, as wind3 lies */
+  if (arg[{a}] && arg[{a} + 1] && arg[{a} + 2] && arg[{a} + 2][0] > 0 && arg[{a} + 3]
+      && arg[{a} + 4]) {{
+    casadi_int wk0 = (casadi_int) arg[{a}][0], wn = (casadi_int) arg[{a} + 2][0], wj = 0;
+    wind = w + ww + {offset};
+    for (k = 0; k < used; k++)
+      {name}_wind3(wk0 + k, arg[{a} + 1][0], arg[{a} + 3], arg[{a} + 4], wn, &wj,
+                   wind + 3 * k);
+  }}"""
+
+#: numpy.interp's arithmetic (numpy/_core/src/multiarray/compiled_base.c, arr_interp, in
+#: numpy 1.x and 2.x) for increasing times: held at the end samples outside them; a sample's
+#: own speed at its time; else slope (f[i+1] - f[i]) / (x[i+1] - x[i]) times (t - x[i])
+#: plus f[i], the other end's form where that is NaN. Its binary search is a walk from the
+#: last step's sample (``j``), the step's times increasing
+_WIND = """
+static casadi_real {name}_interp(casadi_real t, const casadi_real* x, const casadi_real* f,
+                                 casadi_int n, casadi_int* j) {{
+  casadi_int i = *j;
+  casadi_real s, r;
+  if (t != t) return t;
+  if (t < x[0]) return f[0];
+  if (t > x[n - 1]) return f[n - 1];
+  while (i + 1 < n && x[i + 1] <= t) i++;
+  *j = i;
+  if (i == n - 1 || x[i] == t) return f[i];
+  s = (f[i + 1] - f[i]) / (x[i + 1] - x[i]);
+  r = s * (t - x[i]) + f[i];
+  if (r != r) {{
+    r = s * (t - x[i + 1]) + f[i + 1];
+    if (r != r && f[i] == f[i + 1]) r = f[i];
+  }}
+  return r;
+}}
+
+/* the wind at step k's t, t + dt/2 and t + dt into w, t = k dt (as run_loops's times) */
+static void {name}_wind3(casadi_int k, casadi_real dt, const casadi_real* x,
+                         const casadi_real* f, casadi_int n, casadi_int* j, casadi_real* w) {{
+  casadi_real t = (casadi_real) k * dt;
+  casadi_int i;
+  w[0] = {name}_interp(t, x, f, n, j);
+  i = *j;
+  w[1] = {name}_interp(t + dt / 2, x, f, n, &i);
+  w[2] = {name}_interp(t + dt, x, f, n, &i);
+}}
+"""
+
+_WIND_DECLARATIONS = """  casadi_real* wind = 0;"""
+
+
+def _extra_inputs(window: int) -> list[tuple[str, int, int]]:
+    """The drivers' inputs after the step's, as (name, rows, columns): REPORT_INPUTS,
+    LEAN_INPUTS, and WIND_INPUTS with room for ``window`` samples (0: none)."""
+    one = [(x, 1, 1) for x in REPORT_INPUTS + LEAN_INPUTS]
+    if not window:
+        return one
+    return one + [(x, 1, 1) for x in WIND_INPUTS[:3]] + [(x, window, 1)
+                                                           for x in WIND_INPUTS[3:]]
+
+
+def _wind_c(name: str, a: int, window: int, offset: str) -> dict[str, str]:
+    """The C of the wind from its samples (WIND_INPUTS from arg[a], ``window`` of them at
+    most; 0: none), its steps' values at ``offset`` in the scratch: its declarations and
+    modes."""
+    if not window:
+        return {"wind_declarations": "", "wind_modes": ""}
+    return {"wind_declarations": _WIND_DECLARATIONS,
+            "wind_modes": _WIND_MODES.format(a=a, name=name, offset=offset)}
+
 
 #: whether any of n values is non-finite or beyond 1e8 in magnitude: one integer comparison
 #: a value on its bits (sign cleared, every NaN and infinity above 1e8's bits), vectorised
@@ -197,10 +281,11 @@ def steps_source(step: ca.Function, n: int, name: str, per_step: tuple[str, ...]
     column); then REPORT_INPUTS: given, the report of every ``out_every``-th step from step
     ``out_first`` only, written to the report's first columns (the others are left as they
     were: a run recording every 40th step stores 1/40 of the reports); left out, every
-    step's; then LEAN_INPUTS. ``state_step`` (the same inputs, the next state alone) takes
-    the steps whose report is not kept. ``lean``: (keep, watch), the rows of LEAN_OUTPUTS
-    (which follow the step's outputs); None: no LEAN_OUTPUTS. The code of the functions it
-    calls must come before it."""
+    step's; then LEAN_INPUTS, and WIND_INPUTS where the step takes ``wind3``.
+    ``state_step`` (the same inputs, the next state alone) takes the steps whose report is
+    not kept. ``lean``: (keep, watch), the rows of LEAN_OUTPUTS (which follow the step's
+    outputs); None: no LEAN_OUTPUTS. The code of the functions it calls must come before
+    it."""
     ins, outs = step.name_in(), step.name_out()
     per = [int(x in per_step) for x in ins]
     nz, no = step.size1_in(0), step.size1_out(1)
@@ -208,18 +293,26 @@ def steps_source(step: ca.Function, n: int, name: str, per_step: tuple[str, ...]
     outputs = [(x, step.size1_out(i), n) for i, x in enumerate(outs)] + _lean_outputs(
         lean, nz, n)
     called = [step.name()] + ([state_step.name()] if state_step is not None else [])
-    return _interface(name, inputs + [(x, 1, 1) for x in REPORT_INPUTS + LEAN_INPUTS],
-                      outputs, called, f"3 * {max(nz, no)}") + _BEYOND.format(name=name) + \
+    window = n + WIND_ROOM if "wind3" in ins else 0
+    extra = _extra_inputs(window)
+    per_step = [f"    if (arg[{j}]) sarg[{j}] = arg[{j}] + k * {r};"
+                for j, (_, r, _) in enumerate(inputs) if per[j]]
+    if window:  # the wind from its samples where they are given
+        j = ins.index("wind3")
+        per_step.append(f"    if (wind) sarg[{j}] = wind + k * 3;")
+    scratch = 3 * max(nz, no)
+    return _interface(name, inputs + extra, outputs, called,
+                      f"{scratch} + 3 * {n}" if window else str(scratch)) + \
+        _BEYOND.format(name=name) + (_WIND.format(name=name) if window else "") + \
         _STEPS.format(name=name, n=n,
                       report_or_state=_report_or_state(step.name(), called[-1], "col",
                                                        "obuf", "    "),
-                      n_in=len(ins), n_report=len(REPORT_INPUTS + LEAN_INPUTS),
+                      n_in=len(ins), n_report=len(extra),
                       n_out=len(outputs), modes=_MODES.format(a=len(ins)),
-                      per_step="\n".join(
-                          f"    if (arg[{j}]) sarg[{j}] = arg[{j}] + k * {r};"
-                          for j, (_, r, _) in enumerate(inputs) if per[j]),
-                      nz=nz, no=no, max_work=_max_work(called),
-                      **_lean_c(name, lean, len(outs), "z", "z", "    ", "j"))
+                      per_step="\n".join(per_step), nz=nz, no=no, max_work=_max_work(called),
+                      **_lean_c(name, lean, len(outs), "z", "z", "    ", "j"),
+                      **_wind_c(name, len(ins) + len(REPORT_INPUTS + LEAN_INPUTS), window,
+                                str(scratch)))
 
 
 def _lean_outputs(lean: tuple[tuple[int, ...], int] | None, nz: int, n: int,
@@ -244,9 +337,11 @@ CASADI_SYMBOL_EXPORT int {name}(const casadi_real** arg, casadi_real** res, casa
   casadi_int j, i, k, q, every = 1, next = 0, reported = 0, used = n * m;
   int lean = 0;
 {declarations}
+{wind_declarations}
 {max_work}
   /* the steps not on the report grid take the state-only plant step */
 {modes}
+{wind_modes}
   if (!arg[0]) return 1; /* no initial state */
   zc = w + ww; xa = zc + nz; xb = xa + np + ns; fa = xb + np + ns; fb = fa + nf;
   xcn = fb + nf; held = xcn + nc; va = held + nh; vn = va + nb; rd = vn + nb; me = rd + ns;
@@ -330,19 +425,23 @@ def intervals_source(loop: Loop, m: int, name: str,
     def col(x: str, i: str) -> str:  # column i of input x (NULL: an input left out)
         return f"(arg[{idx[x]}] ? arg[{idx[x]}] + {i} * {iv.size1_in(idx[x])} : 0)"
 
+    def wind(i: str) -> str:  # step i's wind3, from its samples where they are given
+        return f"(wind ? wind + {i} * 3 : {col('wind3', i)})"
+
     # the sample's wind: the first of wind3's at the interval's first plant step
-    interval = {**at, "z": "zc", "T": "&T", "wind": col("wind3", "j * n"),
+    interval = {**at, "z": "zc", "T": "&T", "wind": wind("j * n"),
                 **{x: col(x, "j") for x in sampled.PER_INTERVAL}}
     plant = {**interval, "x": "xa", "v": "va", "held": "held",
-             **{x: col(x, "k") for x in sampled.PER_STEP}}
+             **{x: col(x, "k") for x in sampled.PER_STEP}, "wind3": wind("k")}
     inputs = [(x, iv.size1_in(i), cols[x]) for i, x in enumerate(ins)]
+    extra = _extra_inputs(steps * m + WIND_ROOM)
     outputs = [("z_next", sz["z"], m), ("out", iv.size1_out(1), steps * m),
                ("z_steps", sz["z"], steps * m)] + _lean_outputs(lean, sz["z"], steps * m)
     scratch = (f"{sz['z']} * 2 + 2 * ({sz['p']} + {sz['s']}) + 2 * {sz['f']} + {sz['c']} + "
                f"{sampled._held_size(loop)} + 2 * {sz['b']} + {sz['s']} + {sz['m']} + "
-               f"{iv.size1_out(1)}")
+               f"{iv.size1_out(1)}")  # then the wind's steps: 3 * steps * m
     body = _INTERVALS.format(
-        name=name, n_in=len(ins), n_report=len(REPORT_INPUTS + LEAN_INPUTS),
+        name=name, n_in=len(ins), n_report=len(extra),
         n_out=len(outputs), modes=_MODES.format(a=len(ins)),
         report_or_state=_report_or_state(fns[1].name(), fns[-1].name(), "reported", "outs",
                                          "      "), i_dt=idx["dt"], nz=sz["z"], np=sz["p"],
@@ -352,7 +451,9 @@ def intervals_source(loop: Loop, m: int, name: str,
         sample_args=_args(fns[0], interval, "    "),
         plant_args=_args(fns[1], plant, "      "),
         fdi_call=_FDI_CALL.format(i_p_fdi=idx.get("p_fdi", -1), fdi=fns[2].name())
-        if loop.fdi else "", **_lean_c(name, lean, 3, "t", "t", "      ", "q"))
-    return fns, _interface(name, inputs + [(x, 1, 1) for x in REPORT_INPUTS + LEAN_INPUTS],
-                           outputs, [f.name() for f in fns], scratch) + \
-        _BEYOND.format(name=name) + body
+        if loop.fdi else "", **_lean_c(name, lean, 3, "t", "t", "      ", "q"),
+        **_wind_c(name, len(ins) + len(REPORT_INPUTS + LEAN_INPUTS), steps * m + WIND_ROOM,
+                  scratch))
+    return fns, _interface(name, inputs + extra, outputs, [f.name() for f in fns],
+                           f"{scratch} + 3 * {steps * m}") + _BEYOND.format(name=name) + \
+        _WIND.format(name=name) + body

@@ -32,11 +32,13 @@ from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import cache_dir, compiled_library, compiler, external_of
 from wtftc.model import spline
 from wtftc.model.faults import nominal_actuator
+from wtftc.model.wind import ConstantWind, SampledWind
 from wtftc.sim import specialise
 from wtftc.sim.drivers import (
     LEAN_INPUTS,
     LEAN_OUTPUTS,
     REPORT_INPUTS,
+    WIND_INPUTS,
     intervals_source,
     steps_source,
 )
@@ -422,6 +424,13 @@ class Buffered:
         else:
             seg[...] = v.reshape(1, -1)
 
+    def put_head(self, name: str, value: np.ndarray, run: int = 0, n_runs: int = 1) -> None:
+        """Write the first len(value) entries of run ``run``'s input ``name``, one column;
+        the others are left as they were."""
+        self._last.pop((name, run), None)
+        a = self._in[self._index[name]]
+        a[run * (a.shape[0] // n_runs), :len(value)] = value
+
     def fill(self, name: str, value: float) -> None:
         """Every element of input ``name``, for every run, set to ``value`` (an input
         never written with ``same``)."""
@@ -751,28 +760,21 @@ def _noise_streams(loop: Loop, runs: list[Run], exact: bool = False,
 
 def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: int, n_c: int,
                dt: float, loop: Loop, noise: list, held_cols: list[dict],
-               exact: bool = False) -> None:
-    """Wind at t, t + dt/2, t + dt of every step of the chunk; fault inputs per step, or one
-    column held when they are constant over the chunk (the usual case). A sampled loop
-    takes the sensor faults, eq (49)'s told fault and one noise draw per signal at each
-    interval's start. ``held_cols``: per run, the held columns last computed and their
-    time, reused while the schedules stay constant from then (issue 19: the schedules were
-    most of this function's time; the same numbers, bit for bit). ``exact``: the chunk is
-    specialised to exact sensors and does not read their faults, which are not written (a C
-    driver's: the sampled loop's mapaccum, where there is no compiler, is not specialised)."""
+               exact: bool = False, window: int = 0) -> None:
+    """Wind (:func:`_put_wind`); fault inputs per step, or one column held when they are
+    constant over the chunk (the usual case). A sampled loop takes the sensor faults, eq
+    (49)'s told fault and one noise draw per signal at each interval's start. ``held_cols``:
+    per run, the held columns last computed and their time, reused while the schedules stay
+    constant from then (issue 19: the schedules were most of this function's time; the same
+    numbers, bit for bit). ``exact``: the chunk is specialised to exact sensors and does not
+    read their faults, which are not written (a C driver's: the sampled loop's mapaccum,
+    where there is no compiler, is not specialised)."""
     tk = (k + np.arange(n_c)) * dt
     faults = ("actuator_faults", "ctrl_fault") if exact else \
         ("actuator_faults", "sensor_faults", "ctrl_fault")
     n_runs = len(runs)
-    # each step's t, t + dt/2, t + dt in a row, as the buffer lies: one evaluation a run
-    # (written by stride: the broadcast sum took 6 times as long)
-    t3 = np.empty(3 * n_c)
-    t3[0::3] = tk
-    np.add(tk, dt / 2, out=t3[1::3])
-    np.add(tk, dt, out=t3[2::3])
+    _put_wind(call, runs, k, tk, dt, window)
     for b, r in enumerate(runs):
-        w3 = np.broadcast_to(np.asarray(r.wind(t3), dtype=float), t3.shape)
-        call.put("wind3", w3.reshape(-1, 3).T, b, n_runs)
         # a run's faults constant over the chunk: one column (its own; the others' may not be)
         held = all(s is None or s.constant_between(tk[0], tk[m - 1])
                    for s in (r.schedule, r.ctrl_schedule))
@@ -791,6 +793,50 @@ def _put_chunk(call: Buffered, nominal: list[dict], runs: list[Run], k: int, m: 
         if loop.sampled and r.test_pulse is not None and r.test_pulse[0] != 0:
             call.put("test_pulse", _pulse(r.test_pulse, tk[::loop.interval])[None, :], b,
                      n_runs)
+
+
+def _put_wind(call: Buffered, runs: list[Run], k: int, tk: np.ndarray, dt: float,
+              window: int) -> None:
+    """Each run's wind over the chunk of steps at times ``tk`` (the first step k): its
+    samples where the chunk's C driver interpolates them (wtftc.sim.drivers.WIND_INPUTS,
+    room for ``window``; 0: none) and they fit, else the wind at t, t + dt/2, t + dt of
+    every step (``wind3``)."""
+    n_runs, t3 = len(runs), None
+    for b, r in enumerate(runs):
+        samples = _wind_samples(r.wind, tk[0], tk[-1] + dt, window) if window else None
+        if samples is not None:
+            for name, value in zip(WIND_INPUTS, (k, dt, len(samples[0])), strict=False):
+                call.put(name, [value], b, n_runs)
+            call.put_head(WIND_INPUTS[3], samples[0], b, n_runs)
+            call.put_head(WIND_INPUTS[4], samples[1], b, n_runs)
+            continue
+        if window:
+            call.put(WIND_INPUTS[2], [0.0], b, n_runs)
+        if t3 is None:
+            # each step's t, t + dt/2, t + dt in a row, as the buffer lies: one evaluation
+            # a run (written by stride: the broadcast sum took 6 times as long)
+            t3 = np.empty(3 * tk.size)
+            t3[0::3] = tk
+            np.add(tk, dt / 2, out=t3[1::3])
+            np.add(tk, dt, out=t3[2::3])
+        w3 = np.broadcast_to(np.asarray(r.wind(t3), dtype=float), t3.shape)
+        call.put("wind3", w3.reshape(-1, 3).T, b, n_runs)
+
+
+def _wind_samples(wind, lo: float, hi: float, room: int,
+                  ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The samples (times, speeds) of ``wind`` from which numpy.interp's numbers at every
+    time in [lo, hi] follow, as the C drivers interpolate them: from the last at or before
+    lo to the first after hi (or the ends); a constant wind as one sample. None where the
+    wind is not samples or more than ``room`` are needed."""
+    if type(wind) is ConstantWind:
+        return np.zeros(1), np.full(1, float(wind.speed_mps))
+    if type(wind) is not SampledWind or not wind.t_s.size:
+        return None
+    x = wind.t_s
+    i = max(int(np.searchsorted(x, lo, side="right")) - 1, 0)
+    j = min(int(np.searchsorted(x, hi, side="right")), x.size - 1)
+    return (x[i:j + 1], wind.v_mps[i:j + 1]) if j - i + 1 <= room else None
 
 
 def _fault_columns(r: Run, nominal: dict, held: dict | None, tf: np.ndarray,
@@ -996,6 +1042,8 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
     driven = LEAN_INPUTS[0] in f.name_in()
     compact = driven and hook is None and decimate > 1
     lean = driven and hook is None and not keep_states and LEAN_OUTPUTS[0] in f.name_out()
+    # a driver interpolating the wind's samples: room for how many
+    window = f.size1_in(f.index_in(WIND_INPUTS[3])) if WIND_INPUTS[3] in f.name_in() else 0
     k = 0
     while k < n_steps and not all(batch.diverged):
         if k in events:  # a lock may bind its angle here: its columns change
@@ -1005,7 +1053,7 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
         end = (k // n_c + 1) * n_c if hook is not None else k + n_c
         stop = min([n_steps, end] + [e for e in cuts if e > k])
         _put_chunk(call, nominal, runs, k, stop - k, n_c, dt, loop, noise, held_cols,
-                   exact and driven)
+                   exact and driven, window)
         call.put("z", batch.z)
         if driven:
             _driver_modes(call, decimate if compact else 1,
