@@ -556,3 +556,26 @@ def test_the_drivers_interpolate_the_winds_samples_as_numpy_does(interval, monke
             a, b = getattr(c, part), getattr(py, part)
             np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64),
                                           err_msg=f"{name}: {part}")
+
+
+def test_a_buffer_another_run_left_gives_a_new_buffers_numbers():
+    """integrate._take_buffer: a run through the inputs another run of the same chunk left
+    (a test movement, noise, a sensor fault, another wind) gets the numbers a new buffer
+    gives it, in raw bits: the inputs it leaves unwritten are zero again."""
+    base = {"controller": "physical", "case": 4, "profile": "realistic", "t_final_s": 8.0,
+            "fault": [{"type": "lock", "blade": 1, "onset_s": 3.0}]}
+    first = config.make_config({**base, "seed": 3, "fdi": {"test_pulse_deg": 1.0},
+                                "wind": {"kind": "constant", "speed_mps": 18.0},
+                                "fault": [{"type": "pitch_sensor_offset", "blade": 2,
+                                           "onset_s": 1.0}]})
+    second = config.make_config(base)
+    assert first.test_pulse and not second.test_pulse
+    integrate._BUFFERS.held = None
+    new = cases.run(second, progress=False)
+    held = integrate._BUFFERS.held
+    cases.run(first, progress=False)
+    assert integrate._BUFFERS.held[2] is held[2]  # the same buffer, taken again
+    reused = cases.run(second, progress=False)
+    for part in ("outputs", "full", "z_final"):
+        a, b = getattr(reused, part), getattr(new, part)
+        np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64), err_msg=part)

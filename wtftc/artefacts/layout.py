@@ -35,16 +35,30 @@ def units(group: str) -> list[str]:
 
 
 def defaults(group: str) -> np.ndarray:
+    """The defaults of ``group``: a new array, the caller's to change."""
+    return _defaults(group).copy()
+
+
+@cache
+def _defaults(group: str) -> np.ndarray:
     _check_group(group)
     return np.array([e["default"] for e in layout()[group]], dtype=float)
 
 
 def index(group: str, name: str) -> int:
-    n = names(group)
-    try:
-        return n.index(name)
-    except ValueError:
-        raise KeyError(f"{name!r} is not in {group}; allowed: {', '.join(n)}") from None
+    at = _indices(group).get(name)
+    if at is None:
+        raise KeyError(f"{name!r} is not in {group}; allowed: {', '.join(_names(group))}")
+    return at
+
+
+@cache
+def _indices(group: str) -> dict[str, int]:
+    """Where each name of ``group`` sits (its first entry of that name)."""
+    out: dict[str, int] = {}
+    for k, n in enumerate(_names(group)):
+        out.setdefault(n, k)
+    return out
 
 
 def size(group: str) -> int:
@@ -61,9 +75,11 @@ def blades() -> range:
     return range(1, n_blades() + 1)
 
 
+@cache
 def block(group: str, prefix: str) -> slice:
     """Where the numbered entries ``<prefix>_1``, ``<prefix>_2``, ... sit in ``group``:
-    ``block("nrel5mw_states", "beta")`` is the three blade pitch angles (not their rates)."""
+    ``block("nrel5mw_states", "beta")`` is the three blade pitch angles (not their rates).
+    Looked up several times a run: found once."""
     all_names = names(group)
     at = [k for k, n in enumerate(all_names)
           if n.rsplit("_", 1)[0] == prefix and n.rsplit("_", 1)[-1].isdigit()]

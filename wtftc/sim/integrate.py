@@ -54,6 +54,7 @@ CHUNK = 4000
 CHUNK_BYTES = 4 << 20
 
 
+@cache
 def chunk_steps(loop: Loop) -> int:
     """The steps of ``loop``'s chunk: CHUNK, or fewer (not under 1000) where their buffers
     would take more than CHUNK_BYTES."""
@@ -317,6 +318,7 @@ def compiled_chunk(step: ca.Function, n: int, label: str,
                    label, flags or loop_flags(), quiet, lambda: step.mapaccum(label, n))
 
 
+@cache
 def lean_rows(loop: Loop) -> tuple[tuple[int, ...], int]:
     """The rows of the C drivers' lean record (wtftc.sim.drivers.LEAN_OUTPUTS) for
     ``loop``: those of METRIC_STATES it has, in that order, and the rotor speed's (the
@@ -430,6 +432,12 @@ class Buffered:
         self._last.pop((name, run), None)
         a = self._in[self._index[name]]
         a[run * (a.shape[0] // n_runs), :len(value)] = value
+
+    def reset(self) -> None:
+        """Every input zero, as a new Buffered's."""
+        for a in self._in:
+            a.fill(0.0)
+        self._last.clear()
 
     def fill(self, name: str, value: float) -> None:
         """Every element of input ``name``, for every run, set to ``value`` (an input
@@ -607,9 +615,10 @@ class _Batch:
     envelope: Envelope | None = None
     full_rows: list = field(default_factory=list)  # the rows of METRIC_STATES kept
     dt: float = 0.0
-    n_steps: int = 0  # the steps of a run: the size of ``fulls``
-    outs: list = field(default_factory=list)
-    ts: list = field(default_factory=list)
+    dt_grid: float = 0.0  # s: the step (``dt`` is given only with the metrics' states)
+    n_steps: int = 0  # the steps of a run: the size of ``fulls`` and of ``outs``' grid
+    outs: list = field(default_factory=list)  # per run: the outputs on the grid, a row a step
+    grid: list = field(default_factory=list)  # per run: the grid's steps recorded
     zs: list = field(default_factory=list)
     fulls: list = field(default_factory=list)  # per run: METRIC_STATES, a row a step
     diverged: list = field(default_factory=list)
@@ -617,9 +626,8 @@ class _Batch:
 
     def __post_init__(self):
         n = len(self.runs)
-        self.outs, self.ts, self.zs = [[] for _ in range(n)], [[] for _ in range(n)], \
-            [[] for _ in range(n)]
-        self.fulls = [None] * n
+        self.zs = [[] for _ in range(n)]
+        self.fulls, self.outs, self.grid = [None] * n, [None] * n, [0] * n
         self.diverged, self.steps = [None] * n, [0] * n
 
     def record(self, b: int, zz: np.ndarray, oo: np.ndarray, k: int, m: int, dt: float,
@@ -652,7 +660,7 @@ class _Batch:
         # a diverged run is frozen at its last finite state (its column computes on,
         # unread, so that the batch keeps its shape)
         z_end = (zz[:, m - 2] if m > 1 else z_prev) if self.diverged[b] else zz[:, m - 1]
-        self._keep(b, seen if compact else oo[:, first:m:self.decimate], k, first, m, dt,
+        self._keep(b, seen if compact else oo[:, first:m:self.decimate], k, m,
                    full, z_end)
         return True
 
@@ -669,7 +677,7 @@ class _Batch:
         if bad or not _finite(seen) or (env is not None and (w_max > env.high
                                                              or w_min < env.low)):
             return False
-        self._keep(b, seen if compact else seen[:, first::self.decimate], k, first, m, dt,
+        self._keep(b, seen if compact else seen[:, first::self.decimate], k, m,
                    kept[:, :m].T if self.full_rows else None, check[:nz])
         return True
 
@@ -679,12 +687,18 @@ class _Batch:
         first = (-k) % self.decimate
         return first, oo[:, :len(range(first, m, self.decimate))] if compact else oo[:, :m]
 
-    def _keep(self, b: int, grid: np.ndarray, k: int, first: int, m: int, dt: float,
+    def _keep(self, b: int, grid: np.ndarray, k: int, m: int,
               full: np.ndarray | None, z_end: np.ndarray) -> None:
         """Keep run b's steps k .. k + m - 1: the outputs on the grid, the metrics' states
         (``full``, a row a step) and the state it ends at."""
-        self.outs[b].append(grid.T.copy())
-        self.ts[b].append(np.arange(k + first, k + m, self.decimate) * dt)
+        # written chunk by chunk into one array a run, read up to the grid's steps recorded
+        # (a copy a chunk, stacked at the end: about 10 ns a step of the bench's sampled loop)
+        if self.outs[b] is None:
+            self.outs[b] = np.empty((len(range(0, self.n_steps, self.decimate)),
+                                     grid.shape[0]))
+        at = self.grid[b]
+        self.outs[b][at:at + grid.shape[1]] = grid.T
+        self.grid[b] = at + grid.shape[1]
         if full is not None:
             if self.fulls[b] is None:  # written chunk by chunk, read up to the steps run
                 self.fulls[b] = np.empty((self.n_steps, len(self.full_rows)))
@@ -699,10 +713,19 @@ class _Batch:
         full = self.fulls[b]
         return full if self.steps[b] == len(full) else full[:self.steps[b]].copy()
 
+    def _grid(self, b: int) -> tuple[np.ndarray, np.ndarray]:
+        """Run b's times [s] and outputs on the grid, every ``decimate``-th step from 0 (as
+        each chunk's steps: the same numbers)."""
+        n = self.grid[b]
+        t = np.arange(0, n * self.decimate, self.decimate) * self.dt_grid
+        if self.outs[b] is None:
+            return t, np.zeros((0, len(self.out_names)))
+        out = self.outs[b]
+        return t, out if n == len(out) else out[:n].copy()
+
     def results(self, wall: float) -> list[Result]:
-        n_out = len(self.out_names)
-        return [Result(t=np.concatenate(self.ts[b]) if self.ts[b] else np.zeros(0),
-                       outputs=np.vstack(self.outs[b]) if self.outs[b] else np.zeros((0, n_out)),
+        grids = [self._grid(b) for b in range(len(self.runs))]
+        return [Result(t=grids[b][0], outputs=grids[b][1],
                        z_final=self.z[:, b].copy(), diverged=self.diverged[b], wall_s=wall,
                        steps=self.steps[b], names=self.out_names,
                        z=np.vstack(self.zs[b]) if self.keep_states else None,
@@ -1020,7 +1043,7 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
              hook: ChunkHook | None, tick) -> _Batch:
     """Advance ``runs`` side by side, chunk by chunk, to n_steps (or until all diverged);
     ``tick(k)`` after each chunk. ``exact``: ``f`` is specialised to exact sensors."""
-    call = Buffered(_mapped(f, len(runs)))
+    call = _take_buffer(f, len(runs))
     n_c, i_out = f.size2_out("out"), f.index_out("out")  # steps per chunk
     every = loop.interval if loop.sampled else 1
     batch = _Batch(runs, loop.state_names(),
@@ -1029,7 +1052,8 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
                    keep_states, decimate, Envelope.of(loop))
     if metric_states:
         batch.full_rows = list(lean_rows(loop)[0])
-        batch.dt, batch.n_steps = dt, n_steps
+        batch.dt = dt
+    batch.n_steps, batch.dt_grid = n_steps, dt
     events = _event_steps(runs, dt, every)
     cuts = sorted(set(events) | set(_change_steps(runs, dt, every, n_steps))) \
         if hook is None else events
@@ -1065,7 +1089,25 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
             hook.after(k, stop, batch.z[:, 0], res, batch.out_names)
         k = stop
         tick(k)
+    _BUFFERS.held = (f, len(runs), call)
     return batch
+
+
+#: per thread, the Buffered it last ran a chunk function through: (f, runs, Buffered)
+_BUFFERS = threading.local()
+
+
+def _take_buffer(f: ca.Function, n_runs: int) -> Buffered:
+    """``f`` mapped over n_runs in a Buffered whose inputs are all zero: the one this
+    thread last ran them through (zeroed), or a new one. (A new one cost 230 µs a run,
+    most of it the first touch of its megabytes.) Taken, it is this caller's alone until
+    it is held again."""
+    held = getattr(_BUFFERS, "held", None)
+    if held is not None and held[0] is f and held[1] == n_runs:
+        _BUFFERS.held = None
+        held[2].reset()
+        return held[2]
+    return Buffered(_mapped(f, n_runs))
 
 
 def _driver_modes(call: Buffered, every: int, first: int, used: int, lean: bool) -> None:

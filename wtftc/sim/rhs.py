@@ -81,8 +81,15 @@ def controllers() -> dict:
 
 def output_spec(controller: str, fdi: bool = True,
                 plant: str = "nrel5mw") -> list[tuple[str, str]]:
+    return list(_output_spec(controller, fdi, plant))
+
+
+@cache
+def _output_spec(controller: str, fdi: bool, plant: str) -> tuple[tuple[str, str], ...]:
+    """(looked up several times a run, from the layout, which is read once: built once)"""
     reg = controllers()[controller]
-    return common_outputs(fdi, plant) + list(zip(reg["diag"], reg["diag_units"], strict=True))
+    return tuple(common_outputs(fdi, plant) + list(zip(reg["diag"], reg["diag_units"],
+                                                       strict=True)))
 
 
 def state_names(plant: str, controller: str = "paper") -> list[str]:
@@ -144,6 +151,9 @@ class Loop:
     def state_names(self) -> list[str]:
         """The loop's state, in order: plant, controller, FDI; sampled: then the sensors'
         lag states and (with ``delay``) the command held for the next interval."""
+        return list(_loop_state_names(self))
+
+    def _state_names(self) -> list[str]:
         n_f = self.n_states[2]
         out = state_names(self.plant, self.controller)
         out = out[:len(out) - lay.size("fdi_states") + n_f]
@@ -151,6 +161,12 @@ class Loop:
             out += [f"sensor_lag_{n}" for n in sensor_names()]
             out += [f"v_held_{j}" for j in lay.blades()] if self.delay else []
         return out
+
+
+@cache
+def _loop_state_names(loop: Loop) -> tuple[str, ...]:
+    """(looked up several times a run: built once a loop)"""
+    return tuple(loop._state_names())
 
 
 def sensor_names() -> list[str]:

@@ -20,6 +20,7 @@ tests/test_specialise.py never meet: they compare in raw bits).
 from __future__ import annotations
 
 import hashlib
+from functools import cache
 
 import casadi as ca
 import numpy as np
@@ -39,7 +40,13 @@ Switch = tuple[int, float]
 def switch_entries(loop: Loop) -> dict[int, float]:
     """The switches of ``loop``'s controller: their entries in p_ctrl, with their defaults
     (off)."""
-    group = controllers()[loop.controller]["params"]
+    return dict(_switch_entries(loop.controller))
+
+
+@cache
+def _switch_entries(controller: str) -> dict[int, float]:
+    """(from the layout, which is read once: found once a controller)"""
+    group = controllers()[controller]["params"]
     names, defaults = lay.names(group), lay.defaults(group)
     return {i: float(defaults[i]) for i, n in enumerate(names) if n.endswith(CONTROLLER_SWITCHES)}
 
@@ -54,8 +61,8 @@ def shared_switches(loop: Loop, p_ctrl: list[np.ndarray | None]) -> tuple[Switch
     entries = switch_entries(loop)
     if not entries or any(p is None for p in p_ctrl):
         return ()
-    rows = np.array([np.asarray(p, dtype=float) for p in p_ctrl])
-    if not all(np.all(rows[:, i] == d) for i, d in entries.items()):
+    at, off = list(entries), list(entries.values())
+    if not all(np.array_equal(np.asarray(p, dtype=float)[at], off) for p in p_ctrl):
         return ()
     return tuple(sorted(entries.items()))
 
