@@ -49,17 +49,21 @@ from wtftc.sim.sampled import interval_function
 #: the per-chunk Python work (the fault columns, the calls, the records) cost the physical
 #: loop 6 % more
 CHUNK = 4000
-#: what a chunk's per-step buffers (state, outputs, per-step inputs) may take: beyond about
-#: this the paper's loop (2 KB a step) got slower with longer chunks, 5 % at 4000 steps
+#: what a chunk's per-step buffers (the state rows it writes, outputs, per-step inputs) may
+#: take: beyond about this the paper's loop (2 KB a step, every state written) got slower
+#: with longer chunks, 5 % at 4000 steps
 CHUNK_BYTES = 4 << 20
 
 
 @cache
 def chunk_steps(loop: Loop) -> int:
     """The steps of ``loop``'s chunk: CHUNK, or fewer (not under 1000) where their buffers
-    would take more than CHUNK_BYTES."""
-    per_step = len(loop.state_names()) + len(output_spec(loop.controller, loop.fdi,
-                                                            loop.plant))
+    would take more than CHUNK_BYTES. The state rows counted are those of the C drivers'
+    lean record (:func:`lean_rows`), which is what a run writes a step unless it keeps
+    every state: the paper's sampled loop went from 2000 steps to 4000 and ran 4-5 %
+    faster (docs/performance.md)."""
+    per_step = len(lean_rows(loop)[0]) + len(output_spec(loop.controller, loop.fdi,
+                                                         loop.plant))
     per_step += 3 + sum(len(lay.names(g)) for g in ("actuator_faults", "sensor_faults",
                                                      "fault_inputs"))
     return max(1000, min(CHUNK, CHUNK_BYTES // (8 * per_step) // 500 * 500))
