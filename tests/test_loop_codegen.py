@@ -579,3 +579,26 @@ def test_a_buffer_another_run_left_gives_a_new_buffers_numbers():
     for part in ("outputs", "full", "z_final"):
         a, b = getattr(reused, part), getattr(new, part)
         np.testing.assert_array_equal(a.view(np.uint64), b.view(np.uint64), err_msg=part)
+
+
+def test_a_reset_buffer_reads_zero_wherever_it_was_not_written_since():
+    """Buffered.reset: each run's segment of each input reads zero at the next evaluation
+    unless written since, whole (put), in part (put_head: the rest zero) or for every run
+    (fill)."""
+    u, v = ca.SX.sym("u", 3), ca.SX.sym("v", 2)
+    call = integrate.Buffered(ca.Function("f", [u, v], [u * 1, v * 1], ["u", "v"],
+                                          ["a", "b"]).map(2))
+    call.put("u", [1.0, 2.0, 3.0], 0, 2)
+    call.put("u", [4.0, 5.0, 6.0], 1, 2)
+    call.fill("v", 7.0)
+    a, b = call.evaluate()
+    assert a.tolist() == [[1, 4], [2, 5], [3, 6]] and b.tolist() == [[7, 7], [7, 7]]
+    call.reset()
+    call.put("u", [9.0, 9.0, 9.0], 1, 2)  # run 1 whole, run 0 not written
+    call.put_head("v", [8.0], 0, 2)  # run 0's first entry; filled before: the rest zero
+    a, b = call.evaluate()
+    assert a.tolist() == [[0, 9], [0, 9], [0, 9]] and b.tolist() == [[8, 0], [0, 0]]
+    call.reset()
+    call.fill("v", 1.0)
+    a, b = call.evaluate()
+    assert a.tolist() == [[0, 0]] * 3 and b.tolist() == [[1, 1], [1, 1]]
