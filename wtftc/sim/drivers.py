@@ -394,6 +394,27 @@ def _args(fn: ca.Function, given: dict[str, str], indent: str) -> str:
     return "\n".join(f"{indent}sarg[{i}] = {given[x]};" for i, x in enumerate(fn.name_in()))
 
 
+def _interval_args(iv: ca.Function) -> tuple[dict[str, str], dict[str, str]]:
+    """The C expressions the intervals driver passes the sample and the plant step for
+    each input of the interval function ``iv``: the held inputs whole, the per-interval
+    ones at interval j, the per-step ones at step k; the wind from its samples where
+    they are given (``wind``), else from ``wind3``."""
+    idx = {x: i for i, x in enumerate(iv.name_in())}
+
+    def col(x: str, i: str) -> str:  # column i of input x (NULL: an input left out)
+        return f"(arg[{idx[x]}] ? arg[{idx[x]}] + {i} * {iv.size1_in(idx[x])} : 0)"
+
+    def wind(i: str) -> str:  # step i's wind3
+        return f"(wind ? wind + {i} * 3 : {col('wind3', i)})"
+
+    # the sample's wind: the first of wind3's at the interval's first plant step
+    interval = {**{x: f"arg[{i}]" for x, i in idx.items()}, "z": "zc", "T": "&T",
+                "wind": wind("j * n"), **{x: col(x, "j") for x in sampled.PER_INTERVAL}}
+    plant = {**interval, "x": "xa", "v": "va", "held": "held",
+             **{x: col(x, "k") for x in sampled.PER_STEP}, "wind3": wind("k")}
+    return interval, plant
+
+
 def intervals_source(loop: Loop, m: int, name: str,
                      fixed: dict[str, dict[int, float]] | None = None,
                      lean: tuple[tuple[int, ...], int] | None = None,
@@ -421,18 +442,7 @@ def intervals_source(loop: Loop, m: int, name: str,
     idx = {x: i for i, x in enumerate(ins)}
     cols = {x: steps * m if x in sampled.PER_STEP else
             m if x in sampled.PER_INTERVAL else 1 for x in ins}
-    at = {x: f"arg[{idx[x]}]" for x in ins}
-    def col(x: str, i: str) -> str:  # column i of input x (NULL: an input left out)
-        return f"(arg[{idx[x]}] ? arg[{idx[x]}] + {i} * {iv.size1_in(idx[x])} : 0)"
-
-    def wind(i: str) -> str:  # step i's wind3, from its samples where they are given
-        return f"(wind ? wind + {i} * 3 : {col('wind3', i)})"
-
-    # the sample's wind: the first of wind3's at the interval's first plant step
-    interval = {**at, "z": "zc", "T": "&T", "wind": wind("j * n"),
-                **{x: col(x, "j") for x in sampled.PER_INTERVAL}}
-    plant = {**interval, "x": "xa", "v": "va", "held": "held",
-             **{x: col(x, "k") for x in sampled.PER_STEP}, "wind3": wind("k")}
+    interval, plant = _interval_args(iv)
     inputs = [(x, iv.size1_in(i), cols[x]) for i, x in enumerate(ins)]
     extra = _extra_inputs(steps * m + WIND_ROOM)
     outputs = [("z_next", sz["z"], m), ("out", iv.size1_out(1), steps * m),
