@@ -1135,10 +1135,10 @@ _BUFFERS = threading.local()
 
 
 def _take_buffer(f: ca.Function, n_runs: int) -> Buffered:
-    """``f`` mapped over n_runs in a Buffered whose inputs are all zero: the one this
-    thread last ran them through (zeroed), or a new one. (A new one cost 230 µs a run,
-    most of it the first touch of its megabytes.) Taken, it is this caller's alone until
-    it is held again."""
+    """``f`` mapped over n_runs in a Buffered whose inputs read zero: the one this thread
+    last ran them through (:meth:`Buffered.reset`), or a new one. (A new one cost 136-235
+    µs a run, most of it the first touch of its megabytes.) Taken, it is this caller's
+    alone until it is held again."""
     held = getattr(_BUFFERS, "held", None)
     if held is not None and held[0] is f and held[1] == n_runs:
         _BUFFERS.held = None
