@@ -125,8 +125,9 @@ LEAN_INPUTS = ("n_used", "lean")
 #: then, for a step taking ``wind3``, the wind from its samples: ``wind_n`` > 0 samples
 #: (times ``wind_t``, speeds ``wind_v``, in their first entries) from which the driver
 #: interpolates the wind at t, t + dt/2, t + dt of each step, t = (wind_k0 + k) wind_dt for
-#: the chunk's step k, as numpy.interp does (the same numbers, bit for bit:
-#: tests/test_loop_codegen.py), in place of reading ``wind3``; ``wind_n`` 0 or left out:
+#: the chunk's step k, as numpy.interp does (the same numbers, bit for bit, under the
+#: default flags: tests/test_loop_codegen.py; the fast-math chunks drop its NaN
+#: fallbacks), in place of reading ``wind3``; ``wind_n`` 0 or left out:
 #: ``wind3`` is read
 WIND_INPUTS = ("wind_k0", "wind_dt", "wind_n", "wind_t", "wind_v")
 #: the room for samples beyond a chunk's steps: samples no closer than a step need at most

@@ -430,8 +430,9 @@ class Buffered:
         w = a.shape[0] // n_runs
         seg = a[run * w:(run + 1) * w]
         key = (i, run, n_runs)
-        if self._stale:  # this segment is written whole: only others of the input zeroed
-            self._zero_stale({x for x in self._stale if x[0] == i and x != key})
+        if self._stale:  # this segment is written whole: only those of the input cut
+            # otherwise (another number of runs: a fill) that overlap it are zeroed first
+            self._zero_stale({x for x in self._stale if x[0] == i and x[2] != n_runs})
             self._stale.discard(key)
         self._dirty.add(key)
         v = np.asarray(value, dtype=float)
@@ -450,6 +451,10 @@ class Buffered:
         self._dirty.add((i, run, n_runs))
         a = self._in[i]
         a[run * (a.shape[0] // n_runs), :len(value)] = value
+
+    def nbytes(self) -> int:
+        """The bytes of its input and output arrays."""
+        return sum(a.nbytes for a in self._in) + sum(r.nbytes for r in self._out)
 
     def reset(self) -> None:
         """Every input zero, as a new Buffered's, when it is next read: what was written
@@ -1126,12 +1131,16 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
             hook.after(k, stop, batch.z[:, 0], res, batch.out_names)
         k = stop
         tick(k)
-    _BUFFERS.held = (f, len(runs), call)
+    if call.nbytes() <= HELD_BYTES:
+        _BUFFERS.held = (f, len(runs), call)
     return batch
 
 
 #: per thread, the Buffered it last ran a chunk function through: (f, runs, Buffered)
 _BUFFERS = threading.local()
+#: the largest Buffered kept for the next run (its arrays' bytes, touched or not): a large
+#: batch's buffers are let go with it
+HELD_BYTES = 64 << 20
 
 
 def _take_buffer(f: ca.Function, n_runs: int) -> Buffered:
