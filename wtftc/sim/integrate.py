@@ -656,8 +656,7 @@ class _Batch:
     decimate: int
     envelope: Envelope | None = None
     full_rows: list = field(default_factory=list)  # the rows of METRIC_STATES kept
-    dt: float = 0.0
-    dt_grid: float = 0.0  # s: the step (``dt`` is given only with the metrics' states)
+    dt: float = 0.0  # s: the step
     n_steps: int = 0  # the steps of a run: the size of ``fulls`` and of ``outs``' grid
     outs: list = field(default_factory=list)  # per run: the outputs on the grid, a row a step
     grid: list = field(default_factory=list)  # per run: the grid's steps recorded
@@ -759,7 +758,7 @@ class _Batch:
         """Run b's times [s] and outputs on the grid, every ``decimate``-th step from 0 (as
         each chunk's steps: the same numbers)."""
         n = self.grid[b]
-        t = np.arange(0, n * self.decimate, self.decimate) * self.dt_grid
+        t = np.arange(0, n * self.decimate, self.decimate) * self.dt
         if self.outs[b] is None:
             return t, np.zeros((0, len(self.out_names)))
         out = self.outs[b]
@@ -870,7 +869,7 @@ def _put_wind(call: Buffered, runs: list[Run], k: int, tk: np.ndarray, dt: float
     for b, r in enumerate(runs):
         samples = _wind_samples(r.wind, tk[0], tk[-1] + dt, window) if window else None
         if samples is not None:
-            for name, value in zip(WIND_INPUTS, (k, dt, len(samples[0])), strict=False):
+            for name, value in zip(WIND_INPUTS[:3], (k, dt, len(samples[0])), strict=True):
                 call.put(name, [value], b, n_runs)
             call.put_head(WIND_INPUTS[3], samples[0], b, n_runs)
             call.put_head(WIND_INPUTS[4], samples[1], b, n_runs)
@@ -1094,8 +1093,7 @@ def _advance(loop: Loop, f: ca.Function, n_steps: int, dt: float, decimate: int,
                    keep_states, decimate, Envelope.of(loop))
     if metric_states:
         batch.full_rows = list(lean_rows(loop)[0])
-        batch.dt = dt
-    batch.n_steps, batch.dt_grid = n_steps, dt
+    batch.n_steps, batch.dt = n_steps, dt
     events = _event_steps(runs, dt, every)
     cuts = sorted(set(events) | set(_change_steps(runs, dt, every, n_steps))) \
         if hook is None else events
