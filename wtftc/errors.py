@@ -46,3 +46,9 @@ class EngineError(RuntimeError):
     """An external program wtftc runs (OpenFAST, TurbSim) is missing, cannot be installed
     or failed: one line saying what and how to get it. The CLI prints it without a
     traceback and exits with code 4."""
+
+
+class ProgramKilled(EngineError):
+    """An external program (OpenFAST, TurbSim) was ended by a signal that wtftc did not
+    send for a reason of the run's own (another process, the machine, wtftc's own stop):
+    the run is unfinished, not failed, and a resumed campaign runs it again."""

@@ -130,6 +130,88 @@ def read_user_text(path, field: str, max_bytes: int = MAX_INPUT_BYTES,
     return text.removeprefix("\ufeff")
 
 
+def decode_text(data: bytes) -> str:
+    """A user's text as they wrote it: UTF-8 (a BOM dropped), else Latin-1, which decodes
+    any byte (an OpenFAST deck written on Windows with a "°" in a comment). For files
+    whose words are ASCII where they matter; a refusal, where the content does matter,
+    is the reader's."""
+    try:
+        return data.decode("utf-8").removeprefix("\ufeff")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
+# ---------------------------------------------------------------------- what wtftc caches
+
+#: the seal of a cache entry lies beside it: ``<entry>.sha256``, JSON {path: "<size>
+#: <sha256>"} of the file, or of every file under the folder ("." for a file entry)
+SEAL_SUFFIX = ".sha256"
+
+
+def seal_path(entry: Path) -> Path:
+    entry = Path(entry)
+    return entry.with_name(entry.name + SEAL_SUFFIX)
+
+
+def _seal_listing(entry: Path) -> dict[str, str] | None:
+    if entry.is_file():
+        return {".": f"{entry.stat().st_size} {_sha256(str(entry))}"}
+    return _listing(entry) if entry.is_dir() else None
+
+
+def seal(entry: Path) -> None:
+    """Record ``entry``'s size and sha256 (a folder: of every file under it) beside it,
+    once it is whole: :func:`seal_damage` checks them when it is read. The seal is written
+    to a temporary and renamed into place."""
+    entry = Path(entry)
+    listing = _seal_listing(entry)
+    if listing is None:
+        raise OSError(f"{entry} is not a file or a folder of regular files")
+    target = seal_path(entry)
+    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            json.dump(listing, fh, indent=0, sort_keys=True)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, target)
+    except BaseException:
+        with suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def seal_damage(entry: Path) -> str | None:
+    """What is wrong with the cache entry ``entry`` against its seal; None when it is
+    whole. A missing seal, a file changed (even at the same size), added or removed is
+    damage."""
+    entry = Path(entry)
+    try:
+        recorded = json.loads(seal_path(entry).read_text())
+    except FileNotFoundError:
+        return "no checksum recorded beside it"
+    except (OSError, ValueError) as exc:
+        return f"its checksum file is unreadable ({exc})"
+    try:
+        found = _seal_listing(entry)
+    except OSError as exc:
+        return f"unreadable ({exc.strerror or exc})"
+    if found is None:
+        return "missing" if not entry.exists() else "not a regular file or folder"
+    if not isinstance(recorded, dict):
+        return "its checksum file is not a listing"
+    for name in sorted(set(recorded) | set(found)):
+        if name not in found:
+            return f"{name} is missing"
+        if name not in recorded:
+            return f"{name} was added"
+        if found[name] != recorded[name]:
+            (a, _, x), (b, _, y) = found[name].partition(" "), recorded[name].partition(" ")
+            what = "" if name == "." else f"{name}: "
+            return (f"{what}{a} bytes, {b} when written" if a != b else
+                    f"{what}sha256 {x[:12]}…, {y[:12]}… when written")
+    return None
+
+
 # ---------------------------------------------------------------------- what wtftc wrote
 
 def _umask() -> int:
