@@ -164,10 +164,28 @@ def test_the_torque_laws_region_3_is_the_rated_torque(name):
         tp["gen_torque_rated"], rel=1e-5)
 
 
+#: turbine parameters the import reads from the deck, or makes from what it reads with IEEE
+#: arithmetic alone (+ - × ÷, correctly rounded on every CPU): identical on any machine
+READ_NOT_COMPUTED = ("k_s", "d_s", "gearbox_ratio", "rotor_radius", "pitch_min", "pitch_max",
+                     "pitch_rate_max", "air_density", "gen_efficiency", "omega_g_rated",
+                     "gen_torque_rated", "vs_max_torque", "vs_cut_in_speed",
+                     "tower_moment_arm", "edge_damping_ratio", "tower_damping_ratio")
+
+
 @needs_decks
 def test_the_built_in_iea15mw_is_what_the_import_gives(tmp_path):
     """wtftc turbine import on ROSCO's IEA-15-240-RWT-Monopile deck gives the shipped
-    iea15mw.toml's values bit for bit, and its Cp table byte for byte."""
+    iea15mw.toml's values, and its Cp table byte for byte.
+
+    The shipped file was imported on another machine. The values the import computes (the
+    blade's modal integrals: numpy's trapezoid over powers of the mode shape, whose SIMD
+    paths differ between CPUs, SVML's on AVX-512 among them) may differ there in the last
+    bits: one unit in the last place of ``edge_stiffness`` was seen between an Intel Xeon
+    and an AMD EPYC. The tolerance, 1e-12 relative, is about a hundred times the rounding
+    of a sum over the deck's 50 stations and a million times tighter than any value's meaning; a
+    value read rather than computed is held to exactly what the file says. The Cp table
+    is the deck's numbers reformatted (a pitch in degrees to radians and back, one IEEE
+    multiplication each, correctly rounded on every x86-64 CPU): byte for byte."""
     fst = EXAMPLES / "IEA-15-240-RWT" / "IEA-15-240-RWT-Monopile" / \
         "IEA-15-240-RWT-Monopile.fst"
     out = tmp_path / "iea.toml"
@@ -176,7 +194,10 @@ def test_the_built_in_iea15mw_is_what_the_import_gives(tmp_path):
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     mine, shipped = turbine_file.read(out), turbine_file.load("iea15mw")
-    assert np.array_equal(mine.vector(), shipped.vector())
+    a, b = mine.vector(), shipped.vector()
+    np.testing.assert_allclose(a, b, rtol=1e-12, atol=0)
+    read = [k for k, n in enumerate(lay.names("turbine_params")) if n in READ_NOT_COMPUTED]
+    assert len(read) == len(READ_NOT_COMPUTED) and np.array_equal(a[read], b[read])
     assert Path(mine.cp_path).read_bytes() == Path(shipped.cp_path).read_bytes()
 
 
