@@ -9,6 +9,7 @@ import csv
 import dataclasses
 import hashlib
 import importlib.util
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -172,8 +173,19 @@ READ_NOT_COMPUTED = ("k_s", "d_s", "gearbox_ratio", "rotor_radius", "pitch_min",
                      "tower_moment_arm", "edge_damping_ratio", "tower_damping_ratio")
 
 
+def _numpy_baseline_env() -> dict[str, str]:
+    """The environment in which numpy runs its baseline code alone: every SIMD path it
+    dispatches to at run time that this CPU has (AVX2, AVX-512) switched off, as on the
+    oldest x86-64 CPU numpy supports."""
+    from numpy._core import _multiarray_umath as mu
+
+    found = [f for f in mu.__cpu_dispatch__ if mu.__cpu_features__.get(f)]
+    return {**os.environ, "NPY_DISABLE_CPU_FEATURES": " ".join(found)} if found else {}
+
+
 @needs_decks
-def test_the_built_in_iea15mw_is_what_the_import_gives(tmp_path):
+@pytest.mark.parametrize("simd", ["this CPU's", "baseline"])
+def test_the_built_in_iea15mw_is_what_the_import_gives(tmp_path, simd):
     """wtftc turbine import on ROSCO's IEA-15-240-RWT-Monopile deck gives the shipped
     iea15mw.toml's values, and its Cp table byte for byte.
 
@@ -185,13 +197,16 @@ def test_the_built_in_iea15mw_is_what_the_import_gives(tmp_path):
     of a sum over the deck's 50 stations and a million times tighter than any value's meaning; a
     value read rather than computed is held to exactly what the file says. The Cp table
     is the deck's numbers reformatted (a pitch in degrees to radians and back, one IEEE
-    multiplication each, correctly rounded on every x86-64 CPU): byte for byte."""
+    multiplication each, correctly rounded on every x86-64 CPU): byte for byte. The import
+    is run twice, with numpy's SIMD paths for this CPU and with its baseline code alone, so
+    that a CPU without the SIMD of the machine that made the file is tried on every one."""
+    env = _numpy_baseline_env() if simd == "baseline" else None
     fst = EXAMPLES / "IEA-15-240-RWT" / "IEA-15-240-RWT-Monopile" / \
         "IEA-15-240-RWT-Monopile.fst"
     out = tmp_path / "iea.toml"
     done = subprocess.run([sys.executable, "-m", "wtftc.cli", "turbine", "import",
                            "--openfast", str(fst), "--name", "iea", "--out", str(out)],
-                          capture_output=True, text=True, timeout=300)
+                          capture_output=True, text=True, timeout=300, env=env)
     assert done.returncode == 0, done.stderr
     mine, shipped = turbine_file.read(out), turbine_file.load("iea15mw")
     a, b = mine.vector(), shipped.vector()
