@@ -106,10 +106,11 @@ def _add_validate(sub) -> None:
                    help="1 no fault (default), 2 a fault the controller is not told of, "
                         "4 wtftc's FDI finds it")
     v.add_argument("--turbine", help=TURBINE_HELP)
-    v.add_argument("--wind", default="ntm", help="wind kind (default ntm, class B): "
-                   "constant, steps, ntm, eog, file")
-    v.add_argument("--wind-mean", type=float, default=16.0,
-                   help="mean (or constant) wind speed at hub height [m/s] (default 16)")
+    v.add_argument("--wind", help="wind kind (default ntm, class B; file with "
+                   "--wind-file): constant, steps, ntm, eog, file")
+    v.add_argument("--wind-mean", type=float,
+                   help="mean (or constant) wind speed at hub height [m/s] (default 16; "
+                        "none with --wind file: the file gives the wind)")
     v.add_argument("--wind-file", type=Path, help="OpenFAST .hh/.wnd or CSV (time_s, "
                    "speed_mps)")
     v.add_argument("--fault", choices=("default", "none"),
@@ -133,6 +134,11 @@ def _add_validate(sub) -> None:
 def _cmd_validate(args) -> int:
     from wtftc.campaign import tune, validate
 
+    _check_out_name(args.out)
+    if args.wind is None:  # a wind file given alone is the wind
+        args.wind = "file" if args.wind_file is not None else "ntm"
+    if args.wind_mean is None and args.wind != "file":
+        args.wind_mean = VALIDATE_WIND_MPS
     raw = tune.resolve(_run_overrides(args))
     if args.controller != "rosco":
         raw.setdefault("turbine_params", {"gen_torque_law": 1.0})  # as compare runs them
@@ -148,6 +154,39 @@ def _cmd_validate(args) -> int:
           f"OpenFAST); written: {args.out}/validation.json, validation.md, time_series.png, "
           "spectra.png, openfast/, wtftc/")
     return 0
+
+
+#: `wtftc validate`'s mean wind by default [m/s]: above rated on both built-in turbines
+VALIDATE_WIND_MPS = 16.0
+#: what a command adds to its --out folder's name while it builds it beside, in a hidden
+#: sibling (wtftc.files.owned_folder: ".<name>.<8 random characters>.partial")
+PARTIAL_EXTRA = len("..12345678.partial")
+
+
+def _check_out_name(out: Path, option: str = "--out") -> None:
+    """Refuse, before any work, an ``out`` whose name the hidden sibling it is built in
+    could not have: a file name holds at most NAME_MAX bytes (255 on Linux's file
+    systems), the sibling's :data:`PARTIAL_EXTRA` more."""
+    out = Path(os.path.normpath(out))
+    probe = out.parent
+    while not probe.is_dir() and probe != probe.parent:
+        probe = probe.parent
+    try:
+        name_max = os.pathconf(probe, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    size, limit = len(os.fsencode(out.name)), name_max - PARTIAL_EXTRA
+    if size > limit:
+        raise ConfigError(option, str(out), f"a folder whose name is at most {limit} bytes "
+                          f"(this one's is {size}): wtftc builds it beside, as .<name>.<8 "
+                          f"characters>.partial, {PARTIAL_EXTRA} bytes longer, and a file "
+                          f"name holds at most {name_max} bytes here")
+
+
+def _note(line: str | None) -> None:
+    """A note about the input that is not a refusal, on stderr (one line)."""
+    if line:
+        print(line, file=sys.stderr, flush=True)
 
 
 def _add_openfast(sub) -> None:
@@ -608,11 +647,13 @@ def _cmd_run(args) -> int:
     from wtftc.openfast.turbsim import ensure_field
     from wtftc.results.io import check_run_folder
 
+    _check_out_name(args.out)
+    check_run_folder(args.out, "--out")  # before any work, a TurbSim field too
     raw = tune.resolve(_run_overrides(args))
     ensure_field(raw)  # a TurbSim field the run reads, made first
     rc = config.make_config(raw)
-    check_run_folder(args.out, "--out")
     rc.initial_state()  # a wind with no operating point: refused before the first line
+    _note(config.cut_out_note(rc))
     where = (f"OpenFAST 5.0.0 ({rc.raw.get('turbine', 'nrel5mw')}'s deck)"
              if rc.raw.get("engine") == "openfast" else f"{rc.plant}, at dt = {rc.dt:g} s")
     print(f"{rc.label}: case {rc.case} ({config.CASES[rc.case]}) on {where}, "
@@ -654,6 +695,7 @@ def _cmd_compare(args) -> int:
     from wtftc.campaign.modes import tower_plants
     from wtftc.files import check_out_folder
 
+    _check_out_name(args.out)
     plant = compare.PLANT if args.plant is None else _plant(
         args.plant, "--plant", tower_plants(), " (the plants with a tower: compare scores the "
         "tower-base loads)")
@@ -867,6 +909,7 @@ def _cmd_linearize(args) -> int:
     from wtftc.campaign import linearize
     from wtftc.files import check_out_folder
 
+    _check_out_name(args.out)
     raw = _linearize_config(args)
     if raw["controller"] == "rosco":  # it ran, and its "model" was the loop without it
         raise ConfigError("--controller", "rosco", "a controller generated by wtftc, one of "
@@ -961,7 +1004,7 @@ def _add_modes(sub) -> None:
                    "(generator, drivetrain twist, 1st tower fore-aft: wtftc's plant; the "
                    "default) or full (every blade, tower and drivetrain DOF)")
     m.add_argument("--azimuths", type=_positive_int, help="azimuths per wind (default 2 "
-                   "for rigid, 6 for full; at least 2)")
+                   "for rigid, 6 for full; 2 to 36)")
     m.add_argument("--out", type=Path, default=Path("out/modes"), help="output folder: new, "
                    "empty or an earlier `wtftc modes` output")
     m.add_argument("--quiet", action="store_true", help="no progress lines")
@@ -977,15 +1020,14 @@ def _cmd_modes(args) -> int:
     from wtftc.openfast import install
     from wtftc.openfast.linearization import AZIMUTHS, DOF_SETS
 
+    _check_out_name(args.out)
     plant = args.plant or ("tower" if args.dofs == "rigid" else "tower_edge")
     raw = {"plant": _plant(plant, "--plant", modes.tower_plants()),
            **({"turbine": args.turbine} if args.turbine else {})}
     if args.dofs not in DOF_SETS:
         raise ConfigError("--dofs", args.dofs, "one of " + ", ".join(DOF_SETS))
-    n_az = AZIMUTHS[args.dofs] if args.azimuths is None else args.azimuths
-    if n_az < 2:
-        raise ConfigError("--azimuths", n_az, "an integer >= 2 (OpenFAST's CalcSteady "
-                          "linearizes at 2 azimuths at least)")
+    n_az = modes.check_azimuths(AZIMUTHS[args.dofs] if args.azimuths is None
+                                else args.azimuths)
     rc = config.make_config({**raw, "controller": modes.SETTLING_CONTROLLER})
     rated = config.rated_wind_speed(rc.loop.p_turbine, rc.loop.table)
     winds = _winds(args.winds, lo=rated)  # OpenFAST's trim holds the speed by pitch

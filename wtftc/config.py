@@ -368,18 +368,67 @@ def make_config(cfg: dict | None = None) -> RunConfig:
 
 def openfast_deck(turbine: turbine_file.Turbine) -> Path | None:
     """The turbine's OpenFAST deck (its main file; ``rosco:`` names one in ROSCO's
-    wheel), None when its file names none."""
+    wheel, inside its examples: :func:`check_rosco_path`), None when its file names none."""
     if not turbine.openfast_deck:
         return None
     if turbine.openfast_deck.startswith("rosco:"):
+        check_rosco_path("openfast_deck", turbine.openfast_deck, turbine.path)
         if importlib.util.find_spec("rosco") is None:
             raise EngineError(f"the OpenFAST deck of turbine {turbine.name} is ROSCO 2.10.6's "
                               f"({turbine.openfast_deck[len('rosco:'):]}), and ROSCO is not "
                               "installed: " + OPENFAST_PACKAGES + " (docs/openfast.md)")
         from wtftc.sim.rosco import discon_path
 
-        return discon_path(turbine.openfast_deck)
+        path = discon_path(turbine.openfast_deck)
+        tree = discon_path(f"rosco:{ROSCO_TREE}").resolve()
+        if not path.resolve().is_relative_to(tree):  # a link in the tree that leaves it
+            raise ConfigError("openfast_deck", turbine.openfast_deck, f"a file inside "
+                              f"ROSCO's installed examples, {tree} (this one resolves to "
+                              f"{path.resolve()})", where=turbine.path)
+        return path
     return Path(turbine.openfast_deck)
+
+
+#: the cut-out wind speed at hub height [m/s] of the built-in turbines (the NREL 5-MW:
+#: Jonkman et al. 2009, Table 1-1; the IEA 15-MW: Gaertner et al. 2020, Table 1-1), and of
+#: a turbine file that sets none. IEC 61400-1's power-production cases (DLC 1.x) lie
+#: between cut-in and cut-out; above it a turbine shuts down and idles (DLC 6.x)
+CUT_OUT_WIND_MPS = 25.0
+
+
+def cut_out_note(rc: RunConfig) -> str | None:
+    """One line when the run's mean wind (over the run, at hub height) is above its
+    turbine's cut-out: the controller then runs a turbine in power production where a
+    real one has shut down. None otherwise."""
+    turbine = turbine_file.load(rc.raw.get("turbine", turbine_file.DEFAULT))
+    cut_out = getattr(turbine, "cut_out_wind_mps", None) or CUT_OUT_WIND_MPS
+    mean = float(np.mean(rc.wind(np.linspace(0.0, rc.t_final, 2001))))
+    if not mean > cut_out:
+        return None
+    return (f"note: {rc.label}: the mean wind, {mean:.4g} m/s, is above the turbine's "
+            f"cut-out, {cut_out:g} m/s: a turbine shuts down there (IEC 61400-1's "
+            "power-production cases, DLC 1.x, end at cut-out); this run keeps it producing")
+
+
+#: the folder of ROSCO's wheel that ``rosco:<path>`` names files in: its examples (the
+#: decks and DISCON.IN files of its test cases, Examples/Test_Cases/)
+ROSCO_TREE = "Examples"
+
+
+def check_rosco_path(key: str, spec, where: str | None = None) -> None:
+    """A turbine file's ``rosco:<path>`` (``rosco_discon``, ``openfast_deck``) names a file
+    inside ROSCO's installed examples, ``rosco:Examples/...``: a relative path with no
+    ``..``, so that it cannot name the package's folders or anything beyond them. Any other
+    value (a path of the user's own, None) is not checked here."""
+    if not isinstance(spec, str) or not spec.startswith("rosco:"):
+        return
+    rel = spec[len("rosco:"):].replace("\\", "/")
+    parts = [p for p in rel.split("/") if p not in ("", ".")]
+    if rel.startswith("/") or ".." in parts or len(parts) < 2 or parts[0] != ROSCO_TREE:
+        raise ConfigError(key, spec, f"rosco:{ROSCO_TREE}/<path>, a file inside ROSCO's "
+                          f"installed examples (e.g. rosco:{ROSCO_TREE}/Test_Cases/NREL-5MW/"
+                          "DISCON.IN): a relative path without '..'; a file elsewhere is "
+                          "named by its own path", where=where)
 
 
 #: what the OpenFAST engine needs from Python besides wtftc's core: ROSCO's wheel (the
@@ -601,6 +650,14 @@ def _fdi(raw: dict, loop: rhs.Loop, p_sensors: np.ndarray,
     align = vals["align_rate_per_s"]
     if align is None and raw["engine"] == "openfast":
         align = HOST_ALIGN_RATE
+        if align * interval > ALIGN_STEP_MAX:  # the user gave the interval, not the rate
+            raise ConfigError("control_interval_s", raw["control_interval_s"], "at most "
+                              f"{ALIGN_STEP_MAX / align:g} s with engine = openfast: the FDI of "
+                              "wtftc's controller library starts with an alignment that pulls "
+                              f"at fdi.align_rate_per_s = {align:g} /s by default, and a "
+                              f"pull over {ALIGN_STEP_MAX:g} per interval is unstable (or "
+                              "set fdi.align_rate_per_s to at most 1 / the interval, 0 for "
+                              "none)")
     if align is not None and align * interval > ALIGN_STEP_MAX:
         raise ConfigError("fdi.align_rate_per_s", align, f"at most {ALIGN_STEP_MAX:g} / "
                           f"the control interval ({ALIGN_STEP_MAX / interval:g} /s here): a "
@@ -979,6 +1036,8 @@ def _turbine(raw: dict) -> turbine_file.Turbine:
         raise ConfigError("turbine", name, "a built-in turbine (" + ", ".join(
             turbine_file.BUILTIN) + ") or the path of a turbine file (.toml)")
     turbine = turbine_file.load(name)
+    for key in ("rosco_discon", "openfast_deck"):
+        check_rosco_path(key, getattr(turbine, key), turbine.path)
     if turbine.rosco_discon is None and raw["controller"] == "rosco":
         raise ConfigError("turbine", name, "a turbine whose file names ROSCO's DISCON.IN "
                           "for it (rosco_discon) with controller = rosco (docs/turbines.md)")

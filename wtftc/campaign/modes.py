@@ -29,6 +29,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.campaign import linearize
+from wtftc.errors import ConfigError
 from wtftc.openfast import lin_modes
 from wtftc.openfast import linearization as oflin
 from wtftc.sim.rhs import PLANTS
@@ -38,6 +39,24 @@ COMPARED = {"drivetrain": "drivetrain (generator against rotor)",
             "tower_fa": "1st tower fore-aft", "tower_ss": "1st tower side-to-side"}
 #: the controller that settles wtftc's loop to its operating point (the plant is compared)
 SETTLING_CONTROLLER = "pi"
+#: the azimuths per wind `wtftc modes` accepts (OpenFAST's NLinTimes with CalcSteady, equally
+#: spaced over one revolution): 2 at least (OpenFAST's least with CalcSteady); 36, one every
+#: 10°, at most: the azimuth average of MBC3 keeps only the rotor's low harmonics, which a
+#: few azimuths resolve (docs/validation.md: 6 against 12), and each is one more
+#: linearization with its own .lin file (about 5 minutes on the IEA 15-MW)
+AZIMUTH_RANGE = (2, 36)
+
+
+def check_azimuths(n, flag: str = "--azimuths") -> int:
+    """``n`` if it is a whole number of azimuths within :data:`AZIMUTH_RANGE`, else one
+    line naming ``flag``."""
+    lo, hi = AZIMUTH_RANGE
+    if isinstance(n, bool) or not isinstance(n, int) or not lo <= n <= hi:
+        raise ConfigError(flag, n, f"an integer in [{lo}, {hi}]: OpenFAST's CalcSteady "
+                          f"linearizes at {lo} azimuths at least, and {hi} (every "
+                          f"{360 // hi}°) already resolve what MBC3 keeps; each is one more "
+                          "linearization")
+    return n
 
 
 def tower_plants() -> list[str]:
@@ -194,6 +213,7 @@ def run_modes(raw: dict, deck: Path, winds, dofs: str, n_az: int, out_dir,
     from wtftc.openfast import install
     from wtftc.results.io import atomic_write_json, atomic_write_text
 
+    check_azimuths(n_az, "azimuths")
     with owned_folder(out_dir, "--out", command="modes") as tmp:
         doc = {"turbine": raw.get("turbine", "nrel5mw"), "plant": raw["plant"],
                "dofs": dofs, "azimuths": n_az, "openfast_version": install.require().version,

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import copy
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,7 @@ import numpy as np
 from wtftc import config
 from wtftc.artefacts import layout as lay
 from wtftc.campaign import cases
-from wtftc.files import owned_folder
+from wtftc.files import check_out_folder, owned_folder
 from wtftc.openfast.turbsim import ensure_field
 from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_text
 from wtftc.results.metrics import metrics, signals
@@ -114,7 +115,10 @@ def modes(rc: config.RunConfig) -> dict[str, float]:
     tp = lay.values("turbine_params", rc.p_turbine)
     if PLANTS[rc.plant].get("edge"):
         wind = rc.raw["wind"]
-        _, _, pitch = operating_point(rc.loop, wind.get("mean_mps", wind.get("speed_mps")))
+        mean = wind.get("mean_mps", wind.get("speed_mps"))
+        if mean is None:  # a wind file, steps: the mean of the series over the run
+            mean = float(np.mean(rc.wind(np.linspace(0.0, rc.t_final, 2001))))
+        _, _, pitch = operating_point(rc.loop, mean)
         drive = three_inertias_hz(tp, pitch)[0]
     else:
         drive = math.sqrt(tp["k_s"] * (1 / tp["J_r"] + 1 / tp["J_g"])) / (2 * math.pi)
@@ -307,11 +311,15 @@ def run_validate(raw: dict, out_dir: Path, progress: bool = True,
     """Both engines on the scenario ``raw`` into ``out_dir`` (new, empty, or an earlier
     validation's: wtftc.files.owned_folder), wtftc on ``plant`` in the ``rotor_wind``;
     validation.json's content."""
+    check_out_folder(out_dir, "--out")  # before any work, a TurbSim field too
     raw = scenario(raw)
     cfgs = engine_configs(raw, plant, rotor_wind)
     for cfg in cfgs.values():
         ensure_field(cfg)
     rcs = {eng: config.make_config(cfg) for eng, cfg in cfgs.items()}  # all checked first
+    note = config.cut_out_note(rcs["openfast"])
+    if note:
+        print(note, file=sys.stderr, flush=True)
     runs, centre = {}, modes(rcs["wtftc"])
     with owned_folder(out_dir, "--out", command="validate") as tmp:
         for eng, rc in rcs.items():
