@@ -17,6 +17,7 @@ import hashlib
 import math
 import os
 import shutil
+import stat
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +27,8 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.artefacts.loader import built_once, cache_dir, compiler, load, manifest
-from wtftc.errors import EngineError
+from wtftc.errors import ConfigError, EngineError, range_text
+from wtftc.export import discon_checks
 from wtftc.model.faults import HYDRAULIC, Fault, Schedule
 
 HERE = Path(__file__).resolve().parent
@@ -36,12 +38,113 @@ SOURCE = HERE / "plant_library.c"
 FUNCTIONS = {"pitch_actuator": "wtftcp_actuator", "sensors": "wtftcp_sensors"}
 #: fault type codes of the settings file (plant_library.c)
 LOE, LOCK, HYDRAULIC_CODE = 1, 2, 3
+FAULT_CODES = f"{LOE} (loss of effectiveness), {LOCK} (lock) or {HYDRAULIC_CODE} (hydraulic)"
 #: the columns of the records file, before the controller's logged channels
 RECORD_COLUMNS = ("t", "v_1", "v_2", "v_3", "beta_1", "beta_2", "beta_3", "beta_rate_1",
                   "beta_rate_2", "beta_rate_3", "read_omega_r", "read_omega_g_hss",
                   "read_beta_1", "read_beta_2", "read_beta_3", "torque_demand_hss")
 #: the actuator's integration step inside each call [s]: wtftc's own plant step
 ACTUATOR_DT = 0.001
+#: the most actuator steps one call may take (a step of 1e-9 s in a 10-ms call would take
+#: 1e7 RK4 steps, minutes a call)
+MAX_SUBSTEPS = 100_000
+#: the most fault lines a settings file holds (plant_library.c)
+MAX_FAULTS = 32
+#: the settings file's number vectors: key -> layout group, in the file's order
+VECTORS = {"p_turbine": "turbine_params", "p_sensors": "sensor_params",
+           "sensor_faults": "sensor_faults"}
+#: the sensor chain's fault inputs at rest, by prefix (longest first): their ranges as a
+#: sensor fault sets them (wtftc.model.faults: a gain and a precision factor > 0, a stuck
+#: weight in [0, 1], offsets and stuck values any finite number)
+_SENSOR_FAULT_RANGES = {"stuck_value_": (-math.inf, math.inf, True, True),
+                        "noise_factor_": (0.0, math.inf, True, True),
+                        "gain_": (0.0, math.inf, True, True),
+                        "stuck_": (0.0, 1.0, False, False),
+                        "offset_": (-math.inf, math.inf, True, True)}
+#: the noise table's column counts (the draws of the ten sensors, and the sensor faults'
+#: inputs where the run has sensor faults: noise_table)
+NOISE_COLUMNS = (2 * (2 + lay.layout()["n_blades"]),
+                 2 * (2 + lay.layout()["n_blades"]) + len(lay.names("sensor_faults")))
+
+
+def _row(label: str, rng: tuple, unit: str, note: str = "") -> tuple:
+    """A check table row (discon_checks.layout_row's shape) of a range wtftc states here."""
+    text = (f"{rng[0]:g}" + (f" [{unit}]" if unit else "") if rng[0] == rng[1]
+            else range_text(*rng, unit))
+    return (label, *rng, text + note, False)
+
+
+def _vector_row(key: str, group: str, name: str) -> tuple:
+    label = f"{key}.{name}"
+    if group == "sensor_faults":
+        prefix = next(p for p in _SENSOR_FAULT_RANGES if name.startswith(p))
+        unit = next(e["unit"] for e in lay.layout()[group] if e["name"] == name)
+        return _row(label, _SENSOR_FAULT_RANGES[prefix], unit)
+    if name.startswith("lag_"):  # the library's sensors have no lag state
+        return _row(label, (0.0, 0.0, False, False), "s", " (the plant library's sensors "
+                    "have no lag: wtftc refuses one with engine = openfast)")
+    return discon_checks.layout_row(group, name, label)
+
+
+def checks() -> dict:
+    """What the library checks at its first call, as the exported controller's table
+    (wtftc.export.discon_checks): ``ranges`` of every number of p_turbine, p_sensors and
+    sensor_faults (labelled ``<key>.<name>``: the layout's ``valid`` ranges, the ones
+    wtftc.config checks; a lag 0; the sensor faults' inputs as wtftc.model.faults bounds
+    them) and of the ``actuator`` switch; ``order`` and ``one_of``, wtftc.config's
+    cross-checks (discon_checks.cross_checks); ``faults``, the ranges of a fault line's
+    onset and ramp, and per fault code the names and ranges of its two numbers."""
+    ranges = [_vector_row(key, group, name) for key, group in VECTORS.items()
+              for name in lay.names(group)]
+    ranges.append(("actuator", 0.0, 1.0, False, False, "0 or 1", False))
+    order, one_of = discon_checks.cross_checks([r[0] for r in ranges])
+    one_of.append(("actuator", (0.0, 1.0), "0 (the blades follow the demands) or 1 "
+                   "(wtftc's pitch actuator)"))
+    tp = {e["name"]: e["unit"] for e in lay.layout()["turbine_params"]}
+    pos, half_pi = (0.0, math.inf, True, True), math.pi / 2
+    numbers = {
+        LOE: (_row("rho", (0.0, 1.0, True, False), "-", " (the blade's effectiveness)"),
+              _row("unused", (0.0, 0.0, False, False), "", " (a loss of effectiveness has "
+                   "one number)")),
+        LOCK: (_row("angle_rad", (0.0, half_pi, False, False), "rad", ", or nan: where the "
+                    "blade is at onset"),
+               _row("unused", (0.0, 0.0, False, False), "", " (a lock has one number)")),
+        HYDRAULIC_CODE: (_row("omega_n", pos, tp["omega_n_nominal"]),
+                         _row("zeta", pos, tp["zeta_nominal"]))}
+    times = (_row("onset_s", (0.0, math.inf, False, True), "s"),
+             _row("ramp_s", (0.0, math.inf, False, True), "s"))
+    return {"ranges": ranges, "order": order, "one_of": one_of,
+            "faults": {"times": times, "numbers": numbers}}
+
+
+def _checks_header() -> str:
+    """wtftc_plant_checks.h: :func:`checks` as the C tables of discon_checks.c_tables, the
+    labels the messages give, and the fault lines' tables."""
+    c = checks()
+    labels = ", ".join(f'"{r[0]}"' for r in c["ranges"])
+    f = c["faults"]
+    codes = sorted(f["numbers"])
+    numbers = ",\n    ".join("{" + discon_checks.c_rows(f["numbers"][k]) + "}" for k in codes)
+    names = ", ".join("{" + ", ".join(f'"{r[0]}"' for r in f["numbers"][k]) + "}"
+                      for k in codes)
+    title = ("wtftc's plant library: the checks of every number of its settings file\n"
+             " * (wtftc.openfast.plant_library.checks: the layout's valid ranges and "
+             "wtftc.config's cross-checks)")
+    return discon_checks.c_tables(c, str(len(c["ranges"])), title) + f"""\
+#define WTFTCP_N_CHECKED {len(c["ranges"])}
+static const char *const WTFTCP_NAMES[WTFTCP_N_CHECKED] = {{{labels}}};
+/* a fault line: its onset and ramp, and per code (1-3) its two numbers */
+static const WtftcRange WTFTCP_FAULT_TIMES[2] = {{
+    {discon_checks.c_rows(f["times"])}
+}};
+static const WtftcRange WTFTCP_FAULT_NUMBERS[3][2] = {{
+    {numbers}
+}};
+static const char *const WTFTCP_FAULT_NAMES[3][2] = {{{names}}};
+#define WTFTCP_FAULT_CODES "{FAULT_CODES}"
+#define WTFTCP_NAN_OK_CODE {LOCK}
+#define WTFTCP_MAX_SUBSTEPS {MAX_SUBSTEPS}
+"""
 
 
 def _renamed(name: str, new: str) -> ca.Function:
@@ -68,6 +171,7 @@ def _meta_header() -> str:
 def _key() -> str:
     h = hashlib.sha256(SOURCE.read_bytes())
     h.update(_meta_header().encode())
+    h.update(_checks_header().encode())
     arts = manifest()["artefacts"]
     for name in FUNCTIONS:
         h.update(str(arts.get(name + ".casadi")).encode())
@@ -89,6 +193,7 @@ def build() -> Path:
             cg.add(_renamed(name, new))
         cg.generate(str(tmp) + "/")
         (tmp / "wtftc_plant_meta.h").write_text(_meta_header())
+        (tmp / "wtftc_plant_checks.h").write_text(_checks_header())
         shutil.copy(SOURCE, tmp / SOURCE.name)
         compile_library([cc, "-O2", "-std=c99", "-shared", "-fPIC", "-fvisibility=hidden", "-o",
                          str(tmp / LIBRARY), str(tmp / "wtftc_plant_gen.c"),
@@ -113,7 +218,8 @@ def add_to_export(rc, folder: Path) -> None:
     c = rc.loop.controller
     shutil.copy2(build(), folder / LIBRARY)
     Settings(folder / f"libwtftc_{c}.so", folder / f"wtftc_{c}.IN", folder / RECORDS,
-             rc.p_turbine, rc.p_sensors, base=folder).write(folder / SETTINGS)
+             rc.p_turbine, rc.p_sensors, base=folder,
+             interval=rc.control_interval).write(folder / SETTINGS)
     (folder / "servodyn_snippet.txt").write_text(
         discon.servodyn_snippet(c, rc.control_interval, LIBRARY, SETTINGS))
     with open(folder / "README.txt", "a", encoding="utf-8") as f:
@@ -130,10 +236,11 @@ def _numbers(values) -> str:
     return " ".join(repr(float(v)) for v in np.asarray(values, dtype=float).ravel())
 
 
-def fault_lines(faults: Sequence[Fault], p_turbine) -> list[str]:
-    """The actuator faults as the settings file's ``fault`` lines: blade, code, onset,
-    end, ramp and two numbers (ρ | the angle, NaN for "where the blade is" | ω_n, ζ of
-    the hydraulic fault at its severity, as Schedule.actuator blends them)."""
+def fault_numbers(faults: Sequence[Fault], p_turbine) -> list[tuple]:
+    """The actuator faults as the seven numbers of the settings file's ``fault`` lines:
+    blade, code, onset, end, ramp and two numbers (ρ | the angle, NaN for "where the blade
+    is" | ω_n, ζ of the hydraulic fault at its severity, as Schedule.actuator blends them);
+    a sensor fault is in the noise table instead."""
     tp = lay.values("turbine_params", p_turbine)
     wn0, z0 = tp["omega_n_nominal"], tp["zeta_nominal"]
     out = []
@@ -146,9 +253,65 @@ def fault_lines(faults: Sequence[Fault], p_turbine) -> list[str]:
             wf, zf = HYDRAULIC[f.type]
             code, a, b = HYDRAULIC_CODE, wn0 + f.severity * (wf - wn0), z0 + f.severity * (zf - z0)
         else:
-            continue  # a sensor fault: in the noise table
-        out.append(f"fault {f.blade} {code} {_numbers([f.onset_s, f.end_s, f.ramp_s, a, b])}")
+            continue
+        out.append((float(f.blade), float(code), float(f.onset_s), float(f.end_s),
+                    float(f.ramp_s), float(a), float(b)))
     return out
+
+
+def fault_lines(faults: Sequence[Fault], p_turbine) -> list[str]:
+    """The actuator faults as the settings file's ``fault`` lines (:func:`fault_numbers`,
+    blade and code as integers)."""
+    return [f"fault {int(v[0])} {int(v[1])} {_numbers(v[2:])}"
+            for v in fault_numbers(faults, p_turbine)]
+
+
+def check_fault(k: int, v: Sequence[float], spec: dict) -> None:
+    """A fault line's seven numbers (:func:`fault_numbers`) against ``spec`` (checks()'s
+    ``faults``), as the library checks them: a ConfigError naming ``fault[k].<word>``."""
+    pre = f"fault[{k}]."
+    if v[0] not in (1.0, 2.0, 3.0):
+        raise ConfigError(pre + "blade", v[0], "1, 2 or 3")
+    if v[1] not in spec["numbers"]:
+        raise ConfigError(pre + "code", v[1], FAULT_CODES)
+    for w, row in zip((2, 4), spec["times"], strict=True):
+        if not discon_checks.in_range(row, v[w]):
+            raise ConfigError(pre + row[0], v[w], row[5])
+    if not v[3] > v[2]:
+        raise ConfigError(pre + "end_s", v[3], f"a time after onset_s = {v[2]:g} s, or inf "
+                          "(no end)")
+    for i, row in enumerate(spec["numbers"][int(v[1])]):
+        if i == 0 and v[1] == LOCK and math.isnan(v[5]):
+            continue  # a lock where the blade is at onset
+        if not discon_checks.in_range(row, v[5 + i]):
+            raise ConfigError(pre + row[0], v[5 + i], row[5])
+
+
+def check_step(dt: float, interval: float | None) -> None:
+    """The actuator's step: finite and > 0; with the call interval known, not above it,
+    dividing it into whole steps, at most MAX_SUBSTEPS of them (as the library checks it
+    against #3 at its first call)."""
+    if not (math.isfinite(dt) and dt > 0):
+        raise ConfigError("actuator_dt", dt, "a number > 0 [s]")
+    if interval is None:
+        return
+    n = round(interval / dt)
+    if not (1 <= n <= MAX_SUBSTEPS and abs(n * dt - interval) <= 1e-6 * interval):
+        raise ConfigError("actuator_dt", dt, f"a step in [{interval / MAX_SUBSTEPS:.4g}, "
+                          f"{interval:.6g}] [s] that divides the call interval ({interval:.6g}"
+                          f" s) into whole steps, at most {MAX_SUBSTEPS} a call")
+
+
+def _regular(key: str, path: Path, what: str) -> os.stat_result:
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        raise ConfigError(key, str(path), f"{what} ({exc.strerror})") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "folder" if stat.S_ISDIR(st.st_mode) else (
+            "FIFO" if stat.S_ISFIFO(st.st_mode) else "special file")
+        raise ConfigError(key, str(path), f"{what} (this is a {kind})")
+    return st
 
 
 @dataclass
@@ -165,6 +328,9 @@ class Settings:
     noise_columns: int = 0
     actuator: bool = True
     actuator_dt: float = ACTUATOR_DT
+    #: the call interval ServoDyn will call the library at [s] (DLL_DT), when known: the
+    #: actuator step is checked against it before the file is written
+    interval: float | None = None
     #: the folder the settings file lies in when the files under it are to be named
     #: relative to it (a case or an export that can be moved whole); None: absolute
     base: Path | None = None
@@ -199,7 +365,61 @@ class Settings:
                       f"noise_columns {self.noise_columns}"]
         return "\n".join(lines) + "\n"
 
+    def values(self) -> dict[str, float]:
+        """The numbers the file gives, by the labels of :func:`checks`."""
+        vecs = {"p_turbine": self.p_turbine, "p_sensors": self.p_sensors,
+                "sensor_faults": Schedule([], tuple(self.p_turbine)).sensor(np.zeros(1))[:, 0]}
+        out = {}
+        for key, group in VECTORS.items():
+            names, vec = lay.names(group), np.asarray(vecs[key], dtype=float).ravel()
+            if vec.size != len(names):
+                raise ConfigError(key, f"{vec.size} numbers", f"{len(names)} ({names[0]} ... "
+                                  f"{names[-1]})")
+            out.update({f"{key}.{n}": float(v) for n, v in zip(names, vec, strict=True)})
+        out["actuator"] = float(self.actuator)
+        return out
+
+    def check(self) -> None:
+        """Refuse what the library would refuse at its first call (the same tables:
+        :func:`checks`), so that a bad value never reaches OpenFAST: a ConfigError naming
+        the key, the value and what is allowed."""
+        c = checks()
+        bad = discon_checks.refusal(c, self.values())
+        if bad is not None:
+            raise ConfigError(*bad)
+        check_step(float(self.actuator_dt), self.interval)
+        lines = fault_numbers(self.faults, self.p_turbine)
+        if len(lines) > MAX_FAULTS:
+            raise ConfigError("fault", f"{len(lines)} actuator faults", f"at most {MAX_FAULTS}")
+        for k, v in enumerate(lines):
+            check_fault(k, v, c["faults"])
+        self._check_paths()
+
+    def _check_paths(self) -> None:
+        _regular("controller_library", self.controller_library,
+                 "an existing regular file, the controller's DISCON library")
+        _regular("controller_infile", self.controller_infile,
+                 "an existing regular file, the controller's input file")
+        rec = Path(self.records)
+        if not rec.parent.is_dir() or (rec.exists() and not rec.is_file()):
+            raise ConfigError("records", str(rec), "a regular file or none, in an existing "
+                              "folder")
+        if self.noise is None:
+            return
+        if self.noise_columns not in NOISE_COLUMNS:
+            raise ConfigError("noise_columns", self.noise_columns, f"{NOISE_COLUMNS[0]} (the "
+                              f"sensors' noise draws) or {NOISE_COLUMNS[1]} (and the sensor "
+                              "faults' inputs)")
+        size = _regular("noise", self.noise, "an existing regular file, the noise table").st_size
+        if size == 0 or size % (8 * self.noise_columns):
+            raise ConfigError("noise_columns", self.noise_columns, f"the noise table's size, "
+                              f"{size} bytes, is no whole number of its rows "
+                              f"({8 * self.noise_columns} bytes each)")
+
     def write(self, path: Path) -> Path:
+        """The settings file at ``path``, after :meth:`check` (nothing written when it
+        refuses)."""
+        self.check()
         _atomic_write(path, self.text().encode())
         return path
 
