@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "wtftc"
 #: the rooms, top to bottom: a module may import its own room and the rooms below it
 ROOMS = ["cli", "campaign", "openfast", "export", "verify", "results", "config", "sim", "model",
-         "artefacts", "files", "errors"]
+         "artefacts", "programs", "files", "errors"]
 MAX_LINES = 60
 
 

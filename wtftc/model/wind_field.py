@@ -34,6 +34,7 @@ sees at time t the grid's slice at t + :attr:`FullField.time_shift_s`.
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import math
 import struct
@@ -44,6 +45,7 @@ import numpy as np
 
 from wtftc.artefacts.loader import cache_dir
 from wtftc.errors import ConfigError, EngineError
+from wtftc.files import decode_text, seal_damage, seal_path
 
 #: the grid's points per side, and its size over the rotor's diameter
 GRID_POINTS = 13
@@ -127,7 +129,17 @@ def deck_hub_height(fst: Path) -> float:
 
 
 def _deck_value(path: Path, key: str) -> str:
-    for line in path.read_text(errors="replace").split("\n"):
+    """The value on ``path``'s line whose second word is ``key``; the deck read as bytes
+    and decoded as its author wrote it (UTF-8, else Latin-1: a "°" in a comment is no
+    error), a file that cannot be read refused in one line naming it."""
+    try:
+        data = path.read_bytes()
+    except (OSError, ValueError) as exc:
+        why = "a symbolic link loop" if getattr(exc, "errno", None) == errno.ELOOP else \
+            getattr(exc, "strerror", None) or str(exc)
+        raise ConfigError("openfast_deck", str(path), f"a deck file that can be read "
+                          f"({why})") from None
+    for line in decode_text(data).split("\n"):
         words = line.split()
         if len(words) >= 2 and words[1] == key:
             return words[0].strip('"')
@@ -183,8 +195,16 @@ class FullField:
         return 0.0 if self.periodic else self.half_width_m / self.mean_mps
 
 
+class NotAField(EngineError):
+    """A file that is not a TurbSim full field; ``what`` says why."""
+
+    def __init__(self, path: Path, what: str):
+        self.path, self.what = path, what
+        super().__init__(f"{path} is not a TurbSim full field (.bts): {what}")
+
+
 def _bad(path: Path, what: str) -> EngineError:
-    return EngineError(f"{path} is not a TurbSim full field (.bts): {what}")
+    return NotAField(path, what)
 
 
 def _header(path: Path, raw: bytes) -> tuple:
@@ -353,6 +373,10 @@ def field_wind(f: Field, ntm: dict, t_final_s: float):
         raise ConfigError("wind.field", "turbsim", f"a TurbSim field already made into "
                           f"wtftc's cache; {path} is not there yet (an OpenFAST run of this "
                           "configuration makes it, or wtftc.openfast.turbsim.make_field)")
+    why = seal_damage(path)
+    if why is not None:  # wtftc.openfast.turbsim.generate rebuilds it; here it is only read
+        raise EngineError(f"{path} in WTFTC_CACHE is damaged ({why}): delete it and "
+                          f"{seal_path(path)}, then run again (the field is made anew)")
     ff = read_bts(path)
     par = ntm["parameters"]
     radius = float(par.get("rotor_radius_m", 0.0))

@@ -17,13 +17,12 @@ import math
 import os
 import re
 import shutil
-import signal
-import subprocess
-import time
+from contextlib import suppress
 from pathlib import Path
 
 import numpy as np
 
+from wtftc import files, programs
 from wtftc.artefacts import layout as lay
 from wtftc.config import openfast_deck
 from wtftc.errors import ConfigError, EngineError
@@ -176,7 +175,10 @@ WRAP = 98
 def simulate(case: ofcase.Case, progress: bool = True) -> tuple[float, str | None]:
     """OpenFAST on the case, in its folder (its screen output in ``openfast.log``):
     (wall time [s], None) when it ends normally, else OpenFAST's own message, one line.
-    Ctrl-C stops OpenFAST with it."""
+    An output left in the folder by an earlier run is removed first, so that what is read
+    after is this run's. Ctrl-C stops OpenFAST with it."""
+    with suppress(FileNotFoundError):
+        case.outb.unlink()
     wall, abort, _ = simulate_in(case.folder, case.fst)
     return wall, abort
 
@@ -186,56 +188,86 @@ def simulate_in(folder: Path, fst: Path, watch=None, every_s: float = 5.0
     """OpenFAST on the main file ``fst`` in ``folder`` (its screen output in
     ``openfast.log``): (wall time [s], None or OpenFAST's message, one line, the screen
     output). ``watch(text)``, if given, is called every ``every_s`` with the screen output
-    so far. Ctrl-C stops OpenFAST with it."""
+    so far. OpenFAST runs under wtftc.programs' control: in its own process group, stopped
+    with wtftc (Ctrl-C, SIGTERM, an exception, wtftc killed), within a time limit of
+    :func:`wtftc.programs.openfast_limit_s` of the case's TMax (TimedOut past it), the
+    folder locked meanwhile (FolderBusy for a second run into it); killed by a signal of
+    another's, it raises ProgramKilled (the run is unfinished)."""
+    folder = Path(folder)
     exe = install.require().openfast
     log = folder / "openfast.log"
-    t0 = time.perf_counter()
-    with open(log, "w") as out:
-        proc = subprocess.Popen([str(exe), Path(fst).name], cwd=folder, stdout=out,
-                                stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                start_new_session=True)
-        try:
-            while True:
-                try:
-                    proc.wait(timeout=every_s if watch else None)
-                    break
-                except subprocess.TimeoutExpired:
-                    watch(log.read_text(errors="replace"))
-        except BaseException:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
-            raise
-    wall = time.perf_counter() - t0
-    text = log.read_text(errors="replace")
-    if NORMAL_END in text and proc.returncode == 0:
-        return wall, None, text
-    return wall, abort_message(text, proc.returncode), text
+    try:
+        t_max = float(ofcase.get_value(Path(fst), "TMax"))
+    except (EngineError, ConfigError, ValueError, OSError):
+        t_max = 0.0
+    limit = programs.openfast_limit_s(t_max)
+    prog = programs.Program("OpenFAST", limit, f"{programs.OPENFAST_START_S:g} s + "
+                            f"{programs.OPENFAST_PER_SIMULATED_S:g} x TMax = {t_max:g} s, or "
+                            f"${programs.TIMEOUT_ENV}", f"rerun the case by hand in "
+                            f"{folder} to see where it hangs, or set "
+                            f"{programs.TIMEOUT_ENV} for a longer limit")
+    look = (lambda: watch(_log_text(log))) if watch else None
+    with programs.folder_lock(folder, "OpenFAST case folder") as lock:
+        done = programs.run([str(exe), Path(fst).name], folder, log, prog, look, every_s,
+                            pass_fds=(lock,))
+    text = done.text()
+    if NORMAL_END in text and done.code == 0:
+        return done.wall_s, None, text
+    return done.wall_s, abort_message(text, done.code, log), text
 
 
-def abort_message(text: str, code: int) -> str:
+def _log_text(log: Path) -> str:
+    try:
+        return files.decode_text(log.read_bytes())
+    except OSError:
+        return ""
+
+
+def abort_message(text: str, code: int, log: Path | None = None) -> str:
     """OpenFAST's reason for stopping, on one line, from its screen output: the lines from
-    its first error line on (a message wraps over several), bells and blanks dropped."""
+    its last error line on (a message wraps over several), bells and blanks dropped; the
+    signal that ended it, if one did; never empty (where OpenFAST said nothing, where its
+    screen output is)."""
     text = re.sub(r"[\x00-\x08\x0b-\x1f]", " ", text.replace("\r", "\n"))
     lines = [ln.strip() for ln in text.split("\n") if ln.strip()]
     # OpenFAST's messages name their routine's path (FAST_Solution0:...:Routine: message);
     # a warning can come first, the error that stopped it is the last one
+    sig = programs.signal_name(code)
     paths = [i for i, ln in enumerate(lines) if re.match(r"[A-Za-z_0-9]+:[A-Za-z_0-9]+:", ln)]
-    first = paths[-1] if paths else None
-    if first is None:
+    first = paths[-1] if paths and not sig else None
+    if first is None:  # ended by a crash: its runtime's words, never a warning before it
         first = next((i for i, ln in enumerate(lines) if re.search(
-            r"error|abort|strike|wtftc|fail|invalid", ln, re.IGNORECASE)),
-            max(0, len(lines) - 3))
-    block = []
-    for ln in lines[first:first + 4]:
+            r"signal|segmentation|floating.point|backtrace|abort" if sig else
+            r"error|abort|strike|wtftc|fail|invalid", ln, re.IGNORECASE)), None)
+    why = _unwrapped(lines[first:first + MESSAGE_LINES]) if first is not None else ""
+    head = f"OpenFAST stopped (exit code {code}{f', {sig}' if sig else ''})"
+    where = f"; its screen output is in {log}" if log is not None else ""
+    if not why:
+        return f"{head} with no message{where}"
+    why = " ".join(why.split())
+    if len(why) > MESSAGE_CHARS:
+        why = why[:MESSAGE_CHARS] + f"... (cut{where or ''})"
+    return f"{head}: {why}"
+
+
+#: how much of OpenFAST's message the reason keeps: lines, characters
+MESSAGE_LINES, MESSAGE_CHARS = 12, 2000
+
+
+def _unwrapped(block_lines: list[str]) -> str:
+    """One message from OpenFAST's lines: up to its closing lines, each line joined to the
+    one before it with a space, or without one where the one before filled the width at
+    which OpenFAST wraps (98 characters, a word broken where it does not fit)."""
+    block: list[str] = []
+    for ln in block_lines:
         if block and re.match(r"OpenFAST encountered|Aborting OpenFAST", ln):
             break
         block.append(ln)
     why = ""
-    for k, ln in enumerate(block):  # OpenFAST wraps its messages at 98 characters,
-        cut = k and len(block[k - 1]) >= WRAP  # mid-word where a word is longer
+    for k, ln in enumerate(block):
+        cut = k and len(block[k - 1]) >= WRAP
         why += ("" if cut else " ") + ln
-    why = why.strip()
-    return f"OpenFAST stopped (exit code {code}): {' '.join(why.split())}"[:600]
+    return why.strip()
 
 
 def read_outb(path: Path) -> dict[str, np.ndarray]:
@@ -309,12 +341,32 @@ def _outputs(rc, ch: dict, rec: dict, rows: np.ndarray, names: list[str]) -> np.
     return out
 
 
+def _check_length(case: ofcase.Case, ch: dict, t_final: float) -> None:
+    """An output that is not this case's is refused: more time than its TMax, or more rows
+    than its steps (DT_Out is DT), or times not rising from 0 by DT."""
+    t = ch.get("Time")
+    if t is None or len(t) == 0:
+        return  # the channels' check names it
+    rows = int(math.floor(t_final / case.dt + 1e-6)) + 1
+    tol = 1e-6 * max(1.0, t_final) + 1e-3 * case.dt
+    bad = (f"{len(t)} rows for a case of {rows}" if len(t) > rows else
+           f"time up to {float(np.max(t)):.9g} s past the case's TMax = {t_final:.9g} s"
+           if float(np.max(t)) > t_final + tol else
+           "times that do not rise from 0 by the case's DT"
+           if abs(float(t[0])) > tol or (len(t) > 1 and np.any(np.abs(np.diff(t) - case.dt)
+                                                          > tol)) else None)
+    if bad is not None:
+        raise EngineError(f"{case.outb} is not this case's output ({bad}): delete it and "
+                          "run the case again")
+
+
 def result(rc, case: ofcase.Case, wall: float, abort: str | None) -> integrate.Result:
     """The run as a Result with the native engine's columns; an abort of OpenFAST, or the
     rotor leaving wtftc's envelope, is a lost run (``diverged``) ending there."""
     if not case.outb.is_file():
         raise EngineError(abort or f"OpenFAST wrote no output ({case.outb})")
     ch = read_outb(case.outb)
+    _check_length(case, ch, rc.t_final)
     missing = [c for c in (*ofcase.ELASTODYN_CHANNELS, *ofcase.OTHER_CHANNELS, "Time")
                if c not in ch]
     if missing:
@@ -345,10 +397,14 @@ def result(rc, case: ofcase.Case, wall: float, abort: str | None) -> integrate.R
 
 
 def run(rc, folder: Path, progress: bool = True) -> integrate.Result:
-    """``rc`` in OpenFAST, its case and outputs in ``folder``."""
-    case = prepare(rc, Path(folder))
-    wall, abort = simulate(case, progress)
-    res = result(rc, case, wall, abort)
+    """``rc`` in OpenFAST, its case and outputs in ``folder``, which no other run may use
+    meanwhile (wtftc.programs.folder_lock, from writing the case to reading its output)."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    with programs.folder_lock(folder, "OpenFAST case folder"):
+        case = prepare(rc, folder)
+        wall, abort = simulate(case, progress)
+        res = result(rc, case, wall, abort)
     res.config = {**rc.raw, "wind_resolved": rc.wind.describe(),
                   "fault_resolved": res.schedule.describe() if res.schedule else [],
                   "openfast": {"version": install.VERSION, "dt_s": case.dt,
