@@ -1,12 +1,12 @@
-"""An OpenFAST deck's files read with openfast-io, as a user's files (issue 30).
+"""An OpenFAST deck's files read with openfast-io, as a user's files.
 
 openfast-io (NREL's reader of OpenFAST input files, PyPI ``openfast-io``) reads a file
 line by line by position and trusts it: a missing line is an IndexError, a word where a
 number belongs a ValueError, a file that ends before its ``END`` line loops forever, and a
 station count of 10^10 allocates a list of that length before a line is read. Here every
-file is first read as a user's file (:func:`wtftc.files.read_user_text`: a regular file
-under a size cap, UTF-8 text; a FIFO, a device, a folder or a binary file is refused in
-one line), and openfast-io then reads that text, never the file system: its ``open``
+file is first read as a user's file (:func:`user_text`: a regular file under a size cap,
+text in UTF-8 or Latin-1; a FIFO, a device, a folder or a binary file is refused in one
+line), and openfast-io then reads that text, never the file system: its ``open``
 serves the text already read (a read past the end stops it), its ``int`` refuses a count
 above :data:`MAX_COUNT`, and any failure becomes one ConfigError naming the file, the line,
 its key and value. Output channel lists are not kept (wtftc needs none, and openfast-io's
@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from wtftc.errors import ConfigError, MissingExtra, range_text
-from wtftc.files import read_user_text
+from wtftc.files import decode_text, read_user_bytes
 
 #: the largest deck file read (ElastoDyn files are ~20 kB, a BeamDyn blade ~0.1 MB)
 MAX_DECK_BYTES = 16 * 1024 * 1024
@@ -129,12 +129,19 @@ def _serving(path: Path, lines: _Lines):
 
 
 def user_text(path: Path, key: str, where: str | None) -> str:
-    """A deck file's text (:func:`wtftc.files.read_user_text`), refused naming ``key``
-    and the file ``where`` that gives its name."""
+    """A deck file's text as its user wrote it (:func:`wtftc.files.decode_text`: UTF-8,
+    else Latin-1, a BOM dropped: a "°" written on Windows is read), refused naming
+    ``key`` and the file ``where`` that gives its name when it is no regular file of text
+    (a NUL byte: a binary file, or UTF-16, which OpenFAST cannot read)."""
     try:
-        return read_user_text(path, key, MAX_DECK_BYTES)
+        data = read_user_bytes(path, key, MAX_DECK_BYTES)
     except ConfigError as exc:
         raise ConfigError(key, exc.value, exc.allowed, where=where) from None
+    nul = data.find(b"\0")
+    if nul >= 0:
+        raise ConfigError(key, str(path), f"an OpenFAST input file of text, UTF-8 or Latin-1 "
+                          f"(byte {nul} is a NUL: a binary file, or UTF-16?)", where=where)
+    return decode_text(data)
 
 
 def _refused(path: Path, lines: _Lines, exc: Exception) -> ConfigError:
