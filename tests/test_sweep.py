@@ -538,3 +538,156 @@ def test_a_stop_whose_exception_was_swallowed_still_stops_the_collection(tmp_pat
         with pytest.raises(sw.Interrupted, match="SIGTERM"):
             sw._collect(futures, tmp_path, set(), progress, True, stopped=lambda: "SIGTERM")
     assert sw._collect([], tmp_path, set(), progress, True) == (0, 0)
+
+
+# --- runs in OpenFAST: a run killed from outside, one past its time limit, a bad deck,
+# --- and a resume while an earlier sweep's OpenFAST still runs
+
+
+def _openfast_point(run_id: str = "r1") -> dict:
+    sw = sweep.parse_sweep({"t_final_s": 4.0, "controllers": ["pi"], "engine": "openfast",
+                            "wind": {"mean_mps": 16.0}})
+    pt = sweep.expand(sw)[0][0]
+    return {**pt, "run_id": run_id}
+
+
+@pytest.mark.parametrize("error, status", [
+    ("killed", "unfinished"),  # ProgramKilled: another's signal, not this run's failure
+    ("busy", "unfinished"),  # FolderBusy: an earlier sweep's OpenFAST holds the folder
+    ("timed out", "failed"),  # a plain EngineError of the time limit: a failure, kept
+])
+def test_a_run_killed_from_outside_is_unfinished_and_a_timed_out_one_failed(
+        error, status, tmp_path, monkeypatch):
+    """In a task, a run whose OpenFAST another's signal ended (or whose case folder an
+    earlier sweep's OpenFAST holds) is "unfinished": not saved, so that a plain resume
+    runs it again. One past its time limit is "failed" with its cause, saved, and
+    --retry-failed (drop_failed) takes it out to run again."""
+    from wtftc.errors import EngineError, ProgramKilled
+    from wtftc.programs import FolderBusy
+
+    raised = {"killed": ProgramKilled("OpenFAST was ended by SIGKILL, not sent by wtftc"),
+              "busy": FolderBusy("OpenFAST case folder", str(tmp_path), "a folder no other "
+                                 "run is using"),
+              "timed out": EngineError("OpenFAST timed out after 140 s")}[error]
+
+    def run(rc, progress=True, keep_states=False, openfast_dir=None):
+        raise raised
+
+    monkeypatch.setattr(cases, "run", run)
+    (row, tr), = sweep.run_task([_openfast_point()])
+    assert row["status"] == status and type(raised).__name__ in row["cause"], row
+    from wtftc.campaign.sweep import store
+
+    out = tmp_path / "res"
+    (out / "runs").mkdir(parents=True)
+    done: set[str] = set()
+    saved = store._save_batch(out, done, [(row, tr)])
+    if status == "unfinished":
+        assert saved == [] and done == set() and sweep.read_results(out).num_rows == 0
+    else:
+        assert done == {"r1"} and sweep.count_status(out)["failed"] == 1
+        assert "timed out" in sweep.read_results(out).column("cause")[0].as_py()
+        assert store.drop_failed(out) == 1 and sweep.read_results(out).num_rows == 0
+
+
+FAKE_OPENFAST = """#!/bin/sh
+# OpenFAST for a short case (TMax below 1 s: the sweep's check of its deck); ended by
+# SIGKILL, as by another process or the machine, on any longer one
+if [ "$1" = "-v" ]; then exec {real} "$@"; fi
+case "$(awk '$2 == "TMax" {{print $1}}' "$1")" in
+  0.*) exec {real} "$@" ;;
+esac
+kill -9 $$
+"""
+
+
+def _hold(lock: Path):
+    """A process holding ``lock`` as an OpenFAST under wtftc.programs.folder_lock does."""
+    holder = subprocess.Popen([sys.executable, "-c", (
+        "import fcntl, os, time\n"
+        f"fd = os.open({str(lock)!r}, os.O_CREAT | os.O_RDWR)\n"
+        "fcntl.flock(fd, fcntl.LOCK_EX)\n"
+        "os.ftruncate(fd, 0); os.pwrite(fd, f'{os.getpid()}'.encode(), 0)\n"
+        "print('held', flush=True)\n"
+        "time.sleep(120)\n")], stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline().strip() == "held"
+    return holder
+
+
+def test_a_killed_openfast_is_resumed_and_never_raced(tmp_path):
+    """A sweep in OpenFAST whose OpenFAST is SIGKILLed by another (a stand-in OpenFAST
+    that kills itself): its run is unfinished, not saved as failed, the sweep exits 1
+    saying so. Resumed while an earlier sweep's OpenFAST still holds that run's case
+    folder: refused in one line naming the process, nothing run. Once it is gone, a plain
+    resume (no --retry-failed) runs it, in the real OpenFAST."""
+    from wtftc.openfast import install
+    from wtftc.programs import LOCK_NAME
+
+    inst = install.require()
+    fake = tmp_path / "bin" / "openfast"
+    fake.parent.mkdir()
+    fake.write_text(FAKE_OPENFAST.format(real=inst.openfast))
+    fake.chmod(0o755)
+    env = {**os.environ, "OPENFAST": str(fake), "TURBSIM": str(inst.turbsim)}
+    f = write_sweep(tmp_path / "of.toml", 't_final_s = 4.0\ncontrollers = ["pi"]\n'
+                    "[wind]\nmean_mps = 16.0\n")
+    out = tmp_path / "res"
+    p = wtftc("sweep", f, "--engine", "openfast", "--workers", 1, "--out", out,
+              env=env, timeout=600)
+    assert p.returncode == 1, p.stderr
+    last = p.stdout.strip().splitlines()[-1]
+    assert "0 of 1 saved" in last and "0 failed" in last and "1 unfinished" in last, last
+    assert sweep.read_results(out).num_rows == 0
+    (case,) = (out / "openfast").iterdir()
+    holder = _hold(case / LOCK_NAME)
+    try:
+        p = wtftc("sweep", f, "--engine", "openfast", "--workers", 1, "--out", out,
+                  timeout=600)
+        err = p.stderr.strip().splitlines()
+        assert p.returncode == 2 and len(err) == 1 and "Traceback" not in p.stderr, p.stderr
+        assert f"process {holder.pid}" in err[0] and case.name in err[0], err
+        assert sweep.read_results(out).num_rows == 0 and not (out / "sweep.lock").exists()
+    finally:
+        holder.kill()
+        holder.wait()
+    p = wtftc("sweep", f, "--engine", "openfast", "--workers", 1, "--out", out, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert [r["status"] for r in sweep.read_results(out).to_pylist()] == ["ok"]
+
+
+def test_a_deck_every_run_would_fail_on_is_refused_before_the_first_run(tmp_path, capsys):
+    """A turbine file whose deck OpenFAST stops on at its start (ElastoDyn's TipRad
+    negative): the sweep writes the first run's case into a temporary folder, starts
+    OpenFAST on it, and refuses in one line naming the turbine file's openfast_deck and
+    OpenFAST's own reason, exit 2, before any run: no results folder."""
+    import shutil
+
+    from wtftc.cli import main
+    from wtftc.model import turbine_file
+
+    src = config.openfast_deck(turbine_file.load("nrel5mw"))
+    deck = tmp_path / "deck"
+    shutil.copytree(src.parent, deck)
+    ed = deck / "NRELOffshrBsline5MW_Onshore_ElastoDyn.dat"
+    text = ed.read_text()
+    assert "         63   TipRad" in text
+    ed.write_text(text.replace("         63   TipRad", "        -63   TipRad"))
+    base = turbine_file.load("nrel5mw")
+    tfile = tmp_path / "mine.toml"
+    tfile.write_text(Path(base.path).read_text()
+                     .replace('cp_table = "Cp_Ct_Cq.NREL5MW.txt"', f'cp_table = "{base.cp_path}"')
+                     .replace('openfast_deck = "rosco:Examples/Test_Cases/NREL-5MW/NREL-5MW.fst"',
+                              f'openfast_deck = "{deck / src.name}"'))
+    f = write_sweep(tmp_path / "of.toml", f't_final_s = 4.0\ncontrollers = ["pi"]\n'
+                    f'turbine = "{tfile}"\n[wind]\nmean_mps = [16.0, 18.0]\n')
+    out = tmp_path / "res"
+    assert main(["sweep", str(f), "--engine", "openfast", "--workers", "1", "--out",
+                 str(out), "--quiet"]) == 2
+    text = capsys.readouterr().err
+    # (a cache entry rebuilt on the way says so in a line of its own)
+    err = [line for line in text.splitlines() if not line.startswith("wtftc: rebuilt")
+           and "is damaged" not in line]
+    assert "Traceback" not in text and len(err) == 1, text
+    assert "openfast_deck" in err[0] and str(tfile) in err[0], err
+    assert "TipRad must not be negative" in err[0], err
+    assert not out.exists()

@@ -589,6 +589,9 @@ def _cmd_sweep(args) -> int:
           + f"; {counts['failed']} failed" + (" (their causes: wtftc sweep --summary; run "
                                               "again with --retry-failed to retry them)"
                                               if counts["failed"] else "")
+          + (f"; {done['unfinished']} unfinished (OpenFAST ended by a signal wtftc did not "
+             "send, or its case folder in use: not saved; run the same command again to "
+             "run them)" if done.get("unfinished") else "")
           + f". Summary: wtftc sweep --summary {out}")
     return 0 if n == done["runs"] else 1
 

@@ -30,7 +30,7 @@ from pathlib import Path
 from wtftc import config
 from wtftc.campaign import cluster
 from wtftc.campaign.compare import CONTROLLERS
-from wtftc.campaign.sweep import confirm
+from wtftc.campaign.sweep import confirm, preflight
 from wtftc.campaign.sweep.record import CASES, check_path
 from wtftc.campaign.sweep.spec import (
     FAULT_TYPES,
@@ -46,6 +46,7 @@ from wtftc.campaign.sweep.spec import (
 from wtftc.campaign.sweep.store import (
     METRICS,
     STATUS,
+    UNFINISHED,
     _prepare,
     _save_batch,
     count_status,
@@ -69,7 +70,7 @@ __all__ = ["FAULT_TYPES", "METRICS", "PLANTS", "STATUS", "TURBULENCE_CLASSES", "
 class _Progress:
     def __init__(self, total: int, already: int, quiet: bool):
         self.total, self.already, self.quiet = total, already, quiet
-        self.counts = dict.fromkeys(STATUS, 0)
+        self.counts = dict.fromkeys((*STATUS, UNFINISHED), 0)
         self.lost = 0
         self.t0 = time.perf_counter()
         self.since = time.time()  # (wall clock: the case folders' logs written since)
@@ -105,6 +106,8 @@ class _Progress:
         eta = f"{(left - part) * wall / (n + part):.0f} s" if n + part > 0 else "?"
         line = (f"[sweep] {self.already + n}/{self.total} runs: {self.counts['ok']} ok, "
                 f"{self.counts['diverged']} diverged, {self.counts['failed']} failed"
+                + (f", {self.counts[UNFINISHED]} unfinished" if self.counts[UNFINISHED]
+                   else "")
                 + (f", {self.lost} lost" if self.lost else "")
                 + f", {left} remaining"
                 + (f" ({cluster.describe(running)})" if running else "")
@@ -162,6 +165,10 @@ def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
         from wtftc.openfast import install
 
         install.require()
+        first = next((pt for pt in runs if not uses_rosco(pt)), runs[0] if runs else None)
+        if first is not None:  # the deck, before any run (preflight.check_deck)
+            preflight.check_deck({k: v for k, v in first["config"].items()
+                                  if k != "tuning"})
     skipped = [c for c in sw.raw.get("optional_controllers", [])
                if c not in sw.axis("controllers").values]
     if skipped and not quiet:
@@ -196,7 +203,8 @@ def _collect(futures: list, out_dir: Path, done: set[str], progress: _Progress,
             continue
         rows = _save_batch(out_dir, done, results, rec)
         ran += len(rows)
-        progress.update(rows, lost)
+        # a run whose OpenFAST another's signal ended is not saved: a resume runs it
+        progress.update(rows + [r for r, _ in results if r["status"] == UNFINISHED], lost)
     if stopped():
         raise Interrupted(stopped())
     if progress.tty:
@@ -226,11 +234,25 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
     except BaseException:
         cluster.close(client, local)
         raise
+    if sw.engine == "openfast":
+        _check_idle(out_dir, runs, done, client, local, lock)
     try:
         return _run_todo(sw, runs, dup, done, out_dir, client, local,
                          scheduler, workers, traces, quiet, retried, lock.record)
     finally:
         release(lock)
+
+
+def _check_idle(out_dir: Path, runs: list[dict], done: set[str], client, local, lock) -> None:
+    """No run still to do is in an earlier sweep's OpenFAST (preflight.check_idle); else
+    the cluster is closed and the folder released before the refusal."""
+    try:
+        preflight.check_idle(out_dir, Path(out_dir).resolve() / CASES,
+                             [pt["run_id"] for pt in runs if pt["run_id"] not in done])
+    except BaseException:
+        cluster.close(client, local)
+        release(lock)
+        raise
 
 
 class Incomplete(Exception):
@@ -280,6 +302,7 @@ def run_confirm(sweep_path: Path, out_dir: Path, n: int, confirm_out: Path | Non
     except BaseException:
         cluster.close(client, local)
         raise
+    _check_idle(confirm_out, runs, done, client, local, lock)
     try:
         checked = _run_todo(sw_of, runs, 0, done, confirm_out, client, local, scheduler,
                             workers, False, quiet, retried, lock.record)
@@ -323,7 +346,7 @@ def _run_todo(sw, runs, dup, done, out_dir, client, local, scheduler, workers, t
               + (f" ({retried} that had failed, run again: --retry-failed)" if retried
                  else ""), flush=True)
     summary = {"runs": len(runs), "already": len(runs) - len(todo), "ran": 0, "lost": 0,
-               "retried": retried}
+               "retried": retried, "unfinished": 0}
     if not todo:
         cluster.close(client, local)
         return summary
@@ -352,6 +375,7 @@ def _run_todo(sw, runs, dup, done, out_dir, client, local, scheduler, workers, t
             watcher.start()
         summary["ran"], summary["lost"] = _collect(futures, out_dir, done, progress, quiet,
                                                    rec, lambda: asked[0] if asked else None)
+        summary["unfinished"] = progress.counts[UNFINISHED]
     except KeyboardInterrupt:
         raise Interrupted("SIGINT") from None
     finally:

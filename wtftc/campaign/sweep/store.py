@@ -45,6 +45,10 @@ METRICS = [("rms_speed_error_rad_s", "rad/s"), ("max_abs_speed_error_rad_s", "ra
            ("tower_base_del_1hz_Nm", "N m"), ("tower_base_damage_per_10min", "(N m)^m"),
            ("tower_base_max_abs_Nm", "N m")]
 STATUS = ("ok", "diverged", "failed")
+#: a run whose external program (OpenFAST) was ended by a signal wtftc did not send, or
+#: whose case folder another run held: neither a result nor a failure, so not saved; the
+#: next resume runs it again (wtftc.errors.ProgramKilled, wtftc.programs.FolderBusy)
+UNFINISHED = "unfinished"
 
 
 #: what a run computes outside the generated code, numbered: raised when a change to the
@@ -465,14 +469,14 @@ def _save_batch(out_dir: Path, done: set[str], results: list,
     """Write one finished task's runs: traces first (and a run's OpenFAST case, recorded as
     it is), then the metrics file that lists them, each recorded and written atomically
     (:meth:`Record.write`); runs already saved (a task a dying worker made Dask repeat)
-    are dropped. Returns the rows written."""
+    and runs left :data:`UNFINISHED` are dropped. Returns the rows written."""
     import pyarrow as pa
 
     out_dir = Path(out_dir)
     rec = rec if rec is not None else Record.open(out_dir, "--out")
     rows = []
     for row, tr in results:
-        if row["run_id"] in done:
+        if row["run_id"] in done or row["status"] == UNFINISHED:
             continue
         if tr is not None:
             rec.write(f"traces/{row['run_id']}.parquet", _parquet_bytes(_trace_table(tr)))

@@ -12,8 +12,10 @@ import numpy as np
 from wtftc import config
 from wtftc.campaign import cases, tune
 from wtftc.campaign.compare import CONTROLLERS
-from wtftc.campaign.sweep.store import METRICS
+from wtftc.campaign.sweep.store import METRICS, UNFINISHED
+from wtftc.errors import ProgramKilled
 from wtftc.openfast.turbsim import ensure_field
+from wtftc.programs import FolderBusy
 from wtftc.results.metrics import fdi_ran, metrics, speed_series
 from wtftc.sim import rhs
 
@@ -56,7 +58,10 @@ def run_task(points: list[dict], traces: bool = False, case_root: str | None = N
     """One Dask task: run ``points`` (one compiled loop) and return (row, traces) each.
 
     A run that diverges is a result (status "diverged", with its time, state and cause);
-    one that raises is recorded as "failed" with the exception, and the others still run.
+    one that raises is recorded as "failed" with the exception (OpenFAST past its time
+    limit too), and the others still run. A run whose OpenFAST another's signal ended, or
+    whose case folder another run holds, is "unfinished" (store.UNFINISHED): not saved,
+    so that a resume runs it again.
     ``case_root``: the results folder's ``openfast/``, where a run in OpenFAST keeps its
     case, ``<case_root>/<run id>/`` (a worker that cannot see the results folder runs it
     in a temporary folder instead; a run in wtftc's own plants writes none).
@@ -102,6 +107,9 @@ def _run_points(points: list[dict], traces: bool, case_root: str | None = None
             res = results.get(id(rc)) or cases.run(
                 rc, progress=False, openfast_dir=case_folder(case_root, pt["run_id"]))
             m = metrics(rc, res)
+        except (ProgramKilled, FolderBusy) as exc:  # not this run's failure: run it again
+            out.append((_row(pt, UNFINISHED, cause=f"{type(exc).__name__}: {exc}"), None))
+            continue
         except Exception as exc:  # noqa: BLE001
             out.append((_row(pt, "failed", cause=f"{type(exc).__name__}: {exc}"), None))
             continue
