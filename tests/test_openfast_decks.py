@@ -16,8 +16,8 @@ import stat
 from pathlib import Path
 
 import pytest
-
 from nrel5mw_deck import DECK, time_limit
+
 from wtftc.errors import ConfigError
 from wtftc.model import openfast_deck, turbine_file
 from wtftc.openfast import case as ofcase
@@ -639,3 +639,82 @@ def test_a_binary_elastodyn_is_one_line_in_the_turbine_import(deck):
     with pytest.raises(ConfigError, match="NUL") as exc:
         openfast_deck.read(deck / FST)
     assert exc.value.field == "EDFile" and exc.value.where == str(deck / FST)
+
+
+# ------------------------------------------------------------ end to end: `wtftc run`
+
+def _turbine_for(deck: Path, folder: Path) -> Path:
+    """The built-in NREL 5-MW's turbine file with ``deck`` as its OpenFAST deck."""
+    src = Path(NREL.path)
+    text = src.read_text(encoding="utf-8").replace(
+        'openfast_deck = "rosco:Examples/Test_Cases/NREL-5MW/NREL-5MW.fst"',
+        f'openfast_deck = "{deck / FST}"')
+    assert str(deck / FST) in text
+    folder.mkdir(exist_ok=True)
+    shutil.copy(Path(NREL.cp_path), folder / Path(NREL.cp_path).name)
+    (folder / "t.toml").write_text(text, encoding="utf-8")
+    return folder / "t.toml"
+
+
+def _run(turbine: Path, out: Path, capsys) -> tuple[int, list[str]]:
+    from wtftc.cli import main
+
+    capsys.readouterr()
+    with time_limit(300):
+        code = main(["run", "--engine", "openfast", "--turbine", str(turbine), "--controller",
+                     "rosco", "--profile", "realistic", "--wind", "constant", "--wind-mean",
+                     "16", "--t-final", "2", "--fault", "none", "--quiet", "--out", str(out)])
+    return code, capsys.readouterr().err.splitlines()
+
+
+def _hostile_but_valid(d: Path, t: Path) -> None:
+    """Every change a user's editor or file system may make that leaves the deck's
+    meaning as it was."""
+    _latin1(ED)(d, t)
+    _crlf(ED)(d, t)
+    _bom(AD)(d, t)
+    _crlf(FST)(d, t)
+    _latin1(DISCON)(d, t)
+    _description_names(d, t)
+    _title_names(d, t)
+    _unrelated("huge")(d, t)
+    os.mkfifo(d / "a_fifo")
+    os.symlink("loop", d / "loop")
+
+
+def test_a_deck_as_users_write_it_runs_as_rosco_s_does(deck, tmp_path, capsys):
+    """The same 2-s run on ROSCO's deck and on the hostile but valid copy: OpenFAST ends
+    normally on both with the same rotor speed at every step; the run folder holds the
+    named files only (no 300-MB file, no file a comment names), Latin-1 kept."""
+    from wtftc.openfast import engine
+
+    plain = tmp_path / "plain"
+    shutil.copytree(deck, plain)
+    _hostile_but_valid(deck, tmp_path)
+    before = _tree(deck)
+    code, err = _run(_turbine_for(plain, tmp_path / "t1"), tmp_path / "out1", capsys)
+    assert code == 0, err
+    code, err = _run(_turbine_for(deck, tmp_path / "t2"), tmp_path / "out2", capsys)
+    assert code == 0, err
+    a, b = (engine.read_outb(tmp_path / o / "openfast" / "NREL-5MW.outb") for o in
+            ("out1", "out2"))
+    assert len(a["Time"]) > 100 and (a["RotSpeed"] == b["RotSpeed"]).all()
+    case = tmp_path / "out2" / "openfast"
+    names = _copied(case)
+    assert not {"unrelated", "secret.txt", "a_fifo", "loop"} & names
+    assert sum(p.stat().st_size for p in case.rglob("*") if p.is_file()) < 10_000_000
+    assert b"\xb0 (degrees)" in (case / ED).read_bytes()
+    assert _tree(deck) == before
+
+
+@pytest.mark.parametrize("mutate, words", [
+    (_binary_fst, ["NUL", FST]), (_loop((FST, "EDFile")), ["symbolic link loop", "EDFile"]),
+    (_nul_in(ED), ["NUL", ED])], ids=["binary main file", "loop as EDFile", "binary ED"])
+def test_a_hostile_deck_is_one_line_and_exit_code_2_in_run(deck, tmp_path, capsys, mutate,
+                                                           words):
+    mutate(deck, tmp_path)
+    out = tmp_path / "out"
+    code, err = _run(_turbine_for(deck, tmp_path / "t"), out, capsys)
+    assert code == 2 and len(err) == 1 and err[0].startswith("wtftc: error: "), err
+    assert all(w in err[0] for w in words), err
+    assert not out.exists() and not list(tmp_path.glob(".out*"))
