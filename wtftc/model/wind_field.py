@@ -125,7 +125,15 @@ def field_path(f: Field) -> Path:
 def deck_hub_height(fst: Path) -> float:
     """The hub height [m] an OpenFAST deck gives its wind: its InflowWind file's RefHt."""
     inflow = fst.parent / _deck_value(fst, "InflowFile")
-    return float(_deck_value(inflow, "RefHt"))
+    value = _deck_value(inflow, "RefHt")
+    try:
+        hub = float(value)
+    except ValueError:
+        hub = math.nan
+    if not (math.isfinite(hub) and hub > 0):
+        raise ConfigError("openfast_deck", str(inflow), f"an InflowWind file whose RefHt is "
+                          f"a height > 0 [m] (it is {value!r})")
+    return hub
 
 
 def _deck_value(path: Path, key: str) -> str:
