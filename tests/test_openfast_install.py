@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from wtftc.cli import main
-from wtftc.errors import EngineError
+from wtftc.errors import ConfigError, EngineError
 from wtftc.openfast import install
 
 
@@ -53,7 +53,8 @@ def test_another_major_version_on_path_is_passed_over_and_named(bare):
 
 def test_openfast_named_by_the_user_of_another_version_is_refused(bare, monkeypatch):
     monkeypatch.setenv("OPENFAST", str(_fake(bare / "of4", "openfast", "OpenFAST-v4.0.0")))
-    with pytest.raises(EngineError, match=r"OPENFAST=.* is OpenFAST 4\.0\.0; wtftc needs 5\.x"):
+    with pytest.raises(ConfigError, match=r"OPENFAST = .* an OpenFAST 5\.x program \(this one "
+                       r"is OpenFAST 4\.0\.0"):
         install.find()
 
 

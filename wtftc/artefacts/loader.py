@@ -10,7 +10,12 @@
   rebuilt, with a note;
 * where compiling or caching is impossible (no compiler, ``$CC`` failing, a cache that
   cannot be written), the serialized function runs on CasADi's virtual machine, with one
-  warning per process naming ``CC`` or ``WTFTC_CACHE``: the same numbers, slower.
+  warning per process naming ``CC`` or ``WTFTC_CACHE``: the same numbers, slower;
+* a folder of several files built once for the OpenFAST engine (:func:`built_once`: its
+  controller and plant libraries) is sealed with the size and sha256 of every file
+  (:func:`wtftc.files.seal`), checked each time it is taken, and rebuilt with a note when
+  damaged; the cache holding it is checked for what OpenFAST can read
+  (:func:`openfast_cache_dir`).
 
 This module never imports SymPy or ``derivation/``.
 """
@@ -18,6 +23,8 @@ This module never imports SymPy or ``derivation/``.
 from __future__ import annotations
 
 import contextlib
+import errno
+import fcntl
 import hashlib
 import json
 import os
@@ -25,12 +32,16 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 import warnings
 from collections.abc import Callable
 from functools import cache
 from pathlib import Path
 
 import casadi as ca
+
+from wtftc import files
+from wtftc.errors import ConfigError, EngineError
 
 #: compiler flags; part of the cache key
 CFLAGS = ("-O2", "-fPIC", "-shared")
@@ -53,9 +64,99 @@ def generated_dir() -> Path:
     return installed if (installed / "manifest.json").exists() else package.parent / "generated"
 
 
+#: the longest path OpenFAST 5.0.0 reads from a line of an input file: ParseChVar
+#: (modules/nwtc-library/src/NWTC_IO.f90) splits the line into words of
+#: NWTC_SizeOfNumWord = 256 characters and cuts a longer one ("Value may be truncated"), so
+#: that ServoDyn's DLL_FileName, the plant library in the cache, names no file
+OPENFAST_PATH_CHARS = 256
+#: room kept for the longest name wtftc puts under the cache that a deck line names:
+#: "/plant_library-<20 hex digits>/libwtftc_plant.so" is 53 characters
+CACHE_NAME_CHARS = 64
+#: the longest cache folder the OpenFAST engine can use [bytes of its absolute path]
+MAX_CACHE_CHARS = OPENFAST_PATH_CHARS - CACHE_NAME_CHARS
+#: characters OpenFAST cannot read in a quoted path: its comment marks ('!', '#', '%' end a
+#: line's input even inside quotes: CommChars, NWTC_IO.f90), the quotes, line breaks
+OPENFAST_PATH_BAD = "!#%\"'\n\r"
+#: where the cache is when WTFTC_CACHE is unset
+DEFAULT_CACHE = "~/.cache/wtftc"
+
+
 def cache_dir() -> Path:
+    """wtftc's cache folder, absolute: ``$WTFTC_CACHE`` (``~`` expanded, a relative path
+    taken from the current folder: OpenFAST runs in its case folder and must find the
+    libraries by their absolute paths), else ``~/.cache/wtftc``. A WTFTC_CACHE that is
+    empty or cannot be made absolute is a ConfigError naming it."""
     env = os.environ.get("WTFTC_CACHE")
-    return Path(env) if env else Path.home() / ".cache" / "wtftc"
+    if env is None:
+        return Path(os.path.expanduser(DEFAULT_CACHE))
+    if not env.strip():
+        raise ConfigError("WTFTC_CACHE", env, "a folder path (unset WTFTC_CACHE for the "
+                          f"default, {DEFAULT_CACHE})")
+    if "\0" in env:
+        raise ConfigError("WTFTC_CACHE", env, "a folder path without NUL bytes")
+    try:
+        return Path(os.path.abspath(os.path.expanduser(env)))
+    except OSError as exc:  # a relative path, and the current folder is gone
+        raise ConfigError("WTFTC_CACHE", env, "a path that can be made absolute (the "
+                          f"current folder cannot be found: {exc.strerror})") from None
+
+
+def _cache_refusal(folder: Path, allowed: str) -> ConfigError:
+    """A ConfigError naming WTFTC_CACHE as the user set it (or its default)."""
+    env = os.environ.get("WTFTC_CACHE")
+    if env is None:
+        return ConfigError("WTFTC_CACHE", str(folder), f"{allowed}; WTFTC_CACHE is unset "
+                           "and this is its default: set it to another folder")
+    given = env if Path(env) == folder else f"{env} ({folder})"
+    return ConfigError("WTFTC_CACHE", given, allowed)
+
+
+def openfast_cache_dir() -> Path:
+    """:func:`cache_dir`, checked for the OpenFAST engine, which reads libraries in it by
+    their absolute paths from its decks: at most :data:`MAX_CACHE_CHARS` bytes, none of
+    :data:`OPENFAST_PATH_BAD`, a folder that can be written (made if missing). A
+    ConfigError naming WTFTC_CACHE otherwise, never a path cut short by OpenFAST."""
+    folder = cache_dir()
+    size = len(os.fsencode(folder))
+    if size > MAX_CACHE_CHARS:
+        raise _cache_refusal(folder, f"a folder path of at most {MAX_CACHE_CHARS} bytes "
+                             f"(this one has {size}): OpenFAST cuts a path in its input "
+                             f"files at {OPENFAST_PATH_CHARS} characters, and the plant "
+                             "library's lies inside the cache")
+    bad = sorted({c for c in str(folder) if c in OPENFAST_PATH_BAD})
+    if bad:
+        raise _cache_refusal(folder, "a folder path without " + " ".join(map(repr, bad))
+                             + " (OpenFAST cannot read them in a path of its input files)")
+    writable_cache(folder)
+    return folder
+
+
+def writable_cache(folder: Path) -> Path:
+    """``folder`` (the cache or a folder inside it) made if missing; a ConfigError naming
+    WTFTC_CACHE, with what is wrong in words, where it is not a folder that can be
+    written."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES))
+    except OSError as exc:
+        raise _cache_refusal(cache_dir(), "a folder that can be written "
+                             f"({_why_not(folder, exc)})") from None
+    return folder
+
+
+def _why_not(folder: Path, exc: OSError) -> str:
+    """Why ``folder`` cannot be written, in words naming the path at fault (never a
+    temporary name: the first ancestor that exists)."""
+    probe = folder
+    while not probe.exists() and probe != probe.parent:
+        probe = probe.parent
+    if probe.exists() and not probe.is_dir():
+        return f"{probe} is a file" if probe.is_file() else f"{probe} is not a folder"
+    if exc.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+        return f"{probe} is not writable" + (" (a read-only file system)"
+                                             if exc.errno == errno.EROFS else "")
+    return f"{probe}: {exc.strerror or type(exc).__name__}"
 
 
 def _sha256(path: Path) -> str:
@@ -115,7 +216,7 @@ class CompilerWarning(RuntimeWarning):
 #: what this process found it cannot use ("CC <path>", "WTFTC_CACHE <folder>") and why
 _BROKEN: dict[str, str] = {}
 _WARNED: set[str] = set()
-_NOTED: set[Path] = set()  # damaged objects already named on stderr
+_NOTED: set[tuple[Path, str]] = set()  # damaged entries already named on stderr, and how
 _VM = "; running on CasADi's virtual machine instead (the same numbers, slower)"
 
 
@@ -190,13 +291,21 @@ def _lookup(prefix: Path, heal: bool = True) -> Path | None:
         damage = _damage(path, name[len(prefix.name) + 1:-len(".so")])
         if damage is None:
             return path
-        if heal and path not in _NOTED:
-            _NOTED.add(path)
-            print(f"wtftc: {path} in WTFTC_CACHE is damaged ({damage}); deleting it and "
-                  "rebuilding", file=sys.stderr, flush=True)
         if heal:
             _remove_damaged(path)
+            _note_damaged(path, damage, "deleting it and rebuilding" if not
+                          os.path.lexists(path) else "it cannot be deleted here: delete "
+                          "it by hand, or set WTFTC_CACHE to a folder that can be written")
     return None
+
+
+def _note_damaged(path: Path, damage: str, what: str) -> None:
+    """One line on stderr, once per process and entry: a damaged cache entry, and what is
+    done or to do about it."""
+    if (path, damage) not in _NOTED:
+        _NOTED.add((path, damage))
+        print(f"wtftc: {path} in WTFTC_CACHE is damaged ({damage}); {what}",
+              file=sys.stderr, flush=True)
 
 
 def _remove_damaged(path: Path) -> None:
@@ -218,10 +327,12 @@ def _remove_damaged(path: Path) -> None:
 
 
 def _cache_error(folder: Path, exc: OSError) -> CompileError:
+    """The cache cannot take a compiled object: named as the user set it, with the path at
+    fault (never the temporary file that could not be made)."""
     env = os.environ.get("WTFTC_CACHE")
-    where = f"WTFTC_CACHE={env}" if env else f"the compile cache {folder} (WTFTC_CACHE unset)"
-    why = ("it is a file" if folder.is_file() else
-           f"{exc.strerror or exc}: {exc.filename or folder}")
+    where = (f"WTFTC_CACHE={env}" if env is not None else
+             f"the compile cache {folder} (WTFTC_CACHE unset)")
+    why = "it is a file" if folder.is_file() else _why_not(folder, exc)
     return CompileError(f"{where} is not a writable folder ({why})", f"WTFTC_CACHE {folder}")
 
 
@@ -300,26 +411,203 @@ def compile_cached(c_path: Path, cc: str, flags: tuple[str, ...] = CFLAGS) -> Pa
     return _build(c_path, cc, flags, None)
 
 
+#: the lock a build of :func:`built_once` holds in its temporary folder while it runs: a
+#: temporary folder whose lock no process holds was left by a build that was killed
+BUILD_LOCK = files.PARTIAL_LOCK
+#: a temporary build folder without a lock file (made by an earlier wtftc) is taken as
+#: left by a killed build once it has not changed for this long [s]
+STALE_UNLOCKED_S = 3600.0
+
+
 def built_once(folder: Path, name: str, make: Callable[[Path], None]) -> Path:
     """``folder/name``, built by ``make(tmp)`` into a fresh hidden folder beside ``folder``
-    the first time and renamed into place whole (never half-built; a concurrent builder's
-    folder, renamed first, is taken as it is): a library of several sources compiled once
-    per key (``folder`` names the key) into wtftc's cache."""
-    out = Path(folder) / name
-    if out.is_file():
-        return out
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}-", dir=folder.parent))
+    the first time, renamed into place whole and sealed (:func:`wtftc.files.seal`): a
+    library of several sources compiled once per key (``folder`` names the key) into
+    wtftc's cache, for the OpenFAST engine (the cache checked by
+    :func:`openfast_cache_dir`).
+
+    The entry is taken only while its seal holds; a damaged one (a file changed, removed
+    or added, no seal) is rebuilt, with one line on stderr naming it. The hidden
+    ``.<folder>-*`` folders that killed builds left are removed first, once no process
+    holds their lock. Checks, removals and renames happen under a lock on the parent
+    folder; the builds run outside it, and of concurrent builders the first to finish
+    wins (the others' folders are discarded)."""
+    folder = Path(folder)
+    openfast_cache_dir()
+    root = writable_cache(folder.parent)
+    try:
+        with _folder_locked(root):
+            clean_stale_builds(root, folder.name)
+            if _take(folder, name):
+                return folder / name
+            tmp, lock_fd = new_build_folder(root, folder.name)
+    except OSError as exc:
+        raise _cache_refusal(cache_dir(), f"a folder that can be written "
+                             f"({_why_not(root, exc)})") from None
+    try:
+        _make_in(make, tmp, folder, name)
+        with _folder_locked(root):
+            os.unlink(tmp / BUILD_LOCK)
+            if not _take(folder, name, quiet=True):
+                os.chmod(tmp, 0o777 & ~files._umask())  # mkdtemp's 0700: a shared cache
+                os.rename(tmp, folder)
+                files.seal(folder)
+    except OSError as exc:
+        raise _cache_refusal(cache_dir(), f"a folder that can be written ({folder}: "
+                             f"{exc.strerror or exc})") from None
+    finally:
+        os.close(lock_fd)
+        shutil.rmtree(tmp, ignore_errors=True)
+    return folder / name
+
+
+@contextlib.contextmanager
+def _folder_locked(root: Path):
+    """An exclusive ``flock`` on the folder ``root`` while the block runs."""
+    fd = os.open(root, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)
+
+
+def new_build_folder(root: Path, stem: str) -> tuple[Path, int]:
+    """A fresh hidden folder ``.<stem>-*`` in ``root`` and the descriptor of the lock
+    held in it (not inherited by the programs the build runs)."""
+    tmp = Path(tempfile.mkdtemp(prefix=f".{stem}-", dir=root))
+    fd = os.open(tmp / BUILD_LOCK, os.O_CREAT | os.O_RDWR | os.O_CLOEXEC, 0o600)
+    fcntl.flock(fd, fcntl.LOCK_EX)
+    return tmp, fd
+
+
+def clean_stale_builds(root: Path, stem: str) -> None:
+    """Remove the ``.<stem>-*`` folders in ``root`` whose lock no process holds (a build
+    killed, even by SIGKILL: the kernel releases its lock), and those without a lock that
+    have not changed for :data:`STALE_UNLOCKED_S`."""
+    for entry in os.scandir(root):
+        if not entry.name.startswith(f".{stem}-") or not entry.is_dir(follow_symlinks=False):
+            continue
+        try:
+            fd = os.open(Path(entry.path) / BUILD_LOCK,
+                         os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+        except FileNotFoundError:
+            if time.time() - entry.stat(follow_symlinks=False).st_mtime > STALE_UNLOCKED_S:
+                shutil.rmtree(entry.path, ignore_errors=True)
+            continue
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            continue  # a live build
+        else:
+            shutil.rmtree(entry.path, ignore_errors=True)
+        finally:
+            os.close(fd)
+
+
+def _entry_damage(folder: Path, name: str) -> str | None:
+    """What is wrong with the built entry ``folder`` against its seal; None if whole."""
+    if folder.is_symlink():
+        return "a symbolic link, not the folder wtftc built"
+    if not folder.is_dir():
+        return "not a folder"
+    damage = files.seal_damage(folder)
+    if damage is None and not (folder / name).is_file():
+        return f"{name} is missing"
+    return damage
+
+
+def _take(folder: Path, name: str, quiet: bool = False) -> bool:
+    """Whether ``folder`` holds a whole entry; a damaged one is cleared away (named on
+    stderr unless ``quiet``), so that it is built again."""
+    if not os.path.lexists(folder):
+        return False
+    damage = _entry_damage(folder, name)
+    if damage is None:
+        return True
+    done = _clear(folder)
+    if done is None:
+        raise _cache_refusal(cache_dir(), f"a folder that can be written ({folder} is "
+                             f"damaged ({damage}) and cannot be deleted here: delete it)")
+    if not quiet:
+        _note_damaged(folder, damage, done)
+    return False
+
+
+def _clear(folder: Path) -> str | None:
+    """Clear a damaged entry's name and say how; None where it cannot be. An entry that
+    holds only what wtftc wrote (or an unsealed one, built by an earlier wtftc) is
+    deleted; anything else there (a file, a link, files wtftc did not write) is moved
+    aside whole to ``<name>.moved-*``, never deleted."""
+    root = folder.parent
+    try:
+        if folder.is_dir() and not folder.is_symlink() and not _foreign(folder):
+            trash = Path(tempfile.mkdtemp(prefix=f".{folder.name}-", dir=root))
+            os.rename(folder, trash / folder.name)  # the name is free at once
+            shutil.rmtree(trash, ignore_errors=True)
+            done = "deleting it and rebuilding"
+        else:
+            aside = Path(tempfile.mkdtemp(prefix=f"{folder.name}.moved-", dir=root))
+            os.rename(folder, aside / folder.name)
+            done = f"moved it aside to {aside} (it holds what wtftc did not write); rebuilding"
+        with contextlib.suppress(FileNotFoundError):
+            files.seal_path(folder).unlink()
+    except OSError:
+        return None
+    return done
+
+
+def _foreign(folder: Path) -> bool:
+    """Whether the sealed folder holds anything its seal does not list (a file, a folder,
+    a link that wtftc did not write); False for a folder without a readable seal."""
+    try:
+        recorded = json.loads(files.seal_path(folder).read_text())
+    except (OSError, ValueError):
+        return False
+    if not isinstance(recorded, dict):
+        return False
+    for top, dirs, names in os.walk(folder):
+        for n in dirs + names:
+            path = os.path.join(top, n)
+            rel = os.path.relpath(path, folder) + (os.sep if n in dirs else "")
+            if os.path.islink(path) or rel not in recorded:
+                return True
+    return False
+
+
+def _make_in(make: Callable[[Path], None], tmp: Path, folder: Path, name: str) -> None:
+    """``make(tmp)``, its refusals naming ``folder`` (where the entry will be), never the
+    temporary folder deleted afterwards."""
     try:
         make(tmp)
-        try:
-            tmp.rename(folder)
-        except OSError:  # another process built it first
-            if not out.is_file():
-                raise
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return out
+    except (ConfigError, EngineError) as exc:
+        renamed = _renamed(exc, str(tmp), str(folder))
+        if renamed is None:
+            raise
+        raise renamed from None
+    except OSError as exc:
+        if exc.filename is None or not str(exc.filename).startswith(str(tmp)):
+            raise
+        raise _cache_refusal(cache_dir(), f"a folder that can be written (building "
+                             f"{folder}: {exc.strerror or exc})") from None
+    if not (tmp / name).is_file():
+        raise EngineError(f"building {folder} in WTFTC_CACHE made no {name}")
+
+
+def _renamed(exc: Exception, old: str, new: str) -> Exception | None:
+    """``exc`` with ``old`` replaced by ``new`` in its message; None where it does not
+    name ``old`` or cannot be remade so (a subclass with arguments of its own)."""
+    if old not in str(exc):
+        return None
+    if type(exc) is ConfigError:
+        value = exc.value.replace(old, new) if isinstance(exc.value, str) else exc.value
+        return ConfigError(exc.field, value, exc.allowed.replace(old, new), exc.where)
+    try:
+        return type(exc)(str(exc).replace(old, new))
+    except TypeError:
+        return None
 
 
 def compiled_library(c_path: Path, flags: tuple[str, ...] = CFLAGS,
