@@ -358,3 +358,37 @@ def test_a_host_without_an_actuator_gets_a_design_without_one(tmp_path):
     assert with_lag["diverged"] is None and without["diverged"] is None
     assert without["shaft_torque_del_1hz_Nm"] < 0.25 * with_lag["shaft_torque_del_1hz_Nm"]
     assert without["overspeed_peak_over_rated"] < 1.05
+
+
+def test_an_abort_by_a_crash_names_the_signal_and_where_the_output_is():
+    """OpenFAST ended by SIGSEGV with nothing said: the reason is never empty, it names the
+    signal and the log; a warning printed before the crash is not taken as its reason."""
+    log = Path("/run/case/openfast.log")
+    assert engine.abort_message("", -11, log) == (
+        "OpenFAST stopped (exit code -11, SIGSEGV) with no message; its screen output is "
+        f"in {log}")
+    warned = (" FAST_Solution:FAST_UpdateStates:SrvD_UpdateStates:DLL_controller_call:Using"
+              " last calculated values from DLL.\n Time: 2 of 6 seconds.\n")
+    assert engine.abort_message(warned, -11, log) == engine.abort_message("", -11, log)
+    assert engine.abort_message(warned + "Program received signal SIGSEGV: Segmentation "
+                                "fault - invalid memory reference.\n", -11, log) == (
+        "OpenFAST stopped (exit code -11, SIGSEGV): Program received signal SIGSEGV: "
+        "Segmentation fault - invalid memory reference.")
+    assert engine.abort_message("Time: 1 of 6 seconds.\n", 1, log).endswith(
+        f"(exit code 1) with no message; its screen output is in {log}")
+
+
+def test_the_real_outb_passes_its_case_and_is_refused_for_a_shorter_one(tmp_path):
+    """OpenFAST's own output of a 2-s case is read; handed to a 1-s case (a longer run's
+    output left in its folder) it is refused, naming the file."""
+    rc = config.make_config({"engine": "openfast", "profile": "realistic",
+                             "controller": "pi", "case": 1, "t_final_s": 2.0, "wind": WIND})
+    case = engine.prepare(rc, tmp_path / "case")
+    wall, abort = engine.simulate(case, progress=False)
+    assert abort is None
+    res = engine.result(rc, case, wall, abort)
+    assert res.t[-1] == pytest.approx(2.0, abs=rc.dt)
+    short = config.make_config({**rc.raw, "t_final_s": 1.0})
+    with pytest.raises(EngineError, match=r"NREL-5MW\.outb is not this case's output \("
+                       r"\d+ rows for a case of \d+\): delete it"):
+        engine.result(short, case, wall, abort)

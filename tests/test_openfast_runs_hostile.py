@@ -230,9 +230,9 @@ def test_a_second_openfast_into_a_busy_case_folder_is_refused(fakes, monkeypatch
     monkeypatch.setenv("FAKE_BODY", "time.sleep(600)")
     folder, fst = _case_folder(fakes)
     first = subprocess.Popen([PY, "-c", (
-        "import sys; sys.path.insert(0, %r)\nfrom pathlib import Path\n"
-        "from wtftc.openfast import engine\nengine.simulate_in(Path(%r), Path(%r))\n")
-        % (str(ROOT), str(folder), str(fst))])
+        f"import sys; sys.path.insert(0, {str(ROOT)!r})\nfrom pathlib import Path\n"
+        f"from wtftc.openfast import engine\nengine.simulate_in(Path({str(folder)!r}), "
+        f"Path({str(fst)!r}))\n")])
     try:
         end = time.monotonic() + 30
         while not recorded(fakes / "pids") and time.monotonic() < end:
@@ -499,8 +499,9 @@ def test_a_turbsim_killed_with_wtftc_leaves_a_folder_the_next_run_removes(fakes)
     good = fakes / "good.bts"
     good.write_bytes(bts_bytes())
     env = {**os.environ, "FAKE_BODY": "time.sleep(600)", "FAKE_GOOD": str(good)}
-    code = ("import sys; sys.path.insert(0, %r)\nfrom wtftc.openfast import turbsim\n"
-            "turbsim.generate(turbsim.Field(16.0, 'B', 3, 90.0, 63.0, 2.0))\n" % str(ROOT))
+    code = (f"import sys; sys.path.insert(0, {str(ROOT)!r})\n"
+            "from wtftc.openfast import turbsim\n"
+            "turbsim.generate(turbsim.Field(16.0, 'B', 3, 90.0, 63.0, 2.0))\n")
     runner = subprocess.Popen([PY, "-c", code], env=env)
     end = time.monotonic() + 30
     while not recorded(fakes / "pids") and time.monotonic() < end:
@@ -612,3 +613,208 @@ def test_an_inflowwind_file_that_is_no_file_is_one_line(tmp_path, make):
     with pytest.raises(ConfigError) as exc:
         wind_field.deck_hub_height(fst)
     assert "\n" not in str(exc.value) and str(target) in str(exc.value)
+
+
+# ------------------------------------------------------------------ wtftc killed meanwhile
+
+#: the cache of the machine (the plant library and controllers compiled once): the fakes
+#: fixture points WTFTC_CACHE elsewhere, the commands below run on the real one
+MACHINE_CACHE = os.environ.get("WTFTC_CACHE")
+
+
+def descendants(pid: int) -> set[int]:
+    """Every process below ``pid`` now (from the process table)."""
+    parent = {}
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                parent[int(d.name)] = int((d / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, IndexError, ValueError):
+                continue
+    found, frontier = set(), {pid}
+    while frontier:
+        frontier = {p for p, pp in parent.items() if pp in frontier} - found
+        found |= frontier
+    return found
+
+
+def _command_env(extra: dict) -> dict:
+    env = {k: v for k, v in os.environ.items() if k != "WTFTC_CACHE"}
+    if MACHINE_CACHE:
+        env["WTFTC_CACHE"] = MACHINE_CACHE
+    return {**env, **extra}
+
+
+def _wait_for(pred, within_s: float) -> bool:
+    end = time.monotonic() + within_s
+    while time.monotonic() < end:
+        if pred():
+            return True
+        time.sleep(0.1)
+    return False
+
+
+RUN = ["run", "--engine", "openfast", "--controller", "pi", "--profile", "realistic",
+       "--wind", "constant", "--wind-mean", "16", "--fault", "none", "--quiet"]
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT, signal.SIGKILL])
+def test_killing_wtftc_run_leaves_no_openfast_running(fakes, sig):
+    """`wtftc run --engine openfast` stopped while OpenFAST runs (a fake that would run
+    for ten minutes): OpenFAST is gone within a few seconds. SIGTERM and Ctrl-C end wtftc
+    as an interrupt (exit code 130), with no --out and no partial folder left."""
+    out = fakes / "run"
+    p = subprocess.Popen([PY, "-m", "wtftc.cli", *RUN, "--t-final", "5", "--out", str(out)],
+                         env=_command_env({"FAKE_BODY": "time.sleep(600)"}),
+                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        assert _wait_for(lambda: recorded(fakes / "pids"), 180), p.stderr
+        below = descendants(p.pid)
+        os.kill(p.pid, sig)
+        p.wait(timeout=30)
+        err = p.stderr.read()
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert recorded(fakes / "pids")[0] in below
+    assert gone(below | set(recorded(fakes / "pids")), 5.0)
+    assert not out.exists()
+    if sig != signal.SIGKILL:
+        assert p.returncode == 130 and err.strip() == "wtftc: interrupted"
+        assert list(fakes.glob(".run.*")) == []
+
+
+def test_sigkill_to_wtftc_run_leaves_no_real_openfast_running(tmp_path):
+    """The real OpenFAST on a 300-s case, wtftc killed outright as soon as OpenFAST
+    runs: no OpenFAST is left (the kernel's parent-death signal)."""
+    out = tmp_path / "run"
+    p = subprocess.Popen([PY, "-m", "wtftc.cli", *RUN, "--t-final", "300", "--out", str(out)],
+                         env=_command_env({}), stdout=subprocess.DEVNULL,
+                         stderr=subprocess.DEVNULL)
+
+    def openfast_children() -> set[int]:
+        return {q for q in descendants(p.pid)
+                if Path(f"/proc/{q}/comm").is_file()
+                and Path(f"/proc/{q}/comm").read_text().strip() == "openfast"}
+
+    try:
+        assert _wait_for(openfast_children, 180)
+        time.sleep(0.5)
+        running = openfast_children()
+        p.kill()
+        p.wait()
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert running and gone(running, 5.0)
+
+
+def test_a_wtftc_run_killed_outright_frees_its_folder_for_the_next(fakes):
+    """SIGKILL to wtftc during OpenFAST: the next run into the same --out starts and ends
+    (the lock went with the killed processes)."""
+    out = fakes / "run"
+    p = subprocess.Popen([PY, "-m", "wtftc.cli", *RUN, "--t-final", "2", "--out", str(out)],
+                         env=_command_env({"FAKE_BODY": "time.sleep(600)"}),
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    assert _wait_for(lambda: recorded(fakes / "pids"), 180)
+    p.kill()
+    p.wait()
+    assert gone(recorded(fakes / "pids"))
+    again = subprocess.run([PY, "-m", "wtftc.cli", *RUN, "--t-final", "2", "--out", str(out)],
+                           env=_command_env({"FAKE_BODY": "sys.exit(1)"}),
+                           capture_output=True, text=True, timeout=300)
+    assert again.returncode == 4 and again.stderr.count("\n") == 1
+    assert "OpenFAST stopped (exit code 1) with no message" in again.stderr
+    assert not out.exists()
+
+
+SWEEP = """t_final_s = 4.0
+controllers = ["pi"]
+[wind]
+mean_mps = 16.0
+seed = 0
+"""
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_killing_an_openfast_sweep_leaves_nothing_running(fakes, sig):
+    """`wtftc sweep --engine openfast` stopped while its OpenFAST runs in a Dask worker:
+    every process below the sweep (the workers, OpenFAST) is gone within seconds."""
+    spec = fakes / "of.toml"
+    spec.write_text(SWEEP)
+    real = _real_turbsim()
+    p = subprocess.Popen([PY, "-m", "wtftc.cli", "sweep", str(spec), "--engine", "openfast",
+                          "--workers", "1", "--out", str(fakes / "res")],
+                         env=_command_env({"FAKE_BODY": "time.sleep(600)", "TURBSIM": real}),
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        assert _wait_for(lambda: recorded(fakes / "pids"), 240)
+        below = descendants(p.pid)
+        os.kill(p.pid, sig)
+        p.wait(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert recorded(fakes / "pids")[0] in below
+    assert gone(below | set(recorded(fakes / "pids")), 15.0), \
+        [q for q in below if alive(q)]
+
+
+def _real_turbsim() -> str:
+    saved = {k: os.environ.pop(k) for k in ("OPENFAST", "TURBSIM", "WTFTC_CACHE")
+             if k in os.environ}
+    if MACHINE_CACHE:
+        os.environ["WTFTC_CACHE"] = MACHINE_CACHE
+    try:
+        return str(install.require().turbsim)
+    finally:
+        os.environ.pop("WTFTC_CACHE", None)
+        os.environ.update(saved)
+
+
+# ------------------------------------------------------------------- wtftc modes' OpenFAST
+
+def _linearize(tmp_path):
+    from wtftc.config import openfast_deck
+    from wtftc.model import turbine_file
+    from wtftc.openfast import linearization
+
+    deck = openfast_deck(turbine_file.load(turbine_file.DEFAULT))
+    g = linearization.Guess(omega_r=1.267, pitch=0.2, tower_x=0.3, torque_hss=43093.0,
+                            gearbox=97.0, f_max=2.0)
+    return linearization.linearize(deck, 16.0, "rigid", 2, g, progress=False)
+
+
+def test_a_failed_linearization_says_openfasts_whole_error_and_keeps_its_log(fakes,
+                                                                            monkeypatch):
+    """OpenFAST's error, wrapped over ten lines, is in the message whole; the case and
+    OpenFAST's screen output are kept in the cache, and the message says where."""
+    monkeypatch.setenv("FAKE_BODY", WRAPPED + "out(b' OpenFAST encountered an error at "
+                       "simulation time 0 of 90 seconds.\\n'); sys.exit(1)")
+    with pytest.raises(EngineError) as exc:
+        _linearize(fakes)
+    msg = str(exc.value)
+    assert "\n" not in msg and all(f"x{k}" in msg for k in range(10))
+    kept = next((fakes / "cache" / "openfast_lin").glob("failed-*"))
+    assert f"OpenFAST's screen output is in {kept / 'openfast.log'}" in msg
+    assert (kept / "openfast.log").read_bytes().count(b"x" * 97) == 10
+    assert list((fakes / "cache" / "openfast_lin").glob(".work-*")) == []
+
+
+@pytest.mark.parametrize("body, kind, words", [
+    ("die(signal.SIGKILL)", ProgramKilled, "OpenFAST was killed by SIGKILL"),
+    ("time.sleep(600)", programs.TimedOut, "OpenFAST timed out after 1.5 s"),
+    ("die(signal.SIGSEGV)", EngineError, "(exit code -11, SIGSEGV) with no message; its "
+     "screen output is in"),
+])
+def test_a_linearization_stopped_says_why_and_where_its_log_is(fakes, monkeypatch, body, kind,
+                                                              words):
+    monkeypatch.setenv("FAKE_BODY", body)
+    monkeypatch.setenv(programs.TIMEOUT_ENV, "1.5")
+    with pytest.raises(kind) as exc:
+        _linearize(fakes)
+    msg = str(exc.value)
+    kept = next((fakes / "cache" / "openfast_lin").glob("failed-*"))
+    assert words in msg and str(kept / "openfast.log") in msg and "\n" not in msg
+    assert ".work-" not in msg  # the paths it names are where the files are now
+    assert gone(recorded(fakes / "pids"))

@@ -242,10 +242,11 @@ def test_the_limits_follow_their_rules_and_the_variable_replaces_them(monkeypatc
 # ------------------------------------------------------------------------- folder lock
 
 def test_a_folder_is_held_by_one_run_and_named_to_a_second(tmp_path):
+    root = str(Path(__file__).resolve().parents[1])
     holder = subprocess.Popen([PY, "-c", (
-        "import sys, time; sys.path.insert(0, %r)\nfrom wtftc import programs\n"
-        "with programs.folder_lock(%r):\n    print('held', flush=True); time.sleep(600)\n")
-        % (str(Path(__file__).resolve().parents[1]), str(tmp_path))],
+        f"import sys, time; sys.path.insert(0, {root!r})\nfrom wtftc import programs\n"
+        f"with programs.folder_lock({str(tmp_path)!r}):\n"
+        "    print('held', flush=True); time.sleep(600)\n")],
         stdout=subprocess.PIPE, text=True)
     try:
         assert holder.stdout.readline().strip() == "held"
