@@ -152,6 +152,13 @@ def _module_is(key, value, make=None):
     return mutate
 
 
+def _folder_as(name, key):
+    def mutate(d, t):
+        (d / "a_folder").mkdir()
+        _set(d / name, key, b'"a_folder"')
+    return mutate
+
+
 def _discon_nul(d, t):
     _edit(d / DISCON, b"\n", b"\n\x00", 1)
 
@@ -196,6 +203,9 @@ REFUSED = [
     ("AeroFile unused", _module_is("AeroFile", b'"unused"'), [FST, "AeroFile", "no file"]),
     ("ServoFile the deck's folder", _module_is("ServoFile", b'"."'),
      [FST, "ServoFile", "a folder"]),
+    ("a folder named as TwrFile", _folder_as(ED, "TwrFile"), ["a_folder", "TwrFile",
+                                                              "a folder"]),
+    ("a folder named as an airfoil", _folder_as(AD, "AFNames"), ["a_folder", "AFNames"]),
 ]
 
 
@@ -371,6 +381,20 @@ def _two_same_names(d, t):
     _set(d / ED, "BldFile(3)", b'"../b/same.dat"')
 
 
+def _binary_wind(d, t):
+    (d / "wind.bts").write_bytes(bytes(range(256)) * 64)
+    _set(d / IW, "FileName_BTS", b'"wind.bts"')
+
+
+def _cycle(d, t):
+    _edit(d / ED, b"------- ELASTODYN", b'"../deck/' + FST.encode() + b'"   Cycle - back\n'
+          b"------- ELASTODYN")
+
+
+def _long_name(d, t):
+    _set(d / FST, "BDBldFile(1)", b'"' + b"x" * 5000 + b'.dat"')
+
+
 def _no_header_title(d, t):
     _edit(d / FST, b"------- OpenFAST", b"OpenFAST", 1)
 
@@ -419,6 +443,9 @@ ACCEPTED = [
     ("a dangling link named", _dangling_named, [], ["wind.bts"]),
     ("two files of one name", _two_same_names, ["a/same.dat", "b/same.dat"], []),
     ("no header: the title is read", _no_header_title, [], []),
+    ("a binary wind file named", _binary_wind, ["wind.bts"], []),
+    ("a cycle of names", _cycle, [], []),
+    ("a name too long for a file", _long_name, [], []),
 ]
 
 
@@ -616,6 +643,36 @@ def test_a_key_missing_in_a_copy_is_refused_naming_the_users_file(deck, tmp_path
     assert str(deck / ED) in str(exc.value) and "TTDspFA" in str(exc.value)
     with pytest.raises(ConfigError, match="TTDspFA"):
         ofcase.get_value(ed, "TTDspFA")
+
+
+def _cr_only(d, t):
+    (d / FST).write_bytes((d / FST).read_bytes().replace(b"\n", b"\r"))
+
+
+def _empty(d, t):
+    (d / FST).write_bytes(b"")
+
+
+def _ed_is_main(d, t):
+    _set(d / FST, "EDFile", b'"' + FST.encode() + b'"')
+
+
+@pytest.mark.parametrize("mutate, key", [(_cr_only, "TMax"), (_empty, "TMax"),
+                                         (_ed_is_main, "RotSpeed")],
+                         ids=["CR line endings", "empty main file", "EDFile the main file"])
+def test_a_deck_copied_but_not_editable_is_refused_naming_the_users_file(
+        deck, tmp_path, mutate, key):
+    """What only the edit finds (OpenFAST's keys not where OpenFAST 5 has them) is one line
+    naming the user's file and the key, never the run's temporary copy."""
+    mutate(deck, tmp_path)
+    fst = ofcase.copy_deck(deck / FST, tmp_path / "case")
+    with pytest.raises(ConfigError) as exc:
+        if key == "TMax":
+            ofcase.set_values(fst, {"TMax": "2", "DT": "0.005"})
+        else:
+            ofcase.set_values(ofcase.module_file(fst, "EDFile"), {"RotSpeed": "12"})
+    text = str(exc.value)
+    assert str(deck / FST) in text and key in text and str(tmp_path / "case") not in text
 
 
 def test_a_main_file_without_a_module_line_is_refused_where_it_is_edited(deck, tmp_path):

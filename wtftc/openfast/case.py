@@ -52,8 +52,17 @@ MAX_DT = 0.005
 
 # ------------------------------------------------------------------- a deck file's text
 
-#: a copy of a deck file → the user's file it was copied from: what a message names
+#: a copy of a deck file wtftc edits (the main file, the files it names) → the user's
+#: file it was copied from: what a message names; the latest MAX_SOURCES copies
 _SOURCES: dict[Path, Path] = {}
+MAX_SOURCES = 4096
+
+
+def _remember(copy: Path, source: Path) -> None:
+    _SOURCES.pop(copy, None)
+    _SOURCES[copy] = source
+    while len(_SOURCES) > MAX_SOURCES:
+        del _SOURCES[next(iter(_SOURCES))]
 
 
 def source_of(path: Path) -> Path:
@@ -232,8 +241,9 @@ def _is_number(word: str) -> bool:
 def _target(path: Path, doc: Text, word: str, by: tuple[Path, str]) -> Path | None:
     """The regular file ``word`` (in the file ``path``) names, as OpenFAST resolves it (a
     relative name against the naming file's folder), links followed; None for a name of
-    no file (missing, a folder: left as written). A symbolic link loop, a FIFO, a device,
-    a socket, a file too large or unreadable is refused."""
+    no file (missing, or a folder where no file key asks for a file: left as written). A
+    symbolic link loop, a FIFO, a device, a socket, a file too large or unreadable, a
+    folder named by a ``...File`` key is refused."""
     full = path.parent / doc.fs_path(word)
     try:
         st = os.stat(full)
@@ -243,6 +253,8 @@ def _target(path: Path, doc: Text, word: str, by: tuple[Path, str]) -> Path | No
         why = "a symbolic link loop" if exc.errno == errno.ELOOP else exc.strerror
         raise refused(full, f"a file that can be read ({why})", by) from None
     if stat.S_ISDIR(st.st_mode):
+        if _text_wanted(by[1], False):
+            raise refused(full, "a file (this is a folder)", by)
         return None
     try:
         check_user_file(full, "openfast_deck", MAX_INPUT_BYTES)
@@ -374,7 +386,6 @@ def _write_copy(path: Path, data: bytes, source: Path) -> None:
         os.write(fd, data)  # a deck file is at most MAX_INPUT_BYTES: one write
     finally:
         os.close(fd)
-    _SOURCES[path] = source
 
 
 def _rewritten(data: bytes, refs: list, out: Path, dest: dict) -> bytes:
@@ -413,6 +424,8 @@ def copy_deck(fst: Path, folder: Path) -> Path:
     for path, (data, refs) in files.items():
         out = dest[path]
         _write_copy(out, _rewritten(data, refs, out, dest) if refs else data, path)
+    for path in (real, *(r[3] for r in files[real][1])):
+        _remember(dest[path], path)
     return dest[real]
 
 
