@@ -92,6 +92,18 @@ def _binary_fst(d, t):
     (d / FST).write_bytes(b"\x7fELF\x02\x01\x01\x00" + bytes(range(256)) * 4)
 
 
+def _elf_as(name):
+    def mutate(d, t):
+        (d / name).write_bytes(b"\x7fELF\x02\x01\x01\xff\xfe" * 50)  # no NUL
+    return mutate
+
+
+def _escape_in(name):
+    def mutate(d, t):
+        _at_line_3(d / name, b" \x1b[31m red")
+    return mutate
+
+
 def _utf16_fst(d, t):
     (d / FST).write_bytes((d / FST).read_text().encode("utf-16"))
 
@@ -165,7 +177,9 @@ def _discon_nul(d, t):
 
 REFUSED = [
     # (id, mutation, words the one line must hold)
-    ("binary main file", _binary_fst, [FST, "NUL", "binary"]),
+    ("binary main file", _binary_fst, [FST, "control character 0x02", "binary"]),
+    ("ELF bytes as ElastoDyn", _elf_as(ED), [ED, "0x02", "EDFile"]),
+    ("ESC bytes in AeroDyn", _escape_in(AD), [AD, "0x1b", "AeroFile"]),
     ("UTF-16 main file", _utf16_fst, [FST, "NUL", "UTF-16"]),
     ("NUL in ElastoDyn", _nul_in(ED), [ED, "NUL", f"{FST} names it as EDFile"]),
     ("NUL in the blade file", _nul_in(BLADE), [BLADE, "NUL", "BldFile(1)"]),
@@ -313,6 +327,15 @@ def _utf8_text(d, t):
     _at_line_3(d / ED, b" angles in \xc2\xb0, \xe2\x88\x82\xcf\x89/\xe2\x88\x82t")
 
 
+def _cp1252(d, t):
+    _at_line_3(d / ED, b" \x93quoted\x94 \x80 it\x92s")
+
+
+def _editor_bytes(d, t):
+    _at_line_3(d / FST, b"\t\x0c")
+    (d / AD).write_bytes((d / AD).read_bytes() + b"\x1a")
+
+
 def _bom(name):
     def mutate(d, t):
         (d / name).write_bytes(b"\xef\xbb\xbf" + (d / name).read_bytes())
@@ -422,6 +445,8 @@ ACCEPTED = [
     ("Latin-1 DISCON.IN", _latin1(DISCON), [], []),
     ("Latin-1 airfoil", _latin1("Airfoils/DU40_A17.dat"), [], []),
     ("UTF-8 ElastoDyn", _utf8_text, [], []),
+    ("Windows-1252 quotes", _cp1252, [], []),
+    ("tab, form feed, Ctrl-Z", _editor_bytes, [], []),
     ("BOM main file", _bom(FST), [], []),
     ("BOM ElastoDyn", _bom(ED), [], []),
     ("BOM AeroDyn", _bom(AD), [], []),

@@ -25,6 +25,7 @@ import functools
 import io
 import math
 import os
+import re
 import threading
 from collections import defaultdict
 from contextlib import contextmanager
@@ -44,6 +45,8 @@ MAX_COUNT = 100_000
 _EOF_READS = 16
 
 _LOCK = threading.Lock()
+#: the bytes no text file holds: C0 controls but \t \n \v \f \r and Ctrl-Z
+_CONTROL = re.compile(rb"[\x00-\x08\x0e-\x19\x1b-\x1f]")
 #: openfast-io's key → the key as the file spells it (what a message names)
 LABELS = {"TwrFADmp1": "TwrFADmp(1)", "BldFile1": "BldFile(1)", "TwFAM1Sh": "TwFAM1Sh(2:6)"}
 
@@ -132,15 +135,17 @@ def user_text(path: Path, key: str, where: str | None) -> str:
     """A deck file's text as its user wrote it (:func:`wtftc.files.decode_text`: UTF-8,
     else Latin-1, a BOM dropped: a "°" written on Windows is read), refused naming
     ``key`` and the file ``where`` that gives its name when it is no regular file of text
-    (a NUL byte: a binary file, or UTF-16, which OpenFAST cannot read)."""
+    (a NUL or control byte: a binary file, or UTF-16, which OpenFAST cannot read)."""
     try:
         data = read_user_bytes(path, key, MAX_DECK_BYTES)
     except ConfigError as exc:
         raise ConfigError(key, exc.value, exc.allowed, where=where) from None
-    nul = data.find(b"\0")
-    if nul >= 0:
+    m = _CONTROL.search(data)
+    if m is not None:
+        what = "a NUL" if m.group() == b"\0" else f"the control character 0x{m.group()[0]:02x}"
         raise ConfigError(key, str(path), f"an OpenFAST input file of text, UTF-8 or Latin-1 "
-                          f"(byte {nul} is a NUL: a binary file, or UTF-16?)", where=where)
+                          f"(byte {m.start()} is {what}: a binary file, or UTF-16?)",
+                          where=where)
     return decode_text(data)
 
 

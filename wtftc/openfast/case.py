@@ -52,6 +52,8 @@ MAX_DT = 0.005
 
 # ------------------------------------------------------------------- a deck file's text
 
+#: the bytes no text file holds: C0 controls but \t \n \v \f \r and Ctrl-Z
+_CONTROL = re.compile(rb"[\x00-\x08\x0e-\x19\x1b-\x1f]")
 #: a copy of a deck file wtftc edits (the main file, the files it names) → the user's
 #: file it was copied from: what a message names; the latest MAX_SOURCES copies
 _SOURCES: dict[Path, Path] = {}
@@ -101,13 +103,23 @@ class Text:
         return Path(os.fsdecode(word.encode(self.encoding, "surrogateescape")))
 
 
+def binary_byte(data: bytes) -> str | None:
+    """Where ``data`` cannot be a text file, said in words: its first NUL or other control
+    byte but tab, line feed, form feed, carriage return and Ctrl-Z (an editor's end of
+    file); None for text. Latin-1 or Windows-1252 letters are text."""
+    m = _CONTROL.search(data)
+    if m is None:
+        return None
+    what = "a NUL" if m.group() == b"\0" else f"the control character 0x{m.group()[0]:02x}"
+    return f"byte {m.start()} is {what}: a binary file, or UTF-16?"
+
+
 def decoded(data: bytes, path: Path, by: tuple[Path, str] | None = None) -> Text:
-    """The text of a deck file's bytes; a NUL byte (a binary file, or UTF-16, which
-    OpenFAST cannot read) is refused naming the file and what names it."""
-    nul = data.find(b"\0")
-    if nul >= 0:
-        raise refused(path, f"an OpenFAST input file of text, UTF-8 or Latin-1 (byte {nul} "
-                      "is a NUL: a binary file, or UTF-16?)", by)
+    """The text of a deck file's bytes; a binary file (a NUL or a control byte; UTF-16,
+    which OpenFAST cannot read) is refused naming the file and what names it."""
+    why = binary_byte(data)
+    if why is not None:
+        raise refused(path, f"an OpenFAST input file of text, UTF-8 or Latin-1 ({why})", by)
     try:
         data.decode("utf-8")
         encoding = "utf-8"
@@ -303,7 +315,7 @@ def _deck_files(fst: Path) -> dict[Path, tuple[bytes, list]]:
             data = read_user_bytes(path, "openfast_deck", MAX_INPUT_BYTES)
         except ConfigError as exc:
             raise refused(path, exc.allowed, by) from None
-        if not text and b"\0" in data:
+        if not text and binary_byte(data) is not None:
             files[path] = (data, [])
             continue
         refs = references(path, decoded(data, path, by))
