@@ -790,7 +790,7 @@ def test_a_deck_as_users_write_it_runs_as_rosco_s_does(deck, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("mutate, words", [
-    (_binary_fst, ["NUL", FST]), (_loop((FST, "EDFile")), ["symbolic link loop", "EDFile"]),
+    (_binary_fst, ["binary", FST]), (_loop((FST, "EDFile")), ["symbolic link loop", "EDFile"]),
     (_nul_in(ED), ["NUL", ED])], ids=["binary main file", "loop as EDFile", "binary ED"])
 def test_a_hostile_deck_is_one_line_and_exit_code_2_in_run(deck, tmp_path, capsys, mutate,
                                                            words):
