@@ -380,6 +380,14 @@ def _spaces_and_quotes(d, t):
     _set(d / ED, "BldFile(3)", b"./" + BLADE.encode())
 
 
+def _module_names_with_spaces(d, t):
+    os.rename(d / ED, d / "my elasto dyn.dat")
+    _set(d / FST, "EDFile", b'"my elasto dyn.dat"')
+    _set(d / FST, "ServoFile", b"'" + SD.encode() + b"'")
+    os.rename(d / DISCON, d / "my discon.in")
+    _set(d / SD, "DLL_InFile", b'"my discon.in"')
+
+
 def _utf8_name(d, t):
     os.rename(d / TOWER, d / "Türm.dat")
     _set(d / ED, "TwrFile", '"Türm.dat"'.encode())
@@ -463,6 +471,8 @@ ACCEPTED = [
      ["sib/blade.dat"], []),
     ("a link to a file outside", _named_link_outside, [], []),
     ("spaces, single quotes, ./", _spaces_and_quotes, ["my tower.dat"], [TOWER]),
+    ("module names with spaces, quotes", _module_names_with_spaces,
+     ["my elasto dyn.dat", "my discon.in"], [ED, DISCON]),
     ("a UTF-8 file name", _utf8_name, ["Türm.dat"], [TOWER]),
     ("a Latin-1 file name", _latin1_name, [os.fsdecode(b"T\xfcrm.dat")], [TOWER]),
     ("a dangling link named", _dangling_named, [], ["wind.bts"]),
@@ -698,6 +708,18 @@ def test_a_deck_copied_but_not_editable_is_refused_naming_the_users_file(
             ofcase.set_values(ofcase.module_file(fst, "EDFile"), {"RotSpeed": "12"})
     text = str(exc.value)
     assert str(deck / FST) in text and key in text and str(tmp_path / "case") not in text
+
+
+def test_a_quoted_name_with_spaces_is_edited_by_its_key(deck, tmp_path):
+    """The engine names its own controller input in ServoDyn's DLL_InFile: a deck's
+    quoted name with spaces there is one value, its key found after it."""
+    _module_names_with_spaces(deck, tmp_path)
+    fst = ofcase.copy_deck(deck / FST, tmp_path / "case")
+    sd = ofcase.module_file(fst, "ServoFile")
+    assert ofcase.get_value(sd, "DLL_InFile") == "my discon.in"
+    ofcase.set_values(sd, {"DLL_InFile": '"wtftc_plant.in"', "DLL_DT": "0.01"})
+    assert ofcase.get_value(sd, "DLL_InFile") == "wtftc_plant.in"
+    assert ofcase.check_deck_matches_turbine(deck / FST, NREL) is None
 
 
 def test_a_main_file_without_a_module_line_is_refused_where_it_is_edited(deck, tmp_path):

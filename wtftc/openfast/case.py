@@ -8,7 +8,7 @@ can rerun it by hand (``openfast <name>.fst`` in that folder):
 * the main file: TMax, DT (DLL_DT a whole multiple of it), binary output at every step,
   and no substructure (the tower clamped at its base, as wtftc's tower plant is);
 * ElastoDyn: the initial rotor speed, blade pitch and tower-top fore-aft displacement of
-  the run's operating point (issue 31), and the output channels the metrics need;
+  the run's operating point, and the output channels the metrics need;
 * InflowWind: the run's wind as a uniform wind file (WindType 2), the same series
   wtftc's own plant gets: hub-height or rotor-effective, uniform over the rotor, no shear;
 * ServoDyn: ``libwtftc_plant.so`` (wtftc.openfast.plant_library) as its DISCON library,
@@ -17,8 +17,9 @@ can rerun it by hand (``openfast <name>.fst`` in that folder):
 An OpenFAST input line is ``value  Key  - description``; a key is edited by its value
 only, the rest of its line kept. A deck file is read as its user wrote it: UTF-8 or
 Latin-1, with or without a BOM, LF or CRLF, and written back so; a file where text
-belongs with a NUL byte (binary, UTF-16), a symbolic link loop, a FIFO or a device
-named by the deck is refused in one line naming the file and what names it.
+belongs with a NUL or control byte (binary, UTF-16), a symbolic link loop, a FIFO, a
+device, a folder where a file belongs named by the deck is refused in one line naming
+the file and what names it.
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ import math
 import os
 import re
 import stat
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -57,19 +59,22 @@ _CONTROL = re.compile(rb"[\x00-\x08\x0e-\x19\x1b-\x1f]")
 #: a copy of a deck file wtftc edits (the main file, the files it names) → the user's
 #: file it was copied from: what a message names; the latest MAX_SOURCES copies
 _SOURCES: dict[Path, Path] = {}
+_SOURCES_LOCK = threading.Lock()  # a campaign's cases may be written from several threads
 MAX_SOURCES = 4096
 
 
 def _remember(copy: Path, source: Path) -> None:
-    _SOURCES.pop(copy, None)
-    _SOURCES[copy] = source
-    while len(_SOURCES) > MAX_SOURCES:
-        del _SOURCES[next(iter(_SOURCES))]
+    with _SOURCES_LOCK:
+        _SOURCES.pop(copy, None)
+        _SOURCES[copy] = source
+        while len(_SOURCES) > MAX_SOURCES:
+            del _SOURCES[next(iter(_SOURCES))]
 
 
 def source_of(path: Path) -> Path:
     """The user's file that ``path`` (a deck file, or its copy in a case) was copied from."""
-    return _SOURCES.get(Path(path), Path(path))
+    with _SOURCES_LOCK:
+        return _SOURCES.get(Path(path), Path(path))
 
 
 def refused(path: Path, allowed: str, by: tuple[Path, str] | None = None) -> ConfigError:
@@ -138,24 +143,27 @@ def read_text(path: Path) -> Text:
     return decoded(data, path)
 
 
-def _value_line(line: str, value: str) -> str:
-    """``line`` with its value (first word) replaced by ``value``."""
-    words = line.split()
-    key = words[1]
-    return f"{value:>14}   {key}{line[line.index(key, len(words[0])) + len(key):]}"
+#: a ``value  Key`` line: its value (a quoted one may hold spaces) and its key
+_KEYED = re.compile(r"""[ \t]*(?P<value>"[^"\n]*"|'[^'\n]*'|\S+)[ \t]+(?P<key>\S+)""")
+
+
+def _unquoted(value: str) -> str:
+    return value[1:-1] if len(value) > 1 and value[0] == value[-1] and value[0] in "\"'" \
+        else value.strip('"')
 
 
 def set_values(path: Path, values: dict[str, str]) -> None:
-    """Each ``Key`` of ``values`` given its value, in the file at ``path``; a key missing
-    or given twice is refused naming the file (the user's, for a copy)."""
+    """Each ``Key`` of ``values`` given its value, in the file at ``path`` (the rest of
+    its line kept); a key missing or given twice is refused naming the file (the user's,
+    for a copy)."""
     doc = read_text(path)
     lines = doc.text.split("\n")
     seen = dict.fromkeys(values, 0)
     for i, line in enumerate(lines):
-        words = line.split()
-        if len(words) >= 2 and words[1] in values:
-            lines[i] = _value_line(line, doc.fs_text(values[words[1]]))
-            seen[words[1]] += 1
+        m = _KEYED.match(line)
+        if m and m["key"] in values:
+            lines[i] = f"{doc.fs_text(values[m['key']]):>14}   {line[m.start('key'):]}"
+            seen[m["key"]] += 1
     wrong = [k for k, n in seen.items() if n != 1]
     if wrong:
         raise refused(path, f"an OpenFAST 5.0 input file with each of {', '.join(wrong)} "
@@ -166,9 +174,9 @@ def set_values(path: Path, values: dict[str, str]) -> None:
 def get_value(path: Path, key: str) -> str:
     """The value (first word, quotes removed) of ``Key`` in the file at ``path``."""
     for line in read_text(path).text.split("\n"):
-        words = line.split()
-        if len(words) >= 2 and words[1] == key:
-            return words[0].strip('"')
+        m = _KEYED.match(line)
+        if m and m["key"] == key:
+            return _unquoted(m["value"])
     raise refused(path, f"an OpenFAST 5.0 input file with a {key} line (`value  {key}  - "
                   "description`)")
 
