@@ -131,13 +131,20 @@ def openfast_cache_dir() -> Path:
     return folder
 
 
-def writable_cache(folder: Path) -> Path:
-    """``folder`` (the cache or a folder inside it) made if missing; a ConfigError naming
-    WTFTC_CACHE, with what is wrong in words, where it is not a folder that can be
+def writable_cache(folder: Path, make: bool = True) -> Path:
+    """``folder`` (the cache or a folder inside it), made if missing (with ``make``; else
+    only its nearest existing ancestor is checked, and nothing is made); a ConfigError
+    naming WTFTC_CACHE, with what is wrong in words, where it is not a folder that can be
     written."""
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        if not os.access(folder, os.W_OK | os.X_OK):
+        if make:
+            folder.mkdir(parents=True, exist_ok=True)
+        probe = folder
+        while not make and not os.path.lexists(probe) and probe != probe.parent:
+            probe = probe.parent
+        if not probe.is_dir():
+            raise NotADirectoryError(errno.ENOTDIR, os.strerror(errno.ENOTDIR))
+        if not os.access(probe, os.W_OK | os.X_OK):
             raise PermissionError(errno.EACCES, os.strerror(errno.EACCES))
     except OSError as exc:
         raise _cache_refusal(cache_dir(), "a folder that can be written "
@@ -150,6 +157,8 @@ def _why_not(folder: Path, exc: OSError) -> str:
     temporary name: the first ancestor that exists)."""
     probe = folder
     while not probe.exists() and probe != probe.parent:
+        if probe.is_symlink():
+            return f"{probe} is a symbolic link that leads nowhere (dangling, or a loop)"
         probe = probe.parent
     if probe.exists() and not probe.is_dir():
         return f"{probe} is a file" if probe.is_file() else f"{probe} is not a folder"
@@ -552,11 +561,21 @@ def _clear(folder: Path) -> str | None:
             aside = Path(tempfile.mkdtemp(prefix=f"{folder.name}.moved-", dir=root))
             os.rename(folder, aside / folder.name)
             done = f"moved it aside to {aside} (it holds what wtftc did not write); rebuilding"
-        with contextlib.suppress(FileNotFoundError):
-            files.seal_path(folder).unlink()
+        _clear_seal(folder)
     except OSError:
         return None
     return done
+
+
+def _clear_seal(folder: Path) -> None:
+    """Remove the seal beside ``folder``; anything else at its name (a folder) is moved
+    aside whole."""
+    seal = files.seal_path(folder)
+    if seal.is_dir() and not seal.is_symlink():
+        aside = Path(tempfile.mkdtemp(prefix=f"{seal.name}.moved-", dir=seal.parent))
+        os.rename(seal, aside / seal.name)
+    elif os.path.lexists(seal):
+        seal.unlink()
 
 
 def _foreign(folder: Path) -> bool:

@@ -40,7 +40,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from wtftc import files
-from wtftc.artefacts.loader import cache_dir, clean_stale_builds, new_build_folder
+from wtftc.artefacts.loader import cache_dir, clean_stale_builds, new_build_folder, writable_cache
 from wtftc.errors import ConfigError, EngineError
 
 VERSION = "5.0.0"
@@ -141,16 +141,20 @@ def _output(cmd: list[str], timeout: float) -> tuple[int | None, bytes]:
     out, code, deadline = bytearray(), None, time.monotonic() + timeout
     try:
         fd = proc.stdout.fileno()
-        while len(out) < _PROBE_BYTES:
-            left = deadline - time.monotonic()
-            if left <= 0 or not select.select([fd], [], [], left)[0]:
+        while len(out) < _PROBE_BYTES and time.monotonic() < deadline:
+            exited = proc.poll() is not None  # before reading: all it wrote is in the pipe
+            if select.select([fd], [], [], 0 if exited else 0.05)[0]:
+                chunk = os.read(fd, 1 << 16)
+                if chunk:
+                    out += chunk
+                    continue
+                with contextlib.suppress(subprocess.TimeoutExpired):  # the end of its output
+                    proc.wait(max(0.0, deadline - time.monotonic()))
+                code = proc.returncode
                 break
-            chunk = os.read(fd, 1 << 16)
-            if not chunk:  # the end of its output: wait for its exit code
-                with contextlib.suppress(subprocess.TimeoutExpired):
-                    code = proc.wait(max(0.0, deadline - time.monotonic()))
+            if exited:  # ended, all its output read (a child of its own may hold the pipe
+                code = proc.returncode  # open: not waited for)
                 break
-            out += chunk
     finally:
         with contextlib.suppress(OSError):
             os.killpg(proc.pid, signal.SIGKILL)
@@ -230,8 +234,8 @@ def _probed(var: str, exe: Path, banner: str) -> Probe:
     naming ``var``; one that starts and fails, an EngineError (its own failure)."""
     p = probe(exe, banner)
     if not p.started:
-        raise ConfigError(var, os.environ.get(var), f"a {banner} program that can be "
-                          f"started ({p.message})")
+        raise ConfigError(var, os.environ.get(var), f"an executable {banner} program that "
+                          f"can be started ({p.message})")
     if not p.runs:
         raise EngineError(f"{var}={os.environ.get(var)} does not run: {p.message}")
     return p
@@ -309,7 +313,7 @@ def _cached() -> Install | Damaged | None:
     rec = _record()
     if not os.path.lexists(rec):
         return None
-    sealed = files.seal_path(rec).exists()
+    sealed = os.path.lexists(files.seal_path(rec))
     damage = files.seal_damage(rec) if sealed else None
     if damage:
         return Damaged(rec, damage)
@@ -324,6 +328,8 @@ def _cached() -> Install | Damaged | None:
     if inst.turbsim.parent.parent != folder:
         return Damaged(rec, "it names programs in two folders")
     legacy = not sealed and not files.seal_path(folder).exists()
+    if not legacy and not sealed:
+        return Damaged(rec, "no checksum recorded beside it")
     damage = None if legacy else files.seal_damage(folder)
     if damage:
         return Damaged(folder, damage)
@@ -352,15 +358,16 @@ def get(archives: Path | None = None, log: Callable[[str], None] = print,
     """OpenFAST 5.0.0 and TurbSim, found or installed into :func:`home` (the module's
     order; a damaged install there is named in one line and installed again); raises
     EngineError, one line, when none can be had."""
+    if home().is_dir():  # what a killed `get` left, once no process holds it
+        for stem in (_UNPACK, _BUILD_TREE):
+            clean_stale_builds(home(), stem)
     found = _find(log)
     if isinstance(found, Install):
         return found
     if isinstance(found, Damaged):
         log(f"wtftc: {found.where} in WTFTC_CACHE is damaged ({found.why}); installing "
             f"OpenFAST {VERSION} there again")
-    if home().is_dir():
-        for stem in (_UNPACK, _BUILD_TREE):
-            clean_stale_builds(home(), stem)
+    writable_cache(home(), make=False)
     folders = archive_folders(archives)
     pre, bad = _archive(folders, *PREBUILT, log)
     why_not = []
@@ -566,8 +573,12 @@ def _remember(inst: Install) -> Install:
            "turbsim": str(inst.turbsim.relative_to(home())),
            "version": inst.version, "source": inst.source}
     path = _record()
-    files.write_files_together({path: (json.dumps(rec, indent=1) + "\n").encode()})
-    files.seal(path)
+    try:
+        files.write_files_together({path: (json.dumps(rec, indent=1) + "\n").encode()})
+        files.seal(path)
+    except OSError as exc:
+        raise ConfigError("WTFTC_CACHE", str(cache_dir()), f"a folder where wtftc can write "
+                          f"{path} ({exc.strerror or type(exc).__name__})") from None
     return inst
 
 
