@@ -12,6 +12,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 import warnings
 from pathlib import Path
 
@@ -77,6 +78,32 @@ def test_a_damaged_object_is_deleted_and_rebuilt(cache, tmp_path, capsys, damage
     mtime = healed.stat().st_mtime_ns
     assert loader.compile_cached(c_path, cc) == healed and healed.stat().st_mtime_ns == mtime
     assert capsys.readouterr().err == ""  # healed once, then reused quietly
+
+
+def test_a_damaged_object_that_cannot_be_deleted_says_to_delete_it(cache, capsys,
+                                                                   monkeypatch):
+    c_path, cc = loader.verified_path("plant.c"), loader.compiler()
+    so = loader.compile_cached(c_path, cc)
+    _damage_truncate(so)
+    monkeypatch.setattr(loader, "_remove_damaged", lambda path: None)  # a read-only cache
+    capsys.readouterr()
+    assert not loader.is_cached(c_path, cc)
+    loader._lookup(loader._cache_prefix(c_path, cc))
+    (note,) = capsys.readouterr().err.splitlines()
+    assert f"{so} in WTFTC_CACHE is damaged (" in note and "delete it by hand" in note
+
+
+def test_a_killed_compiles_part_file_is_removed_on_next_use(cache):
+    """A compile killed (SIGKILL) leaves its ``.building-*.part``: removed by the next
+    compile into the cache once it is older than any live compile; a fresh one is kept."""
+    cache.mkdir()
+    old, fresh = cache / ".building-old.part", cache / ".building-new.part"
+    for p in (old, fresh):
+        p.write_bytes(b"half an object")
+    then = time.time() - 2 * loader.STALE_UNLOCKED_S
+    os.utime(old, (then, then))
+    loader.compile_cached(loader.verified_path("plant.c"), loader.compiler())
+    assert not old.exists() and fresh.exists()
 
 
 def test_two_processes_compiling_at_once_both_get_a_verified_object(cache):

@@ -379,6 +379,7 @@ def _build(c_path: Path, cc: str, flags: tuple[str, ...], announce: str | None) 
             raise CompileError(_BROKEN[culprit])
     try:
         prefix.parent.mkdir(parents=True, exist_ok=True)
+        _clean_stale_objects(prefix.parent)
         fd, name = tempfile.mkstemp(prefix=".building-", suffix=".part", dir=prefix.parent)
         os.close(fd)
     except OSError as exc:
@@ -403,6 +404,19 @@ def _build(c_path: Path, cc: str, flags: tuple[str, ...], announce: str | None) 
         with contextlib.suppress(OSError):
             tmp.unlink()
     return out
+
+
+def _clean_stale_objects(folder: Path) -> None:
+    """Remove the ``.building-*.part`` files of compiles that were killed: those unchanged
+    for :data:`STALE_UNLOCKED_S` (a live compile writes its file within minutes; the
+    compiler replaces the file, so a lock on it would not hold)."""
+    with contextlib.suppress(OSError):
+        for entry in os.scandir(folder):
+            if entry.name.startswith(".building-") and entry.name.endswith(".part") and \
+                    entry.is_file(follow_symlinks=False) and \
+                    time.time() - entry.stat(follow_symlinks=False).st_mtime > STALE_UNLOCKED_S:
+                with contextlib.suppress(OSError):
+                    os.unlink(entry.path)
 
 
 def _digest(data: bytes) -> str:
