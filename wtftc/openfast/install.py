@@ -4,19 +4,27 @@ The order, first found wins:
 
 1. ``$OPENFAST`` (and ``$TURBSIM``, else the ``turbsim`` beside it or on PATH): the user
    names the program, so one that does not print its version is taken as given; one that
-   prints another major version is refused;
+   prints another major version is refused. ``$TURBSIM``, when set, is the TurbSim of
+   whatever OpenFAST is found;
 2. ``openfast`` on PATH, if it says it is 5.x;
 3. the copy wtftc installed before, in its cache folder (``$WTFTC_CACHE``, default
-   ``~/.cache/wtftc``) under ``openfast/5.0.0/``, if it still runs;
+   ``~/.cache/wtftc``) under ``openfast/5.0.0/``: its program folder and its record
+   ``install.json`` are sealed when installed (:func:`wtftc.files.seal`) and checked each
+   time; damaged, it is named with ``wtftc openfast get``, which installs it again;
 4. the prebuilt archive (``openfast-5.0.0-linux-x86_64.tar.gz``, checked by its SHA-256)
    in an archive folder: ``--archives``, ``$WTFTC_OPENFAST_ARCHIVES``, the work area's
-   ``shared/openfast/`` beside the repository, or ``/work/shared/openfast``. Its runtime
-   libraries (gfortran's, LAPACK, BLAS) are installed with apt when missing and apt can;
+   ``shared/openfast/`` beside the repository, or ``/work/shared/openfast`` (a damaged
+   copy is named and passed over). Its runtime libraries (gfortran's, LAPACK, BLAS) are
+   installed with apt when missing and apt can;
 5. a build from the source archive in the same folders (about 17 minutes on 2 cores), or
    from a shallow clone of the v5.0.0 tag for a user with internet.
 
-Anything missing is said in one line (:class:`wtftc.errors.EngineError`) with the command
-that gets it. The programs are never installed outside wtftc's cache folder; apt installs
+A variable that names nothing usable (empty, missing, a folder, not executable, a program
+that cannot be started) is a :class:`wtftc.errors.ConfigError` naming it (exit code 2); a
+program that starts and fails, or anything missing, is said in one line
+(:class:`wtftc.errors.EngineError`, exit code 4) with the command that gets it. A
+program's ``-v`` is read in any encoding, in a process group of its own that is killed
+whole after it. The programs are never installed outside wtftc's cache folder; apt installs
 system libraries only where the user runs as root (a CI machine, a container).
 """
 
