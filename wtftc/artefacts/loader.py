@@ -92,8 +92,6 @@ def cache_dir() -> Path:
     if not env.strip():
         raise ConfigError("WTFTC_CACHE", env, "a folder path (unset WTFTC_CACHE for the "
                           f"default, {DEFAULT_CACHE})")
-    if "\0" in env:
-        raise ConfigError("WTFTC_CACHE", env, "a folder path without NUL bytes")
     try:
         return Path(os.path.abspath(os.path.expanduser(env)))
     except OSError as exc:  # a relative path, and the current folder is gone
@@ -122,7 +120,7 @@ def openfast_cache_dir() -> Path:
         raise _cache_refusal(folder, f"a folder path of at most {MAX_CACHE_CHARS} bytes "
                              f"(this one has {size}): OpenFAST cuts a path in its input "
                              f"files at {OPENFAST_PATH_CHARS} characters, and the plant "
-                             "library's lies inside the cache")
+                             "library's path lies inside it")
     bad = sorted({c for c in str(folder) if c in OPENFAST_PATH_BAD})
     if bad:
         raise _cache_refusal(folder, "a folder path without " + " ".join(map(repr, bad))

@@ -120,9 +120,8 @@ def _archive_folder(field: str, value: str) -> Path:
     try:
         folder = Path(os.path.abspath(os.path.expanduser(value)))
         st = os.stat(folder)
-    except (OSError, ValueError) as exc:
+    except OSError as exc:  # (an environment variable or argument holds no NUL byte)
         why = ("there is no folder there" if isinstance(exc, FileNotFoundError) else
-               "a path without NUL bytes" if isinstance(exc, ValueError) else
                "a symbolic link loop" if exc.errno == errno.ELOOP else
                exc.strerror or type(exc).__name__)
         raise ConfigError(field, value, f"{allowed} ({why})") from None
@@ -223,10 +222,9 @@ def _named_program(var: str, what: str) -> Path | None:
         env_path = Path(os.path.abspath(os.path.expanduser(env)))
     try:
         st = os.stat(env_path)
-    except (OSError, ValueError) as exc:
+    except OSError as exc:  # (an environment variable holds no NUL byte)
         why = ("there is no file there" if isinstance(exc, FileNotFoundError | NotADirectoryError)
-               else "it holds a NUL byte" if isinstance(exc, ValueError) else
-               "a symbolic link loop" if exc.errno == errno.ELOOP else
+               else "a symbolic link loop" if exc.errno == errno.ELOOP else
                exc.strerror or type(exc).__name__)
         raise ConfigError(var, env, f"{allowed} ({why})") from None
     if not stat.S_ISREG(st.st_mode):
