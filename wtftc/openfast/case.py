@@ -303,14 +303,19 @@ def references(path: Path, doc: Text) -> list[tuple[int, int, int, Path, str, bo
     return found
 
 
+#: keys whose value is the root of several files' names (HydroDyn's WAMIT files
+#: ``<root>.1``, ``.3``, ``.hst``), no file itself
+_ROOT_KEYS = ("PotFile",)
+
+
 def _text_wanted(key: str, include: bool) -> bool:
-    return include or bool(_TEXT_KEY.fullmatch(key))
+    return include or (bool(_TEXT_KEY.fullmatch(key)) and not key.startswith(_ROOT_KEYS))
 
 
 def _deck_files(fst: Path) -> dict[Path, tuple[bytes, list]]:
     """Every file the main file names, and those they name, to the end: each file's bytes
     and its references (line, start, end, file). A file named where text belongs (the
-    main file, a ``...File`` key, an include) with a NUL byte is refused; any other
+    main file, a ``...File`` key, an include) with a NUL or control byte is refused; any other
     binary file (a wind field, a library) is copied as it is, not read for names."""
     fst = Path(os.path.realpath(fst))
     files: dict[Path, tuple[bytes, list]] = {}
