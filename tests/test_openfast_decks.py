@@ -426,6 +426,12 @@ def _long_name(d, t):
     _set(d / FST, "BDBldFile(1)", b'"' + b"x" * 5000 + b'.dat"')
 
 
+def _root_name_a_folder(d, t):
+    """HydroDyn's PotFile is the root of its WAMIT files' names; a folder of that name."""
+    (d / "HydroData").mkdir()
+    (d / FST).write_bytes((d / FST).read_bytes() + b'"HydroData"   PotFile  - root\n')
+
+
 def _no_header_title(d, t):
     _edit(d / FST, b"------- OpenFAST", b"OpenFAST", 1)
 
@@ -479,6 +485,7 @@ ACCEPTED = [
     ("two files of one name", _two_same_names, ["a/same.dat", "b/same.dat"], []),
     ("no header: the title is read", _no_header_title, [], []),
     ("a binary wind file named", _binary_wind, ["wind.bts"], []),
+    ("a root name that is a folder", _root_name_a_folder, [], ["HydroData"]),
     ("a cycle of names", _cycle, [], []),
     ("a name too long for a file", _long_name, [], []),
 ]
