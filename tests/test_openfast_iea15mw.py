@@ -157,18 +157,25 @@ def _deck(tmp_path: Path) -> Path:
     return fst
 
 
-def test_a_deck_folder_with_a_link_outside_or_a_fifo_is_refused_in_one_line(tmp_path):
+def test_a_deck_folder_with_a_link_outside_or_a_fifo_is_ignored_unless_named(tmp_path):
+    """Only what the deck's input lines name is copied: a link outside and a FIFO in its
+    folder that no line names are left alone (nothing copied, nothing blocks); named, the
+    link is followed and copied as a regular file, the FIFO refused in one line."""
     fst = _deck(tmp_path)
     (tmp_path / "secret.txt").write_text("not the deck's\n")
     (fst.parent / "link.dat").symlink_to(tmp_path / "secret.txt")
-    with pytest.raises(ConfigError, match="symlink pointing outside") as exc:
-        ofcase.copy_deck(fst, tmp_path / "case")
-    assert "\n" not in str(exc.value) and not (tmp_path / "case").exists()
-    (fst.parent / "link.dat").unlink()
     os.mkfifo(fst.parent / "pipe")
-    with pytest.raises(ConfigError, match="FIFO"):
-        ofcase.copy_deck(fst, tmp_path / "case")
-    assert not (tmp_path / "case").exists()
+    out = ofcase.copy_deck(fst, tmp_path / "case")
+    assert sorted(p.name for p in out.parent.iterdir()) == ["main.fst", "module.dat"]
+    (fst.parent / "module.dat").write_text('"link.dat"   Key  - a link\n')
+    out = ofcase.copy_deck(fst, tmp_path / "case1")
+    copy = out.parent / ofcase.get_value(out.parent / "module.dat", "Key")
+    assert copy.is_relative_to(out.parent) and not copy.is_symlink()
+    assert copy.read_text() == "not the deck's\n"
+    (fst.parent / "module.dat").write_text('"pipe"   Key  - a FIFO\n')
+    with pytest.raises(ConfigError, match="FIFO") as exc:
+        ofcase.copy_deck(fst, tmp_path / "case2")
+    assert "\n" not in str(exc.value) and not (tmp_path / "case2").exists()
 
 
 def test_files_named_outside_the_deck_are_copied_and_renamed(tmp_path):
