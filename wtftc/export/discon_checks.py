@@ -42,13 +42,15 @@ def _range_text(rng: tuple, unit: str) -> str:
 
 
 def _layout_range(group: str, name: str) -> tuple[tuple | None, str]:
-    """The ``valid`` range of a layout entry (None: unbounded) and its unit."""
+    """The ``valid`` range of a layout entry (None: unbounded) and its unit. An infinite
+    end is open: wtftc.config refuses a value that is not finite whatever the range."""
     e = lay.layout()[group][lay.index(group, name)]
     v = e.get("valid")
     if not v:
         return None, e["unit"]
     return ((-math.inf if v["min"] is None else v["min"], math.inf if v["max"] is None
-             else v["max"], v["min_open"], v["max_open"]), e["unit"])
+             else v["max"], v["min_open"] or v["min"] is None,
+             v["max_open"] or v["max"] is None), e["unit"])
 
 
 def layout_row(group: str, name: str, label: str | None = None) -> tuple:
