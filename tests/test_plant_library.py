@@ -248,3 +248,86 @@ def test_export_with_actuator_puts_the_plant_library_beside_the_controller(tmp_p
     assert np.abs(np.diff(b, axis=0)).max() <= rate * INTERVAL * (1 + 1e-5) + 1e-6
     records = pl.read_records(out / pl.RECORDS)
     assert len(records["t"]) >= 199 and not list(elsewhere.iterdir())
+    # the exported settings edited by hand: refused at the next first call, naming it
+    text = (out / pl.SETTINGS).read_text()
+    (out / pl.SETTINGS).write_text(_bad(text, "p_turbine", "pitch_rate_max", "0"))
+    got = Host(out / pl.LIBRARY, out / pl.SETTINGS).call(0, 0.0, 1.26711, 122.9, pitch)
+    assert got["fail"] == -1 and "p_turbine.pitch_rate_max = 0 is not allowed: a number > 0 " \
+        "[rad/s]" in got["msg"]
+
+
+# -- the real OpenFAST on a settings file the library refuses ---------------------------
+
+def _bad(text: str, key: str, index: str | None, token: str) -> str:
+    """``text`` with the value of ``key`` (its number ``index``, a layout name, for a
+    vector) set to ``token``; key ``fault``: the line ``fault <token>`` added."""
+    if key == "fault":
+        return text + f"fault {token}\n"
+    out = []
+    for ln in text.splitlines():
+        words = ln.split()
+        if words and words[0] == key:
+            k = 1 if index is None else 1 + lay.index(pl.VECTORS[key], index)
+            words[k] = token
+            ln = " ".join(words)
+        out.append(ln)
+    return "\n".join(out) + "\n"
+
+
+@pytest.fixture(scope="module")
+def of_case(tmp_path_factory):
+    """A 2-s OpenFAST case of the PI at 16 m/s (the controller built once for the module)."""
+    from wtftc import config
+    from wtftc.openfast import engine
+
+    rc = config.make_config({"engine": "openfast", "profile": "realistic", "controller": "pi",
+                             "case": 1, "t_final_s": 2.0,
+                             "wind": {"kind": "constant", "speed_mps": 16.0}})
+    case = engine.prepare(rc, tmp_path_factory.mktemp("of") / "case")
+    return case, case.plant_settings.read_text()
+
+
+@pytest.mark.parametrize("key, index, token, said", [
+    ("p_turbine", "air_density", "-5", "p_turbine.air_density = -5 is not allowed: a number "
+     "in (0, 2] [kg/m^3]"),
+    ("p_turbine", "pitch_min", "1.5707963267948966", "p_turbine.pitch_min = 1.57079633 is "
+     "not allowed: p_turbine.pitch_min < p_turbine.pitch_max"),
+    ("actuator_dt", None, "1e9", "actuator_dt = 1e+09 is not allowed"),
+    ("fault", None, "1 1 nan inf 0.0 0.5 0.0", "fault[0].onset_s = nan is not allowed"),
+])
+def test_openfast_stops_with_the_librarys_refusal_and_never_ends_normally(of_case, key,
+                                                                         index, token, said):
+    """A settings file edited by hand (as docs/discon.md invites): OpenFAST stops at the
+    library's first call with its line, one line naming the key, the value and the
+    range, and never prints "terminated normally"."""
+    from wtftc.openfast import engine
+
+    case, text = of_case
+    case.plant_settings.write_text(_bad(text, key, index, token))
+    try:
+        _, abort = engine.simulate(case, progress=False)
+    finally:
+        case.plant_settings.write_text(text)
+    log = (case.folder / "openfast.log").read_text(errors="replace")
+    assert abort is not None and "\n" not in abort
+    assert "wtftc plant library: " in abort and said in abort, abort
+    assert engine.NORMAL_END not in log
+
+
+def test_a_refused_settings_file_is_one_line_and_exit_code_4_from_wtftc_run(
+        tmp_path, monkeypatch, capsys):
+    """Through `wtftc run --engine openfast`, with Python's own check of the settings
+    bypassed (a file that differs from what was checked): OpenFAST stops at the first
+    call, and wtftc says so in one line with OpenFAST's exit code 4."""
+    from wtftc.cli import main
+
+    text = pl.Settings.text
+    monkeypatch.setattr(pl.Settings, "text", lambda self: _bad(
+        text(self), "p_turbine", "zeta_nominal", "-0.6"))
+    code = main(["run", "--engine", "openfast", "--controller", "pi", "--profile",
+                 "realistic", "--wind", "constant", "--wind-mean", "16", "--t-final", "2",
+                 "--fault", "none", "--quiet", "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 4 and err.count("\n") == 1, err
+    assert "p_turbine.zeta_nominal = -0.6 is not allowed: a number > 0" in err
+    assert not (tmp_path / "run").exists()
