@@ -231,6 +231,10 @@ turbine parameters in {SETTINGS}: omega_n, zeta, rate and position limits), inte
 at {ACTUATOR_DT:g} s inside each call. Sensors: exact. Faults: none; a line
 'fault <blade 1-3> <1 loss of effectiveness|2 lock|3 hydraulic> <onset s> <end s> <ramp s>
 <rho|angle rad|omega_n> <0|0|zeta>' adds one. Each call appends a row to {RECORDS}.
+Every value of {SETTINGS} is checked at the first call against wtftc's own ranges (the
+turbine's, the sensors', a fault's; pitch_min below pitch_max; actuator_dt dividing the
+call interval): a bad one stops OpenFAST with one line naming the key, the value and
+what is allowed.
 """)
 def _numbers(values) -> str:
     return " ".join(repr(float(v)) for v in np.asarray(values, dtype=float).ravel())
