@@ -565,3 +565,23 @@ def test_settings_and_the_library_give_the_same_verdict_on_every_number(base, an
             assert bad is not None and f"{bad[0]} = " in answers[name][0]["msg"], (name, bad)
         checked += 1
     assert checked >= 35
+
+
+def test_a_refused_file_touches_no_file(base):
+    """Refused at the first call: the records file it names is neither created nor
+    truncated, and the noise table is left as it was."""
+    folder = base["folder"] / "untouched"
+    folder.mkdir()
+    kept = folder / "records.bin"
+    kept.write_bytes(b"a user's file")
+    noise = base["noise"].read_bytes()
+    texts = [line("records", str(kept))(vec("p_turbine", "air_density", "-5")(
+                 base["text"], {}), {}),
+             line("records", str(folder / "new.bin"))(fault("1 1 nan inf 0 0.5 0")(
+                 base["text"], {}), {})]
+    specs = [{"infile": str(_case_file(folder, k, t)), "capacity": CAPACITY,
+              "calls": _calls(folder)[:1], "dt": INTERVAL} for k, t in enumerate(texts)]
+    calls = _run(pl.build(), specs, folder, "untouched")
+    assert [c[0]["fail"] for c in calls] == [-1, -1]
+    assert kept.read_bytes() == b"a user's file" and not (folder / "new.bin").exists()
+    assert base["noise"].read_bytes() == noise
