@@ -344,6 +344,11 @@ CASES = [
     ("33 fault lines", extra(*["fault 1 1 0.5 inf 0.0 0.9 0.0"] * 32),
      "fault[32]: at most 32 fault lines"),
     ("32 fault lines", extra(*["fault 1 1 0.5 inf 0.0 0.9 0.0"] * 31), None),
+    # every number of every vector NaN, and every bounded one beyond its bound
+    *[(f"{key}.{n} nan", vec(key, n, "nan"), f"{key}.{n} = nan is not allowed")
+      for key, group in pl.VECTORS.items() for n in lay.names(group)],
+    *[(f"{row[0]} past its end", vec(*row[0].split("."), repr(row[2] * 2 + 1)),
+       f"{row[0]} = ") for row in pl.checks()["ranges"][:-1] if math.isfinite(row[2])],
 ]
 
 
