@@ -653,6 +653,7 @@ def _cmd_run(args) -> int:
     _check_out_name(args.out)
     check_run_folder(args.out, "--out")  # before any work, a TurbSim field too
     raw = tune.resolve(_run_overrides(args))
+    config.check_before_field(raw)  # refused before a TurbSim field is made
     ensure_field(raw)  # a TurbSim field the run reads, made first
     rc = config.make_config(raw)
     rc.initial_state()  # a wind with no operating point: refused before the first line
@@ -1039,7 +1040,7 @@ def _cmd_modes(args) -> int:
                           "which is not installed: " + config.OPENFAST_PACKAGES)
     install.require()
     name = raw.get("turbine", turbine_file.DEFAULT)
-    deck = config.openfast_deck(turbine_file.load(name))
+    deck = config.check_deck(turbine_file.load(name))
     if deck is None:
         raise ConfigError("--turbine", name, "a turbine whose file names its OpenFAST deck "
                           "(openfast_deck; docs/turbines.md)")

@@ -16,6 +16,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError, EngineError, range_text
+from wtftc.files import check_user_file
 from wtftc.model import tuning, turbine_file, wind_field
 from wtftc.model.cp_table import nrel5mw_cp_table, read_cp_table
 from wtftc.model.faults import DEFAULT_FAULT, parse_faults
@@ -364,6 +365,51 @@ def make_config(cfg: dict | None = None) -> RunConfig:
                      p_plant=p_plant,
                      cp_scale=cp_scale, p_fdi=p_fdi, test_pulse=test_pulse,
                      rosco_discon=turbine.rosco_discon, rosco_retune=retune)
+
+
+def check_before_field(cfg: dict) -> None:
+    """Validate ``cfg`` as :func:`make_config` does, before the TurbSim field it may read is
+    made (wtftc.openfast.turbsim.ensure_field: minutes on a large grid), so that a value
+    every run refuses is refused first: an NTM on TurbSim's field is checked on wtftc's own
+    synthesis of it, and in OpenFAST on the uniform series; every other key as it is."""
+    wind = cfg.get("wind") if isinstance(cfg, dict) else None
+    if not isinstance(wind, dict) or wind.get("kind") != "ntm":
+        return  # no field is made: make_config checks the rest
+    probe = copy.deepcopy(cfg)
+    if probe.get("engine") == "openfast":
+        table = probe.get("openfast", {})
+        if isinstance(table, dict):
+            probe["openfast"] = {**table, "wind": "uniform"}
+        if wind.get("field", "turbsim") == "turbsim":
+            probe["wind"] = {k: v for k, v in wind.items() if k != "field"}
+    elif wind.get("field") == "turbsim":  # (the blades sample TurbSim's field only)
+        probe["wind"] = {**{k: v for k, v in wind.items()
+                            if k not in ("rotor_wind", "blade_speed_rad_s")},
+                         "field": "spectral"}
+    else:
+        return  # no field is made: make_config checks it after
+    rc = make_config(probe)
+    check_deck(turbine_file.load(rc.raw.get("turbine", turbine_file.DEFAULT)))
+
+
+def check_deck(turbine: turbine_file.Turbine) -> Path | None:
+    """The turbine's OpenFAST deck (:func:`openfast_deck`, None when its file names none),
+    checked before any work reads it: its main file a regular file (a FIFO would block)
+    and its InflowWind file's hub height readable (what a TurbSim field is made for);
+    else one line naming the turbine file's ``openfast_deck``."""
+    deck = openfast_deck(turbine)
+    if deck is None:
+        return None
+    try:
+        check_user_file(deck, "openfast_deck")
+        wind_field.deck_hub_height(deck)
+    except ConfigError as exc:
+        raise ConfigError("openfast_deck", exc.value, "an OpenFAST main input file "
+                          f"(.fst): {exc.allowed}", where=turbine.path) from None
+    except EngineError as exc:  # a key missing: the deck's fault, not a program's
+        raise ConfigError("openfast_deck", str(deck), "a deck whose InflowWind file gives "
+                          f"the hub height, RefHt ({exc})", where=turbine.path) from None
+    return deck
 
 
 def openfast_deck(turbine: turbine_file.Turbine) -> Path | None:

@@ -318,6 +318,8 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
     cells = {(w, f, c): cell_config(c, f, w, t_final, dt, seed, profile, turbine, engine,
                                     plant)
              for w in wind_names for f in fault_names for c in ctrl_names}
+    for raw in cells.values():  # every cell checked before a TurbSim field is made
+        config.check_before_field(raw)
     for raw in cells.values():
         ensure_field(raw)  # each TurbSim field a cell reads, made once, first
     configs = {key: config.make_config(raw) for key, raw in cells.items()}
@@ -326,6 +328,7 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
         from wtftc.openfast import install
 
         install.require()  # one line, before any folder is made
+        config.check_deck(turbine_file.load(turbine or turbine_file.DEFAULT))
     # the cluster before the folder: a scheduler that cannot be reached leaves none
     cl, local = cluster.client(scheduler, workers or os.cpu_count() or 1) if dask \
         else (None, None)

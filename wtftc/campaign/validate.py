@@ -314,6 +314,8 @@ def run_validate(raw: dict, out_dir: Path, progress: bool = True,
     check_out_folder(out_dir, "--out")  # before any work, a TurbSim field too
     raw = scenario(raw)
     cfgs = engine_configs(raw, plant, rotor_wind)
+    for cfg in cfgs.values():  # every configuration checked before a field is made
+        config.check_before_field(cfg)
     for cfg in cfgs.values():
         ensure_field(cfg)
     rcs = {eng: config.make_config(cfg) for eng, cfg in cfgs.items()}  # all checked first

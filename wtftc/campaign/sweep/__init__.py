@@ -147,13 +147,19 @@ def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
     def uses_rosco(pt: dict) -> bool:  # ROSCO itself or a variant of it (rosco_matched)
         return CONTROLLERS[pt["controller"]].controller == "rosco"
 
-    for pt in runs:
-        # (a [tuning] target is solved where the run runs: one out of reach fails that
-        # run, with its cause)
-        raw = {k: v for k, v in pt["config"].items() if k != "tuning"}
-        ensure_field(raw)  # each TurbSim field a run reads, made once, before the runs
+    # (a [tuning] target is solved where the run runs: one out of reach fails that run,
+    # with its cause)
+    raws = [(pt, {k: v for k, v in pt["config"].items() if k != "tuning"}) for pt in runs]
+    for pt, raw in raws:  # every run checked before a TurbSim field is made
         if not uses_rosco(pt):  # ROSCO's availability is checked below
-            config.make_config(raw)
+            config.check_before_field(raw)
+    above = None
+    for pt, raw in raws:
+        ensure_field(raw)  # each TurbSim field a run reads, made once, before the runs
+        if not uses_rosco(pt):
+            above = above or config.cut_out_note(config.make_config(raw))
+    if above:  # one line for the sweep: the first such run's
+        print(f"{above} (and any other run above it)", file=sys.stderr, flush=True)
     if any(uses_rosco(pt) for pt in runs):
         from wtftc.sim import rosco
 
