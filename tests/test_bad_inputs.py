@@ -129,6 +129,16 @@ CASES = [
     Case("label-list", "label", cfg='label = ["a"]\n'),
     # --- the Cp table
     # --- controller parameters: each in its physical range (layout.json "valid")
+    # --- the OpenFAST engine's run: the value the user gave is the one named
+    Case("openfast-interval-past-alignment", "control_interval_s",
+         cfg='engine = "openfast"\ncontroller = "pi"\ncontrol_interval_s = 1.0\n'
+             "t_final_s = 10.0\n"),
+    Case("openfast-interval-flag", "control_interval_s (--control-interval) = 0.5",
+         ("run", "--engine", "openfast", "--controller", "physical", "--control-interval",
+          "0.5", "--t-final", "10")),
+    Case("validate-wind-file-and-mean", "wind.mean_mps (--wind-mean)",
+         ("validate", "--wind", "file", "--wind-file", "{w.csv}", "--wind-mean", "16"),
+         files=_wind("0,16\n60,16\n")),
     # --- found in review: accepted, then ignored or lost at once
     Case("sign-physical", "control_sign", ("run", "--controller", "physical", "--sign", "1")),
     Case("prefix-not-numbered", "gen_torque",

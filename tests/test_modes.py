@@ -282,7 +282,8 @@ def test_sigterm_during_a_linearization_leaves_nothing_in_the_cache(tmp_path, mo
 
 @pytest.mark.parametrize("argv, flag", [
     (["--plant", "nrel5mw"], "--plant"), (["--dofs", "half"], "--dofs"),
-    (["--azimuths", "1"], "--azimuths"), (["--winds", "0"], "--winds"),
+    (["--azimuths", "1"], "--azimuths"), (["--azimuths", "37"], "[2, 36]"),
+    (["--azimuths", "1000000000"], "[2, 36]"), (["--winds", "0"], "--winds"),
     (["--winds", "10"], "above the turbine's rated wind"),
     (["--turbine", "nonsense"], "turbine")])
 def test_bad_input_is_one_line(argv, flag, tmp_path, capsys):
