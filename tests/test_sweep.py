@@ -554,7 +554,7 @@ def _openfast_point(run_id: str = "r1") -> dict:
 @pytest.mark.parametrize("error, status", [
     ("killed", "unfinished"),  # ProgramKilled: another's signal, not this run's failure
     ("busy", "unfinished"),  # FolderBusy: an earlier sweep's OpenFAST holds the folder
-    ("timed out", "failed"),  # a plain EngineError of the time limit: a failure, kept
+    ("timed out", "failed"),  # the time limit (programs.TimedOut): a failure, kept
 ])
 def test_a_run_killed_from_outside_is_unfinished_and_a_timed_out_one_failed(
         error, status, tmp_path, monkeypatch):
@@ -563,12 +563,13 @@ def test_a_run_killed_from_outside_is_unfinished_and_a_timed_out_one_failed(
     runs it again. One past its time limit is "failed" with its cause, saved, and
     --retry-failed (drop_failed) takes it out to run again."""
     from wtftc.errors import EngineError, ProgramKilled
-    from wtftc.programs import FolderBusy
+    from wtftc.programs import FolderBusy, TimedOut
 
     raised = {"killed": ProgramKilled("OpenFAST was ended by SIGKILL, not sent by wtftc"),
               "busy": FolderBusy("OpenFAST case folder", str(tmp_path), "a folder no other "
                                  "run is using"),
-              "timed out": EngineError("OpenFAST timed out after 140 s")}[error]
+              "timed out": TimedOut("OpenFAST timed out after 140 s")}[error]
+    assert isinstance(raised, EngineError) == (error != "busy")
 
     def run(rc, progress=True, keep_states=False, openfast_dir=None):
         raise raised
