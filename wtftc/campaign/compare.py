@@ -284,6 +284,17 @@ def _row(controller, fault, wind, m) -> dict:
     return row
 
 
+def _check_openfast(raw: dict, turbine: str | None) -> None:
+    """OpenFAST installed, the turbine's deck readable, and its case (the cell ``raw``'s)
+    started, before any folder is made: a deck every cell would fail on is one line."""
+    from wtftc.campaign.sweep import preflight
+    from wtftc.openfast import install
+
+    install.require()
+    config.check_deck(turbine_file.load(turbine or turbine_file.DEFAULT))
+    preflight.check_deck(raw)
+
+
 def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_final=60.0,
                 dt=1e-3, seed=0, progress=True, profile: str = PROFILE,
                 turbine: str | None = None, engine: str = "wtftc",
@@ -325,10 +336,7 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
     configs = {key: config.make_config(raw) for key, raw in cells.items()}
     dask = _on_dask(engine, workers, scheduler)
     if engine == "openfast":
-        from wtftc.openfast import install
-
-        install.require()  # one line, before any folder is made
-        config.check_deck(turbine_file.load(turbine or turbine_file.DEFAULT))
+        _check_openfast(next(iter(cells.values())), turbine)
     # the cluster before the folder: a scheduler that cannot be reached leaves none
     cl, local = cluster.client(scheduler, workers or os.cpu_count() or 1) if dask \
         else (None, None)

@@ -61,7 +61,7 @@ def check_deck(raw: dict) -> None:
 def _refuse(rc, deck: Path, why: str) -> None:
     name = rc.raw.get("turbine", turbine_file.DEFAULT)
     turbine = turbine_file.load(name)
-    what = (f"a deck OpenFAST runs (the sweep's first run was checked before any run: "
+    what = (f"a deck OpenFAST runs (the first run's case was started before any run: "
             f"{' '.join(why.split())}; every run would fail the same way)")
     if name in turbine_file.BUILTIN:
         raise EngineError(f"the OpenFAST deck of the built-in turbine {name}, {deck}, "
