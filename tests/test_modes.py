@@ -231,7 +231,9 @@ def test_wtftcs_tower_plant_modes_are_named_by_their_states():
 
 def test_a_trim_that_does_not_converge_is_refused_and_not_cached(tmp_path, monkeypatch):
     """OpenFAST's 'Steady state not found' (it then forces one linearization) is
-    TrimNotConverged, exit 4, and leaves nothing in the cache."""
+    TrimNotConverged, exit 4, and leaves no linearization in the cache: the failed case is
+    kept beside the entries, as failed-<key> without a lin.json, and the message names it
+    (to rerun by hand)."""
     from wtftc.openfast import engine
     from wtftc.openfast import linearization as oflin
 
@@ -245,11 +247,13 @@ def test_a_trim_that_does_not_converge_is_refused_and_not_cached(tmp_path, monke
     from wtftc.config import openfast_deck
     from wtftc.model import turbine_file
     deck = openfast_deck(turbine_file.load("nrel5mw"))
-    with pytest.raises(oflin.TrimNotConverged, match="no steady state"):
+    with pytest.raises(oflin.TrimNotConverged, match="no steady state") as exc:
         oflin.linearize(deck, 16.0, "rigid", 2, g, progress=False)
     assert isinstance(oflin.TrimNotConverged("x"), EngineError)
-    assert not [p for p in (tmp_path / "cache" / "openfast_lin").iterdir()
-                if not p.name.startswith(".")]
+    left = [p for p in (tmp_path / "cache" / "openfast_lin").iterdir()
+            if not p.name.startswith(".")]
+    assert [p.name.startswith("failed-") for p in left] == [True], left
+    assert not list(left[0].rglob("lin.json")) and str(left[0]) in str(exc.value)
 
 
 def test_sigterm_during_a_linearization_leaves_nothing_in_the_cache(tmp_path, monkeypatch):
