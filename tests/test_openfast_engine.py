@@ -167,13 +167,15 @@ def test_an_openfast_abort_is_a_lost_run_with_openfasts_message(tmp_path):
         assert res.diverged["reason"] == abort and res.diverged["t_s"] <= 2.1
 
 
-def test_a_missing_openfast_is_one_line_and_exit_code_4(tmp_path, monkeypatch, capsys):
+def test_a_missing_openfast_is_one_line_naming_openfast(tmp_path, monkeypatch, capsys):
+    """$OPENFAST naming no file is the user's input refused (exit code 2), in one line
+    naming the variable; nothing is written."""
     monkeypatch.setenv("OPENFAST", str(tmp_path / "no" / "openfast"))
     code = main(["run", "--engine", "openfast", "--controller", "rosco", "--profile",
                  "realistic", "--wind", "constant", "--wind-mean", "16", "--t-final", "5",
                  "--fault", "none", "--quiet", "--out", str(tmp_path / "run")])
     err = capsys.readouterr().err
-    assert code == 4 and err.count("\n") == 1 and "OPENFAST=" in err
+    assert code == 2 and err.count("\n") == 1 and "OPENFAST" in err
     assert not (tmp_path / "run").exists()
 
 
