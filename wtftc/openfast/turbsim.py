@@ -152,17 +152,23 @@ def _make(f: Field, path: Path) -> Path:
         fcntl.flock(lock, fcntl.LOCK_EX)
         try:
             (tmp / "field.inp").write_text(f.input_text())
-            done = programs.run([str(exe), "field.inp"], tmp, tmp / "turbsim.log", _limit(f),
-                                pass_fds=(lock,))
+            out = tmp / "turbsim.log"
+            try:
+                done = programs.run([str(exe), "field.inp"], tmp, out, _limit(f),
+                                    pass_fds=(lock,))
+            except EngineError as exc:  # timed out or killed: its output kept, named
+                os.replace(out, log)  # a link there is replaced, not followed
+                raise type(exc)(str(exc).replace(str(out), str(log))) from None
             made = tmp / "field.bts"
             why = (f"exit code {done.code}" + (f", {programs.signal_name(done.code)}"
                                                if done.code < 0 else "")
                    if done.code != 0 else "exit code 0 but no field.bts"
                    if not made.is_file() else _not_a_field(made))
             if why:
-                shutil.copyfile(tmp / "turbsim.log", log)
-                raise EngineError(f"TurbSim failed ({why}): {_last_words(done.text())}; "
-                                  f"its screen output is in {log}; TurbSim: {exe}")
+                words = _last_words(done.text())
+                os.replace(out, log)
+                raise EngineError(f"TurbSim failed ({why}): {words}; its screen output is "
+                                  f"in {log}; TurbSim: {exe}")
             _put_in_place(made, path)
             with suppress(FileNotFoundError):
                 log.unlink()
