@@ -228,11 +228,11 @@ def run(args: list[str], cwd: Path, log: Path, prog: Program,
     must not be handed to another thread."""
     t0 = time.monotonic()
     with open(log, "wb") as out, _sigterm_stops():
-        proc = subprocess.Popen(args, cwd=cwd, stdout=out, stderr=subprocess.STDOUT,
-                                stdin=subprocess.DEVNULL, start_new_session=True,
-                                preexec_fn=_child_setup(os.getpid()), pass_fds=pass_fds)
-        pidfd = None
+        proc, pidfd = None, None
         try:
+            proc = subprocess.Popen(args, cwd=cwd, stdout=out, stderr=subprocess.STDOUT,
+                                    stdin=subprocess.DEVNULL, start_new_session=True,
+                                    preexec_fn=_child_setup(os.getpid()), pass_fds=pass_fds)
             with suppress(AttributeError, OSError):
                 pidfd = os.pidfd_open(proc.pid)
             timed_out = _wait(proc, pidfd, t0 + prog.limit_s, watch, every_s)
@@ -242,7 +242,8 @@ def run(args: list[str], cwd: Path, log: Path, prog: Program,
                 _signal_group(proc.pid, signal.SIGKILL)
                 proc.wait()
         except BaseException:
-            _stop_group(proc, pidfd)
+            if proc is not None:
+                _stop_group(proc, pidfd)
             raise
         finally:
             if pidfd is not None:
