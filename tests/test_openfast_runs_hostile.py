@@ -536,8 +536,9 @@ def test_wtftcs_own_plant_refuses_a_damaged_field_naming_what_to_delete(made_fie
 
 def test_the_real_turbsims_field_with_a_flipped_byte_is_made_again(tmp_path, monkeypatch,
                                                                     capsys):
-    """The issue's case with the real TurbSim: a byte of the field's data flipped, same
-    size, is found by its seal and the field made again, the same bytes as before."""
+    """The real TurbSim's field with a byte of its data flipped, same size (it was used
+    as it was, a wrong mean wind): found by its seal and made again, the same bytes as
+    before."""
     inst = install.require()
     monkeypatch.setenv("OPENFAST", str(inst.openfast))
     monkeypatch.setenv("TURBSIM", str(inst.turbsim))
