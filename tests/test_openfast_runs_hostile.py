@@ -603,12 +603,16 @@ def test_a_deck_is_read_as_its_author_wrote_it(tmp_path, name, main, inflow, exp
     assert {p: p.read_bytes() for p in fst.parent.iterdir()} == before
 
 
-@pytest.mark.parametrize("make", ["folder", "loop"])
+@pytest.mark.parametrize("make", ["folder", "loop", "fifo"])
 def test_an_inflowwind_file_that_is_no_file_is_one_line(tmp_path, make):
+    """A folder, a link loop or a FIFO (which an open would block on) where the deck names
+    its InflowWind file: one line naming it."""
     fst = _deck(tmp_path, GOOD_MAIN, None)
     target = fst.parent / "inflow.dat"
     if make == "folder":
         target.mkdir()
+    elif make == "fifo":
+        os.mkfifo(target)
     else:
         target.symlink_to(target)
     with pytest.raises(ConfigError) as exc:

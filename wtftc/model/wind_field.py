@@ -34,7 +34,6 @@ sees at time t the grid's slice at t + :attr:`FullField.time_shift_s`.
 
 from __future__ import annotations
 
-import errno
 import hashlib
 import math
 import struct
@@ -45,7 +44,7 @@ import numpy as np
 
 from wtftc.artefacts.loader import cache_dir
 from wtftc.errors import ConfigError, EngineError
-from wtftc.files import decode_text, seal_damage, seal_path
+from wtftc.files import MAX_INPUT_BYTES, decode_text, read_user_bytes, seal_damage, seal_path
 
 #: the grid's points per side, and its size over the rotor's diameter
 GRID_POINTS = 13
@@ -137,16 +136,11 @@ def deck_hub_height(fst: Path) -> float:
 
 
 def _deck_value(path: Path, key: str) -> str:
-    """The value on ``path``'s line whose second word is ``key``; the deck read as bytes
-    and decoded as its author wrote it (UTF-8, else Latin-1: a "°" in a comment is no
-    error), a file that cannot be read refused in one line naming it."""
-    try:
-        data = path.read_bytes()
-    except (OSError, ValueError) as exc:
-        why = "a symbolic link loop" if getattr(exc, "errno", None) == errno.ELOOP else \
-            getattr(exc, "strerror", None) or str(exc)
-        raise ConfigError("openfast_deck", str(path), f"a deck file that can be read "
-                          f"({why})") from None
+    """The value on ``path``'s line whose second word is ``key``; the deck read as a user's
+    file (a FIFO, a folder, a link loop or an unreadable file refused in one line naming
+    it) and decoded as its author wrote it (UTF-8, else Latin-1: a "°" in a comment is no
+    error)."""
+    data = read_user_bytes(path, "openfast_deck", MAX_INPUT_BYTES)  # a FIFO never blocks
     for line in decode_text(data).split("\n"):
         words = line.split()
         if len(words) >= 2 and words[1] == key:
