@@ -829,3 +829,46 @@ def test_a_hostile_deck_is_one_line_and_exit_code_2_in_run(deck, tmp_path, capsy
     assert code == 2 and len(err) == 1 and err[0].startswith("wtftc: error: "), err
     assert all(w in err[0] for w in words), err
     assert not out.exists() and not list(tmp_path.glob(".out*"))
+
+
+def test_a_deck_gbratio_of_50_is_refused_before_openfast_runs(deck, tmp_path, capsys):
+    """`wtftc run --engine openfast` on a deck whose GBRatio contradicts the turbine file:
+    one line naming both values, exit 2, no --out (it ran to 0 W before)."""
+    _set(deck / ED, "GBRatio", b"50")
+    code, err = _run(_turbine_for(deck, tmp_path / "t"), tmp_path / "out", capsys)
+    assert code == 2 and len(err) == 1 and "GBRatio = 50" in err[0]
+    assert "gearbox_ratio = 97" in err[0] and not (tmp_path / "out").exists()
+
+
+#: every command that runs OpenFAST on a turbine's deck, without --out and --turbine
+OUT_IN_DECK = {
+    "run": ["run", "--engine", "openfast", "--controller", "pi", "--t-final", "2"],
+    "compare": ["compare", "--engine", "openfast", "--controllers", "pi", "--faults", "none",
+                "--winds", "steady_16", "--t-final", "30"],
+    "validate": ["validate", "--t-final", "10"],
+    "modes": ["modes"],
+    "sweep": ["sweep", "{sweep}", "--engine", "openfast"],
+}
+
+
+@pytest.mark.parametrize("command", list(OUT_IN_DECK))
+def test_out_inside_the_deck_is_refused_by_every_command_before_anything_is_written(
+        deck, tmp_path, capsys, command):
+    """An --out inside the deck's own folder, on every command that runs OpenFAST: one
+    line naming --out, exit 2, nothing written in the deck's folder (a run once copied the
+    deck into itself there until the path was too long)."""
+    from wtftc.cli import main
+
+    turbine = _turbine_for(deck, tmp_path / "t")
+    sweep = tmp_path / "s.toml"
+    sweep.write_text(f'turbine = "{turbine}"\ncontrollers = ["pi"]\nt_final_s = 10.0\n')
+    before = _tree(deck)
+    argv = [a.replace("{sweep}", str(sweep)) for a in OUT_IN_DECK[command]]
+    if command != "sweep":
+        argv += ["--turbine", str(turbine)]
+    capsys.readouterr()
+    with time_limit(120):
+        code = main([*argv, "--quiet", "--out", str(deck / "run")])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 2 and len(err) == 1 and "--out" in err[0], err
+    assert _tree(deck) == before

@@ -140,6 +140,7 @@ def _cmd_validate(args) -> int:
     if args.wind_mean is None and args.wind != "file":
         args.wind_mean = VALIDATE_WIND_MPS
     raw = tune.resolve(_run_overrides(args))
+    _check_out_beside_deck(args.out, raw.get("turbine"))
     if args.controller != "rosco":
         raw.setdefault("turbine_params", {"gen_torque_law": 1.0})  # as compare runs them
     from wtftc.campaign.modes import tower_plants
@@ -644,6 +645,18 @@ def _cmd_verify(args) -> int:
     return 0
 
 
+def _check_out_beside_deck(out: Path | None, turbine: str | None) -> None:
+    """``--out`` outside the OpenFAST deck's own folder of ``turbine`` (a run copies the
+    deck's files into it), before any work."""
+    from wtftc import config
+    from wtftc.model import turbine_file
+    from wtftc.openfast import case as ofcase
+
+    deck = config.openfast_deck(turbine_file.load(turbine or turbine_file.DEFAULT))
+    if out is not None and deck is not None:
+        ofcase.check_out_outside_deck(Path(out), deck)
+
+
 def _cmd_run(args) -> int:
     from wtftc import config
     from wtftc.campaign import cases, tune
@@ -654,6 +667,8 @@ def _cmd_run(args) -> int:
     check_run_folder(args.out, "--out")  # before any work, a TurbSim field too
     raw = tune.resolve(_run_overrides(args))
     config.check_before_field(raw)  # refused before a TurbSim field is made
+    if raw.get("engine") == "openfast":
+        _check_out_beside_deck(args.out, raw.get("turbine"))
     ensure_field(raw)  # a TurbSim field the run reads, made first
     rc = config.make_config(raw)
     rc.initial_state()  # a wind with no operating point: refused before the first line
@@ -707,6 +722,8 @@ def _cmd_compare(args) -> int:
         raise ConfigError("--plant", args.plant, "no --plant with --engine openfast "
                           "(OpenFAST runs the turbine's deck)")
     check_out_folder(args.out, "--out", legacy=compare.is_legacy_compare)
+    if args.engine == "openfast":
+        _check_out_beside_deck(args.out, args.turbine)
     compare.run_compare(args.out, args.controllers, args.faults, args.winds,
                                t_final=args.t_final, seed=args.seed, progress=not args.quiet,
                                profile=args.profile, turbine=args.turbine,
@@ -1018,9 +1035,11 @@ def _cmd_modes(args) -> int:
     import importlib.util
 
     from wtftc import config
+    from wtftc.artefacts.loader import openfast_cache_dir
     from wtftc.campaign import modes
     from wtftc.files import check_out_folder
     from wtftc.model import turbine_file
+    from wtftc.openfast import case as ofcase
     from wtftc.openfast import install
     from wtftc.openfast.linearization import AZIMUTHS, DOF_SETS
 
@@ -1039,11 +1058,14 @@ def _cmd_modes(args) -> int:
         raise EngineError("wtftc modes reads OpenFAST's .lin files with openfast-io 5.0.0, "
                           "which is not installed: " + config.OPENFAST_PACKAGES)
     install.require()
+    openfast_cache_dir()
     name = raw.get("turbine", turbine_file.DEFAULT)
     deck = config.check_deck(turbine_file.load(name))
     if deck is None:
         raise ConfigError("--turbine", name, "a turbine whose file names its OpenFAST deck "
                           "(openfast_deck; docs/turbines.md)")
+    ofcase.check_out_outside_deck(args.out, deck)
+    ofcase.check_deck_matches_turbine(deck, turbine_file.load(name))
     check_out_folder(args.out, "--out")
     try:
         modes.run_modes(raw, deck, winds, args.dofs, n_az, args.out, not args.quiet)

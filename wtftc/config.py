@@ -371,7 +371,13 @@ def check_before_field(cfg: dict) -> None:
     """Validate ``cfg`` as :func:`make_config` does, before the TurbSim field it may read is
     made (wtftc.openfast.turbsim.ensure_field: minutes on a large grid), so that a value
     every run refuses is refused first: an NTM on TurbSim's field is checked on wtftc's own
-    synthesis of it, and in OpenFAST on the uniform series; every other key as it is."""
+    synthesis of it, and in OpenFAST on the uniform series; every other key as it is. A
+    run in OpenFAST also needs a WTFTC_CACHE that OpenFAST can read its libraries from
+    (wtftc.artefacts.loader.openfast_cache_dir), checked first."""
+    if isinstance(cfg, dict) and cfg.get("engine") == "openfast":
+        from wtftc.artefacts.loader import openfast_cache_dir
+
+        openfast_cache_dir()
     wind = cfg.get("wind") if isinstance(cfg, dict) else None
     if not isinstance(wind, dict) or wind.get("kind") != "ntm":
         return  # no field is made: make_config checks the rest

@@ -131,7 +131,10 @@ def prepare(rc, folder: Path) -> ofcase.Case:
         raise ConfigError("sensors", rc.raw.get("sensors"), "no sensor lag with engine = "
                           "openfast (the plant library's sensors have none)")
     folder = Path(folder).resolve()  # OpenFAST runs in it: every path it reads absolute
-    fst = ofcase.copy_deck(deck_of(rc), folder)
+    deck = deck_of(rc)
+    ofcase.check_deck_matches_turbine(
+        deck, turbine_file.load(rc.raw.get("turbine", turbine_file.DEFAULT)), rc.param)
+    fst = ofcase.copy_deck(deck, folder)
     dt, dll_dt = ofcase.steps(interval_of(rc))
     ofcase.set_values(fst, {"TMax": f"{rc.t_final:.9g}", "DT": f"{dt:.9g}",
                             "OutFileFmt": "2", "DT_Out": '"default"', "Echo": "False"})
@@ -151,7 +154,11 @@ def prepare(rc, folder: Path) -> ofcase.Case:
     # run folder is written beside its final name and renamed into place)
     settings = plant_library.Settings(lib, infile, records, rc.p_turbine, rc.p_sensors,
                                       rc.faults if rc.faults else (), base=folder,
-                                      actuator=rc.raw["openfast"]["actuator"])
+                                      actuator=rc.raw["openfast"]["actuator"],
+                                      interval=dll_dt)
+    steps = dll_dt / plant_library.ACTUATOR_DT
+    if abs(steps - round(steps)) > 1e-9:  # the largest step that divides the interval whole
+        settings.actuator_dt = dll_dt / math.ceil(steps)
     n_calls = int(round(rc.t_final / dll_dt)) + 2
     settings.noise = folder / "wtftc_noise.bin"
     settings.noise_columns = plant_library.noise_table(

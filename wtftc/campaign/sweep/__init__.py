@@ -59,6 +59,7 @@ from wtftc.campaign.sweep.summary import show_run, summarize
 from wtftc.campaign.sweep.tasks import run_task
 from wtftc.errors import ConfigError
 from wtftc.files import MAX_TOML_BYTES, read_user_text
+from wtftc.model import turbine_file
 from wtftc.openfast.turbsim import ensure_field
 
 __all__ = ["FAULT_TYPES", "METRICS", "PLANTS", "STATUS", "TURBULENCE_CLASSES", "Axis",
@@ -218,6 +219,18 @@ def _collect(futures: list, out_dir: Path, done: set[str], progress: _Progress,
     return ran, lost
 
 
+def _check_out_beside_decks(out_dir: Path, runs: list[dict]) -> None:
+    """``--out`` outside the deck folder of every turbine the runs use in OpenFAST (each
+    run copies its deck's files under ``--out``), before any run."""
+    from wtftc.openfast import case as ofcase
+
+    for name in dict.fromkeys(pt["config"].get("turbine", turbine_file.DEFAULT)
+                              for pt in runs):
+        deck = config.openfast_deck(turbine_file.load(name))
+        if deck is not None:
+            ofcase.check_out_outside_deck(Path(out_dir), deck)
+
+
 def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str | None = None,
               traces: bool = False, overwrite: bool = False, quiet: bool = False,
               retry_failed: bool = False, engine: str | None = None) -> dict:
@@ -231,6 +244,8 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
     sw = load_sweep(sweep_path, engine)
     runs, dup = expand(sw)
     _check_runs(sw, runs, quiet)
+    if sw.engine == "openfast":
+        _check_out_beside_decks(out_dir, runs)
     # a remote scheduler first: one that cannot be reached leaves nothing in out_dir
     client, local = cluster.client(scheduler, workers) if scheduler else (None, None)
     try:
