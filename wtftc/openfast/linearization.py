@@ -235,7 +235,8 @@ def linearize(deck: Path, wind: float, dofs: str, n_az: int, g: Guess,
         try:
             fst = write_case(deck, work / "case", wind, dofs, n_az, g)
             folder = root / case_key(fst, inst.version)
-            cached = (folder / "lin.json").is_file()
+            # reported as cached only when whole: a damaged entry is about to be rebuilt
+            cached = folder.is_dir() and files.seal_damage(folder) is None
             try:
                 built_once(folder, "lin.json",
                            lambda tmp: _run(fst, tmp, label, n_az, progress))
