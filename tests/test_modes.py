@@ -307,15 +307,17 @@ def test_without_openfast_it_is_one_line_exit_4(tmp_path, capsys, monkeypatch):
     assert not (tmp_path / "m").exists()
 
 
-def test_without_openfast_io_it_is_one_line_exit_4(tmp_path, capsys, monkeypatch):
+def test_without_openfast_io_it_is_one_line_exit_2(tmp_path, capsys, monkeypatch):
+    """A missing Python package is a refusal naming it and its pip line, as for Dask (no
+    program failed)."""
     import importlib.util
 
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec",
                         lambda name, *a: None if name == "openfast_io" else real(name, *a))
-    assert main(["modes", "--out", str(tmp_path / "m")]) == 4
+    assert main(["modes", "--out", str(tmp_path / "m")]) == 2
     err = capsys.readouterr().err.strip()
-    assert "openfast-io" in err and len(err.splitlines()) == 1
+    assert "openfast-io" in err and "pip install" in err and len(err.splitlines()) == 1
 
 
 # ------------------------------------------------------ ONE OpenFAST linearization

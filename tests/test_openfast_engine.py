@@ -179,6 +179,20 @@ def test_a_missing_openfast_is_one_line_naming_openfast(tmp_path, monkeypatch, c
     assert not (tmp_path / "run").exists()
 
 
+def test_openfast_not_installed_is_said_before_any_work(tmp_path, monkeypatch, capsys):
+    """No OpenFAST found: one line with how to get it, exit code 4, before the run's
+    header line and before its operating point is solved or a loop compiled."""
+    from wtftc.openfast import install
+
+    monkeypatch.setattr(install, "find", lambda *a, **k: None)
+    monkeypatch.setattr(config, "make_config", lambda *a, **k: pytest.fail("work started"))
+    code = main(["run", "--engine", "openfast", "--controller", "pi", "--wind", "constant",
+                 "--wind-mean", "16", "--t-final", "5", "--out", str(tmp_path / "run")])
+    out, err = capsys.readouterr()
+    assert code == 4 and out == "" and err.count("\n") == 1 and "openfast get" in err
+    assert not (tmp_path / "run").exists()
+
+
 @pytest.mark.parametrize("over, field", [
     ({"plant": "nrel5mw"}, "plant"),
     ({"mismatch": {"J_r": 1.1}}, "mismatch"),
@@ -306,13 +320,14 @@ def test_the_case_reruns_by_hand_after_its_folder_is_moved(tmp_path, controller)
 
 
 @pytest.mark.parametrize("missing, text", [("openfast_io", "openfast-io 5.0.0"),
-                                           ("rosco", "ROSCO is not installed")])
+                                           ("rosco", "needs ROSCO 2.10.6")])
 def test_a_missing_python_package_of_the_engine_is_one_line_before_any_run(
         monkeypatch, capsys, tmp_path, missing, text):
     """A `pip install wtftc` without the engine's packages: OpenFAST's output reader
     (openfast-io) and ROSCO's wheel (the built-in decks) are named, with the command that
-    installs them, in one line and exit code 4, before anything runs (a newcomer got a
-    traceback after the whole simulation)."""
+    installs them, in one line and exit code 2 (a dependency missing, as for Dask: no
+    program failed), before anything runs (a newcomer got a traceback after the whole
+    simulation)."""
     import importlib.util
 
     real = importlib.util.find_spec
@@ -322,8 +337,8 @@ def test_a_missing_python_package_of_the_engine_is_one_line_before_any_run(
                  "realistic", "--wind", "constant", "--wind-mean", "16", "--t-final", "5",
                  "--quiet", "--out", str(tmp_path / "run")])
     err = capsys.readouterr().err
-    assert code == 4 and err.count("\n") == 1 and text in err and "pip install" in err
-    assert not (tmp_path / "run").exists()
+    assert code == 2 and err.count("\n") == 1 and text in err and "pip install" in err
+    assert "which is not installed" in err and not (tmp_path / "run").exists()
 
 
 def test_the_engine_defaults_to_the_realistic_profile_and_refuses_ideal_when_asked():

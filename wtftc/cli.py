@@ -668,7 +668,10 @@ def _cmd_run(args) -> int:
     raw = tune.resolve(_run_overrides(args))
     config.check_before_field(raw)  # refused before a TurbSim field is made
     if raw.get("engine") == "openfast":
+        from wtftc.openfast import install
+
         _check_out_beside_deck(args.out, raw.get("turbine"))
+        install.require()  # OpenFAST missing: said before any work or line of output
     ensure_field(raw)  # a TurbSim field the run reads, made first
     rc = config.make_config(raw)
     rc.initial_state()  # a wind with no operating point: refused before the first line
@@ -1055,8 +1058,8 @@ def _cmd_modes(args) -> int:
     rated = config.rated_wind_speed(rc.loop.p_turbine, rc.loop.table)
     winds = _winds(args.winds, lo=rated)  # OpenFAST's trim holds the speed by pitch
     if importlib.util.find_spec("openfast_io") is None:
-        raise EngineError("wtftc modes reads OpenFAST's .lin files with openfast-io 5.0.0, "
-                          "which is not installed: " + config.OPENFAST_PACKAGES)
+        raise MissingExtra("wtftc modes", "openfast-io 5.0.0", None,
+                           "OpenFAST's .lin reader", config.OPENFAST_PACKAGES)
     install.require()
     openfast_cache_dir()
     name = raw.get("turbine", turbine_file.DEFAULT)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from wtftc.artefacts import layout as lay
-from wtftc.errors import ConfigError, EngineError, range_text
+from wtftc.errors import ConfigError, EngineError, MissingExtra, range_text
 from wtftc.files import check_user_file
 from wtftc.model import tuning, turbine_file, wind_field
 from wtftc.model.cp_table import nrel5mw_cp_table, read_cp_table
@@ -426,9 +426,10 @@ def openfast_deck(turbine: turbine_file.Turbine) -> Path | None:
     if turbine.openfast_deck.startswith("rosco:"):
         check_rosco_path("openfast_deck", turbine.openfast_deck, turbine.path)
         if importlib.util.find_spec("rosco") is None:
-            raise EngineError(f"the OpenFAST deck of turbine {turbine.name} is ROSCO 2.10.6's "
-                              f"({turbine.openfast_deck[len('rosco:'):]}), and ROSCO is not "
-                              "installed: " + OPENFAST_PACKAGES + " (docs/openfast.md)")
+            raise MissingExtra(f"turbine {turbine.name}", "ROSCO 2.10.6",
+                               None, f"its OpenFAST deck is ROSCO's, "
+                               f"{turbine.openfast_deck[len('rosco:'):]}",
+                               OPENFAST_PACKAGES + " (docs/openfast.md)")
         from wtftc.sim.rosco import discon_path
 
         path = discon_path(turbine.openfast_deck)
@@ -746,8 +747,8 @@ def _engine(raw: dict, given: dict) -> None:
                               "engine = wtftc")
         return
     if importlib.util.find_spec("openfast_io") is None:  # checked before, not after, a run
-        raise EngineError("engine = openfast reads OpenFAST's output with openfast-io 5.0.0, "
-                          "which is not installed: " + OPENFAST_PACKAGES)
+        raise MissingExtra("engine = openfast", "openfast-io 5.0.0", None,
+                           "OpenFAST's output reader", OPENFAST_PACKAGES)
     for key, why in OPENFAST_REFUSED.items():
         # what a saved run's config.toml holds is accepted back: the engine's own values
         if key in given and given[key] not in OPENFAST_ACCEPTED.get(key, ()):

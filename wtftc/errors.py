@@ -18,11 +18,14 @@ class ConfigError(ValueError):
 
 class MissingExtra(ConfigError):
     """A command or option needs an optional dependency that is not installed: one line
-    naming it and the pip line that installs it (exit code 2, as any refusal)."""
+    naming it and the pip line that installs it (``install``, else the extra's), exit
+    code 2, as any refusal: the machine lacks what the command needs, no program
+    failed."""
 
-    def __init__(self, field: str, needs: str, extra: str, what: str = ""):
+    def __init__(self, field: str, needs: str, extra: str | None, what: str = "",
+                 install: str | None = None):
         self.field, self.value, self.where = field, needs, None
-        self.allowed = f"pip install 'wtftc[{extra}]'"
+        self.allowed = install or f"pip install 'wtftc[{extra}]'"
         ValueError.__init__(self, f"{field} needs {needs}{f' ({what})' if what else ''}, "
                                   f"which is not installed: {self.allowed}")
 
