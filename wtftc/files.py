@@ -155,7 +155,7 @@ def seal_path(entry: Path) -> Path:
 
 def _seal_listing(entry: Path) -> dict[str, str] | None:
     if entry.is_file():
-        return {".": f"{entry.stat().st_size} {_sha256(str(entry))}"}
+        return {".": f"{entry.stat().st_size} {file_sha256(entry)}"}
     return _listing(entry) if entry.is_dir() else None
 
 
@@ -238,11 +238,12 @@ def _listing(folder: Path) -> dict[str, str] | None:
                 return None
             rel = os.path.relpath(full, folder)
             if rel != MARKER:
-                out[rel] = f"{st.st_size} {_sha256(full)}"
+                out[rel] = f"{st.st_size} {file_sha256(full)}"
     return out
 
 
-def _sha256(path: str) -> str:
+def file_sha256(path) -> str:
+    """The sha256 of the file at ``path``, read in 1-MB chunks (hex)."""
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for chunk in iter(lambda: fh.read(1 << 20), b""):

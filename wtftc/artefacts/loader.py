@@ -502,10 +502,10 @@ def new_build_folder(root: Path, stem: str) -> tuple[Path, int]:
     return tmp, fd
 
 
-def clean_stale_builds(root: Path, stem: str) -> None:
+def clean_stale_builds(root: Path, stem: str, grace_s: float = STALE_UNLOCKED_S) -> None:
     """Remove the ``.<stem>-*`` folders in ``root`` whose lock no process holds (a build
     killed, even by SIGKILL: the kernel releases its lock), and those without a lock that
-    have not changed for :data:`STALE_UNLOCKED_S`."""
+    have not changed for ``grace_s`` [s]."""
     for entry in os.scandir(root):
         if not entry.name.startswith(f".{stem}-") or not entry.is_dir(follow_symlinks=False):
             continue
@@ -513,7 +513,7 @@ def clean_stale_builds(root: Path, stem: str) -> None:
             fd = os.open(Path(entry.path) / BUILD_LOCK,
                          os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
         except FileNotFoundError:
-            if time.time() - entry.stat(follow_symlinks=False).st_mtime > STALE_UNLOCKED_S:
+            if time.time() - entry.stat(follow_symlinks=False).st_mtime > grace_s:
                 shutil.rmtree(entry.path, ignore_errors=True)
             continue
         except OSError:

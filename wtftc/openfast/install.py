@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import hashlib
 import json
 import os
 import re
@@ -396,14 +395,6 @@ def get(archives: Path | None = None, log: Callable[[str], None] = print,
     return _remember(_build(src, log))
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def _archive(folders: list[Path], name: str, sha256: str,
              log: Callable[[str], None]) -> tuple[Path | None, list[str]]:
     """The first archive ``name`` in ``folders`` whose SHA-256 is ``sha256``, and what is
@@ -417,7 +408,7 @@ def _archive(folders: list[Path], name: str, sha256: str,
             why = f"{path} is not a regular file"
         else:
             try:
-                digest = _sha256(path)
+                digest = files.file_sha256(path)
             except OSError as exc:
                 why = f"{path} cannot be read ({exc.strerror or type(exc).__name__})"
             else:

@@ -25,18 +25,18 @@ import os
 import shutil
 import sys
 import tempfile
-import time
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
 from wtftc import programs
+from wtftc.artefacts.loader import BUILD_LOCK, clean_stale_builds
 from wtftc.errors import ConfigError, EngineError
 from wtftc.files import seal, seal_damage, seal_path
 from wtftc.model.wind_field import Field, NotAField, field_path, read_bts
 from wtftc.openfast import install
 
 #: the lock file inside each of generate's temporary folders (held while it is in use)
-TEMP_LOCK = ".wtftc-partial"
+TEMP_LOCK = BUILD_LOCK
 #: a temporary folder without its lock is left alone this long [s] (its maker may be
 #: between creating it and locking it)
 TEMP_GRACE_S = 60.0
@@ -107,25 +107,7 @@ def clean_stale(folder: Path) -> None:
     """Remove the ``.turbsim-*`` temporary folders in ``folder`` that no live process
     holds: their lock (TEMP_LOCK) taken at once, or, without one, older than TEMP_GRACE_S
     (left by a TurbSim killed with wtftc). A folder in use is left alone."""
-    for tmp in folder.glob(".turbsim-*"):
-        if tmp.is_symlink() or not tmp.is_dir():
-            continue
-        try:
-            fd = os.open(tmp / TEMP_LOCK, os.O_RDONLY | os.O_CLOEXEC | os.O_NOFOLLOW)
-        except FileNotFoundError:
-            with suppress(OSError):
-                if time.time() - tmp.stat().st_mtime > TEMP_GRACE_S:
-                    shutil.rmtree(tmp, ignore_errors=True)
-            continue
-        except OSError:
-            continue
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            os.close(fd)  # a live run's folder
-            continue
-        shutil.rmtree(tmp, ignore_errors=True)
-        os.close(fd)
+    clean_stale_builds(folder, "turbsim", TEMP_GRACE_S)
 
 
 def _limit(f: Field) -> programs.Program:
