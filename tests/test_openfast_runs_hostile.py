@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from processes import alive, gone
 
 from wtftc import files, programs
 from wtftc.errors import ConfigError, EngineError, ProgramKilled
@@ -55,23 +56,6 @@ def wait_child():
         time.sleep(0.02)
 exec(os.environ.get("FAKE_BODY", "pass"))
 '''
-
-
-def alive(pid: int) -> bool:
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except (FileNotFoundError, ProcessLookupError):
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] not in ("Z", "X")
-
-
-def gone(pids, within_s: float = 5.0) -> bool:
-    end = time.monotonic() + within_s
-    while time.monotonic() < end:
-        if not any(alive(p) for p in pids):
-            return True
-        time.sleep(0.05)
-    return False
 
 
 def recorded(path: Path) -> list[int]:

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from processes import gone
 
 from wtftc import programs
 from wtftc.errors import ConfigError, EngineError, ProgramKilled
@@ -24,26 +25,8 @@ from wtftc.errors import ConfigError, EngineError, ProgramKilled
 PY = sys.executable
 
 
-def alive(pid: int) -> bool:
-    """Whether ``pid`` is a live process (a zombie waiting for its parent is not)."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except (FileNotFoundError, ProcessLookupError):
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] not in ("Z", "X")
-
-
 def pids_of(path: Path) -> list[int]:
     return [int(w) for w in path.read_text().split()] if path.is_file() else []
-
-
-def gone(pids: list[int], within_s: float = 5.0) -> bool:
-    end = time.monotonic() + within_s
-    while time.monotonic() < end:
-        if not any(alive(p) for p in pids):
-            return True
-        time.sleep(0.05)
-    return False
 
 
 def script(tmp_path: Path, body: str, name: str = "prog.py") -> list[str]:
