@@ -145,27 +145,35 @@ import os, sys, threading
 sys.path.insert(0, {root!r})
 from pathlib import Path
 from wtftc import programs
+SLEEPER = ("import os,time; open({pids!r}, 'a').write(str(os.getpid()) + ' '); "
+           "time.sleep(600)")
+WRAPPER = ("import subprocess,sys,time; subprocess.Popen([sys.executable, '-c', {{s!r}}]);"
+           " exec({{s!r}})")
 def go():
-    programs.run([sys.executable, "-c", "import os,time; open({pids!r}, 'a').write("
-                  "str(os.getpid()) + ' '); time.sleep(600)"], Path({tmp!r}), Path({log!r}),
+    body = {program} == "wrapper" and WRAPPER.format(s=SLEEPER) or SLEEPER
+    programs.run([sys.executable, "-c", body], Path({tmp!r}), Path({log!r}),
                  programs.Program("Fake", 600, "r", "h"))
 {how}
 """
 
 
+@pytest.mark.parametrize("program", ["direct", "wrapper"])
 @pytest.mark.parametrize("how", ["go()", "t = threading.Thread(target=go); t.start(); t.join()"])
-def test_a_program_dies_with_wtftc_killed_outright(tmp_path, how):
+def test_a_program_dies_with_wtftc_killed_outright(tmp_path, how, program):
     """SIGKILL to the process that runs a program, from its main thread or another (the
     parent-death signal follows the thread that forked, which waits): the program dies
-    too, within a few seconds."""
+    too, within a few seconds; so does what a wrapper of it started (the watchdog's work:
+    the parent-death signal reaches the direct child only)."""
     pids = tmp_path / "pids"
     code = DRIVER.format(root=str(Path(__file__).resolve().parents[1]), pids=str(pids),
-                         tmp=str(tmp_path), log=str(tmp_path / "log"), how=how)
+                         tmp=str(tmp_path), log=str(tmp_path / "log"), how=how,
+                         program=repr(program))
     driver = subprocess.Popen([PY, "-c", code])
     end = time.monotonic() + 20
-    while not pids_of(pids) and time.monotonic() < end:
+    while len(pids_of(pids)) < (2 if program == "wrapper" else 1) \
+            and time.monotonic() < end:
         time.sleep(0.05)
-    assert pids_of(pids), "the program did not start"
+    assert len(pids_of(pids)) == (2 if program == "wrapper" else 1), "it did not start"
     driver.kill()
     driver.wait()
     assert gone(pids_of(pids), 5.0)
@@ -200,8 +208,11 @@ def test_a_child_whose_parent_is_gone_before_the_request_kills_itself(monkeypatc
 
 # ------------------------------------------------------------------------ time limits
 
-@pytest.mark.parametrize("value", ["abc", "0", "-5", "nan", "inf", "1e400", "  ", "3 s"])
+@pytest.mark.parametrize("value", ["abc", "0", "-5", "nan", "inf", "1e400", "  ", "3 s",
+                                   "1e10", "3.3e7"])
 def test_a_bad_timeout_variable_is_one_line_naming_it(monkeypatch, value):
+    """Not a number of seconds in (0, a year]: one line naming the variable (1e10 s
+    overflowed the wait's clock, a traceback, before it was bounded)."""
     monkeypatch.setenv(programs.TIMEOUT_ENV, value)
     if not value.strip():
         assert programs.openfast_limit_s(10.0) == 260.0  # unset: the rule
@@ -209,6 +220,15 @@ def test_a_bad_timeout_variable_is_one_line_naming_it(monkeypatch, value):
     with pytest.raises(ConfigError) as exc:
         programs.openfast_limit_s(10.0)
     assert exc.value.field == programs.TIMEOUT_ENV and "\n" not in str(exc.value)
+
+
+def test_the_longest_time_limit_is_waited_on_without_overflow(tmp_path, monkeypatch):
+    """The largest limit allowed passes through the wait (select's timeout) as any other."""
+    monkeypatch.setenv(programs.TIMEOUT_ENV, f"{programs.MAX_LIMIT_S:g}")
+    limit = programs.openfast_limit_s(10.0)
+    done = programs.run(script(tmp_path, "pass\n"), tmp_path, tmp_path / "log",
+                        programs.Program("Fake", limit, "r", "h"))
+    assert limit == programs.MAX_LIMIT_S and done.code == 0
 
 
 def test_the_limits_follow_their_rules_and_the_variable_replaces_them(monkeypatch):

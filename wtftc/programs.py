@@ -11,7 +11,11 @@ outlives wtftc:
   caller's is set) or any exception in wtftc stops the group whole before it propagates;
 * wtftc killed outright (SIGKILL, the OOM killer) cannot clean up: the kernel kills the
   program then, through the parent-death signal (``prctl(PR_SET_PDEATHSIG, SIGKILL)``, set in
-  the child between fork and exec).
+  the child between fork and exec), and a watchdog kills the rest of its group (what a
+  wrapper script started: the parent-death signal reaches the direct child only). The
+  watchdog is a small Python process that reads a pipe only wtftc writes: at the end of a run wtftc
+  writes a line and it exits; when wtftc dies the pipe ends without one, and it kills
+  the program's group.
 
 A program ended by a signal wtftc did not send is sorted by the signal: a crash of its
 own (SIGSEGV, SIGFPE, SIGABRT...) is the program's failure, left to the caller to report
@@ -38,6 +42,7 @@ import os
 import select
 import signal
 import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -50,6 +55,8 @@ from wtftc.errors import ConfigError, EngineError, ProgramKilled
 
 #: the environment variable that replaces every time limit [s]
 TIMEOUT_ENV = "WTFTC_PROGRAM_TIMEOUT_S"
+#: the longest time limit [s] (a year: the clocks' waits overflow far beyond it)
+MAX_LIMIT_S = 3.2e7
 #: how long a stopped program's group has between SIGTERM and SIGKILL [s]
 GRACE_S = 3.0
 #: the signals by which a program ends on a fault of its own: its failure, not a stop
@@ -113,9 +120,10 @@ def limit_s(rule_s: float) -> float:
         value = float(env)
     except ValueError:
         value = math.nan
-    if not (math.isfinite(value) and value > 0):
-        raise ConfigError(TIMEOUT_ENV, env, "a number of seconds > 0 (the time limit of "
-                          "OpenFAST and TurbSim), or unset for the rule of each")
+    if not (math.isfinite(value) and 0 < value <= MAX_LIMIT_S):
+        raise ConfigError(TIMEOUT_ENV, env, f"a number of seconds in (0, {MAX_LIMIT_S:g}] "
+                          "(the time limit of OpenFAST and TurbSim), or unset for the rule "
+                          "of each")
     return value
 
 
@@ -192,6 +200,42 @@ def _stop_group(proc: subprocess.Popen, pidfd: int | None) -> None:
         proc.wait()
 
 
+#: the watchdog: a line read (wtftc released it), or the pipe's end (wtftc died)
+_WATCHDOG = ("import os, signal, sys\n"
+             "if not sys.stdin.buffer.readline():\n"
+             "    try:\n"
+             "        os.killpg({pgid}, signal.SIGKILL)\n"
+             "    except OSError:\n"
+             "        pass\n")
+
+
+class _Watchdog:
+    """A Python interpreter, in a session of its own, that kills the process group ``pgid`` if wtftc
+    dies while the group runs: it reads a pipe whose writing end only wtftc holds, so
+    :meth:`release` (a line) lets it exit, and wtftc's death (the end of the pipe, no
+    line) makes it kill the group."""
+
+    def __init__(self, pgid: int):
+        read, self._write = os.pipe()
+        try:
+            self._dog = subprocess.Popen(
+                [sys.executable, "-I", "-S", "-c", _WATCHDOG.format(pgid=pgid)],
+                stdin=read, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                start_new_session=True)
+        except BaseException:
+            os.close(self._write)
+            raise
+        finally:
+            os.close(read)
+
+    def release(self) -> None:
+        """The group is gone: the watchdog exits without a signal."""
+        with suppress(OSError):
+            os.write(self._write, b"done\n")
+        os.close(self._write)
+        self._dog.wait()
+
+
 @contextmanager
 def _sigterm_stops() -> Iterator[None]:
     """SIGTERM raises KeyboardInterrupt meanwhile, where nothing else handles it (the
@@ -228,11 +272,12 @@ def run(args: list[str], cwd: Path, log: Path, prog: Program,
     must not be handed to another thread."""
     t0 = time.monotonic()
     with open(log, "wb") as out, _sigterm_stops():
-        proc, pidfd = None, None
+        proc, pidfd, dog = None, None, None
         try:
             proc = subprocess.Popen(args, cwd=cwd, stdout=out, stderr=subprocess.STDOUT,
                                     stdin=subprocess.DEVNULL, start_new_session=True,
                                     preexec_fn=_child_setup(os.getpid()), pass_fds=pass_fds)
+            dog = _Watchdog(proc.pid)
             with suppress(AttributeError, OSError):
                 pidfd = os.pidfd_open(proc.pid)
             timed_out = _wait(proc, pidfd, t0 + prog.limit_s, watch, every_s)
@@ -246,6 +291,8 @@ def run(args: list[str], cwd: Path, log: Path, prog: Program,
                 _stop_group(proc, pidfd)
             raise
         finally:
+            if dog is not None:
+                dog.release()
             if pidfd is not None:
                 os.close(pidfd)
     wall = time.monotonic() - t0
