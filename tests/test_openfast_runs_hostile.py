@@ -11,6 +11,7 @@ code), nothing left running and the folder free for the next run."""
 from __future__ import annotations
 
 import os
+import re
 import signal
 import struct
 import subprocess
@@ -719,6 +720,11 @@ def test_a_wtftc_run_killed_outright_frees_its_folder_for_the_next(fakes):
     assert again.returncode == 4 and again.stderr.count("\n") == 1
     assert "OpenFAST stopped (exit code 1) with no message" in again.stderr
     assert not out.exists()
+    # the files the message names are there: the failed case is kept in the cache (the
+    # folder it ran in, beside --out, is gone)
+    named = re.findall(r"(/[^\s;()]+openfast\.log)", again.stderr)
+    assert named and all(Path(n).is_file() for n in named), again.stderr
+    assert ".partial" not in again.stderr
 
 
 SWEEP = """t_final_s = 4.0

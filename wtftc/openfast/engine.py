@@ -17,6 +17,7 @@ import math
 import os
 import re
 import shutil
+import time
 from contextlib import suppress
 from pathlib import Path
 
@@ -24,6 +25,7 @@ import numpy as np
 
 from wtftc import files, programs
 from wtftc.artefacts import layout as lay
+from wtftc.artefacts.loader import cache_dir
 from wtftc.config import openfast_deck
 from wtftc.errors import ConfigError, EngineError
 from wtftc.model import turbine_file
@@ -403,15 +405,49 @@ def result(rc, case: ofcase.Case, wall: float, abort: str | None) -> integrate.R
         names=names)
 
 
+def kept_failure(exc: EngineError, case: Path, keep: Path) -> EngineError:
+    """``exc`` (of its own class) saying where the failed case and OpenFAST's screen output
+    are kept: the case folder moved to ``keep`` (a failure before, of the same case,
+    replaced), so that the removal of the folder it was in takes neither."""
+    log = keep / "openfast.log"
+    try:
+        keep.parent.mkdir(parents=True, exist_ok=True)
+        shutil.rmtree(keep, ignore_errors=True)
+        shutil.move(str(case), str(keep))
+    except OSError:
+        return exc
+    where = (f"OpenFAST's screen output is in {log}" if log.is_file() else
+             "OpenFAST did not run")
+    said = str(exc).replace(str(case), str(keep))  # the paths it names, where they are now
+    kept = type(exc)(f"{said}; {where} (the case, to rerun by hand: {keep})")
+    kept.__cause__ = exc.__cause__
+    return kept
+
+
+def _failed_case_home(rc) -> Path:
+    """Where a failed case of a run being written beside its --out is kept (that folder is
+    removed, and the message would name files no longer there): the cache's
+    ``openfast_failed/<label>-<time>-<process>``."""
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    return cache_dir() / "openfast_failed" / f"{rc.label}-{stamp}-{os.getpid()}"
+
+
 def run(rc, folder: Path, progress: bool = True) -> integrate.Result:
     """``rc`` in OpenFAST, its case and outputs in ``folder``, which no other run may use
-    meanwhile (wtftc.programs.folder_lock, from writing the case to reading its output)."""
+    meanwhile (wtftc.programs.folder_lock, from writing the case to reading its output).
+    Where ``folder`` lies in a folder being written (``.<name>.*.partial``, removed when
+    the run fails), a failed case is kept in the cache and the message says where."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     with programs.folder_lock(folder, "OpenFAST case folder"):
         case = prepare(rc, folder)
-        wall, abort = simulate(case, progress)
-        res = result(rc, case, wall, abort)
+        try:
+            wall, abort = simulate(case, progress)
+            res = result(rc, case, wall, abort)
+        except EngineError as exc:
+            if not any(p.name.endswith(".partial") for p in folder.resolve().parents):
+                raise
+            raise kept_failure(exc, case.folder, _failed_case_home(rc)) from None
     res.config = {**rc.raw, "wind_resolved": rc.wind.describe(),
                   "fault_resolved": res.schedule.describe() if res.schedule else [],
                   "openfast": {"version": install.VERSION, "dt_s": case.dt,

@@ -203,24 +203,6 @@ def _run(fst: Path, out: Path, label: str, n_az: int, progress: bool) -> None:
         indent=1) + "\n")
 
 
-def _kept(exc: EngineError, case: Path, keep: Path) -> EngineError:
-    """``exc`` (of its own class) saying where the failed case and OpenFAST's screen output
-    are kept: the case folder moved to ``keep`` (a failure before, of the same case,
-    replaced), so that the work folder's removal takes neither."""
-    log = keep / "openfast.log"
-    try:
-        shutil.rmtree(keep, ignore_errors=True)
-        shutil.move(str(case), str(keep))
-    except OSError:
-        return exc
-    where = (f"OpenFAST's screen output is in {log}" if log.is_file() else
-             "OpenFAST did not run")
-    said = str(exc).replace(str(case), str(keep))  # the paths it names, where they are now
-    kept = type(exc)(f"{said}; {where} (the case, to rerun by hand: {keep})")
-    kept.__cause__ = exc.__cause__
-    return kept
-
-
 def linearize(deck: Path, wind: float, dofs: str, n_az: int, g: Guess,
               progress: bool = True) -> Lin:
     """OpenFAST's linearization of ``deck`` at ``wind`` [m/s] with the DOFs ``dofs`` at
@@ -241,7 +223,7 @@ def linearize(deck: Path, wind: float, dofs: str, n_az: int, g: Guess,
                 built_once(folder, "lin.json",
                            lambda tmp: _run(fst, tmp, label, n_az, progress))
             except EngineError as exc:
-                raise _kept(exc, fst.parent, root / f"failed-{folder.name}") from None
+                raise engine.kept_failure(exc, fst.parent, root / f"failed-{folder.name}") from None
         finally:
             shutil.rmtree(work, ignore_errors=True)
     rec = json.loads((folder / "lin.json").read_text())
