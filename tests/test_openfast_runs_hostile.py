@@ -252,6 +252,7 @@ def _outb_case(tmp_path: Path, t_max: float = 2.0, dt: float = 0.5) -> ofcase.Ca
     (np.array([0, 0.5, 1.5, 2.0]), "do not rise from 0"),
     (np.array([0, 0.5, 0.5, 1.0]), "do not rise from 0"),
     (np.arange(0, 2.0 + 1e-9, 0.25)[:5] * 0 + np.arange(5) * 0.6, "past the case's TMax"),
+    (np.arange(0, 1.01, 0.5), "3 rows for a case of 5"),  # ended "normally", short
 ])
 def test_an_outb_that_is_not_the_cases_is_refused_naming_it(tmp_path, monkeypatch, times,
                                                               words):
@@ -271,9 +272,12 @@ def test_an_outb_that_is_not_the_cases_is_refused_naming_it(tmp_path, monkeypatc
 
 
 def test_an_outb_of_the_cases_length_or_shorter_passes_the_check(tmp_path):
+    """The case's own length passes; a shorter one only where OpenFAST stopped early (an
+    abort: the run is lost there), never where it said it ended normally."""
     case = _outb_case(tmp_path)
+    engine._check_length(case, {"Time": np.arange(5) * 0.5}, 2.0, True)
     for n in (5, 3, 1):
-        engine._check_length(case, {"Time": np.arange(n) * 0.5}, 2.0)
+        engine._check_length(case, {"Time": np.arange(n) * 0.5}, 2.0, False)
 
 
 def test_an_earlier_runs_outb_is_not_read_as_this_runs(fakes, monkeypatch):

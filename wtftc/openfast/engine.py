@@ -350,20 +350,23 @@ def _outputs(rc, ch: dict, rec: dict, rows: np.ndarray, names: list[str]) -> np.
     return out
 
 
-def _check_length(case: ofcase.Case, ch: dict, t_final: float) -> None:
+def _check_length(case: ofcase.Case, ch: dict, t_final: float, whole: bool) -> None:
     """An output that is not this case's is refused: more time than its TMax, or more rows
-    than its steps (DT_Out is DT), or times not rising from 0 by DT."""
+    than its steps (DT_Out is DT), or times not rising from 0 by DT; or, where OpenFAST
+    said it ended normally (``whole``), fewer rows than its steps."""
     t = ch.get("Time")
     if t is None or len(t) == 0:
         return  # the channels' check names it
     rows = int(math.floor(t_final / case.dt + 1e-6)) + 1
     tol = 1e-6 * max(1.0, t_final) + 1e-3 * case.dt
+    steady = abs(float(t[0])) <= tol and not (
+        len(t) > 1 and np.any(np.abs(np.diff(t) - case.dt) > tol))
     bad = (f"{len(t)} rows for a case of {rows}" if len(t) > rows else
            f"time up to {float(np.max(t)):.9g} s past the case's TMax = {t_final:.9g} s"
            if float(np.max(t)) > t_final + tol else
-           "times that do not rise from 0 by the case's DT"
-           if abs(float(t[0])) > tol or (len(t) > 1 and np.any(np.abs(np.diff(t) - case.dt)
-                                                          > tol)) else None)
+           "times that do not rise from 0 by the case's DT" if not steady else
+           f"{len(t)} rows for a case of {rows}, and OpenFAST said it ended normally"
+           if whole and len(t) < rows else None)
     if bad is not None:
         raise EngineError(f"{case.outb} is not this case's output ({bad}): delete it and "
                           "run the case again")
@@ -375,7 +378,7 @@ def result(rc, case: ofcase.Case, wall: float, abort: str | None) -> integrate.R
     if not case.outb.is_file():
         raise EngineError(abort or f"OpenFAST wrote no output ({case.outb})")
     ch = read_outb(case.outb)
-    _check_length(case, ch, rc.t_final)
+    _check_length(case, ch, rc.t_final, abort is None)
     missing = [c for c in (*ofcase.ELASTODYN_CHANNELS, *ofcase.OTHER_CHANNELS, "Time")
                if c not in ch]
     if missing:
