@@ -176,3 +176,19 @@ def test_a_missing_extra_is_one_line_naming_it_and_its_pip_line(argv, module, ex
     assert code == 2 and err.count("\n") == 1, err
     assert "which is not installed: pip install 'wtftc[" + extra + "]'" in err, err
     assert "is not allowed" not in err and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("argv", [["run", "--t-final", "2", "--out", "{bad}"],
+                                  ["cases", "--out", "{bad}"],
+                                  ["run", "--config", "{bad}"]])
+def test_a_path_that_is_not_utf8_is_one_line_naming_its_option(tmp_path, capsys, argv):
+    """A path whose bytes are not UTF-8 (the shell passes them as they are): refused
+    naming its option before any work (it was a traceback from the Parquet writer)."""
+    from wtftc.cli import main
+
+    bad = str(tmp_path / os.fsdecode(b"w\xff\xfe"))
+    code = main([a.replace("{bad}", bad) for a in argv])
+    err = capsys.readouterr().err
+    option = argv[argv.index("{bad}") - 1]
+    assert code == 2 and err.count("\n") == 1 and f"{option} = " in err and "UTF-8" in err
+    assert list(tmp_path.iterdir()) == []

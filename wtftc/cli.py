@@ -1169,6 +1169,19 @@ def _refusal(exc: ConfigError, argv: list[str]) -> str:
     return _one_line(ConfigError(f"{exc.field} ({flag})", exc.value, exc.allowed))
 
 
+def _check_paths_are_text(args) -> None:
+    """Every path option holds text: a name with bytes that are not UTF-8 (the shell
+    passes them as they are) cannot go into wtftc's records (config.toml, Parquet,
+    OpenFAST's input files), so it is refused first, naming the option."""
+    for name, value in vars(args).items():
+        if isinstance(value, Path):
+            try:
+                str(value).encode("utf-8")
+            except UnicodeEncodeError:
+                raise ConfigError("--" + name.replace("_", "-"), os.fsencode(value).decode(
+                    "utf-8", "backslashreplace"), "a path that is UTF-8 text") from None
+
+
 def main(argv: list[str] | None = None) -> int:
     """Exit codes (docs/running.md, "Errors and exit codes"): 0 done; 2 refused input, one
     line naming the field; 3 a run diverged; 1 a sweep with runs still missing; 4 an external
@@ -1180,6 +1193,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
+        _check_paths_are_text(args)
         _check_artefacts()
         return COMMANDS[args.command](args)
     except ConfigError as exc:
