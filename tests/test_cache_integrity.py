@@ -878,3 +878,17 @@ def test_a_cache_openfast_cannot_read_is_refused_before_it_runs(tmp_path, progra
     last = p.stderr.strip().splitlines()[-1]
     assert last.startswith("wtftc: error: WTFTC_CACHE = ") and "OpenFAST" in last
     assert "Traceback" not in p.stderr and not (tmp_path / "run").exists()
+
+
+def test_the_version_check_takes_the_shorter_time_limit_of_the_variable(bare, monkeypatch):
+    """WTFTC_PROGRAM_TIMEOUT_S shorter than the version check's own 60 s: a program that
+    hangs on `-v` is stopped at the variable's limit (it cost the fixed 60 s)."""
+    import time
+
+    monkeypatch.setattr(install, "_PROBE_TIMEOUT_S", 60.0)
+    monkeypatch.setenv("WTFTC_PROGRAM_TIMEOUT_S", "1")
+    exe = _fake(bare / "f", "openfast", body=HANG)
+    t0 = time.monotonic()
+    p = install.probe(exe)
+    assert not p.runs and "did not end within 1 s" in p.message
+    assert time.monotonic() - t0 < 10

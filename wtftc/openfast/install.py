@@ -46,7 +46,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from wtftc import files
+from wtftc import files, programs
 from wtftc.artefacts.loader import cache_dir, clean_stale_builds, new_build_folder, writable_cache
 from wtftc.errors import ConfigError, EngineError
 
@@ -179,8 +179,9 @@ def _one_line(text: str, limit: int = 200) -> str:
 def probe(exe: Path, banner: str = "OpenFAST") -> Probe:
     """Run ``exe -v`` and read what it says (in any encoding): whether it runs, its
     version, a library the dynamic loader cannot find."""
-    try:
-        code, raw = _output([str(exe), "-v"], _PROBE_TIMEOUT_S)
+    limit = min(_PROBE_TIMEOUT_S, programs.limit_s(_PROBE_TIMEOUT_S))  # the variable's
+    try:                                                    # limit, where it is shorter
+        code, raw = _output([str(exe), "-v"], limit)
     except (OSError, ValueError) as exc:
         why = getattr(exc, "strerror", None) or str(exc)
         return Probe(False, None, None, why, started=False)
@@ -190,7 +191,7 @@ def probe(exe: Path, banner: str = "OpenFAST") -> Probe:
         return Probe(False, None, lib.group(1), _one_line(lib.group(0)))
     if banner not in text:
         last = [line.strip() for line in text.splitlines() if line.strip()]
-        why = (f"`{exe} -v` did not end within {_PROBE_TIMEOUT_S:g} s or printed more "
+        why = (f"`{exe} -v` did not end within {limit:g} s or printed more "
                f"than {_PROBE_BYTES} bytes (stopped)" if code is None else
                _one_line(last[-1]) if last else f"exit code {code}, no output")
         return Probe(False, None, None, why)
