@@ -504,7 +504,7 @@ def test_a_run_above_cut_out_says_so_on_stderr(mean, noted, tmp_path, capsys, mo
 
 def test_compare_in_openfast_refuses_a_deck_every_cell_fails_on(tmp_path, capsys):
     """`compare --engine openfast` on a turbine whose deck OpenFAST stops on at its start
-    (ElastoDyn's TipRad negative) ran every cell to the same failure; now the first cell's
+    (ElastoDyn's HubRad negative) ran every cell to the same failure; now the first cell's
     case is started before any (as a sweep's) and refused in one line, exit 2, no --out."""
     import shutil
 
@@ -513,8 +513,8 @@ def test_compare_in_openfast_refuses_a_deck_every_cell_fails_on(tmp_path, capsys
     shutil.copytree(src.parent, deck)
     ed = deck / "NRELOffshrBsline5MW_Onshore_ElastoDyn.dat"
     text = ed.read_text()
-    assert "         63   TipRad" in text
-    ed.write_text(text.replace("         63   TipRad", "        -63   TipRad"))
+    assert "        1.5   HubRad" in text
+    ed.write_text(text.replace("        1.5   HubRad", "       -1.5   HubRad"))
     t = tmp_path / "t.toml"
     t.write_text(turbine(deck=str(deck / src.name)))
     out, running = tmp_path / "out", _children()
@@ -523,6 +523,6 @@ def test_compare_in_openfast_refuses_a_deck_every_cell_fails_on(tmp_path, capsys
                      str(out)]) == 2
     err = [line for line in capsys.readouterr().err.splitlines()
            if line.startswith("wtftc: error")]
-    assert len(err) == 1 and "openfast_deck" in err[0] and "TipRad must not be negative" \
+    assert len(err) == 1 and "openfast_deck" in err[0] and "HubRad must not be negative" \
         in err[0], err
     assert not out.exists() and _children() <= running

@@ -657,10 +657,11 @@ def test_a_killed_openfast_is_resumed_and_never_raced(tmp_path):
 
 
 def test_a_deck_every_run_would_fail_on_is_refused_before_the_first_run(tmp_path, capsys):
-    """A turbine file whose deck OpenFAST stops on at its start (ElastoDyn's TipRad
-    negative): the sweep writes the first run's case into a temporary folder, starts
-    OpenFAST on it, and refuses in one line naming the turbine file's openfast_deck and
-    OpenFAST's own reason, exit 2, before any run: no results folder."""
+    """A turbine file whose deck OpenFAST stops on at its start (ElastoDyn's HubRad
+    negative, which no check of wtftc's reads): the sweep writes the first run's case
+    into a temporary folder, starts OpenFAST on it, and refuses in one line naming the
+    turbine file's openfast_deck and OpenFAST's own reason, exit 2, before any run: no
+    results folder."""
     import shutil
 
     from wtftc.cli import main
@@ -671,8 +672,8 @@ def test_a_deck_every_run_would_fail_on_is_refused_before_the_first_run(tmp_path
     shutil.copytree(src.parent, deck)
     ed = deck / "NRELOffshrBsline5MW_Onshore_ElastoDyn.dat"
     text = ed.read_text()
-    assert "         63   TipRad" in text
-    ed.write_text(text.replace("         63   TipRad", "        -63   TipRad"))
+    assert "        1.5   HubRad" in text
+    ed.write_text(text.replace("        1.5   HubRad", "       -1.5   HubRad"))
     base = turbine_file.load("nrel5mw")
     tfile = tmp_path / "mine.toml"
     tfile.write_text(Path(base.path).read_text()
@@ -690,5 +691,5 @@ def test_a_deck_every_run_would_fail_on_is_refused_before_the_first_run(tmp_path
            and "is damaged" not in line]
     assert "Traceback" not in text and len(err) == 1, text
     assert "openfast_deck" in err[0] and str(tfile) in err[0], err
-    assert "TipRad must not be negative" in err[0], err
+    assert "HubRad must not be negative" in err[0], err
     assert not out.exists()

@@ -652,9 +652,15 @@ def _check_out_beside_deck(out: Path | None, turbine: str | None) -> None:
     from wtftc.model import turbine_file
     from wtftc.openfast import case as ofcase
 
-    deck = config.openfast_deck(turbine_file.load(turbine or turbine_file.DEFAULT))
-    if out is not None and deck is not None:
+    turbine = turbine_file.load(turbine or turbine_file.DEFAULT)
+    deck = config.openfast_deck(turbine)
+    if out is None or deck is None:
+        return
+    try:
         ofcase.check_out_outside_deck(Path(out), deck)
+    except ConfigError:
+        config.check_deck(turbine)  # a deck that cannot run is the first thing to say
+        raise
 
 
 def _cmd_run(args) -> int:

@@ -134,9 +134,9 @@ def prepare(rc, folder: Path) -> ofcase.Case:
                           "openfast (the plant library's sensors have none)")
     folder = Path(folder).resolve()  # OpenFAST runs in it: every path it reads absolute
     deck = deck_of(rc)
+    fst = ofcase.copy_deck(deck, folder)  # (reads every file: a bad one named first)
     ofcase.check_deck_matches_turbine(
         deck, turbine_file.load(rc.raw.get("turbine", turbine_file.DEFAULT)), rc.param)
-    fst = ofcase.copy_deck(deck, folder)
     dt, dll_dt = ofcase.steps(interval_of(rc))
     ofcase.set_values(fst, {"TMax": f"{rc.t_final:.9g}", "DT": f"{dt:.9g}",
                             "OutFileFmt": "2", "DT_Out": '"default"', "Echo": "False"})
