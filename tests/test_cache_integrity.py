@@ -892,3 +892,25 @@ def test_the_version_check_takes_the_shorter_time_limit_of_the_variable(bare, mo
     p = install.probe(exe)
     assert not p.runs and "did not end within 1 s" in p.message
     assert time.monotonic() - t0 < 10
+
+
+def test_a_seal_names_a_folder_and_a_file_swapped(tmp_path):
+    """An entry sealed as a file found as a folder (or the other way) is named as such
+    ("`.` is missing" before), and any other change as what it is."""
+    from wtftc import files
+
+    f = tmp_path / "x.bts"
+    f.write_bytes(b"123")
+    files.seal(f)
+    assert files.seal_damage(f) is None
+    f.unlink()
+    f.mkdir()
+    assert files.seal_damage(f) == "a folder where a file was written"
+    g = tmp_path / "lib"
+    g.mkdir()
+    (g / "a.so").write_bytes(b"1")
+    files.seal(g)
+    (g / "a.so").unlink()
+    g.rmdir()
+    g.write_bytes(b"x")
+    assert files.seal_damage(g) == "a file where a folder was written"

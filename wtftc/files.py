@@ -199,6 +199,9 @@ def seal_damage(entry: Path) -> str | None:
         return "missing" if not entry.exists() else "not a regular file or folder"
     if not isinstance(recorded, dict):
         return "its checksum file is not a listing"
+    if ("." in recorded) != ("." in found):
+        return "a folder where a file was written" if entry.is_dir() else \
+            "a file where a folder was written"
     for name in sorted(set(recorded) | set(found)):
         if name not in found:
             return f"{name} is missing"
