@@ -253,6 +253,7 @@ def _outb_case(tmp_path: Path, t_max: float = 2.0, dt: float = 0.5) -> ofcase.Ca
     (np.array([0, 0.5, 0.5, 1.0]), "do not rise from 0"),
     (np.arange(0, 2.0 + 1e-9, 0.25)[:5] * 0 + np.arange(5) * 0.6, "past the case's TMax"),
     (np.arange(0, 1.01, 0.5), "3 rows for a case of 5"),  # ended "normally", short
+    (np.array([0, 0.5, np.nan, 1.5, 2.0]), "do not rise from 0"),
 ])
 def test_an_outb_that_is_not_the_cases_is_refused_naming_it(tmp_path, monkeypatch, times,
                                                               words):
@@ -269,6 +270,17 @@ def test_an_outb_that_is_not_the_cases_is_refused_naming_it(tmp_path, monkeypatc
         engine.result(rc, case, 1.0, None)
     msg = str(exc.value)
     assert str(case.outb) in msg and words in msg and "delete it" in msg and "\n" not in msg
+
+
+@pytest.mark.parametrize("data", [b"", b"\x01", b"garbage that is no output" * 10])
+def test_an_outb_cut_short_or_foreign_is_one_line(tmp_path, data):
+    """An empty, cut or foreign .outb (a full disk, a crash): an EngineError naming it, not
+    the reader's own exception (struct.error)."""
+    path = tmp_path / "x.outb"
+    path.write_bytes(data)
+    with pytest.raises(EngineError) as exc:
+        engine.read_outb(path)
+    assert str(path) in str(exc.value) and "\n" not in str(exc.value)
 
 
 def test_an_outb_of_the_cases_length_or_shorter_passes_the_check(tmp_path):

@@ -186,10 +186,11 @@ def seal_damage(entry: Path) -> str | None:
     damage."""
     entry = Path(entry)
     try:
-        recorded = json.loads(seal_path(entry).read_text())
-    except FileNotFoundError:
-        return "no checksum recorded beside it"
-    except (OSError, ValueError) as exc:
+        recorded = json.loads(read_user_bytes(seal_path(entry), "seal", 1 << 24))
+    except ConfigError as exc:  # missing, a FIFO, a folder...: never opened to block
+        return ("no checksum recorded beside it" if not os.path.lexists(seal_path(entry))
+                else f"its checksum file is unreadable ({exc.allowed})")
+    except ValueError as exc:
         return f"its checksum file is unreadable ({exc})"
     try:
         found = _seal_listing(entry)
@@ -197,7 +198,8 @@ def seal_damage(entry: Path) -> str | None:
         return f"unreadable ({exc.strerror or exc})"
     if found is None:
         return "missing" if not entry.exists() else "not a regular file or folder"
-    if not isinstance(recorded, dict):
+    if not isinstance(recorded, dict) or not all(isinstance(v, str)
+                                                 for v in recorded.values()):
         return "its checksum file is not a listing"
     if ("." in recorded) != ("." in found):
         return "a folder where a file was written" if entry.is_dir() else \

@@ -87,8 +87,8 @@ def cache_dir() -> Path:
     libraries by their absolute paths), else ``~/.cache/wtftc``. A WTFTC_CACHE that is
     empty or cannot be made absolute is a ConfigError naming it."""
     env = os.environ.get("WTFTC_CACHE")
-    if env is None:
-        return Path(os.path.expanduser(DEFAULT_CACHE))
+    if env is None:  # (no HOME and no passwd entry leave "~": made absolute all the same)
+        return Path(os.path.abspath(os.path.expanduser(DEFAULT_CACHE)))
     if not env.strip():
         raise ConfigError("WTFTC_CACHE", env, "a folder path (unset WTFTC_CACHE for the "
                           f"default, {DEFAULT_CACHE})")

@@ -408,7 +408,9 @@ def _write_copy(path: Path, data: bytes, source: Path) -> None:
     fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW, 0o600)
     try:
         os.fchmod(fd, mode)
-        os.write(fd, data)  # a deck file is at most MAX_INPUT_BYTES: one write
+        view = memoryview(data)
+        while view:  # a short write (a full disk) never leaves a copy cut short
+            view = view[os.write(fd, view):]
     finally:
         os.close(fd)
 

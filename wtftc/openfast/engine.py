@@ -285,8 +285,9 @@ def read_outb(path: Path) -> dict[str, np.ndarray]:
 
     try:
         f = FASTOutputFile(str(path))
-    except (OSError, ValueError, IndexError) as exc:
-        raise EngineError(f"OpenFAST's output {path} cannot be read: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 - struct.error, MemoryError: a cut or foreign file
+        raise EngineError(f"OpenFAST's output {path} cannot be read ({type(exc).__name__}: "
+                          f"{exc}): delete it and run the case again") from None
     return {n: f.data[:, i].astype(float) for i, n in enumerate(f.info["attribute_names"])}
 
 
@@ -359,7 +360,7 @@ def _check_length(case: ofcase.Case, ch: dict, t_final: float, whole: bool) -> N
         return  # the channels' check names it
     rows = int(math.floor(t_final / case.dt + 1e-6)) + 1
     tol = 1e-6 * max(1.0, t_final) + 1e-3 * case.dt
-    steady = abs(float(t[0])) <= tol and not (
+    steady = bool(np.all(np.isfinite(t))) and abs(float(t[0])) <= tol and not (
         len(t) > 1 and np.any(np.abs(np.diff(t) - case.dt) > tol))
     bad = (f"{len(t)} rows for a case of {rows}" if len(t) > rows else
            f"time up to {float(np.max(t)):.9g} s past the case's TMax = {t_final:.9g} s"

@@ -46,7 +46,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from wtftc import files, programs
+from wtftc import files
 from wtftc.artefacts.loader import cache_dir, clean_stale_builds, new_build_folder, writable_cache
 from wtftc.errors import ConfigError, EngineError
 
@@ -179,8 +179,8 @@ def _one_line(text: str, limit: int = 200) -> str:
 def probe(exe: Path, banner: str = "OpenFAST") -> Probe:
     """Run ``exe -v`` and read what it says (in any encoding): whether it runs, its
     version, a library the dynamic loader cannot find."""
-    limit = min(_PROBE_TIMEOUT_S, programs.limit_s(_PROBE_TIMEOUT_S))  # the variable's
-    try:                                                    # limit, where it is shorter
+    limit = _PROBE_TIMEOUT_S
+    try:
         code, raw = _output([str(exe), "-v"], limit)
     except (OSError, ValueError) as exc:
         why = getattr(exc, "strerror", None) or str(exc)
