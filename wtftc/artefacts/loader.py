@@ -497,8 +497,14 @@ def new_build_folder(root: Path, stem: str) -> tuple[Path, int]:
     """A fresh hidden folder ``.<stem>-*`` in ``root`` and the descriptor of the lock
     held in it (not inherited by the programs the build runs)."""
     tmp = Path(tempfile.mkdtemp(prefix=f".{stem}-", dir=root))
-    fd = os.open(tmp / BUILD_LOCK, os.O_CREAT | os.O_RDWR | os.O_CLOEXEC, 0o600)
-    fcntl.flock(fd, fcntl.LOCK_EX)
+    try:  # the lock is taken under another name, then renamed: a cleaner never finds it
+        fd = os.open(tmp / f"{BUILD_LOCK}.new", os.O_CREAT | os.O_RDWR | os.O_CLOEXEC,
+                     0o600)  # (clean_stale_builds) made but not yet held
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        os.replace(tmp / f"{BUILD_LOCK}.new", tmp / BUILD_LOCK)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
     return tmp, fd
 
 

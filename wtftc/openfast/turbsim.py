@@ -24,12 +24,11 @@ import math
 import os
 import shutil
 import sys
-import tempfile
 from contextlib import contextmanager, suppress
 from pathlib import Path
 
 from wtftc import programs
-from wtftc.artefacts.loader import BUILD_LOCK, clean_stale_builds
+from wtftc.artefacts.loader import BUILD_LOCK, clean_stale_builds, new_build_folder
 from wtftc.errors import ConfigError, EngineError
 from wtftc.files import seal, seal_damage, seal_path
 from wtftc.model.wind_field import Field, NotAField, field_path, read_bts
@@ -127,11 +126,9 @@ def _make(f: Field, path: Path) -> Path:
     never sees a field without its seal). Its screen output is kept beside the field
     (``<key>.log``) when it fails."""
     exe = install.require().turbsim
-    tmp = Path(tempfile.mkdtemp(prefix=".turbsim-", dir=path.parent))
+    tmp, lock = new_build_folder(path.parent, "turbsim")  # held from its first instant
     log = path.with_suffix(".log")
     try:
-        lock = os.open(tmp / TEMP_LOCK, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o600)
-        fcntl.flock(lock, fcntl.LOCK_EX)
         try:
             (tmp / "field.inp").write_text(f.input_text())
             out = tmp / "turbsim.log"
