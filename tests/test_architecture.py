@@ -14,7 +14,8 @@ import pytest
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "wtftc"
 #: the rooms, top to bottom: a module may import its own room and the rooms below it
-ROOMS = ["cli", "campaign", "openfast", "export", "verify", "results", "config", "sim", "model",
+ROOMS = ["cli", "campaign", "openfast", "export", "verify", "results", "config", "controller",
+         "sim", "model",
          "artefacts", "programs", "files", "errors"]
 MAX_LINES = 60
 

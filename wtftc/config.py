@@ -15,6 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from wtftc.artefacts import layout as lay
+from wtftc.controller import FAULT_FREE_CASE, FDI_CASE, ORACLE_CASE, UNAWARE_CASE  # noqa: F401
+from wtftc.controller import expand as expand_controller
 from wtftc.errors import ConfigError, EngineError, MissingExtra, range_text
 from wtftc.files import check_user_file
 from wtftc.model import tuning, turbine_file, wind_field
@@ -27,15 +29,12 @@ from wtftc.sim.trim import start_wind, trim
 
 CASES = {1: "no fault", 2: "fault, controller unaware", 3: "fault known to eq (49)",
          4: "fault detected and estimated by wtftc's FDI"}
-#: the fault-free case, the case whose controller is unaware of the fault, the one told the
-#: fault (an oracle), and the one fed by the FDI
-FAULT_FREE_CASE, UNAWARE_CASE, ORACLE_CASE, FDI_CASE = 1, 2, 3, 4
 
 TOP_KEYS = {"case", "plant", "controller", "t_final_s", "dt_s", "seed", "output_rate_hz",
             "control_sign", "reference_rad_s", "cp_table", "wind", "fault", "controller_params",
             "turbine_params", "initial", "label", "profile", "control_interval_s",
             "control_delay", "sensors", "mismatch", "fdi", "turbine", "loads", "rosco",
-            "tuning", "engine", "openfast"}
+            "tuning", "engine", "openfast", "controller_preset"}
 
 DEFAULTS = {
     "case": 1, "plant": "nrel5mw", "controller": "paper", "t_final_s": 60.0, "dt_s": 1e-3,
@@ -316,6 +315,20 @@ def make_config(cfg: dict | None = None) -> RunConfig:
     for key in cfg:
         if key not in TOP_KEYS:
             raise ConfigError(key, cfg[key], "a known key: " + ", ".join(sorted(TOP_KEYS)))
+    cfg, names = expand_controller(cfg)
+    try:
+        return _make_config(cfg)
+    except ConfigError as exc:  # a range refused of a key a [controller] table set
+        if exc.field in names:
+            raise ConfigError(names[exc.field], exc.value, exc.allowed, where=exc.where) \
+                from None
+        raise
+
+
+def _make_config(cfg: dict) -> RunConfig:
+    if not isinstance(cfg.get("controller_preset", ""), str):
+        raise ConfigError("controller_preset", cfg["controller_preset"], "the name of the "
+                          "preset the controller settings came from (a record)")
     raw = {**copy.deepcopy(DEFAULTS), **cfg}
     case = raw["case"]
     if isinstance(case, bool) or not isinstance(case, numbers.Integral) or case not in CASES:

@@ -26,6 +26,7 @@ import functools
 import numpy as np
 
 from wtftc import config
+from wtftc import controller as settings
 from wtftc.artefacts import layout as lay
 from wtftc.campaign import linearize as lin
 from wtftc.errors import ConfigError
@@ -42,8 +43,8 @@ C2_OVER_C1 = 2.0
 
 #: the [tuning] table: the pitch loop's target mode, for every tunable controller alike
 #: (docs/compare.md, "Tuned families"): key → (default, low, high)
-TUNING_KEYS = {"omega_n_rad_s": (None, 0.01, 10.0), "zeta": (None, 0.1, 2.0),
-               "design_wind_mps": (16.0, 3.0, 40.0), "c2_over_c1": (C2_OVER_C1, 1.0, 10.0)}
+TUNING_KEYS = settings.TUNING_KEYS
+assert TUNING_KEYS["c2_over_c1"][0] == C2_OVER_C1
 
 
 def _dominant(raw: dict, wind: float, z: np.ndarray) -> tuple[float, float, np.ndarray]:
@@ -139,14 +140,16 @@ def check_stable(r: dict, omega_n: float, zeta: float, wind: float) -> None:
 
 #: the controllers a [tuning] table retunes: ROSCO by its DISCON.IN's gain schedule, the
 #: PI by its targets, the physical AFTC by (c1, γ) solved on the exact linear loop
-RETUNABLE = ("rosco", "pi", "physical")
+RETUNABLE = settings.RETUNABLE
 
 
 def resolve(cfg: dict) -> dict:
     """``cfg`` with its [tuning] table turned into the controller's own settings: ROSCO's
     [rosco] target, the PI's ``pi_omega_n``/``pi_zeta``, the physical AFTC's (c1, c2, γ)
     (:func:`_solve_physical` at the design wind, on the run's turbine; solved once per
-    process and target). Without [tuning], ``cfg`` as it is."""
+    process and target). Without [tuning], ``cfg`` as it is. A [controller] table is
+    turned into those keys first (wtftc.controller.expand)."""
+    cfg, _ = settings.expand(cfg)
     if "tuning" not in cfg:
         return cfg
     tab, out = cfg["tuning"], {k: v for k, v in cfg.items() if k != "tuning"}

@@ -67,6 +67,10 @@ class Turbine:
     #: above it still starts (wtftc.sim.trim.operating_point); None: not known, a start
     #: needs the table's ratios
     cut_in_wind_mps: float | None = None
+    #: the controller preset wtftc recommends for this turbine (wtftc/data/presets.toml,
+    #: wtftc.controller): what a run, an export and a comparison use unless told
+    #: otherwise; None: the file names none
+    recommended_preset: str | None = None
 
     def vector(self) -> np.ndarray:
         """The parameters in the layout's turbine_params order."""
@@ -144,7 +148,16 @@ def parse(text: str, path: Path, cp_must_exist: bool = True) -> Turbine:
                    else str(path.parent / s) for s in (rosco, deck))
     return Turbine(doc["name"], doc["title"], where, values, sources, str(cp), rosco,
                    _rosco_tuning(doc.get("rosco_tuning"), where), deck,
-                   _cut_in_wind(doc.get("cut_in_wind_mps"), where))
+                   _cut_in_wind(doc.get("cut_in_wind_mps"), where),
+                   _preset_name(doc.get("recommended_preset"), where))
+
+
+def _preset_name(v, where: str) -> str | None:
+    """``recommended_preset = "<name>"``, or None (a known name: wtftc.controller)."""
+    if v is not None and (not isinstance(v, str) or not v):
+        raise ConfigError("recommended_preset", v, "the name of a controller preset "
+                          "(wtftc presets lists them)", where=where)
+    return v
 
 
 def _cut_in_wind(v, where: str) -> float | None:

@@ -1,0 +1,357 @@
+"""A controller as data: the ``[controller]`` table of a run's configuration, and the
+named presets shipped in ``wtftc/data/presets.toml`` (docs/controllers.md).
+
+A table names a design, how it accommodates a pitch fault, and any of its settings::
+
+    [controller]
+    preset = "aftc-nrel5mw"    # optional: start from a preset; the keys below change it
+    design = "physical"        # physical, pi, paper, drivetrain, rosco (or any registered)
+    accommodation = "fdi"      # none | known (told the fault: an oracle) | fdi
+    phys_obs_omega = 3.0       # the design's parameters, by their generated/layout.json name
+    vs_constant_torque = 1     # the torque law's options (turbine_params gen_*, vs_*)
+    omega_n_rad_s = 0.6        # the pitch loop's target mode (wtftc.campaign.tune)
+    zeta = 0.7
+
+:func:`expand` turns it into the keys every engine reads (``controller``, ``case``,
+``controller_params``, ``turbine_params``, ``tuning``); their ranges are checked there
+(wtftc.config), and a refusal names ``controller.<key>``.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import importlib.resources
+import math
+import numbers
+import tomllib
+from dataclasses import dataclass
+
+from wtftc.artefacts import layout as lay
+from wtftc.errors import ConfigError
+
+#: the cases of a run (wtftc.config.CASES): no fault; a fault the controller is not told;
+#: one told to eq (49) as it happens (an oracle); one detected by wtftc's FDI
+FAULT_FREE_CASE, UNAWARE_CASE, ORACLE_CASE, FDI_CASE = 1, 2, 3, 4
+#: how a controller meets a pitch fault, and the case it runs in under one
+ACCOMMODATIONS = {"none": UNAWARE_CASE, "known": ORACLE_CASE, "fdi": FDI_CASE}
+#: the pitch loop's target mode (wtftc.campaign.tune): key → (default, low, high)
+TUNING_KEYS = {"omega_n_rad_s": (None, 0.01, 10.0), "zeta": (None, 0.1, 2.0),
+               "design_wind_mps": (16.0, 3.0, 40.0), "c2_over_c1": (2.0, 1.0, 10.0)}
+#: the torque law's settings a controller table may set (the rest of turbine_params are
+#: the turbine's facts, set in its file or in [turbine_params])
+TORQUE_FLAGS = ("gen_torque_law", "gen_constant_power", "vs_constant_torque")
+#: a table's keys that are not settings
+META_KEYS = ("preset", "design", "accommodation", "doc")
+#: the presets' file, in wtftc/data
+PRESETS_FILE = "presets.toml"
+#: the default of a turbine file that names no recommended preset
+FALLBACK_PRESET = "pi"
+
+
+def designs() -> dict[str, str]:
+    """Every design a table may name → its description: the registered controllers
+    (generated/layout.json) and ROSCO."""
+    from wtftc.sim.rhs import controllers
+
+    regs = {k: v["doc"] for k, v in controllers().items() if k != "external"}
+    return regs | {"rosco": "NREL's ROSCO 2.10.6 through its ControllerInterface "
+                            "(pip install 'wtftc[rosco]')"}
+
+
+def torque_keys() -> tuple[str, ...]:
+    """The turbine parameters that set the torque law (gen_torque_law, vs_*)."""
+    return tuple(n for n in lay.names("turbine_params")
+                 if n in TORQUE_FLAGS or n.startswith("vs_"))
+
+
+def design_params(design: str) -> tuple[str, ...]:
+    """The parameters of ``design`` a table may set: its layout group's, less the paper's
+    control sign (a top-level key) and the fault estimates its case sets."""
+    from wtftc.sim.rhs import controllers
+
+    if design == "rosco":
+        return ()
+    return tuple(n for n in lay.names(controllers()[design]["params"])
+                 if n != "control_sign" and not n.startswith(("rho_hat", "lock_hat",
+                                                              "ubar_hat")))
+
+
+@dataclass(frozen=True)
+class Controller:
+    """A controller's settings: a design, its accommodation and its settings other than
+    their defaults, each a tuple of (name, value) in the order given."""
+
+    design: str
+    accommodation: str
+    params: tuple = ()   # the design's parameters (controller_params)
+    torque: tuple = ()   # the torque law's options (turbine_params)
+    tuning: tuple = ()   # the pitch loop's target mode ([tuning])
+    doc: str = ""
+    #: the preset its settings came from, where they did (a record)
+    preset: str | None = None
+
+    @property
+    def fault_case(self) -> int:
+        """The case it runs in under a fault (without one: case 1)."""
+        return ACCOMMODATIONS[self.accommodation]
+
+    @property
+    def uses_fdi(self) -> bool:
+        """Whether it detects faults itself, with wtftc's FDI (no oracle)."""
+        return self.accommodation == "fdi"
+
+    def table(self) -> dict:
+        """Its [controller] table, every setting written out (no preset to look up)."""
+        return {"design": self.design, "accommodation": self.accommodation,
+                **({"doc": self.doc} if self.doc else {}), **dict(self.params),
+                **dict(self.torque), **dict(self.tuning)}
+
+    def run_keys(self, faulty: bool, torque_default: bool = False) -> dict:
+        """The run configuration's keys it sets: the design, the case (its accommodation's
+        under a fault, else 1), [tuning], [controller_params] and [turbine_params];
+        ``torque_default``: every design but ROSCO on the baseline torque law unless it
+        says otherwise (the campaigns' convention: wtftc.campaign.compare)."""
+        cfg = {"controller": self.design, "case": self.fault_case if faulty else 1}
+        if self.tuning:
+            cfg["tuning"] = dict(self.tuning)
+        if self.params:
+            cfg["controller_params"] = copy.deepcopy(dict(self.params))
+        torque = dict(self.torque)
+        if torque_default and self.design != "rosco":
+            # ROSCO commands the generator torque itself; every other pitch controller
+            # runs with the NREL 5-MW baseline variable-speed torque law (Jonkman 2009,
+            # 7.1) unless it says otherwise, so that all compete with a standard one
+            torque = {"gen_torque_law": 1.0, **torque}
+        if torque:
+            cfg["turbine_params"] = torque
+        return cfg
+
+
+def _number(val, field: str):
+    """A finite number as a float, or for a numbered prefix a list of them."""
+    if isinstance(val, list):
+        return [_number(x, f"{field}[{i}]") for i, x in enumerate(val)]
+    if isinstance(val, bool) or not isinstance(val, numbers.Real) \
+            or not math.isfinite(float(val)):
+        raise ConfigError(field, val, "a finite number")
+    return float(val)
+
+
+def _known_names(design: str) -> str:
+    return ", ".join([*META_KEYS, *design_params(design), *torque_keys(), *TUNING_KEYS])
+
+
+def parse(tab, field: str = "controller", name: str | None = None) -> Controller:
+    """A [controller] table (or a preset's name) as a :class:`Controller`: its preset's
+    settings first, then its own; a key or value refused is one line naming
+    ``<field>.<key>``."""
+    if isinstance(tab, str):
+        return lookup(tab, field)
+    if not isinstance(tab, dict):
+        raise ConfigError(field, tab, "a table: design, accommodation and the design's "
+                          "settings, or preset = <name> (wtftc presets lists them)")
+    base = None
+    if "preset" in tab:
+        if not isinstance(tab["preset"], str):
+            raise ConfigError(f"{field}.preset", tab["preset"], "a preset's name: "
+                              + ", ".join(presets()))
+        base = preset(tab["preset"], f"{field}.preset")
+    design = tab.get("design", base.design if base else None)
+    regs = designs()
+    if not isinstance(design, str) or design not in regs:
+        raise ConfigError(f"{field}.design", design, "one of " + ", ".join(regs)
+                          + " (docs/controllers.md)")
+    if base is not None and design != base.design:
+        raise ConfigError(f"{field}.design", design, f"{base.design}, the design of preset "
+                          f"{base.preset} (or leave preset out)")
+    acc = tab.get("accommodation", base.accommodation if base else default_accommodation(
+        design))
+    allowed = accommodations(design)
+    if acc not in allowed:
+        raise ConfigError(f"{field}.accommodation", acc, " or ".join(allowed) + f" for "
+                          f"{design}" + ("" if len(allowed) > 1 else
+                                         " (it has no fault accommodation)"))
+    doc = tab.get("doc", base.doc if base else "")
+    if not isinstance(doc, str):
+        raise ConfigError(f"{field}.doc", doc, "a string")
+    params, torque, tuning = _settings(tab, design, base, field)
+    return Controller(design, acc, tuple(params.items()), tuple(torque.items()),
+                      tuple(tuning.items()), doc,
+                      preset=base.preset if base and set(tab) <= {"preset", "doc"} else None)
+
+
+def _settings(tab: dict, design: str, base: Controller | None, field: str
+              ) -> tuple[dict, dict, dict]:
+    """A table's settings over its preset's: the design's parameters, the torque law's
+    options, the target mode."""
+    params, torque, tuning = (dict(x) for x in ((base.params, base.torque, base.tuning)
+                                                if base else ((), (), ())))
+    own, tq = design_params(design), torque_keys()
+    numbered = {n.rsplit("_", 1)[0]: [m for m in own if m.rsplit("_", 1)[0]
+                                      == n.rsplit("_", 1)[0]]
+                for n in own if n.rsplit("_", 1)[-1].isdigit()}
+    for key, val in tab.items():
+        if key in META_KEYS:
+            continue
+        where = f"{field}.{key}"
+        if key in own or key in numbered:
+            v = _number(val, where)
+            if key in numbered and (not isinstance(v, list) or len(v) != len(numbered[key])):
+                raise ConfigError(where, val, f"a list of {len(numbered[key])} finite "
+                                  f"numbers ({', '.join(numbered[key])})")
+            if key not in numbered and isinstance(v, list):
+                raise ConfigError(where, val, "a finite number")
+            params[key] = v
+        elif key in tq:
+            torque[key] = _number(val, where)
+            if isinstance(torque[key], list):
+                raise ConfigError(where, val, "a finite number")
+        elif key in TUNING_KEYS:
+            _, lo, hi = TUNING_KEYS[key]
+            v = _number(val, where)
+            if isinstance(v, list) or not lo <= v <= hi:
+                raise ConfigError(where, val, f"a number in [{lo:g}, {hi:g}]")
+            tuning[key] = v
+        else:
+            raise ConfigError(where, val, f"a setting of {design}: " + _known_names(design))
+    if tuning and not {"omega_n_rad_s", "zeta"} <= set(tuning):
+        raise ConfigError(f"{field}.omega_n_rad_s" if "omega_n_rad_s" not in tuning
+                          else f"{field}.zeta", None, "both omega_n_rad_s and zeta: the "
+                          "pitch loop's target mode (or neither)")
+    if tuning and design not in RETUNABLE:
+        raise ConfigError(f"{field}.omega_n_rad_s", tuning["omega_n_rad_s"], "a design "
+                          "tuned from a target mode: " + ", ".join(RETUNABLE))
+    return params, torque, tuning
+
+
+#: the designs a target mode retunes (wtftc.campaign.tune.resolve)
+RETUNABLE = ("rosco", "pi", "physical")
+
+
+def accommodations(design: str) -> tuple[str, ...]:
+    """The accommodations ``design`` has: none for ROSCO and the PI (no fault
+    accommodation); none, known or fdi for the AFTC designs (eq (49)'s inputs)."""
+    from wtftc.sim.rhs import controllers
+
+    if design in ("rosco", "pi") or design not in controllers():
+        return ("none",)
+    return tuple(ACCOMMODATIONS)
+
+
+def default_accommodation(design: str) -> str:
+    """wtftc's own FDI where the design accommodates faults; else none."""
+    return "fdi" if "fdi" in accommodations(design) else "none"
+
+
+@functools.cache
+def _presets_file() -> dict:
+    text = (importlib.resources.files("wtftc") / "data" / PRESETS_FILE).read_text("utf-8")
+    return tomllib.loads(text)
+
+
+@functools.cache
+def presets() -> dict[str, Controller]:
+    """The shipped presets by name, in the file's order."""
+    from dataclasses import replace
+
+    return {name: replace(parse(tab, f"presets.{name}"), preset=name)
+            for name, tab in _presets_file()["presets"].items()}
+
+
+def preset(name: str, field: str = "--preset") -> Controller:
+    """A shipped preset; a name that is none is refused naming ``field``."""
+    table = presets()
+    if name not in table:
+        raise ConfigError(field, name, "a preset: " + ", ".join(table)
+                          + " (wtftc presets describes them)")
+    return table[name]
+
+
+@functools.cache
+def former_names() -> dict[str, Controller]:
+    """The controller names earlier wtftc versions used in campaigns, each a preset or a
+    table: what lets their folders read and their sweep files run as they did."""
+    from dataclasses import replace
+
+    out = {}
+    for name, val in _presets_file()["former_names"].items():
+        c = parse(val, f"former_names.{name}")
+        out[name] = c if isinstance(val, str) else replace(c, preset=None)
+    return out
+
+
+def lookup(name, field: str = "controllers") -> Controller:
+    """A controller by name: a preset, or a name earlier wtftc versions used."""
+    if isinstance(name, str):
+        if name in presets():
+            return presets()[name]
+        if name in former_names():
+            return former_names()[name]
+    raise ConfigError(field, name, "a preset (" + ", ".join(presets()) + ") or a "
+                      "[controller] table (docs/controllers.md)")
+
+
+def recommended(turbine) -> tuple[str, str | None]:
+    """The preset a turbine file recommends (its ``recommended_preset``), and a note when
+    it names none (then :data:`FALLBACK_PRESET`)."""
+    name = getattr(turbine, "recommended_preset", None)
+    if name is None:
+        return FALLBACK_PRESET, (f"{turbine.name}'s turbine file names no recommended_preset:"
+                                 f" running {FALLBACK_PRESET} ({presets()[FALLBACK_PRESET].doc});"
+                                 " choose one with --preset (wtftc presets)")
+    if name not in presets():
+        raise ConfigError("recommended_preset", name, "a preset: " + ", ".join(presets()),
+                          where=turbine.path)
+    return name, None
+
+
+#: the keys of a run's configuration a [controller] table sets in its place
+RUN_KEYS = ("controller_params", "tuning")
+
+
+def expand(cfg: dict) -> tuple[dict, dict]:
+    """``cfg`` with its [controller] table (if it has one) turned into the keys every
+    engine reads: ``controller`` (the design), ``case``, ``controller_params``,
+    ``tuning`` and the torque law's ``turbine_params``, and ``controller_preset`` (the
+    preset it came from, a record); and the map of those keys' fields back to the table's
+    (``controller_params.x`` → ``controller.x``) for the refusals of their ranges.
+
+    The case: 1 without a fault, else the accommodation's; a ``case`` given must agree."""
+    tab = cfg.get("controller")
+    if not isinstance(tab, dict):
+        return cfg, {}
+    c = parse(tab)
+    for key in RUN_KEYS:
+        if key in cfg:
+            raise ConfigError(key, cfg[key], f"none beside a [controller] table: set the "
+                              f"{'design' if key == 'controller_params' else 'target mode'}"
+                              "'s settings in it (docs/controllers.md)")
+    faulty = bool(cfg.get("fault"))
+    keys = c.run_keys(faulty)
+    out = {k: v for k, v in cfg.items() if k != "controller"}
+    if "case" in cfg:
+        case = cfg["case"]
+        if case not in (FAULT_FREE_CASE, keys["case"]) and case in (
+                UNAWARE_CASE, ORACLE_CASE, FDI_CASE):
+            want = {v: k for k, v in ACCOMMODATIONS.items()}[case]
+            raise ConfigError("controller.accommodation", c.accommodation, f"{want} to run "
+                              f"in case {case} (or leave case out: it follows from the "
+                              "accommodation and the fault)")
+        keys["case"] = case
+    turbine = dict(cfg.get("turbine_params") or {}) \
+        if isinstance(cfg.get("turbine_params"), dict) else cfg.get("turbine_params")
+    if "turbine_params" in keys:
+        if not isinstance(turbine, dict):
+            turbine = {}
+        both = sorted(set(turbine) & set(keys["turbine_params"]))
+        if both:
+            raise ConfigError(f"turbine_params.{both[0]}", turbine[both[0]], "none: the "
+                              "[controller] table sets it")
+        keys["turbine_params"] = {**turbine, **keys["turbine_params"]}
+    names = {f"controller_params.{k}": f"controller.{k}" for k, _ in c.params} \
+        | {f"turbine_params.{k}": f"controller.{k}" for k, _ in c.torque} \
+        | {f"tuning.{k}": f"controller.{k}" for k, _ in c.tuning}
+    if c.preset:
+        keys["controller_preset"] = c.preset
+    return out | keys, names
