@@ -21,7 +21,7 @@ mode = "grid"
 t_final_s = 5.0
 output_rate_hz = 10.0
 batch_size = 4
-controllers = ["physical_fdi", "paper"]
+controllers = ["physical-plain", "paper"]
 
 [wind]
 mean_mps = 16.0

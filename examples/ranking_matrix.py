@@ -1,5 +1,5 @@
-"""Issue 33 item 4, the ranking test: do wtftc's reduced plants rank the controllers as
-OpenFAST does? Run from the repository, one engine a call, then the ranking:
+"""The ranking test: do wtftc's reduced plants rank the controllers as OpenFAST does? Run
+from the repository, one engine a call, then the ranking:
 
     python examples/ranking_matrix.py openfast OUT/openfast      # 36 runs: 50 min, 2 workers
     python examples/ranking_matrix.py tower_edge OUT/tower_edge  # 36 runs: 4.5 min, 1 process
@@ -9,9 +9,10 @@ OpenFAST does? Run from the repository, one engine a call, then the ranking:
     python examples/ranking_matrix.py rank OUT                   # OUT/ranking.md, .json
 
 The NREL 5-MW; ROSCO, the PI and the physical AFTC (with wtftc's FDI where a fault is
-present: compare's physical_fdi), each at two tunings: its default (ROSCO its deck's
+present: the preset physical-plain), each at two tunings: its default (ROSCO its deck's
 (ω_n, ζ) = (0.6, 0.7), the PI the same, the physical AFTC its hand gains, (0.74, 0.72))
-and a faster target (0.9, 0.7) for all three (``*_fast``, wtftc.campaign.tune.resolve);
+and a faster target (0.9, 0.7) for all three (``*_fast``: the columns' tables set the
+pitch loop's target mode, solved by wtftc.campaign.tune.resolve);
 × NTM class B at 8, 12, 16 and 20 m/s fault-free, a runaway of blade 1 to 0° at 16 m/s
 and blade 1 locked where it is at 12 m/s (both from 20 s); seed 0, 120 s, the realistic
 profile. Every NTM cell of every engine reads the same TurbSim field (OpenFAST's wind).
@@ -29,7 +30,11 @@ from wtftc.campaign import compare, ranking
 
 T_FINAL_S, SEED = 120.0, 0
 FAST = (0.9, 0.7)  # the second tuning: the pitch loop's target (ω_n [rad/s], ζ)
-CONTROLLERS = ["rosco", "pi", "physical_fdi", "rosco_fast", "pi_fast", "physical_fdi_fast"]
+#: the columns: each controller at its default tuning and at FAST (a [controller] table)
+BASE = {"rosco": "rosco", "pi": "pi", "physical_fdi": "physical-plain"}
+CONTROLLERS = [*({"name": n, "preset": p} for n, p in BASE.items()),
+               *({"name": f"{n}_fast", "preset": p, "omega_n_rad_s": FAST[0], "zeta": FAST[1]}
+                 for n, p in BASE.items())]
 #: the three compare trees: winds × one fault each
 PARTS = {"fault_free": (["ntm_B_8", "ntm_B_12", "ntm_B_16", "ntm_B_20"], "none"),
          "runaway_16": (["ntm_B_16"], "runaway"), "lock_12": (["ntm_B_12"], "lock")}
@@ -42,16 +47,12 @@ PLANTS = ("tower_edge_blades", "tower_edge", "tower")
 
 
 def register() -> None:
-    """The matrix's winds (every NTM on the TurbSim field) and tuned variants."""
+    """The matrix's winds (every NTM on the TurbSim field)."""
     for v in (8.0, 20.0):
         compare.WINDS[f"ntm_B_{v:g}"] = {"kind": "ntm", "mean_mps": v, "turbulence_class": "B"}
     for name, table in compare.WINDS.items():
         if table["kind"] == "ntm":
             compare.WINDS[name] = {**table, "field": "turbsim"}
-    for name in ("rosco", "pi", "physical_fdi"):
-        v = compare.CONTROLLERS[name]
-        compare.CONTROLLERS[f"{name}_fast"] = compare.Variant(
-            v.controller, v.fault_case, f"{v.doc}, tuned to {FAST}", tuning=FAST)
 
 
 def run(which: str, out: Path) -> None:

@@ -1,7 +1,10 @@
-"""`wtftc compare`: controllers × faults × winds on the NREL 5-MW plant, one table.
+"""`wtftc compare`: controllers × faults × winds on a turbine, one table.
 
-Every cell is one run of :mod:`wtftc.campaign.cases`; its exact configuration
-(`config.toml`) and metrics (`metrics.json`) are written to
+Each column is a controller's settings (wtftc.controller.Controller) under a name: a
+preset, or a table of [controller] keys (:func:`resolve_columns`); by default the
+turbine's recommended preset, the PI baseline and ROSCO. Every cell is one run of
+:mod:`wtftc.campaign.cases`; its exact configuration (`config.toml`) and metrics
+(`metrics.json`) are written to
 ``<out>/<wind>/<fault>/<controller>/`` so that any cell re-runs alone with
 ``wtftc run --config <that config.toml>``. The cells run one after the other in this
 process, or as Dask tasks (:func:`run_cell`; OpenFAST's, or asked with ``--workers`` or
@@ -11,15 +14,16 @@ process, or as Dask tasks (:func:`run_cell`; OpenFAST's, or asked with ``--worke
 from __future__ import annotations
 
 import copy
+import itertools
 import os
-from dataclasses import dataclass, replace
+import re
 from pathlib import Path
 
 import numpy as np
 
-from wtftc import config
-from wtftc.artefacts import layout as lay
+from wtftc import config, controller
 from wtftc.campaign import cases, cluster, tune
+from wtftc.controller import Controller
 from wtftc.errors import ConfigError, MissingExtra
 from wtftc.files import owned_folder
 from wtftc.model import turbine_file
@@ -28,56 +32,8 @@ from wtftc.results.io import atomic_savefig, atomic_write_json, atomic_write_tex
 from wtftc.results.metrics import fdi_ran, metrics
 
 ONSET_S = 20.0
-#: the cases a variant runs in under a fault (config.CASES)
-FDI_CASE, ORACLE_CASE, UNAWARE_CASE = config.FDI_CASE, config.ORACLE_CASE, config.UNAWARE_CASE
 
 
-@dataclass(frozen=True)
-class Variant:
-    """A controller variant of the matrix: a registered controller and the case it runs in
-    (config.CASES) when a fault is present; without a fault, every variant runs in case 1."""
-
-    controller: str  # registered controller (generated/layout.json)
-    fault_case: int
-    doc: str
-    #: the pitch loop's target mode (ω_n [rad/s], ζ), turned into the controller's own
-    #: gains by wtftc.campaign.tune.resolve; None: its default gains (ROSCO: its deck's)
-    tuning: tuple[float, float] | None = None
-    #: the design's options other than its defaults, (name, value) of [controller_params]
-    params: tuple[tuple[str, float], ...] = ()
-    #: [turbine_params] beyond the baseline torque law every wtftc pitch controller runs
-    #: with (variant_config), (name, value)
-    turbine: tuple[tuple[str, float], ...] = ()
-
-    @property
-    def uses_fdi(self) -> bool:
-        """Whether the variant detects faults itself, with wtftc's FDI (no oracle)."""
-        return self.fault_case == FDI_CASE
-
-
-CONTROLLERS = {
-    "rosco": Variant("rosco", UNAWARE_CASE,
-                     "NREL ROSCO 2.10.6 through its ControllerInterface (optional extra)"),
-    "paper": Variant("paper", ORACLE_CASE,
-                     "Bakhshi & Alfi, corrected sign, eq (49) told the fault"),
-    "physical_fdi": Variant(
-        "physical", FDI_CASE, "physical AFTC with wtftc's own FDI (no oracle)"),
-    "physical_known": Variant("physical", ORACLE_CASE, "physical AFTC told the fault (oracle)"),
-    "physical_unaccommodated": Variant(
-        "physical", UNAWARE_CASE, "physical backstepping, no accommodation"),
-    "drivetrain_fdi": Variant(
-        "drivetrain", FDI_CASE, "drivetrain-chain AFTC (θ_s ← ω_r ← β ← u) with wtftc's own "
-                                "FDI: the measured alternative"),
-    "pi": Variant("pi", UNAWARE_CASE, "gain-scheduled PI baseline"),
-}
-#: every other controller derived as a ControllerDesign (eq (49)-style accommodation by
-#: construction) joins the matrix with wtftc's own FDI, as <name>_fdi
-CONTROLLERS |= {f"{c}_fdi": Variant(c, FDI_CASE, reg["doc"] + ", with wtftc's own FDI")
-                for c, reg in lay.layout()["controllers"].items()
-                if "checks" in reg and all(v.controller != c for v in CONTROLLERS.values())}
-#: the paper's design with wtftc's FDI feeding its accommodation (issue 32's measured matrix)
-CONTROLLERS["paper_fdi"] = Variant("paper", FDI_CASE, "Bakhshi & Alfi, corrected sign, eq "
-                                   "(49) fed by wtftc's own FDI (no oracle)")
 #: the matrix's faults from ONSET_S: each pitch actuator fault type of model/faults.py (the
 #: one list; tests/test_compare.py checks that none is missing), in the table's order, with
 #: its blade and magnitude (the hydraulic faults at full severity, their default)
@@ -94,92 +50,127 @@ WINDS = {
     "steady_20": {"kind": "constant", "speed_mps": 20.0},
     "ntm_B_12": {"kind": "ntm", "mean_mps": 12.0, "turbulence_class": "B"},
 }
-#: issue 34's options, run when named: the physical AFTC on its speed observer, the PI on
-#: its low-passed speed, each also with peak shaving (docs/controllers.md)
-ISSUE34 = {
-    "physical_obs_fdi": Variant("physical", FDI_CASE, "physical AFTC on its speed observer "
-                                "(ω_o 6 rad/s) with wtftc's own FDI",
-                                params=(("phys_obs_omega", 6.0),)),
-    "pi_lpf": Variant("pi", UNAWARE_CASE, "gain-scheduled PI on the rotor speed low-passed "
-                      "at 6 rad/s", params=(("pi_lpf_corner", 6.0),)),
-    "physical_obs_ps_fdi": Variant("physical", FDI_CASE, "physical AFTC on its speed observer "
-                                   "(ω_o 6 rad/s) with peak shaving (2° near rated) and "
-                                   "wtftc's own FDI",
-                                   params=(("phys_obs_omega", 6.0), ("phys_ps_pitch", 0.0349))),
-    "pi_lpf_ps": Variant("pi", UNAWARE_CASE, "gain-scheduled PI on the rotor speed low-passed "
-                         "at 6 rad/s, with peak shaving (2° near rated)",
-                         params=(("pi_lpf_corner", 6.0), ("pi_ps_pitch", 0.0349))),
-    # the observer's corner that keeps 12 dB or more of gain margin on both turbines
-    # (6 rad/s leaves the IEA 15-MW 3-5 dB; docs/controllers.md)
-    "physical_obs45_ps_fdi": Variant("physical", FDI_CASE, "physical AFTC on its speed "
-                                     "observer at 4.5 rad/s with peak shaving (2° near "
-                                     "rated) and wtftc's own FDI",
-                                     params=(("phys_obs_omega", 4.5),
-                                             ("phys_ps_pitch", 0.0349))),
-    # the same with its tower damper (0.12 rad s/m: the tower mode's ζ from 0.06 to 0.135
-    # on wtftc's linear model at 16 m/s, 1.4 dB of gain margin spent; docs/controllers.md)
-    "physical_obs45_ps_td_fdi": Variant("physical", FDI_CASE, "physical AFTC on its speed "
-                                        "observer at 4.5 rad/s with peak shaving (2° near "
-                                        "rated), its tower damper (0.12 rad s/m) and "
-                                        "wtftc's own FDI",
-                                        params=(("phys_obs_omega", 4.5),
-                                                ("phys_ps_pitch", 0.0349),
-                                                ("phys_td_gain", 0.12))),
-    # the physical AFTC's dominant pitch-loop mode on its observer with peak shaving:
-    # ω_n 0.60-0.73 rad/s, ζ 0.78-1.0 at 12-24 m/s (wtftc linearize, tower_edge, the
-    # baseline torque law; docs/controllers.md): ROSCO's deck is tuned for 0.6, 0.7
-    "rosco_matched": Variant("rosco", UNAWARE_CASE, "ROSCO 2.10.6 with its pitch PI retuned "
-                             "to the physical AFTC's pitch-loop mode (0.7 rad/s, ζ 0.85)",
-                             tuning=(0.7, 0.85)),
-}
+#: the columns of a bare `wtftc compare` beside the turbine's recommended preset: the PI
+#: baseline and the field's reference (docs/compare.md)
+BASELINES = ("pi", "rosco")
+#: a column's name: a letter or digit first, then these (it names a folder of the matrix)
+NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+=,\[\]-]{0,159}")
 
 
-def _constant_torque(name: str) -> tuple[str, Variant]:
-    """``name``'s variant with the baseline torque law's region 3 at constant torque
-    instead of constant power (vs_constant_torque): in OpenFAST the constant-power law on
-    the unfiltered generator speed drives the drivetrain mode (docs/controllers.md)."""
-    v = ISSUE34[name]
-    ct = (name[:-len("_fdi")] + "_ct_fdi") if name.endswith("_fdi") else name + "_ct"
-    return ct, replace(v, doc=v.doc + "; constant torque above rated",
-                       turbine=(("vs_constant_torque", 1.0),))
+def is_rosco(ctrl: Controller) -> bool:
+    """Whether a column runs ROSCO (its deck's tuning or a retuned one)."""
+    return ctrl.design == "rosco"
 
 
-ISSUE34 |= dict(_constant_torque(n) for n in (
-    "physical_obs45_ps_fdi", "physical_obs45_ps_td_fdi", "pi_lpf_ps"))
-# the candidate with its observer at 3 rad/s: in OpenFAST the pitch moves 31-34 % less
-# above rated than at 4.5 for 0-19 % more RMS error; on wtftc's linear model the pitch
-# loop never reaches -180° at 12-24 m/s on either turbine (docs/controllers.md)
-ISSUE34["physical_obs30_ps_td_ct_fdi"] = replace(
-    ISSUE34["physical_obs45_ps_td_ct_fdi"],
-    doc="physical AFTC on its speed observer at 3 rad/s with peak shaving (2° near rated), "
-        "its tower damper (0.12 rad s/m), constant torque above rated and wtftc's own FDI",
-    params=(("phys_obs_omega", 3.0), ("phys_ps_pitch", 0.0349), ("phys_td_gain", 0.12)))
-# the candidate with its observer's corner scheduled on the mean pitch, 3 rad/s up to
-# 0.30 rad (about 20 m/s on the NREL 5-MW), 4.5 from 0.38 rad (about 24 m/s): ω_o 3's low
-# ADC where the wind is frequent, 4.5's hold in the strongest winds, where DLC 2.1 found
-# ω_o 3's extreme speed above ROSCO's under the lock (docs/controllers.md)
-ISSUE34["physical_obs3to45_ps_td_ct_fdi"] = replace(
-    ISSUE34["physical_obs45_ps_td_ct_fdi"],
-    doc="physical AFTC on its speed observer, its corner 3 rad/s rising to 4.5 with the mean "
-        "pitch (0.30-0.38 rad), with peak shaving (2° near rated), its tower damper (0.12 "
-        "rad s/m), constant torque above rated and wtftc's own FDI",
-    params=(("phys_obs_omega", 3.0), ("phys_obs_omega_max", 4.5), ("phys_ps_pitch", 0.0349),
-            ("phys_td_gain", 0.12)))
-# the IEA 15-MW's candidate (docs/controllers.md, "The IEA 15-MW in OpenFAST"): its pitch
-# loop retuned to 0.4 rad/s, ζ 0.85 (the NREL 5-MW's gains scaled put it at 0.69 rad/s,
-# where in OpenFAST it limit-cycles with the tower), the observer at 1.5 rad/s, no tower
-# damper (its high-passed acceleration drove the pitch at 0.3-1.6 Hz there), constant
-# torque above rated
-ISSUE34["physical_obs15_w04_ps_ct_fdi"] = Variant(
-    "physical", FDI_CASE, "physical AFTC retuned to 0.4 rad/s, ζ 0.85, on its speed "
-    "observer at 1.5 rad/s, with peak shaving (2° near rated), constant torque above rated "
-    "and wtftc's own FDI", tuning=(0.4, 0.85),
-    params=(("phys_obs_omega", 1.5), ("phys_ps_pitch", 0.0349)),
-    turbine=(("vs_constant_torque", 1.0),))
-CONTROLLERS |= ISSUE34
-#: the matrix of a bare `wtftc compare`: what it was before issue 32's measured matrix
-#: added paper_fdi and the steady and 12-m/s winds, which run when named (docs/compare.md)
-DEFAULT_CONTROLLERS = tuple(c for c in CONTROLLERS if c != "paper_fdi" and c not in ISSUE34)
+def _value_text(v) -> str:
+    """A swept value as a column's name shows it: 3, 4.5, 0.0349, [1,2]."""
+    if isinstance(v, list):
+        return "[" + ",".join(_value_text(x) for x in v) + "]"
+    if isinstance(v, float) and v.is_integer() and abs(v) < 1e15:
+        return str(int(v))
+    return repr(v)
+
+
+def _swept(tab: dict, field: str) -> list[str]:
+    """The keys of a column's table given as a list of values, each a column: a design
+    parameter, a torque option or a tuning key (a numbered parameter, itself a list, is
+    swept as a list of lists)."""
+    design = tab.get("design")
+    if design is None and isinstance(tab.get("preset"), str):
+        design = controller.preset(tab["preset"], f"{field}.preset").design
+    if not isinstance(design, str) or design not in controller.designs():
+        return []  # parse names what is wrong
+    own = controller.design_params(design)
+    numbered = {n.rsplit("_", 1)[0] for n in own if n.rsplit("_", 1)[-1].isdigit()}
+    keys = set(own) | set(controller.torque_keys()) | set(controller.TUNING_KEYS)
+    return [k for k, v in tab.items() if isinstance(v, list) and v and (
+        (k in keys and k not in numbered) or (k in numbered and isinstance(v[0], list)))]
+
+
+def _table_columns(tab: dict, field: str) -> list[tuple[str, Controller]]:
+    """A column's table (``name`` and [controller] keys): one column, or one per value of
+    each key given as a list (their product), named ``<name>[key=value,...]``."""
+    name = tab.get("name")
+    if not isinstance(name, str) or not NAME.fullmatch(name):
+        raise ConfigError(f"{field}.name", name, "a column's name: a letter or digit, then "
+                          "letters, digits, _ . + - = , [ ] (at most 160)")
+    where = f"{field}.{name}"
+    settings = {k: v for k, v in tab.items() if k != "name"}
+    swept = _swept(settings, where)
+    out = []
+    for values in itertools.product(*(settings[k] for k in swept)):
+        one = settings | dict(zip(swept, values, strict=True))
+        label = name + ("[" + ",".join(f"{k}={_value_text(v)}" for k, v in
+                                       zip(swept, values, strict=True)) + "]" if swept else "")
+        out.append((label, controller.parse(one, where)))
+    return out
+
+
+def resolve_columns(entries, field: str = "controllers") -> dict[str, Controller]:
+    """The columns of a matrix or a sweep, name → settings, in the order given: each entry
+    a name (a preset, or a name earlier wtftc versions used: wtftc.controller.lookup) or a
+    table with ``name`` and [controller] keys (preset, design, accommodation, settings),
+    where a setting given as a list makes one column per value. A name given twice is
+    refused naming it."""
+    if isinstance(entries, str | dict):
+        entries = [entries]
+    if not isinstance(entries, list | tuple) or not entries:
+        raise ConfigError(field, entries, "a list of controllers: preset names ("
+                          + ", ".join(controller.presets()) + ") or tables with a name and "
+                          "[controller] keys (docs/controllers.md)")
+    out: dict[str, Controller] = {}
+    for entry in entries:
+        if isinstance(entry, dict):
+            pairs = _table_columns(entry, field)
+        elif isinstance(entry, str):
+            pairs = [(entry, controller.lookup(entry, field))]
+        else:
+            raise ConfigError(field, entry, "a preset's name or a table with a name and "
+                              "[controller] keys")
+        for name, ctrl in pairs:
+            if name in out:
+                raise ConfigError(field, name, "distinct column names: this one is given "
+                                  "twice (name each table differently)")
+            out[name] = ctrl
+    return out
+
+
+def column_tables(columns: dict[str, Controller]) -> list[dict]:
+    """Columns as the list of tables that resolves to them again without the presets file
+    (every setting written out): what a sweep's record keeps."""
+    return [{"name": name, **ctrl.table()} for name, ctrl in columns.items()]
+
+
+def entries_from_text(texts) -> list:
+    """Command-line column entries: a name as it is, ``{...}`` a TOML inline table
+    (``{ name = "obs", preset = "aftc-nrel5mw", phys_obs_omega = [2, 3] }``)."""
+    import tomllib
+
+    out = []
+    for text in texts or ():
+        if text.lstrip().startswith("{"):
+            try:
+                out.append(tomllib.loads(f"c = {text}")["c"])
+            except tomllib.TOMLDecodeError as exc:
+                raise ConfigError("--controllers", text, f"a TOML inline table ({exc})") \
+                    from None
+        else:
+            out.append(text)
+    return out
+
+
+def default_columns(turbine, preset: str | None = None, note=print) -> dict[str, Controller]:
+    """A bare matrix's columns: ``preset`` (default: the turbine's recommended one, its
+    note printed where the turbine file names none), the PI baseline and ROSCO."""
+    if preset is None:
+        preset, why = controller.recommended(turbine)
+        if why:
+            note(f"note: {why}")
+    else:
+        controller.preset(preset)
+    return resolve_columns(list(dict.fromkeys((preset, *BASELINES))))
+
+
 DEFAULT_WINDS = ("paper_random_12", "ntm_B_16", "eog_rated")
 COLUMNS = [
     ("rms_speed_error_rad_s", "RMS ω error [rad/s]", "{:.4f}"),
@@ -222,63 +213,56 @@ def _check(kind: str, names, allowed: dict, default=None) -> list[str]:
 PROFILE = "realistic"
 
 
-#: the plant of the matrix: the turbine on its flexible tower, so that the tower-base
-#: loads are scored (docs/loads.md)
-PLANT = "tower"
+#: the plant of the matrix: the turbine on its flexible tower with the blades' edgewise
+#: mode, the plant validated against OpenFAST (docs/validation.md), so that the
+#: tower-base loads are scored (docs/loads.md)
+PLANT = "tower_edge"
 
 
-def cell_config(controller: str, fault: str, wind: str, t_final: float, dt: float,
-                seed: int, profile: str = PROFILE, turbine: str | None = None,
+def cell_config(name: str, ctrl: Controller, fault: str, wind: str, t_final: float,
+                dt: float, seed: int, profile: str = PROFILE, turbine: str | None = None,
                 engine: str = "wtftc", plant: str = PLANT) -> dict:
-    """One cell's run configuration, on ``plant`` (the tower plant by default). The
+    """One cell's run configuration: column ``name`` (settings ``ctrl``), on ``plant``. The
     turbulent wind is the rotor-effective one (averaged over the turbine's rotor disk:
     docs/wind.md). On a turbine other than the NREL 5-MW the gust of ``eog_rated`` comes
     at that turbine's rated wind (config.rated_wind_speed, to 0.01 m/s; the NREL 5-MW
-    keeps Jonkman's 11.4 m/s). A tuned variant's target is resolved into its gains."""
+    keeps Jonkman's 11.4 m/s). A column's [tuning] target is resolved into its gains."""
     tab = WINDS[wind]
     t = turbine_file.load(turbine or turbine_file.DEFAULT)
     if turbine and turbine != turbine_file.DEFAULT and wind == "eog_rated":
         tab = {**tab, "mean_mps": round(config.rated_wind_speed(t.vector(), t.table), 2)}
     if tab["kind"] == "ntm":
         tab = {**tab, "rotor_radius_m": t.values["rotor_radius"]}
-    cfg = variant_config(controller, FAULTS[fault], tab, t_final, dt, seed,
-                         label=f"{wind}/{fault}/{controller}", profile=profile)
+    cfg = variant_config(ctrl, FAULTS[fault], tab, t_final, dt, seed,
+                         label=f"{wind}/{fault}/{name}", profile=profile)
     where = {"plant": plant} if engine == "wtftc" else {"engine": engine}
     return tune.resolve(cfg | where | ({"turbine": turbine} if turbine else {}))
 
 
-def variant_config(controller: str, faults: list | None, wind: dict, t_final: float,
+def variant_config(ctrl: Controller, faults: list | None, wind: dict, t_final: float,
                    dt: float, seed: int, label: str, profile: str = PROFILE) -> dict:
-    """The run configuration of one controller variant (CONTROLLERS) under ``faults`` (a
-    list of fault tables, or None) and ``wind`` (a wind table), in the measurement
-    ``profile``: `wtftc compare`'s cells and `wtftc sweep`'s runs."""
-    variant = CONTROLLERS[controller]
-    name = variant.controller
-    cfg = {"controller": name, "case": 1 if not faults else variant.fault_case,
+    """The run configuration of column ``ctrl`` under ``faults`` (a list of fault tables,
+    or None) and ``wind`` (a wind table), in the measurement ``profile``: `wtftc
+    compare`'s cells and `wtftc sweep`'s runs. Every design but ROSCO runs with the
+    baseline variable-speed torque law unless it sets its own (Controller.run_keys), so
+    that all compete with a standard torque controller (docs/compare.md); a [tuning]
+    target is resolved by the caller, on the run's turbine."""
+    keys = ctrl.run_keys(bool(faults), torque_default=True)
+    cfg = {"controller": keys.pop("controller"), "case": keys.pop("case"),
            "wind": copy.deepcopy(wind), "t_final_s": t_final, "dt_s": dt,
            "seed": seed, "label": label, "profile": profile}
     if faults:
         cfg["fault"] = copy.deepcopy(faults)
-    if variant.tuning is not None:  # resolved by the caller, on the run's turbine
-        cfg["tuning"] = dict(zip(("omega_n_rad_s", "zeta"), variant.tuning, strict=True))
-    if variant.params:
-        cfg["controller_params"] = dict(variant.params)
-    if name != "rosco":
-        # ROSCO commands the generator torque itself; every other pitch controller runs with
-        # the NREL 5-MW baseline variable-speed torque law (Jonkman 2009, 7.1), so that all
-        # compete on the same plant with a standard torque controller (docs/compare.md)
-        cfg["turbine_params"] = {"gen_torque_law": 1.0, **dict(variant.turbine)}
-    return cfg
+    return cfg | keys
 
 
-def _row(controller, fault, wind, m) -> dict:
+def _row(name: str, fault: str, wind: str, m: dict, uses_fdi: bool) -> dict:
     ran = fdi_ran(m["fdi"])  # not ROSCO in OpenFAST: its library has no FDI
     delays = [b.get("detection_delay_s") for b in m["fdi"]["blades"].values()
               if b.get("detection_delay_s") is not None] if ran else []
-    row = {"controller": controller, "fault": fault, "wind": wind,
+    row = {"controller": name, "fault": fault, "wind": wind,
            **{k: m.get(k) for k, _, _ in COLUMNS if k not in COMPUTED},
-           "detection_delay_s": min(delays) if delays and CONTROLLERS[controller].uses_fdi
-           else None,
+           "detection_delay_s": min(delays) if delays and uses_fdi else None,
            "diverged_at_s": m["diverged"]["t_s"] if m["diverged"] else None,
            "false_alarms": len(m["fdi"]["false_alarms"]) if ran else None}
     return row
@@ -299,36 +283,24 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
                 dt=1e-3, seed=0, progress=True, profile: str = PROFILE,
                 turbine: str | None = None, engine: str = "wtftc",
                 workers: int | None = None, scheduler: str | None = None,
-                plant: str = PLANT) -> list[dict]:
-    """The matrix into ``out_dir``; its rows. Runs in OpenFAST are Dask tasks, on a local
-    cluster of ``workers`` processes (default: the cores) or on ``scheduler``'s; the
-    native engine's cells run in this process, on ``plant``, unless ``workers`` or
-    ``scheduler`` is given."""
-    from wtftc.sim import rosco
-
-    ctrl_names = _check("controllers", controllers, CONTROLLERS, DEFAULT_CONTROLLERS)
+                plant: str = PLANT, preset: str | None = None) -> list[dict]:
+    """The matrix into ``out_dir``; its rows. ``controllers``: its columns, a list of
+    entries (:func:`resolve_columns`) or a dict name → Controller; without them, the
+    turbine's recommended preset (or ``preset``), the PI baseline and ROSCO
+    (:func:`default_columns`). Runs in OpenFAST are Dask tasks, on a local cluster of
+    ``workers`` processes (default: the cores) or on ``scheduler``'s; the native engine's
+    cells run in this process, on ``plant``, unless ``workers`` or ``scheduler`` is given."""
     fault_names = _check("faults", faults, FAULTS)
-    if engine == "openfast" and any(FAULTS[f] is not None for f in fault_names):
-        _without_oracles(ctrl_names, bool(controllers))
-    reason = rosco.available()
-    if reason and "rosco" in ctrl_names:
-        if controllers and "rosco" in controllers:
-            raise ConfigError("controllers", "rosco", reason)
-        print(f"note: {reason}; the matrix runs without it", flush=True)
-        ctrl_names.remove("rosco")
-    if turbine and "rosco" in ctrl_names and not controllers \
-            and turbine_file.load(turbine).rosco_discon is None:
-        print(f"note: {turbine}'s turbine file names no DISCON.IN for ROSCO (rosco_discon); "
-              "the matrix runs without it", flush=True)
-        ctrl_names.remove("rosco")
+    columns = _columns(controllers, preset, turbine, engine == "openfast" and any(
+        FAULTS[f] is not None for f in fault_names))
     wind_names = _check("winds", winds, WINDS, DEFAULT_WINDS)
     if t_final <= ONSET_S and any(FAULTS[f] is not None for f in fault_names):
         raise ConfigError("t-final", t_final, f"more than {ONSET_S:g} s, the faults' onset "
                           "(or --faults none)")
     # validate every cell before running any
-    cells = {(w, f, c): cell_config(c, f, w, t_final, dt, seed, profile, turbine, engine,
-                                    plant)
-             for w in wind_names for f in fault_names for c in ctrl_names}
+    cells = {(w, f, c): cell_config(c, ctrl, f, w, t_final, dt, seed, profile, turbine,
+                                    engine, plant)
+             for w in wind_names for f in fault_names for c, ctrl in columns.items()}
     for raw in cells.values():  # every cell checked before a TurbSim field is made
         config.check_before_field(raw)
     for raw in cells.values():
@@ -337,6 +309,7 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
     dask = _on_dask(engine, workers, scheduler)
     if engine == "openfast":
         _check_openfast(next(iter(cells.values())), turbine)
+    fdi = {c: ctrl.uses_fdi for c, ctrl in columns.items()}
     # the cluster before the folder: a scheduler that cannot be reached leaves none
     cl, local = cluster.client(scheduler, workers or os.cpu_count() or 1) if dask \
         else (None, None)
@@ -345,14 +318,43 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
                           legacy=is_legacy_compare) as tmp:
             if cl is not None:
                 rows = _run_cells_on_dask(tmp, cells, configs, progress,
-                                          engine == "openfast", cl)
+                                          engine == "openfast", cl, fdi)
             else:
-                rows = _run_cells(tmp, configs, progress, engine == "openfast")
+                rows = _run_cells(tmp, configs, progress, engine == "openfast", fdi)
             write_compare_table(tmp, rows)
-            figure(tmp, rows, ctrl_names, fault_names, wind_names)
+            figure(tmp, rows, list(columns), fault_names, wind_names)
     finally:
         cluster.close(cl, local)
     return rows
+
+
+def _columns(controllers, preset: str | None, turbine: str | None,
+             faulty_openfast: bool) -> dict[str, Controller]:
+    """The matrix's columns: those asked for, or :func:`default_columns`; ROSCO left out
+    with a note where it cannot run and was not asked for (refused where it was), and the
+    columns told the fault under OpenFAST's faults likewise (:func:`_without_oracles`)."""
+    from wtftc.sim import rosco
+
+    asked = bool(controllers)
+    if asked and preset is not None:
+        raise ConfigError("--preset", preset, "either --preset (the candidate beside "
+                          + " and ".join(BASELINES) + ") or --controllers, not both")
+    t = turbine_file.load(turbine or turbine_file.DEFAULT)
+    columns = dict(controllers) if isinstance(controllers, dict) else (
+        resolve_columns(controllers) if asked
+        else default_columns(t, preset, lambda m: print(m, flush=True)))
+    if faulty_openfast:
+        _without_oracles(columns, asked)
+    roscos = [c for c, ctrl in columns.items() if is_rosco(ctrl)]
+    reason = rosco.available() if roscos else None
+    if reason is None and roscos and t.rosco_discon is None:
+        reason = (f"{t.name}'s turbine file names no DISCON.IN for ROSCO (rosco_discon)")
+    if reason:
+        if asked:
+            raise ConfigError("controllers", roscos[0], reason)
+        print(f"note: {reason}; the matrix runs without {', '.join(roscos)}", flush=True)
+        columns = {c: ctrl for c, ctrl in columns.items() if c not in roscos}
+    return columns
 
 
 def is_legacy_compare(out: Path) -> bool:
@@ -362,18 +364,20 @@ def is_legacy_compare(out: Path) -> bool:
     return False
 
 
-def _without_oracles(names: list[str], asked: bool) -> None:
-    """OpenFAST runs no oracle (case 3: eq (49) told the fault inside wtftc's loop): such
-    variants are refused when asked for, else left out of the matrix with a note."""
-    oracles = [c for c in names if CONTROLLERS[c].fault_case == ORACLE_CASE]
+def _without_oracles(columns: dict[str, Controller], asked: bool) -> None:
+    """OpenFAST runs no oracle (accommodation "known": eq (49) told the fault inside
+    wtftc's loop): such columns are refused when asked for, else left out of the matrix
+    with a note."""
+    oracles = [c for c, ctrl in columns.items() if ctrl.accommodation == "known"]
     if oracles and asked:
-        raise ConfigError("controllers", ",".join(oracles), "variants OpenFAST can run "
-                          "under a fault: not those told the fault (case 3: "
+        raise ConfigError("controllers", ",".join(oracles), "controllers OpenFAST can run "
+                          "under a fault: not those told the fault (accommodation = known: "
                           + ", ".join(oracles) + ")")
     if oracles:
-        print("note: with --engine openfast the matrix runs without the variants told the "
-              "fault (" + ", ".join(oracles) + ")", flush=True)
-    names[:] = [c for c in names if c not in oracles]
+        print("note: with --engine openfast the matrix runs without the controllers told "
+              "the fault (" + ", ".join(oracles) + ")", flush=True)
+    for c in oracles:
+        del columns[c]
 
 
 def run_cell(raw: dict, case_dir: str | None = None) -> dict:
@@ -386,17 +390,18 @@ def run_cell(raw: dict, case_dir: str | None = None) -> dict:
     return metrics(rc, cases.run(rc, progress=False, openfast_dir=where))
 
 
-def _write_cell(out_dir: Path, key: tuple, rc, m: dict) -> dict:
-    """A finished cell's metrics.json and config.toml; its row of the table."""
+def _write_cell(out_dir: Path, key: tuple, rc, m: dict, fdi: dict[str, bool]) -> dict:
+    """A finished cell's metrics.json and config.toml; its row of the table (``fdi``:
+    column → whether it runs wtftc's FDI)."""
     w, f, c = key
     d = Path(out_dir) / w / f / c
     atomic_write_json(d / "metrics.json", m)
     atomic_write_text(d / "config.toml", config.to_toml(rc.raw))
-    return _row(c, f, w, m)
+    return _row(c, f, w, m, fdi[c])
 
 
-def _run_cells(out_dir: Path, configs: dict, progress: bool,
-               openfast: bool = False) -> list[dict]:
+def _run_cells(out_dir: Path, configs: dict, progress: bool, openfast: bool,
+               fdi: dict[str, bool]) -> list[dict]:
     """The cells one after the other in this process."""
     rows = []
     n = len(configs)
@@ -405,7 +410,7 @@ def _run_cells(out_dir: Path, configs: dict, progress: bool,
             print(f"[{k}/{n}] {w} / {f} / {c}", flush=True)
         d = Path(out_dir) / w / f / c
         res = cases.run(rc, progress=False, openfast_dir=d / "openfast" if openfast else None)
-        rows.append(_write_cell(out_dir, (w, f, c), rc, metrics(rc, res)))
+        rows.append(_write_cell(out_dir, (w, f, c), rc, metrics(rc, res), fdi))
     return rows
 
 
@@ -427,7 +432,7 @@ def _on_dask(engine: str, workers: int | None, scheduler: str | None) -> bool:
 
 
 def _run_cells_on_dask(out_dir: Path, cells: dict, configs: dict, progress: bool,
-                       openfast: bool, cl) -> list[dict]:
+                       openfast: bool, cl, fdi: dict[str, bool]) -> list[dict]:
     """Each cell a Dask task (:func:`run_cell`), its files written here as it ends; the
     rows in the matrix's order, as :func:`_run_cells` gives them. A cell that raises stops
     the matrix with its error, as it does run in this process."""
@@ -454,7 +459,7 @@ def _run_cells_on_dask(out_dir: Path, cells: dict, configs: dict, progress: bool
             watcher.start()
         for fut in as_completed(list(futures)):
             key = futures[fut]
-            rows[key] = _write_cell(out_dir, key, configs[key], fut.result())
+            rows[key] = _write_cell(out_dir, key, configs[key], fut.result(), fdi)
             pending.discard(key)
             if progress:
                 print(f"[{len(rows)}/{len(cells)}] {' / '.join(key)}", flush=True)

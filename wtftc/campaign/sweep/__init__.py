@@ -1,6 +1,7 @@
 """`wtftc sweep`: grid and Monte Carlo campaigns on Dask distributed, resumable.
 
-A sweep file (TOML) names the controller variants of `wtftc compare`, the plants, and the
+A sweep file (TOML) names its controllers (presets, or tables of their settings: the
+columns of `wtftc compare`), the plants, and the
 values or ranges of mean wind speed, turbulence class, wind seed, fault type, faulty blade,
 magnitude (ρ, stuck angle, hydraulic severity) and onset time; every run's full
 configuration follows from it deterministically, with a stable run id (a hash of that
@@ -29,7 +30,6 @@ from pathlib import Path
 
 from wtftc import config
 from wtftc.campaign import cluster
-from wtftc.campaign.compare import CONTROLLERS
 from wtftc.campaign.sweep import confirm, preflight
 from wtftc.campaign.sweep.record import CASES, check_path
 from wtftc.campaign.sweep.spec import (
@@ -145,8 +145,8 @@ class Interrupted(Exception):
 def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
     """Every run's configuration is valid, and ROSCO installed where it runs, before any
     runs; the optional controllers skipped are noted."""
-    def uses_rosco(pt: dict) -> bool:  # ROSCO itself or a variant of it (rosco_matched)
-        return CONTROLLERS[pt["controller"]].controller == "rosco"
+    def uses_rosco(pt: dict) -> bool:  # ROSCO, at its deck's tuning or retuned
+        return sw.columns[pt["controller"]].design == "rosco"
 
     # (a [tuning] target is solved where the run runs: one out of reach fails that run,
     # with its cause)
@@ -176,8 +176,7 @@ def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
         if first is not None:  # the deck, before any run (preflight.check_deck)
             preflight.check_deck({k: v for k, v in first["config"].items()
                                   if k != "tuning"})
-    skipped = [c for c in sw.raw.get("optional_controllers", [])
-               if c not in sw.axis("controllers").values]
+    skipped = [c for c in sw.optional if c not in sw.axis("controllers").values]
     if skipped and not quiet:
         from wtftc.sim import rosco
 
@@ -233,15 +232,17 @@ def _check_out_beside_decks(out_dir: Path, runs: list[dict]) -> None:
 
 def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str | None = None,
               traces: bool = False, overwrite: bool = False, quiet: bool = False,
-              retry_failed: bool = False, engine: str | None = None) -> dict:
+              retry_failed: bool = False, engine: str | None = None,
+              preset: str | None = None) -> dict:
     """Run (or resume) a sweep into out_dir; returns counts of what this call did.
     ``retry_failed``: the runs saved as failed (they raised) are run again, not kept.
-    ``engine`` (``--engine``): every run's engine, where the sweep file names none."""
+    ``engine`` (``--engine``): every run's engine, where the sweep file names none;
+    ``preset`` (``--preset``): that preset in place of the file's controllers."""
     import distributed  # noqa: F401 - Dask is needed: fail before anything is written
 
     sweep_path = Path(sweep_path)
     check_path(out_dir, "--out")  # a link loop, a dangling link, a file: before any work
-    sw = load_sweep(sweep_path, engine)
+    sw = load_sweep(sweep_path, engine, preset)
     runs, dup = expand(sw)
     _check_runs(sw, runs, quiet)
     if sw.engine == "openfast":
@@ -282,15 +283,16 @@ class Incomplete(Exception):
 
 def run_confirm(sweep_path: Path, out_dir: Path, n: int, confirm_out: Path | None = None,
                 workers: int = 2, scheduler: str | None = None, overwrite: bool = False,
-                quiet: bool = False, retry_failed: bool = False) -> dict:
+                quiet: bool = False, retry_failed: bool = False,
+                preset: str | None = None) -> dict:
     """``--confirm-openfast N`` (wtftc.campaign.sweep.confirm): the sweep on wtftc's plant
     into ``out_dir``, then its ``n`` scenarios that matter most in OpenFAST into
     ``confirm_out`` (default: ``<out_dir>_openfast``), then the report, confirm.md there.
     Both folders are checked before anything runs, and resume as a sweep's do. Raises
     Incomplete when the screen has runs missing. Returns both calls' counts, the report,
-    where, and whether every confirmation run is saved."""
+    where, and whether every confirmation run is saved. ``preset``: as run_sweep's."""
     sweep_path = Path(sweep_path)
-    sw = load_sweep(sweep_path)
+    sw = load_sweep(sweep_path, preset=preset)
     confirm.check_screen(sw, n)
     sw_of = confirm.openfast_sweep(sw.raw)
     confirm_out = Path(confirm_out or f"{Path(out_dir)}_openfast")
@@ -300,7 +302,7 @@ def run_confirm(sweep_path: Path, out_dir: Path, n: int, confirm_out: Path | Non
     _confirm_folder(confirm_out, sw_of, text, overwrite, retry_failed)  # before the screen
     t0 = time.perf_counter()
     screen = run_sweep(sweep_path, out_dir, workers, scheduler, overwrite=overwrite,
-                       quiet=quiet, retry_failed=retry_failed)
+                       quiet=quiet, retry_failed=retry_failed, preset=preset)
     walls = {"screen": time.perf_counter() - t0}
     saved = read_results(out_dir).to_pylist()
     if len({r["run_id"] for r in saved}) < screen["runs"]:

@@ -45,7 +45,6 @@ import math
 
 import numpy as np
 
-from wtftc.campaign.compare import CONTROLLERS
 from wtftc.config import LOADS_KEYS
 from wtftc.errors import ConfigError
 
@@ -90,7 +89,14 @@ def bin_probability(v, width: float, annual_mean: float):
     return rayleigh_cdf(v + width / 2, annual_mean) - rayleigh_cdf(v - width / 2, annual_mean)
 
 
-def per_bin(rows: list[dict]) -> dict:
+def rank(rows: list[dict], order=()) -> dict[str, int]:
+    """controller → its place in the summary: the sweep's columns' order (``order``),
+    then any other controller in the rows' order."""
+    names = dict.fromkeys([*order, *(r["controller"] for r in rows)])
+    return {c: i for i, c in enumerate(names)}
+
+
+def per_bin(rows: list[dict], order=()) -> dict:
     """controller → mean wind → the bin's means over its runs: damage per 10 minutes,
     electrical power, pitch ADC, shaft DEL; and the number of runs."""
     out: dict[str, dict[float, dict]] = {}
@@ -101,9 +107,8 @@ def per_bin(rows: list[dict]) -> dict:
                                                        []).append(r)
     keys = ("shaft_torque_damage_per_10min", "mean_electrical_power_W", "pitch_adc",
             "shaft_torque_del_1hz_Nm", "tower_base_damage_per_10min", "tower_base_del_1hz_Nm")
-    order = [c for c in CONTROLLERS if c in out]
     return {c: {v: {"runs": len(rs), **{k: _mean([r.get(k) for r in rs]) for k in keys}}
-                for v, rs in sorted(out[c].items())} for c in order}
+                for v, rs in sorted(out[c].items())} for c in rank(rows, order) if c in out}
 
 
 def _mean(values: list) -> float | None:
@@ -135,13 +140,15 @@ def lifetime(bins: dict, dlc: dict, m: float, m_tower: float = 4.0) -> dict:
             "weighted_pitch_adc": float(p @ col("pitch_adc") / share)}
 
 
-def section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
+def section(rows: list[dict], table: dict, order=(), ref: str | None = None
+            ) -> tuple[list[str], list[str]]:
     """The summary's DLC section: per controller the lifetime figures, then per bin the
-    shaft DEL, the pitch ADC and the power; Markdown lines and CSV lines (SI units)."""
+    shaft DEL, the pitch ADC and the power; Markdown lines and CSV lines (SI units);
+    ``order``: the sweep's columns, ``ref``: the one the others are set against (ROSCO)."""
     dlc = parse_dlc(table)
     # the Wöhler exponents of every sweep run: the [loads] defaults (a sweep has no [loads])
     m, m_tower = (LOADS_KEYS[k][0] for k in ("shaft_wohler_exponent", "tower_wohler_exponent"))
-    bins = per_bin(rows)
+    bins = per_bin(rows, order)
     # the bins the campaign simulated, whether or not every controller kept them
     simulated = sorted({round(r["mean_wind_mps"], 6) for r in rows
                         if r["fault_type"] == "none"})
@@ -179,7 +186,7 @@ def section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
             p = float(bin_probability(v, dlc["bin_width_mps"], dlc["annual_mean_mps"]))
             csv.append(f"{c},{v},{b['runs']},{p}," + ",".join(
                 "" if b[k] is None else str(b[k]) for k in keys))
-    lines += against(bins, dlc, m, m_tower)
+    lines += against(bins, dlc, m, m_tower, ref)
     lines += ["", "Per wind bin (`summary_dlc.csv`; figure `figures/dlc_bins.png`): shaft "
               "DEL [MN m] / pitch ADC [-], the mean over the bin's seeds.", ""]
     winds = sorted({v for cb in bins.values() for v in cb})
@@ -192,11 +199,11 @@ def section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
     return lines, csv
 
 
-def against(bins: dict, dlc: dict, m: float, m_tower: float, ref: str = "rosco") -> list[str]:
+def against(bins: dict, dlc: dict, m: float, m_tower: float, ref: str | None) -> list[str]:
     """Each controller against ``ref`` over the wind bins both kept (a lifetime figure
     over different bins compares different years): the ratios of the lifetime DELs and
     weighted ADC, and the AEP's difference."""
-    if ref not in bins or len(bins) < 2:
+    if ref is None or ref not in bins or len(bins) < 2:
         return []
     lines = ["", f"Against {ref}, over the bins both kept (over the same bins the ratios do "
              "not depend on the normalisation: MLife's calendar-time DEL and the "
@@ -236,16 +243,15 @@ EXTREMES = [("overspeed_peak_over_rated", "extreme ω / rated [-]", 1.0, "{:.3f}
             ("tower_base_max_abs_Nm", "extreme tower-base moment [MN m]", 1e-6, "{:.1f}")]
 
 
-def extremes(rows: list[dict], trip: float) -> dict:
+def extremes(rows: list[dict], trip: float, order=()) -> dict:
     """(controller, fault) → runs, lost (left the envelope), held (never above ``trip`` ×
     rated and not lost: no overspeed shutdown) and the extremes (EXTREMES) over its runs."""
     groups: dict[tuple, list] = {}
     for r in rows:
         if r["fault_type"] != "none" and r["status"] != "failed":
             groups.setdefault((r["controller"], fault_label(r)), []).append(r)
-    out = {}
-    for key, rs in sorted(groups.items(), key=lambda kv: (
-            list(CONTROLLERS).index(kv[0][0]), kv[0][1])):
+    out, place = {}, rank(rows, order)
+    for key, rs in sorted(groups.items(), key=lambda kv: (place[kv[0][0]], kv[0][1])):
         held = sum(r["status"] == "ok" and (r["overspeed_peak_over_rated"] or 0.0) <= trip
                    for r in rs)
         out[key] = {"runs": len(rs), "lost": sum(r["status"] == "diverged" for r in rs),
@@ -254,7 +260,7 @@ def extremes(rows: list[dict], trip: float) -> dict:
     return out
 
 
-def fault_section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
+def fault_section(rows: list[dict], table: dict, order=()) -> tuple[list[str], list[str]]:
     """The summary's DLC 2.1 section: per controller and fault type, the runs held
     without an overspeed shutdown and the extremes; Markdown and CSV lines (SI)."""
     dlc = parse_dlc(table)
@@ -268,7 +274,7 @@ def fault_section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
              "turbine down). Figure `figures/dlc21_extremes.png`.", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     csv = ["controller,fault,runs,lost,held," + ",".join(k for k, *_ in EXTREMES)]
-    for (c, f), e in extremes(rows, trip).items():
+    for (c, f), e in extremes(rows, trip, order).items():
         lines.append("| " + " | ".join([c, f, str(e["runs"]), str(e["lost"]), str(e["held"])]
                                        + ["—" if e[k] is None else fmt.format(e[k] * s)
                                           for k, _, s, fmt in EXTREMES]) + " |")
@@ -277,14 +283,14 @@ def fault_section(rows: list[dict], table: dict) -> tuple[list[str], list[str]]:
     return lines, csv
 
 
-def fault_figure(rows: list[dict], table: dict):
+def fault_figure(rows: list[dict], table: dict, order=()):
     """The extreme overspeed and shaft torque per fault type, a bar per controller."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ext = extremes(rows, parse_dlc(table)["overspeed_trip"])
+    ext = extremes(rows, parse_dlc(table)["overspeed_trip"], order)
     ctrls = list(dict.fromkeys(c for c, _ in ext))
     faults = sorted({f for _, f in ext})
     fig, axes = plt.subplots(1, 2, figsize=(12, 4))
@@ -303,14 +309,14 @@ def fault_figure(rows: list[dict], table: dict):
     return fig
 
 
-def figure(rows: list[dict]):
+def figure(rows: list[dict], order=()):
     """Shaft DEL and pitch ADC per wind bin, one line per controller (the caller saves)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    bins = per_bin(rows)
+    bins = per_bin(rows, order)
     tower = any(b["tower_base_del_1hz_Nm"] is not None for cb in bins.values()
                 for b in cb.values())
     fig, axes = plt.subplots(1, 3 if tower else 2, figsize=(14 if tower else 10, 4))

@@ -15,13 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from wtftc.campaign.compare import CONTROLLERS
-from wtftc.campaign.sweep.dlc import fault_label
+from wtftc.campaign.sweep.dlc import fault_label, rank
 from wtftc.campaign.sweep.spec import MAGNITUDE_COLUMN
 
-#: the reference of the paired section: ROSCO, at its deck's tuning or at the sweep's
-#: [tuning] target (each tuned run is paired with ROSCO's at the same target)
-REFERENCE = "rosco"
 #: the metrics compared: (run key, header)
 PAIRED = [("rms_speed_error_rad_s", "RMS ω error"),
           ("overspeed_peak_over_rated", "peak ω"),
@@ -44,6 +40,15 @@ def label(c: str, r: dict) -> str:
     """A controller's row: its name, and its [tuning] target where it has one."""
     w = r.get("tuning_omega_n_rad_s")
     return c if w is None else f"{c} at ({w:g} rad/s, ζ {r['tuning_zeta']:g})"
+
+
+def reference(columns: dict) -> str | None:
+    """The reference of the paired section: ROSCO's column (design = rosco), the first at
+    its deck's tuning where there is one, at its deck's gains or at the sweep's [tuning]
+    target (each tuned run is paired with ROSCO's at the same target); None without one."""
+    roscos = [c for c, ctrl in columns.items() if ctrl.design == "rosco"]
+    plain = [c for c in roscos if not columns[c].tuning and not columns[c].params]
+    return (plain or roscos or [None])[0]
 
 
 def held(r: dict, trip: float) -> bool:
@@ -76,10 +81,13 @@ def _cell(vals: list[float]) -> str:
     return f"{np.median(vals):.2f} ({min(vals):.2f}-{max(vals):.2f})"
 
 
-def section(rows: list[dict], trip: float, ref: str = REFERENCE
+def section(rows: list[dict], trip: float, ref: str | None, order=()
             ) -> tuple[list[str], list[str]]:
-    """The summary's paired section: Markdown lines and CSV lines (the median, min and
-    max ratio per controller, fault type and metric); nothing where no run pairs."""
+    """The summary's paired section against column ``ref``: Markdown lines and CSV lines
+    (the median, min and max ratio per controller, fault type and metric), the
+    controllers in ``order``; nothing where no run pairs."""
+    if ref is None:
+        return [], []
     head = ["controller", "fault", "scenarios", "failed", "both held", "lost by it",
             f"lost by {ref}"]
     lines = ["", f"## Against {ref}, on the same runs", "",
@@ -95,7 +103,7 @@ def section(rows: list[dict], trip: float, ref: str = REFERENCE
     csv = ["controller,reference,fault,scenarios,failed,both_held,lost_by_controller,"
            "lost_by_reference," + ",".join(f"{k}_ratio_{s}" for k, _ in PAIRED
                                            for s in ("median", "min", "max"))]
-    for c in CONTROLLERS:
+    for c in rank(rows, order):
         if c == ref:
             continue
         for lbl, by_fault in sorted(pairs(rows, c, ref).items()):
@@ -125,7 +133,7 @@ COSTS = [("shaft_torque_del_1hz_Nm", "shaft DEL"), ("tower_base_del_1hz_Nm", "to
 GAINS = [("rms_speed_error_rad_s", "RMS ω error"), ("overspeed_peak_over_rated", "peak ω")]
 
 
-def figure(rows: list[dict], trip: float, ref: str = REFERENCE):
+def figure(rows: list[dict], trip: float, ref: str, order=()):
     """Each run both held, as a point per controller: a cost ratio to ``ref`` (columns:
     shaft DEL, tower-base DEL, ADC) against a regulation ratio (rows: RMS speed error,
     peak speed); below and left of the dashed lines, that run beat ``ref`` on both. The
@@ -138,7 +146,7 @@ def figure(rows: list[dict], trip: float, ref: str = REFERENCE):
 
     plain = FuncFormatter(lambda v, _: f"{v:g}")
     fig, axes = plt.subplots(len(GAINS), len(COSTS), figsize=(14, 8.5), squeeze=False)
-    for k, c in enumerate(c for c in CONTROLLERS if c != ref):
+    for k, c in enumerate(c for c in rank(rows, order) if c != ref):
         pp = [p for by_fault in pairs(rows, c, ref).values() for v in by_fault.values()
               for p in v if held(p[0], trip) and held(p[1], trip)]
         for (gx, _), row in zip(GAINS, axes, strict=True):

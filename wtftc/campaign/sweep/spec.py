@@ -7,14 +7,20 @@ import hashlib
 import itertools
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from wtftc import config
 from wtftc.artefacts import layout as lay
-from wtftc.campaign.compare import CONTROLLERS, PROFILE, variant_config
+from wtftc.campaign.compare import (
+    PROFILE,
+    column_tables,
+    is_rosco,
+    resolve_columns,
+    variant_config,
+)
 from wtftc.campaign.sweep.dlc import parse_dlc
 from wtftc.errors import ConfigError
 from wtftc.model import faults, turbine_file, wind
@@ -112,10 +118,25 @@ class Sweep:
     #: where wtftc's plant takes every run's NTM from ([wind] field): None, its own
     #: synthesis; "turbsim", the TurbSim field OpenFAST runs on (in OpenFAST: always)
     wind_field: str | None = None
+    #: every column, the optional ones too: name → wtftc.controller.Controller, in the
+    #: file's order (the summary's order)
+    columns: dict = field(default_factory=dict)
+    #: the names of the optional columns (ROSCO's: run where it is installed)
+    optional: tuple = ()
 
     @property
     def sweep_id(self) -> str:
+        """A hash of the file's canonical form (its columns' settings are recorded beside
+        it: :meth:`record`, checked on a resume)."""
         return hashlib.sha256(self.text.encode()).hexdigest()[:16]
+
+    def record(self) -> dict:
+        """The resolved columns, as a sweep file's ``controllers`` and
+        ``optional_controllers`` that need no presets file (what sweep.json keeps)."""
+        main = {c: v for c, v in self.columns.items() if c not in self.optional}
+        opt = {c: v for c, v in self.columns.items() if c in self.optional}
+        return {"controllers": column_tables(main)} | (
+            {"optional_controllers": column_tables(opt)} if opt else {})
 
     def axis(self, key: str) -> Axis:
         return next(a for a in self.axes if a.key == key)
@@ -274,15 +295,18 @@ def _engine(raw: dict) -> str:
     if raw.get("profile", PROFILE) == "ideal":
         raise ConfigError("profile", "ideal", "realistic with engine = openfast: OpenFAST "
                           "calls the controller as a library every control interval")
-    told = [c for c in _listed(raw.get("controllers"))
-            if c in CONTROLLERS and CONTROLLERS[c].fault_case == config.ORACLE_CASE]
-    fault = raw.get("fault", {})
-    if told and any(t != "none" for t in _listed(
-            fault.get("type", "none") if isinstance(fault, dict) else "none")):
-        raise ConfigError("controllers", told, "variants OpenFAST can run under a fault: "
-                          "not those told the fault (case 3: eq (49) told the fault inside "
-                          "wtftc's loop; a DISCON library is not told)")
     return engine
+
+
+def _check_oracles(raw: dict, columns: dict) -> None:
+    """With OpenFAST and a fault, no column told the fault (accommodation = known)."""
+    told = [c for c, ctrl in columns.items() if ctrl.accommodation == "known"]
+    fault = raw.get("fault", {})
+    if raw.get("engine", "wtftc") != "wtftc" and told and any(t != "none" for t in _listed(
+            fault.get("type", "none") if isinstance(fault, dict) else "none")):
+        raise ConfigError("controllers", told, "controllers OpenFAST can run under a fault: "
+                          "not those told the fault (accommodation = known: eq (49) told the "
+                          "fault inside wtftc's loop; a DISCON library is not told)")
 
 
 def _turbine(name) -> str | None:
@@ -327,19 +351,39 @@ def _tables(raw: dict) -> tuple[dict, dict]:
     return wind_tab, fault_tab
 
 
-def _controllers(raw: dict, mode: str) -> Axis:
-    """The controllers axis, with the optional ones (ROSCO) where they are installed."""
-    ctrl = _axis("controllers", raw["controllers"], "str", mode, choices=tuple(CONTROLLERS))
-    if "optional_controllers" in raw:  # run where installed (ROSCO), skipped elsewhere
-        optional = _axis("optional_controllers", raw["optional_controllers"], "str", mode,
-                         choices=tuple(c for c, v in CONTROLLERS.items()
-                                       if v.controller == "rosco"))
+def resolve(raw: dict) -> tuple[dict, tuple]:
+    """The sweep's columns, name → Controller, its ``controllers`` then its
+    ``optional_controllers`` (each column a name or a table: compare.resolve_columns),
+    and the optional ones' names: ROSCO's, run where it is installed."""
+    if "controllers" not in raw:
+        raise ConfigError("controllers", None, "a list of controllers: preset names or "
+                          "tables with a name and [controller] keys (docs/sweep.md)")
+    columns = resolve_columns(raw["controllers"], "controllers")
+    optional: dict = {}
+    if "optional_controllers" in raw:
+        optional = resolve_columns(raw["optional_controllers"], "optional_controllers")
+    for name, ctrl in optional.items():
+        if not is_rosco(ctrl):
+            raise ConfigError("optional_controllers", name, "ROSCO's columns (design = "
+                              "rosco), run where it is installed; list the others in "
+                              "controllers")
+        if name in columns and columns[name] != ctrl:
+            raise ConfigError("optional_controllers", name, "a name other than the "
+                              "controllers' (this one is a column with other settings)")
+    extra = tuple(c for c in optional if c not in columns)
+    return columns | {c: optional[c] for c in extra}, extra
+
+
+def _controllers(sw_columns: dict, optional: tuple) -> Axis:
+    """The controllers axis, its names in the file's order, with the optional ones
+    (ROSCO) where they are installed."""
+    names = tuple(c for c in sw_columns if c not in optional)
+    if optional:
         from wtftc.sim import rosco
 
-        extra = tuple(c for c in optional.values if c not in ctrl.values)
-        if extra and rosco.available() is None:
-            ctrl = Axis("controllers", values=ctrl.values + extra)
-    return ctrl
+        if rosco.available() is None:
+            names += optional
+    return Axis("controllers", values=names)
 
 
 def _listed(v) -> list:
@@ -348,10 +392,10 @@ def _listed(v) -> list:
 
 
 def _axes(raw: dict, wind_tab: dict, fault_tab: dict, mode: str, t_final: float,
-          engine: str = "wtftc") -> list[Axis]:
+          engine: str, ctrl: Axis) -> list[Axis]:
     """Every axis, in the order of a run's values (controllers and plants first: CROSSED)."""
     return [
-        _controllers(raw, mode),
+        ctrl,
         # with OpenFAST the plant is the turbine's deck: the column says "openfast"
         _axis("plants", raw.get("plants", "nrel5mw"), "str", mode, choices=PLANTS)
         if engine == "wtftc" else Axis("plants", values=("openfast",)),
@@ -404,15 +448,14 @@ def _tuning_axes(tab, mode: str) -> list[Axis]:
             for k in TUNING_AXES]
 
 
-def _check_together(by_key: dict[str, Axis], t_final: float) -> None:
+def _check_together(by_key: dict[str, Axis], t_final: float, columns: dict) -> None:
     """What no single axis shows: onsets before the end, ROSCO on the NREL 5-MW only."""
     onsets = by_key["fault.onset_s"]
     faulty = set(by_key["fault.type"].values) != {"none"}
     if faulty and max(onsets.grid() if onsets.values else [onsets.range[1]]) >= t_final:
         raise ConfigError("fault.onset_s", list(onsets.values or onsets.range),
                           f"onsets before t_final_s = {t_final:g} s")
-    roscos = [c for c in by_key["controllers"].values or ()
-              if CONTROLLERS[c].controller == "rosco"]  # ROSCO or a variant of it
+    roscos = [c for c in by_key["controllers"].values or () if is_rosco(columns[c])]
     if roscos and "paper" in (by_key["plants"].values or ()):
         raise ConfigError("plants", "paper", f"nrel5mw or tower when controllers include "
                           f"{roscos[0]} (ROSCO's DISCON.IN is tuned for the NREL 5-MW)")
@@ -460,12 +503,12 @@ def parse_sweep(raw: dict) -> Sweep:
     if "dlc" in raw:  # the summary's lifetime weighting (wtftc.campaign.sweep.dlc)
         parse_dlc(raw["dlc"])
     settings = _settings(raw)
-    if "controllers" not in raw:
-        raise ConfigError("controllers", None, "a list of controller variants: "
-                          + ", ".join(CONTROLLERS))
+    columns, optional = resolve(raw)
+    _check_oracles(raw, columns)
     wind_tab, fault_tab = _tables(raw)
-    axes = _axes(raw, wind_tab, fault_tab, mode, settings["t_final"], settings["engine"])
-    _check_together({a.key: a for a in axes}, settings["t_final"])
+    axes = _axes(raw, wind_tab, fault_tab, mode, settings["t_final"], settings["engine"],
+                 _controllers(columns, optional))
+    _check_together({a.key: a for a in axes}, settings["t_final"], columns)
     _check_size(mode, samples, axes, settings["fault_free_twins"])
     # (engine = "wtftc" is the default: absent, the ids of earlier sweeps)
     canonical = json.dumps({**{k: v for k, v in raw.items() if k != "engine"}, "mode": mode,
@@ -479,18 +522,25 @@ def parse_sweep(raw: dict) -> Sweep:
                               else {})
                            | ({"fault_free_twins": True} if settings["fault_free_twins"]
                               else {}), sort_keys=True)
-    return Sweep(raw=raw, text=canonical, mode=mode, samples=samples, axes=axes, **settings)
+    return Sweep(raw=raw, text=canonical, mode=mode, samples=samples, axes=axes,
+                 columns=columns, optional=optional, **settings)
 
 
-def load_sweep(path: Path, engine: str | None = None) -> Sweep:
+def load_sweep(path: Path, engine: str | None = None, preset: str | None = None) -> Sweep:
     """The sweep file at ``path``; ``engine`` (``--engine``): every run's engine, where the
-    file names none or the same."""
+    file names none or the same; ``preset`` (``--preset``): the file's ``controllers``
+    replaced by that one preset (its optional controllers kept)."""
     raw = config.load_toml(Path(path), "SWEEP.toml")
     if engine is not None:
         if raw.get("engine", engine) != engine:
             raise ConfigError("--engine", engine, f"the sweep file's engine, {raw['engine']} "
                               "(or leave --engine out)")
         raw = {**raw, "engine": engine}
+    if preset is not None:
+        from wtftc import controller
+
+        controller.preset(preset, "--preset")
+        raw = {**raw, "controllers": [preset]}
     return parse_sweep(raw)
 
 
@@ -525,8 +575,8 @@ def _point(sw: Sweep, values: dict) -> dict:
         wind_tab["rotor_radius_m"] = sw.rotor_radius
     if sw.wind_field and sw.engine == "wtftc":  # (OpenFAST's runs read it anyway: their ids
         wind_tab["field"] = sw.wind_field       # are those of the same file without it)
-    cfg = variant_config(p["controller"], fault_tabs, wind_tab, sw.t_final, sw.dt, p["seed"],
-                         "", profile=sw.profile)
+    cfg = variant_config(sw.columns[p["controller"]], fault_tabs, wind_tab, sw.t_final,
+                         sw.dt, p["seed"], "", profile=sw.profile)
     # OpenFAST's plant is the turbine's deck (config: engine = "openfast")
     cfg.update({"plant": p["plant"]} if sw.engine == "wtftc" else {"engine": sw.engine},
                output_rate_hz=sw.output_rate_hz)
@@ -554,7 +604,7 @@ def _tuning(sw: Sweep, values: dict, p: dict, cfg: dict) -> None:
 
     p["tuning_omega_n_rad_s"] = p["tuning_zeta"] = None
     w = values.get("tuning.omega_n_rad_s")
-    if w is None or CONTROLLERS[p["controller"]].controller not in RETUNABLE:
+    if w is None or sw.columns[p["controller"]].design not in RETUNABLE:
         return
     tab = {"omega_n_rad_s": float(w), "zeta": float(values["tuning.zeta"])}
     for key in ("design_wind_mps", "c2_over_c1"):  # settings, one value for the sweep

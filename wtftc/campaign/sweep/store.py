@@ -332,6 +332,9 @@ def _open(out_dir: Path, sw: Sweep, sweep_text: str, overwrite: bool, rec: Recor
         rec.write("sweep.toml", sweep_text.encode())
         rec.write("sweep.json", (json.dumps(
             {"sweep_id": sw.sweep_id, "sweep": json.loads(sw.text), "versions": versions(),
+             # the columns' settings, every one written out: the summary reads them
+             # without the presets file
+             **sw.record(),
              "turbine_sha256": turbine_sha256(sw),
              "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")}, indent=1, sort_keys=True)
             + "\n").encode())
@@ -416,7 +419,27 @@ def _check_folder(out_dir: Path, sw: Sweep, overwrite: bool, rec: Record,
         old = None
     if old is not None:
         _check_same_sweep(out_dir, old, sw.sweep_id, overwrite, sw.engine)
+        _check_same_columns(out_dir, old, sw, overwrite)
         _check_same_turbine(out_dir, old, sw, overwrite)
+
+
+def _check_same_columns(out_dir: Path, old: dict, sw: Sweep, overwrite: bool) -> None:
+    """A results folder resumes only with its columns' settings as they were recorded (a
+    preset the file names may have changed since; a folder that recorded only their
+    names cannot be checked, and is not)."""
+    if overwrite or "controllers" not in old:
+        return
+
+    def settings(rec: dict) -> list:  # every column's settings (a doc's words aside)
+        return [{k: v for k, v in t.items() if k != "doc"} if isinstance(t, dict) else t
+                for key in ("controllers", "optional_controllers") for t in rec.get(key, [])]
+
+    now, was = settings(json.loads(json.dumps(sw.record()))), settings(old)
+    if was != now:
+        changed = [t.get("name") for t in now if t not in was]
+        raise ConfigError("--out", str(out_dir), "results of the same controllers' settings: "
+                          f"{', '.join(map(str, changed)) or 'a column'} changed since they "
+                          "were made (a preset changed); --overwrite or --out a new folder")
 
 
 def _check_same_turbine(out_dir: Path, old: dict, sw: Sweep, overwrite: bool) -> None:

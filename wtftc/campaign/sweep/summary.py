@@ -9,10 +9,9 @@ from pathlib import Path
 import numpy as np
 
 from wtftc import config
-from wtftc.campaign.compare import CONTROLLERS
 from wtftc.campaign.sweep import dlc, paired, record, tradeoff
 from wtftc.campaign.sweep.record import FIGURES, Record
-from wtftc.campaign.sweep.spec import FAULT_TYPES, expand, parse_sweep
+from wtftc.campaign.sweep.spec import FAULT_TYPES, Sweep, expand, parse_sweep
 from wtftc.campaign.sweep.store import read_results
 from wtftc.errors import ConfigError
 from wtftc.files import MAX_TOML_BYTES
@@ -65,24 +64,23 @@ def summarize(out_dir: Path) -> str:
     meta = _meta(out_dir)
     rec = Record.open(out_dir, "--summary", files)
     rows = read_results(out_dir, "--summary").to_pylist()
-    try:
-        n_all = len(expand(parse_sweep(meta["sweep"]))[0])
-    except ConfigError as exc:
-        raise ConfigError("--summary", str(out_dir / "sweep.json"), "the sweep.json a sweep "
-                          f"wrote (its sweep is refused: {exc})") from None
-    lines, csv = _table(rows)
-    cost, cost_csv = _cost_table(rows)
+    sw = _sweep_of(meta, out_dir)
+    n_all = len(expand(sw)[0])
+    columns, order = sw.columns, list(sw.columns)
+    ref = paired.reference(columns)
+    lines, csv = _table(rows, columns)
+    cost, cost_csv = _cost_table(rows, order)
     dlc_table = meta["sweep"].get("dlc")
-    dlc_lines, dlc_csv = _dlc(rows, dlc_table)
+    dlc_lines, dlc_csv = _dlc(rows, dlc_table, order, ref)
     trip = dlc.parse_dlc(dlc_table or {})["overspeed_trip"]
-    paired_lines, paired_csv = paired.section(rows, trip)
+    paired_lines, paired_csv = paired.section(rows, trip, ref, order)
     family = tradeoff.tuned(rows)
-    tuned_lines, tuned_csv = tradeoff.section(rows) if family else ([], [])
+    tuned_lines, tuned_csv = tradeoff.section(rows, order) if family else ([], [])
     head = [f"# Sweep {meta['sweep_id']}: {len(rows)} of {n_all} runs saved",
             "", f"Results folder `{out_dir}`; made with "
             + ", ".join(f"{k} {v}" for k, v in meta["versions"].items()) + ".", ""]
     text = "\n".join(head + lines + cost + dlc_lines + paired_lines + tuned_lines
-                     + _alarm_rate(rows, meta)
+                     + _alarm_rate(rows, meta, columns)
                      + _failures(rows)) + "\n"
     outputs = {"summary.md": text, "summary.csv": "\n".join(csv) + "\n",
                "summary_cost.csv": "\n".join(cost_csv) + "\n"}
@@ -94,10 +92,10 @@ def summarize(out_dir: Path) -> str:
         outputs["summary_tuning.csv"] = "\n".join(tuned_csv) + "\n"
     data = {rel: t.encode() for rel, t in outputs.items()}
     if rows:
-        _figures(data, rows)
-        _extra_figures(data, rows, dlc_table, family)
+        _figures(data, rows, columns)
+        _extra_figures(data, rows, dlc_table, family, order)
         if paired_csv:
-            _save(paired.figure(rows, trip), data, "paired_tradeoff")
+            _save(paired.figure(rows, trip, ref, order), data, "paired_tradeoff")
     rec.refuse_unless_ours(data)  # all checked before any is written
     for rel, content in data.items():
         rec.write(rel, content)
@@ -116,29 +114,51 @@ def _meta(out_dir: Path) -> dict:
     return meta
 
 
-def _dlc(rows: list[dict], table) -> tuple[list[str], list[str]]:
+def _sweep_of(meta: dict, out_dir: Path) -> Sweep:
+    """The folder's sweep, its columns those sweep.json records (every setting written
+    out: no presets file needed); a folder whose sweep.json holds only their names
+    resolves them as names (wtftc.controller.lookup: presets and former names)."""
+    raw = meta["sweep"]
+    if isinstance(meta.get("controllers"), list):
+        raw = {k: v for k, v in raw.items() if k != "optional_controllers"} | {
+            k: meta[k] for k in ("controllers", "optional_controllers") if k in meta}
+    try:
+        return parse_sweep(raw)
+    except ConfigError as exc:
+        raise ConfigError("--summary", str(out_dir / "sweep.json"), "the sweep.json a sweep "
+                          f"wrote (its sweep is refused: {exc})") from None
+
+
+def _dlc(rows: list[dict], table, order, ref) -> tuple[list[str], list[str]]:
     """The DLC section the sweep's [dlc] table asks for (wtftc.campaign.sweep.dlc)."""
     if table is None:
         return [], []
     if dlc.parse_dlc(table)["case"] == "2.1":
-        return dlc.fault_section(rows, table)
-    return dlc.section(rows, table)
+        return dlc.fault_section(rows, table, order)
+    return dlc.section(rows, table, order, ref)
 
 
-def _extra_figures(out: dict, rows: list[dict], dlc_table, family: bool) -> None:
+def _extra_figures(out: dict, rows: list[dict], dlc_table, family: bool, order) -> None:
     if dlc_table is not None:
         if dlc.parse_dlc(dlc_table)["case"] == "2.1":
-            _save(dlc.fault_figure(rows, dlc_table), out, "dlc21_extremes")
+            _save(dlc.fault_figure(rows, dlc_table, order), out, "dlc21_extremes")
         else:
-            _save(dlc.figure(rows), out, "dlc_bins")
+            _save(dlc.figure(rows, order), out, "dlc_bins")
     if family:
         for faulted, name in ((False, "tradeoff_fault_free"), (True, "tradeoff_faulted")):
-            if tradeoff.points(rows, faulted):
-                _save(tradeoff.figure(rows, faulted), out, name)
+            if tradeoff.points(rows, faulted, order):
+                _save(tradeoff.figure(rows, faulted, order), out, name)
 
 
-def _table(rows: list[dict]) -> tuple[list[str], list[str]]:
-    """The table's Markdown lines and CSV lines: one row per controller and fault type."""
+def _uses_fdi(columns: dict, c: str) -> bool:
+    """Whether column ``c`` runs wtftc's FDI (a row of a column the sweep no longer
+    names: no)."""
+    return c in columns and columns[c].uses_fdi
+
+
+def _table(rows: list[dict], columns: dict) -> tuple[list[str], list[str]]:
+    """The table's Markdown lines and CSV lines: one row per controller and fault type,
+    the controllers in the order of ``columns`` (the sweep's)."""
     groups: dict[tuple, list] = {}
     for r in rows:
         groups.setdefault((r["controller"], r["fault_type"]), []).append(r)
@@ -146,9 +166,10 @@ def _table(rows: list[dict]) -> tuple[list[str], list[str]]:
              if r["fault_type"] == "none" and r["status"] != "failed"}
     lines = ["| " + " | ".join(h for h, _ in TABLE) + " |", "|" + "---|" * len(TABLE)]
     csv = [",".join(h.replace(",", ";") for h, _ in TABLE)]
+    place = dlc.rank(rows, columns)
     for (c, f), rs in sorted(groups.items(), key=lambda kv: (
-            list(CONTROLLERS).index(kv[0][0]), FAULT_TYPES.index(kv[0][1]))):
-        vals = _cells(c, f, rs, twins)
+            place[kv[0][0]], FAULT_TYPES.index(kv[0][1]))):
+        vals = _cells(c, f, rs, twins, _uses_fdi(columns, c))
         cells = ["—" if v is None else fmt.format(v)
                  for v, (_, fmt) in zip(vals, TABLE, strict=True)]
         lines.append("| " + " | ".join(cells) + " |")
@@ -156,7 +177,7 @@ def _table(rows: list[dict]) -> tuple[list[str], list[str]]:
     return lines, csv
 
 
-def _cost_table(rows: list[dict]) -> tuple[list[str], list[str]]:
+def _cost_table(rows: list[dict], order) -> tuple[list[str], list[str]]:
     """What the regulation cost, per controller and fault type (docs/loads.md): the
     shaft's fatigue, the pitch's duty, the speed against each controller's own
     reference; Markdown lines under a heading, and CSV lines (SI units)."""
@@ -169,8 +190,9 @@ def _cost_table(rows: list[dict]) -> tuple[list[str], list[str]]:
              "|" + "---|" * len(head)]
     csv = [",".join(["controller", "fault", "runs"]
                     + [f"{k} p{q}" for _, k, q, _, _ in COST])]
+    place = dlc.rank(rows, order)
     for (c, f), rs in sorted(groups.items(), key=lambda kv: (
-            list(CONTROLLERS).index(kv[0][0]), FAULT_TYPES.index(kv[0][1]))):
+            place[kv[0][0]], FAULT_TYPES.index(kv[0][1]))):
         vals = [_quantile([r[k] for r in rs if r.get(k) is not None], q)
                 for _, k, q, _, _ in COST]
         lines.append("| " + " | ".join([c, f, str(len(rs))] + [
@@ -192,13 +214,13 @@ def _scenario(r: dict) -> tuple:
                  or k.startswith("mismatch_"))
 
 
-def _cells(c: str, f: str, rs: list[dict], twins: dict | None = None) -> list:
-    """The values of one row of the table: controller ``c`` under fault type ``f``; with
-    ``twins`` (scenario → fault-free RMS error), each run's RMS error over its twin's."""
+def _cells(c: str, f: str, rs: list[dict], twins: dict | None, uses_fdi: bool) -> list:
+    """The values of one row of the table: controller ``c`` (``uses_fdi``: it runs
+    wtftc's FDI) under fault type ``f``; with ``twins`` (scenario → fault-free RMS
+    error), each run's RMS error over its twin's."""
     good = [r for r in rs if r["status"] != "failed"]
     rms = [r["rms_speed_error_rad_s"] for r in good]
     peak = [r["overspeed_peak_over_rated"] for r in good]
-    uses_fdi = CONTROLLERS[c].uses_fdi
     fdi = uses_fdi and f != "none"
     delays = [r["detection_delay_s"] for r in good if r["detection_delay_s"] is not None]
     return [c, f, len(rs), sum(r["status"] == "diverged" for r in rs),
@@ -220,14 +242,14 @@ def _ratios(good: list[dict], f: str, twins: dict) -> list:
     return [_quantile(ratios, 50), max(ratios) if ratios else None]
 
 
-def _alarm_rate(rows: list[dict], meta: dict) -> list[str]:
-    """The FDI's false alarms per simulated fault-free hour, per controller variant that
-    runs it (the goal of issue 15: none in 100 hours)."""
+def _alarm_rate(rows: list[dict], meta: dict, columns: dict) -> list[str]:
+    """The FDI's false alarms per simulated fault-free hour, per controller that runs it
+    (the goal: none in 100 hours)."""
     t_final = float(meta["sweep"].get("t_final_s", 60.0))
     out = []
-    for c in CONTROLLERS:
+    for c in dlc.rank(rows, columns):
         free = [r for r in rows if r["controller"] == c and r["fault_type"] == "none"
-                and r["status"] == "ok" and CONTROLLERS[c].uses_fdi]
+                and r["status"] == "ok" and _uses_fdi(columns, c)]
         if free:
             hours = len(free) * t_final / 3600.0
             alarms = sum(r["false_alarms"] or 0 for r in free)
@@ -255,13 +277,13 @@ def _failures(rows: list[dict]) -> list[str]:
                    "the dataset's `config_json`)."]
 
 
-def _figures(out: dict, rows: list[dict]) -> None:
+def _figures(out: dict, rows: list[dict], columns: dict) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ctrls = [c for c in CONTROLLERS if any(r["controller"] == c for r in rows)]
+    ctrls = [c for c in dlc.rank(rows, columns) if any(r["controller"] == c for r in rows)]
     faults = [f for f in FAULT_TYPES if any(r["fault_type"] == f for r in rows)]
     for key, label, name in BOXES:
         fig, ax = plt.subplots(figsize=(max(7, 1.2 * len(faults) * len(ctrls) / 2), 4.5))
@@ -270,7 +292,7 @@ def _figures(out: dict, rows: list[dict]) -> None:
         ax.set_title(f"{label.split(' [')[0]}: distribution over the sweep's runs", fontsize=9)
         _save(fig, out, name)
     fig, ax = plt.subplots(figsize=(7, 4))
-    _delays(ax, rows, faults)
+    _delays(ax, rows, faults, columns)
     _save(fig, out, "detection_delay")
 
 
@@ -298,9 +320,10 @@ def _boxes(ax, rows: list[dict], ctrls: list[str], faults: list[str], key: str) 
     ax.legend(fontsize=8)
 
 
-def _delays(ax, rows: list[dict], faults: list[str]) -> None:
-    """Histograms of the detection delays of the variants with wtftc's FDI, per fault type."""
-    fdi_rows = [r for r in rows if CONTROLLERS[r["controller"]].uses_fdi
+def _delays(ax, rows: list[dict], faults: list[str], columns: dict) -> None:
+    """Histograms of the detection delays of the controllers with wtftc's FDI, per fault
+    type."""
+    fdi_rows = [r for r in rows if _uses_fdi(columns, r["controller"])
                 and r["fault_type"] != "none" and r["detection_delay_s"] is not None]
     for k, f in enumerate(f for f in faults if f != "none"):
         v = [r["detection_delay_s"] for r in fdi_rows if r["fault_type"] == f]

@@ -11,7 +11,6 @@ import numpy as np
 
 from wtftc import config
 from wtftc.campaign import cases, tune
-from wtftc.campaign.compare import CONTROLLERS
 from wtftc.campaign.sweep.store import METRICS, UNFINISHED
 from wtftc.errors import ProgramKilled
 from wtftc.openfast.turbsim import ensure_field
@@ -33,14 +32,16 @@ def _row(pt: dict, status: str, m: dict | None = None, cause: str | None = None,
     if m is not None:
         row.update({k: m.get(k) for k, _ in METRICS})
     fdi = m["fdi"] if m is not None else None
+    # (a faulty run of a column with wtftc's FDI runs in its case: config.FDI_CASE)
+    uses_fdi = pt["config"].get("case") == config.FDI_CASE
     if fdi_ran(fdi):  # (not ROSCO in OpenFAST: its library has no FDI)
         delays = [b["detection_delay_s"] for b in fdi["blades"].values()
                   if b.get("detection_delay_s") is not None]
-        if CONTROLLERS[pt["controller"]].uses_fdi and pt["fault_type"] != "none":
+        if uses_fdi and pt["fault_type"] != "none":
             row["detection_delay_s"] = min(delays) if delays else None
         row["isolation_correct"] = bool(fdi["isolation_correct"])
         row["false_alarms"] = len(fdi["false_alarms"])
-        if CONTROLLERS[pt["controller"]].uses_fdi and fdi["faults"]:
+        if uses_fdi and fdi["faults"]:
             # the FDI's own account of the run's fault (metrics.fdi_report)
             entry = fdi["faults"][0]
             row["fault_detected"], row["fault_correct"] = entry["detected"], entry["correct"]

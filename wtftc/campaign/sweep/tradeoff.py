@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from wtftc.campaign.compare import CONTROLLERS
+from wtftc.campaign.sweep.dlc import rank
 
 #: (key, header, scale, format, statistic)
 COLUMNS = [("rms_speed_error_own_above_rated_rad_s",
@@ -36,7 +36,7 @@ def tuned(rows: list[dict]) -> bool:
     return any(r.get("tuning_omega_n_rad_s") is not None for r in rows)
 
 
-def points(rows: list[dict], faulted: bool) -> dict[str, list[dict]]:
+def points(rows: list[dict], faulted: bool, order=()) -> dict[str, list[dict]]:
     """controller → its points, by target ω_n: the statistics of COLUMNS over its runs
     (status ok; fault-free or faulted)."""
     groups: dict[tuple, list] = {}
@@ -45,8 +45,9 @@ def points(rows: list[dict], faulted: bool) -> dict[str, list[dict]]:
             key = (r["controller"], r.get("tuning_omega_n_rad_s"), r.get("tuning_zeta"))
             groups.setdefault(key, []).append(r)
     out: dict[str, list[dict]] = {}
+    place = rank(rows, order)
     for (c, w, z), rs in sorted(groups.items(), key=lambda kv: (
-            list(CONTROLLERS).index(kv[0][0]), kv[0][1] or 0.0, kv[0][2] or 0.0)):
+            place[kv[0][0]], kv[0][1] or 0.0, kv[0][2] or 0.0)):
         pt = {"omega_n": w, "zeta": z, "runs": len(rs)}
         for key, _, _, _, stat in COLUMNS:
             vals = [r[key] for r in rs if r.get(key) is not None]
@@ -56,7 +57,7 @@ def points(rows: list[dict], faulted: bool) -> dict[str, list[dict]]:
     return out
 
 
-def section(rows: list[dict]) -> tuple[list[str], list[str]]:
+def section(rows: list[dict], order=()) -> tuple[list[str], list[str]]:
     """The summary's tuned-family section: a table per condition; Markdown and CSV."""
     lines = ["", "## Tuned families (docs/compare.md): each controller at each target "
              "mode of its pitch loop", "",
@@ -69,7 +70,7 @@ def section(rows: list[dict]) -> tuple[list[str], list[str]]:
     lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for faulted in (False, True):
         cond = "faulted" if faulted else "fault-free"
-        for c, pts in points(rows, faulted).items():
+        for c, pts in points(rows, faulted, order).items():
             for p in pts:
                 cells = [cond, c, _f(p["omega_n"], "{:g}"), _f(p["zeta"], "{:g}"),
                          str(p["runs"])] + [_f(p[k], fmt, s) for k, _, s, fmt, _ in COLUMNS]
@@ -77,10 +78,10 @@ def section(rows: list[dict]) -> tuple[list[str], list[str]]:
                 csv.append(",".join([cond, c, *("" if p[k] is None else str(p[k]) for k in (
                     "omega_n", "zeta")), str(p["runs"])] + [
                     "" if p[k] is None else str(p[k]) for k, *_ in COLUMNS]))
-    return lines + overspeed_by_fault(rows), csv
+    return lines + overspeed_by_fault(rows, order), csv
 
 
-def overspeed_by_fault(rows: list[dict]) -> list[str]:
+def overspeed_by_fault(rows: list[dict], order=()) -> list[str]:
     """The largest peak speed per controller, target and fault type (a runaway by its
     direction): the extremes a design goal compares fault by fault."""
     from wtftc.campaign.sweep.dlc import fault_label
@@ -97,8 +98,8 @@ def overspeed_by_fault(rows: list[dict]) -> list[str]:
     lines = ["", "Largest peak ω / rated [-] per fault type (every run of it):", "",
              "| controller | target ω_n [rad/s] | " + " | ".join(faults) + " |",
              "|---|---|" + "---|" * len(faults)]
-    targets = sorted({(c, w) for c, w, _ in peaks}, key=lambda cw: (
-        list(CONTROLLERS).index(cw[0]), cw[1] or 0.0))
+    place = rank(rows, order)
+    targets = sorted({(c, w) for c, w, _ in peaks}, key=lambda cw: (place[cw[0]], cw[1] or 0.0))
     for c, w in targets:
         lines.append(f"| {c} | {_f(w, '{:g}')} | " + " | ".join(
             _f(peaks.get((c, w, f)), "{:.3f}") for f in faults) + " |")
@@ -109,7 +110,7 @@ def _f(v, fmt: str, scale: float = 1.0) -> str:
     return "—" if v is None else fmt.format(v * scale)
 
 
-def figure(rows: list[dict], faulted: bool):
+def figure(rows: list[dict], faulted: bool, order=()):
     """The trade-off planes of one condition, a line per controller through its targets
     (labelled by ω_n); the caller saves it."""
     import matplotlib
@@ -117,7 +118,7 @@ def figure(rows: list[dict], faulted: bool):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    pts = points(rows, faulted)
+    pts = points(rows, faulted, order)
     fig, axes = plt.subplots(1, len(PLANES), figsize=(5 * len(PLANES), 4.2))
     x_key = COLUMNS[0][0]
     for ax, (y_key, label) in zip(axes, PLANES, strict=True):
