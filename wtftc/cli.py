@@ -84,6 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_modes(sub)
     _add_openfast(sub)
     _add_validate(sub)
+    _add_presets(sub)
     return p
 
 
@@ -100,8 +101,9 @@ def _add_validate(sub) -> None:
                     "tolerance) and time_series and spectra figures.",
         epilog="Example: wtftc validate --controller rosco --wind-mean 16 --t-final 60 "
                "--out out/validate_rosco16")
-    v.add_argument("--controller", default="rosco", help="rosco (default) or a registered "
-                   "controller that exports (pi, physical, paper, drivetrain)")
+    _add_preset(v, "validate")
+    v.add_argument("--controller", help="rosco (default) or a registered controller that "
+                   "exports (pi, physical, paper, drivetrain), with its default settings")
     v.add_argument("--case", type=int, choices=(1, 2, 4),
                    help="1 no fault (default), 2 a fault the controller is not told of, "
                         "4 wtftc's FDI finds it")
@@ -139,9 +141,11 @@ def _cmd_validate(args) -> int:
         args.wind = "file" if args.wind_file is not None else "ntm"
     if args.wind_mean is None and args.wind != "file":
         args.wind_mean = VALIDATE_WIND_MPS
-    raw = tune.resolve(_run_overrides(args))
+    if args.preset is None and args.controller is None:
+        args.controller = "rosco"
+    raw = tune.resolve(_pick_controller(args, _run_overrides(args)))
     _check_out_beside_deck(args.out, raw.get("turbine"))
-    if args.controller != "rosco":
+    if raw["controller"] != "rosco":
         raw.setdefault("turbine_params", {"gen_torque_law": 1.0})  # as compare runs them
     from wtftc.campaign.modes import tower_plants
 
@@ -250,14 +254,18 @@ def _add_run(sub) -> None:
     r = sub.add_parser(
         "run", help="simulate one case: traces, metrics, figures and a config you can re-run",
         description="Simulate one closed-loop run with fixed-step RK4. Options override the "
-                    "TOML --config file, which overrides the defaults (case 1, nrel5mw, the "
-                    "paper's controller with the corrected sign, the paper's random wind "
-                    "around 12 m/s, 60 s at dt = 1 ms). Writes traces.csv (units in the "
+                    "TOML --config file, which overrides the defaults (the turbine's "
+                    "recommended controller preset with wtftc's FDI in the realistic "
+                    "profile on the tower_edge plant, no fault, the paper's random wind "
+                    "around 12 m/s, 60 s at dt = 1 ms). Writes "
+                    "traces.csv (units in the "
                     "header), traces.parquet, metrics.json, config.toml and figures/ (PNG, PDF; "
                     "the FDI's in case 4) into --out.",
         epilog="Example: wtftc run --case 3 --plant nrel5mw --wind ntm --wind-mean 16 "
                "--t-final 60 --out out/ntm16. Config file keys: case, plant, controller, "
-               "t_final_s, dt_s, seed, output_rate_hz, control_sign, reference_rad_s, "
+               "[controller] (preset, design, accommodation and the design's settings: "
+               "docs/controllers.md), t_final_s, dt_s, seed, output_rate_hz, control_sign, "
+               "reference_rad_s, "
                "turbine, cp_table, label, profile, control_interval_s, control_delay, [sensors], "
                "[mismatch], [fdi], [wind] (kind = constant | steps | paper_random | ntm | eog | "
                "file, ...), [[fault]] (blade, type, onset_s, ...), [controller_params], "
@@ -266,16 +274,19 @@ def _add_run(sub) -> None:
     r.add_argument("--case", type=int, choices=(1, 2, 3, 4),
                    help="1 no fault, 2 fault with the controller unaware, 3 fault known to "
                         "eq (49), 4 fault detected by wtftc's FDI")
-    r.add_argument("--plant", help="nrel5mw (default; two-mass drivetrain), tower (nrel5mw "
+    r.add_argument("--plant", help="tower_edge (default with a preset), nrel5mw (default "
+                   "with --controller; two-mass drivetrain), tower (nrel5mw "
                    "on a flexible tower: thrust, tower-base moment, Cp and Ct per blade), "
                    "tower_edge (tower with the blades' edgewise mode in series with the "
                    "shaft: OpenFAST's drivetrain mode; docs/validation.md) or paper (eqs "
                    "(1)-(4), unloaded)")
+    _add_preset(r, "run")
     r.add_argument("--controller", help=_controller_help())
     r.add_argument("--turbine", help=TURBINE_HELP)
     _add_wind_arguments(r)
     r.add_argument("--fault", choices=("default", "none"),
-                   help="default: blade 1 locked, blades 2-3 ρ = 0.5 from 20 s (cases 2, 3, 4)")
+                   help="default: blade 1 locked, blades 2-3 ρ = 0.5 from 20 s (with a "
+                        "preset: run in its accommodation's case; else cases 2, 3, 4)")
     r.add_argument("--t-final", type=float, help="simulated time [s] (default 60)")
     r.add_argument("--dt", type=float, help="RK4 step [s] (default 0.001)")
     r.add_argument("--seed", type=_nonnegative_int, help="random seed (default 0)")
@@ -283,9 +294,10 @@ def _add_run(sub) -> None:
                    help="control sign: -1 corrected (default), +1 as written (pitches the "
                         "wrong way and stalls the rotor: paper-notes defect 2)")
     r.add_argument("--profile", choices=("ideal", "realistic"),
-                   help="ideal (default): continuous-time controller, exact sensors (the "
-                        "paper's world); realistic: 100 Hz sampled controller, the benchmark's "
-                        "sensor noise, the baseline torque law (docs/sensors.md)")
+                   help="realistic (default with a preset): 100 Hz sampled controller, "
+                        "the benchmark's sensor noise, the baseline torque law; ideal "
+                        "(default with --controller): continuous-time controller, exact "
+                        "sensors, the paper's world (docs/sensors.md)")
     r.add_argument("--control-interval", type=float, metavar="SECONDS",
                    help="controller and FDI sampling interval [s], a multiple of --dt; 0: "
                         "continuous time (default of the ideal profile)")
@@ -533,6 +545,72 @@ def _controllers() -> dict:
     return {k: v for k, v in controllers().items() if k != "external"}
 
 
+def _add_preset(p, command: str) -> None:
+    """The --preset option of ``command``."""
+    p.add_argument("--preset", metavar="NAME", help=_preset_help(command))
+
+
+def _preset_help(command: str) -> str:
+    """The --preset help: the shipped presets, or where to find them when the generated
+    artefacts cannot be read (``--help`` works all the same)."""
+    default = {"run": "the turbine's recommended preset (aftc-nrel5mw on the NREL 5-MW, "
+                      "aftc-iea15mw on the IEA 15-MW)",
+               "validate": "--controller's design", "linearize": "the turbine's "
+               "recommended preset", "tune": "--controller's design"}.get(command, "")
+    try:
+        from wtftc.controller import presets
+
+        names = ", ".join(presets())
+    except _UNREADABLE:
+        names = "wtftc presets lists them"
+    return (f"a controller preset: {names} (docs/controllers.md); none with --controller"
+            + (f". Default: {default}" if default else ""))
+
+
+def _pick_controller(args, cfg: dict, default_preset: bool = False) -> dict:
+    """``cfg`` with the controller the options ask for: --preset as a [controller] table
+    (refused beside --controller); with ``default_preset``, the turbine's recommended
+    preset where nothing names a controller (a note where its file names none); and with
+    a preset, the realistic profile and the tower_edge plant unless given, and --fault
+    default puts the
+    default fault in (the preset's accommodation then sets the case)."""
+    import copy
+
+    from wtftc import controller
+    from wtftc.model import turbine_file
+    from wtftc.model.faults import DEFAULT_FAULT
+
+    preset = getattr(args, "preset", None)
+    if preset is not None:
+        if getattr(args, "controller", None) is not None:
+            raise ConfigError("--preset", preset, "--preset or --controller, not both (a "
+                              "preset names its design)")
+        controller.preset(preset)  # an unknown name named as --preset
+        cfg["controller"] = {"preset": preset}
+    elif default_preset and "controller" not in cfg \
+            and not {"controller_params", "tuning"} & set(cfg):
+        turbine = cfg.get("turbine", turbine_file.DEFAULT)
+        name, note = controller.recommended(turbine_file.load(turbine)) \
+            if isinstance(turbine, str) else (controller.FALLBACK_PRESET, None)
+        _note(note)
+        cfg["controller"] = {"preset": name}
+    if isinstance(cfg.get("controller"), dict):
+        # a preset is measured with sampled control and the benchmark's sensors, on the
+        # plant validated against OpenFAST (docs/validation.md)
+        cfg.setdefault("profile", "realistic")
+        if cfg.get("engine", "wtftc") == "wtftc":
+            cfg.setdefault("plant", "tower_edge")
+        if getattr(args, "fault", None) == "default":
+            cfg.setdefault("fault", copy.deepcopy(DEFAULT_FAULT))
+    return cfg
+
+
+def _describe_controller(raw: dict) -> str:
+    """What a run's controller is, for its first line: the preset, or the design."""
+    name = raw.get("controller_preset")
+    return f"preset {name} ({raw['controller']})" if name else raw["controller"]
+
+
 def _plants() -> dict:
     from wtftc.sim.rhs import PLANTS
 
@@ -671,7 +749,7 @@ def _cmd_run(args) -> int:
 
     _check_out_name(args.out)
     check_run_folder(args.out, "--out")  # before any work, a TurbSim field too
-    raw = tune.resolve(_run_overrides(args))
+    raw = tune.resolve(_pick_controller(args, _run_overrides(args), default_preset=True))
     config.check_before_field(raw)  # refused before a TurbSim field is made
     if raw.get("engine") == "openfast":
         from wtftc.openfast import install
@@ -684,8 +762,8 @@ def _cmd_run(args) -> int:
     _note(config.cut_out_note(rc))
     where = (f"OpenFAST 5.0.0 ({rc.raw.get('turbine', 'nrel5mw')}'s deck)"
              if rc.raw.get("engine") == "openfast" else f"{rc.plant}, at dt = {rc.dt:g} s")
-    print(f"{rc.label}: case {rc.case} ({config.CASES[rc.case]}) on {where}, "
-          f"{rc.t_final:g} s")
+    print(f"{rc.label}: {_describe_controller(rc.raw)}, case {rc.case} "
+          f"({config.CASES[rc.case]}) on {where}, {rc.t_final:g} s")
     res, table, paths = cases.run_and_write(rc, args.out, progress=not args.quiet)
     print(table)
     if res.diverged:
@@ -787,7 +865,9 @@ def _add_turbine(sub) -> None:
         epilog="Example: wtftc turbine tune --turbine iea15mw --controller physical "
                "--omega-n 1.0 --zeta 0.8 --out iea_physical.toml")
     u.add_argument("--turbine", help=TURBINE_HELP)
-    u.add_argument("--controller", default="physical", help="physical (default) or pi")
+    _add_preset(u, "tune")
+    u.add_argument("--controller", help="physical (default) or pi, from its default "
+                   "settings")
     u.add_argument("--omega-n", type=float, default=0.6,
                    help="natural frequency of the dominant mode [rad/s] (default 0.6, "
                         "ROSCO's NREL 5-MW PC_omega)")
@@ -851,10 +931,14 @@ def _turbine_tune(args) -> int:
 
     if args.out:  # refused before the work: a user's file, a folder, the package's data
         check_new_file(args.out, "--out", args.overwrite, ours=_written_by_tune)
-    r = tune.tune(args.controller, args.turbine, args.omega_n, args.zeta, args.wind,
-                  args.c2_ratio)
+    if args.preset is not None and args.controller is not None:
+        raise ConfigError("--preset", args.preset, "--preset or --controller, not both (a "
+                          "preset names its design)")
+    r = tune.tune(args.controller or "physical", args.turbine, args.omega_n, args.zeta,
+                  args.wind, args.c2_ratio, preset=args.preset)
     a = r["achieved"]
-    print(f"{args.controller} on {args.turbine or 'nrel5mw'}: gains for a dominant mode of "
+    what = f"preset {args.preset}" if args.preset else args.controller or "physical"
+    print(f"{what} on {args.turbine or 'nrel5mw'}: gains for a dominant mode of "
           f"{args.omega_n:g} rad/s, ζ {args.zeta:g} at {args.wind:g} m/s")
     for k, v in r["gains"].items():
         print(f"  {k:<18s} {v:.6g}")
@@ -869,7 +953,10 @@ def _turbine_tune(args) -> int:
     tune.check_stable(r, args.omega_n, args.zeta, args.wind)  # an unstable design: exit 2
     if args.out:
         check_new_file(args.out, "--out", args.overwrite, ours=_written_by_tune)  # again
-        body = (f"{TUNE_HEADER} --controller {args.controller} --omega-n {args.omega_n:g} "
+        body = (f"{TUNE_HEADER} "
+                + (f"--preset {args.preset}" if args.preset
+                   else f"--controller {args.controller or 'physical'}")
+                + f" --omega-n {args.omega_n:g} "
                 f"--zeta {args.zeta:g} --wind {args.wind:g} --c2-ratio {args.c2_ratio:g}\n"
                 + config.to_toml(r["raw"])).encode()
         write_files_together({args.out: body + _tune_seal(body)})
@@ -918,8 +1005,9 @@ def _add_linearize(sub) -> None:
                    "too): its controller, turbine, plant, controller_params and "
                    "turbine_params (a design's options, e.g. phys_obs_omega) are used, the "
                    "rest named in a note; the flags below override it")
+    _add_preset(k, "linearize")
     k.add_argument("--controller",
-                   help="the registered controller (default physical)")
+                   help="a registered controller, with its default settings")
     k.add_argument("--turbine", help=TURBINE_HELP)
     k.add_argument("--plant", help="the plant model, a name of wtftc.sim.rhs.PLANTS: nrel5mw "
                    "(the default), tower, paper, ...")
@@ -972,16 +1060,18 @@ def _linearize_config(args) -> dict:
     (a saved run's config.toml is welcome; a misspelt key is refused); what a loop at rest
     in constant wind with exact sensors does not read is named in a note."""
     from wtftc import config
+    from wtftc.campaign import tune
 
     cfg = config.load_toml(args.config, "--config") if args.config else {}
+    ignored = sorted(k for k in cfg if k not in (*LINEARIZE_KEYS, "label", "tuning",
+                                                 "controller_preset"))
     if args.controller is not None:
         cfg["controller"] = args.controller
     if args.turbine:
         cfg["turbine"] = args.turbine
-    cfg.setdefault("controller", "physical")
+    cfg = tune.resolve(_pick_controller(args, cfg, default_preset=True))
     if args.config:
         config.make_config(dict(cfg))
-    ignored = sorted(k for k in cfg if k not in LINEARIZE_KEYS and k != "label")
     if ignored and not args.quiet:
         print(f"note: {args.config}: linearize reads {', '.join(LINEARIZE_KEYS)}; not used "
               f"here: {', '.join(ignored)}")
@@ -1107,10 +1197,44 @@ def _cmd_openfast(args) -> int:
     return 0
 
 
+def _add_presets(sub) -> None:
+    p = sub.add_parser(
+        "presets", help="the controller presets: what each is for, its settings",
+        description="Lists the shipped controller presets (wtftc/data/presets.toml), the "
+                    "named settings that --preset runs, exports and compares, and which "
+                    "turbine recommends which; with NAME, that preset's [controller] table, "
+                    "to copy into a configuration and change. docs/controllers.md.",
+        epilog="Example: wtftc presets aftc-nrel5mw")
+    p.add_argument("name", nargs="?", metavar="NAME", help="a preset to show in full")
+
+
+def _cmd_presets(args) -> int:
+    from wtftc import config, controller
+    from wtftc.model import turbine_file
+
+    table = controller.presets()
+    recommends = {}
+    for t in turbine_file.BUILTIN:
+        recommends.setdefault(turbine_file.load(t).recommended_preset, []).append(t)
+    if args.name is None:
+        for name, c in table.items():
+            by = f" (recommended for {', '.join(recommends[name])})" \
+                if name in recommends else ""
+            print(f"{name}: {c.design}, accommodation {c.accommodation}{by}\n    {c.doc}")
+        return 0
+    c = controller.preset(args.name, "NAME")
+    by = f", recommended for {', '.join(recommends[args.name])}" \
+        if args.name in recommends else ""
+    print(f"# preset {args.name}{by}: {c.doc}\n"
+          + config.to_toml({"controller": {k: v for k, v in c.table().items()
+                                           if k != "doc"}}), end="")
+    return 0
+
+
 COMMANDS = {"validate": _cmd_validate, "verify": _cmd_verify, "run": _cmd_run, "cases": _cmd_cases,
             "compare": _cmd_compare, "sweep": _cmd_sweep, "functions": _cmd_functions,
             "export": _cmd_export, "turbine": _cmd_turbine, "linearize": _cmd_linearize,
-            "modes": _cmd_modes, "openfast": _cmd_openfast}
+            "modes": _cmd_modes, "openfast": _cmd_openfast, "presets": _cmd_presets}
 
 
 #: every top-level table of layout.json the runtime reads: artefacts generated by an older

@@ -317,7 +317,9 @@ def expand(cfg: dict) -> tuple[dict, dict]:
     preset it came from, a record); and the map of those keys' fields back to the table's
     (``controller_params.x`` → ``controller.x``) for the refusals of their ranges.
 
-    The case: 1 without a fault, else the accommodation's; a ``case`` given must agree."""
+    The case: 1 without a fault, else the accommodation's; a ``case`` given is run as it
+    says (2: the design unaware of the fault, 3: told it, 4: its FDI), where the design
+    has that accommodation."""
     tab = cfg.get("controller")
     if not isinstance(tab, dict):
         return cfg, {}
@@ -330,20 +332,20 @@ def expand(cfg: dict) -> tuple[dict, dict]:
     faulty = bool(cfg.get("fault"))
     keys = c.run_keys(faulty)
     out = {k: v for k, v in cfg.items() if k != "controller"}
-    if "case" in cfg:
+    if "case" in cfg:  # a case given runs the design in it: its accommodation
         case = cfg["case"]
-        if case not in (FAULT_FREE_CASE, keys["case"]) and case in (
-                UNAWARE_CASE, ORACLE_CASE, FDI_CASE):
-            want = {v: k for k, v in ACCOMMODATIONS.items()}[case]
-            raise ConfigError("controller.accommodation", c.accommodation, f"{want} to run "
-                              f"in case {case} (or leave case out: it follows from the "
-                              "accommodation and the fault)")
+        want = {v: k for k, v in ACCOMMODATIONS.items()}.get(case) \
+            if isinstance(case, numbers.Integral) and not isinstance(case, bool) else None
+        if want is not None and want not in accommodations(c.design):
+            raise ConfigError("case", case, f"1 or {UNAWARE_CASE} with {c.design} (it has "
+                              "no fault accommodation; a case follows from the "
+                              "[controller] table's accommodation and the fault)")
         keys["case"] = case
-    turbine = dict(cfg.get("turbine_params") or {}) \
-        if isinstance(cfg.get("turbine_params"), dict) else cfg.get("turbine_params")
+    turbine = cfg.get("turbine_params", {})
+    if not isinstance(turbine, dict):
+        raise ConfigError("turbine_params", turbine, "a table of turbine_params names = "
+                          "numbers (see generated/layout.json)")
     if "turbine_params" in keys:
-        if not isinstance(turbine, dict):
-            turbine = {}
         both = sorted(set(turbine) & set(keys["turbine_params"]))
         if both:
             raise ConfigError(f"turbine_params.{both[0]}", turbine[both[0]], "none: the "

@@ -88,9 +88,16 @@ def _solve_physical(base: dict, wind: float, omega_n: float, zeta: float,
 
 
 def tune(controller: str, turbine: str | None, omega_n: float, zeta: float,
-         wind: float, ratio: float = C2_OVER_C1) -> dict:
+         wind: float, ratio: float = C2_OVER_C1, preset: str | None = None) -> dict:
     """The gains (``controller_params``), the turbine facts used, and the achieved mode
-    and margins at ``wind`` on the exact linear model."""
+    and margins at ``wind`` on the exact linear model; ``preset``: retuned from that
+    preset's settings (its design's gains replaced), and ``raw`` its [controller] table."""
+    if preset is not None:
+        controller = settings.preset(preset).design
+        if controller not in TUNABLE:
+            raise ConfigError("--preset", preset, "a preset of a design tuned here: "
+                              + ", ".join(n for n, p in settings.presets().items()
+                                          if p.design in TUNABLE))
     if controller not in TUNABLE:
         raise ConfigError("--controller", controller, "one of " + ", ".join(TUNABLE))
     for name, val, key in (("--omega-n", omega_n, "omega_n_rad_s"), ("--zeta", zeta, "zeta"),
@@ -99,15 +106,17 @@ def tune(controller: str, turbine: str | None, omega_n: float, zeta: float,
         _, lo, hi = TUNING_KEYS[key]
         if not (lo <= val <= hi):
             raise ConfigError(name, val, f"a number in [{lo:g}, {hi:g}]")
-    base = {"controller": controller, **({"turbine": turbine} if turbine else {})}
+    where = {"turbine": turbine} if turbine else {}
+    base = settings.expand({"controller": {"preset": preset}, **where})[0] if preset \
+        else {"controller": controller, **where}
     rc = config.make_config(base)
     try:
         if controller == "pi":
             gains = {"pi_omega_n": omega_n, "pi_zeta": zeta}
         else:
             gains = _solve_physical(base, wind, omega_n, zeta, ratio)
-        raw = {**base, "controller_params": gains}
-        op = lin.operating_point(raw, wind)
+        op = lin.operating_point({**base, "controller_params": {
+            **base.get("controller_params", {}), **gains}}, wind)
     except lin.NotAtRest as exc:  # no operating point at the design wind
         raise ConfigError("--wind", wind, exc.allowed) from None
     group = controllers()[controller]["params"]
@@ -116,7 +125,8 @@ def tune(controller: str, turbine: str | None, omega_n: float, zeta: float,
     return {"gains": gains, "facts": {k: values[k] for k in facts},
             "achieved": lin.summary_row(op), "least_stable": lin.least_stable(op),
             "rated_wind_mps": config.rated_wind_speed(rc.loop.p_turbine, rc.loop.table),
-            "raw": raw}
+            "raw": {**where, "controller": {"preset": preset, **gains}} if preset
+            else {**base, "controller_params": gains}}
 
 
 def check_stable(r: dict, omega_n: float, zeta: float, wind: float) -> None:
