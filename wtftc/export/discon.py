@@ -37,8 +37,10 @@ killed whole on an interrupt or a timeout.
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import importlib.resources
+import json
 import math
 import os
 import shutil
@@ -52,8 +54,9 @@ import casadi as ca
 import numpy as np
 
 from wtftc import config, files
+from wtftc import controller as ctl
 from wtftc.artefacts import layout as lay
-from wtftc.artefacts.loader import load
+from wtftc.artefacts.loader import load, manifest
 from wtftc.errors import ConfigError
 from wtftc.export import discon_checks
 from wtftc.model import turbine_file
@@ -150,31 +153,100 @@ def schedule_table(betas: np.ndarray, grads: np.ndarray) -> np.ndarray:
 RUN_S = 60.0
 
 
-def run_config(controller: str, interval: float = CONTROL_DT) -> config.RunConfig:
-    """The run whose sampled loop the library reproduces: case 4 (wtftc's FDI feeds the
-    accommodation), the realistic profile's noise levels, the call interval ``interval``
-    (a whole multiple of the 1-ms step the FDI substeps at, within what wtftc's sampled
-    loop accepts: refused otherwise, naming --interval)."""
-    if controller not in exportable():
-        raise ConfigError("--controller", controller, "one of " + ", ".join(exportable()))
-    allowed = f"a whole multiple of {PLANT_DT} s (the FDI's substep), e.g. 0.01 or 0.005"
+#: the keys of a run's configuration that make a library: its controller, turbine, sensors
+#: and FDI (and control_interval_s, the call interval unless --interval gives one); the
+#: rest are the scenario's (wind, faults, length, outputs, engine), which a library does
+#: not hold: an export leaves them out and its header names them
+LIBRARY_KEYS = ("controller", "controller_params", "tuning", "controller_preset", "turbine",
+                "turbine_params", "sensors", "fdi", "control_sign", "reference_rad_s",
+                "cp_table")
+
+
+def _interval(cfg: dict, interval: float | None) -> tuple[float, str]:
+    """The call interval and the field it came from: ``interval`` (--interval), else the
+    configuration's control_interval_s, else :data:`CONTROL_DT`; refused unless a whole
+    multiple of the FDI's 1-ms substep."""
+    field = "--interval"
+    if interval is None:
+        field, interval = "control_interval_s", cfg.get("control_interval_s", CONTROL_DT)
     ok = (isinstance(interval, (int, float)) and not isinstance(interval, bool)
           and math.isfinite(interval) and interval > 0)
     n = round(interval / PLANT_DT) if ok else 0
     if not (n >= 1 and abs(n * PLANT_DT - interval) <= 1e-12):
-        raise ConfigError("--interval", interval, allowed)
+        raise ConfigError(field, interval, f"a whole multiple of {PLANT_DT} s (the FDI's "
+                          "substep), e.g. 0.01 or 0.005")
+    return float(interval), field
+
+
+def controller_of(cfg: dict) -> tuple:
+    """The configuration's controller: its ``controller`` (a table, or a bare design's
+    name), else the turbine's recommended preset as a table; and that as a
+    :class:`wtftc.controller.Controller`, checked exportable: ROSCO is refused (its library
+    is ROSCO's own), and an AFTC design's accommodation must be fdi (the library detects
+    faults itself; nobody tells it one)."""
+    tab = cfg.get("controller")
+    if tab is None:
+        name, _ = ctl.recommended(turbine_file.load(cfg.get("turbine", turbine_file.DEFAULT)))
+        tab = {"preset": name}
+    field = "controller" if isinstance(tab, str) else "controller.design"
+    c = ctl.parse({"design": tab} if isinstance(tab, str) else tab)
+    if c.design not in exportable():
+        raise ConfigError(field, c.design, "a design wtftc builds a library of: "
+                          + ", ".join(exportable()) + " (ROSCO's library is ROSCO's own "
+                          "libdiscon.so with its DISCON.IN)")
+    if c.accommodation != ctl.default_accommodation(c.design):
+        raise ConfigError("controller.accommodation", c.accommodation, f"fdi for an export of "
+                          f"{c.design}: the library detects faults with wtftc's FDI inside "
+                          "it, and no host tells it one")
+    return tab, c
+
+
+def run_config(cfg, interval: float | None = None) -> config.RunConfig:
+    """The run whose sampled loop the library of ``cfg`` reproduces. ``cfg``: a run's
+    configuration (a ``[controller]`` table with or without ``preset``, or the flat keys
+    ``controller``/``controller_params``; ``turbine``, ``turbine_params``, ``sensors``,
+    ``fdi``; no controller: the turbine's recommended preset), or a bare design's name.
+    The library's run: case 4 (wtftc's FDI feeds the accommodation), the realistic
+    profile's sensors unless ``[sensors]`` says otherwise, the call interval ``interval``
+    (default: the configuration's control_interval_s, else 0.01 s; a whole multiple of the
+    1-ms step the FDI substeps at, within what wtftc's sampled loop accepts), the FDI's
+    host alignment rate. The scenario's keys (:func:`scenario_keys`) are left out."""
+    if isinstance(cfg, str):  # a bare design: --controller DESIGN
+        if cfg not in exportable():
+            raise ConfigError("--controller", cfg, "one of " + ", ".join(exportable()))
+        cfg = {"controller": {"design": cfg}}
+    if not isinstance(cfg, dict):
+        raise ConfigError("config", cfg, "a run's configuration (a table: docs/discon.md)")
+    for key in cfg:
+        if key not in config.TOP_KEYS:
+            raise ConfigError(key, cfg[key], "a known key: " + ", ".join(sorted(config.TOP_KEYS)))
+    interval, field = _interval(cfg, interval)
+    own = {k: copy.deepcopy(v) for k, v in cfg.items() if k in LIBRARY_KEYS}
+    own["controller"], _ = controller_of(own)
+    flat, names = ctl.expand(own)  # (a bare design's name: the flat keys as they are)
     calls = round(RUN_S / interval)
     t_final = interval * calls if calls >= 1 else RUN_S  # longer: the loop refuses it
+    fdi = flat.get("fdi", {})
+    fdi = {"align_rate_per_s": config.HOST_ALIGN_RATE, **fdi} if isinstance(fdi, dict) else fdi
     try:
-        return config.make_config({"case": 4, "controller": controller,
-                                   "profile": "realistic", "dt_s": PLANT_DT,
-                                   "control_interval_s": interval, "t_final_s": t_final,
-                                   "fdi": {"align_rate_per_s": config.HOST_ALIGN_RATE}})
-    except ConfigError as exc:  # what the sampled loop refuses is said of --interval
+        return config.make_config({**flat, "case": ctl.FDI_CASE, "profile": "realistic",
+                                   "dt_s": PLANT_DT, "control_interval_s": interval,
+                                   "t_final_s": t_final, "fdi": fdi})
+    except ConfigError as exc:
+        if exc.field in names:  # a range refused of a key the [controller] table set
+            raise ConfigError(names[exc.field], exc.value, exc.allowed, where=exc.where) \
+                from None
         if exc.field != "control_interval_s":
             raise
-        raise ConfigError("--interval", interval, f"{allowed}; wtftc's sampled loop takes "
-                          f"{exc.allowed}") from None
+        raise ConfigError(field, interval, f"a whole multiple of {PLANT_DT} s (the FDI's "
+                          f"substep); wtftc's sampled loop takes {exc.allowed}") from None
+
+
+def scenario_keys(cfg) -> list[str]:
+    """The keys of ``cfg`` an export leaves out: the scenario's, not the library's."""
+    if not isinstance(cfg, dict):
+        return []
+    return sorted(k for k in cfg if k not in (*LIBRARY_KEYS, "control_interval_s"))
 
 
 def parameters(rc: config.RunConfig, demand_rate_limit: int = 1
@@ -193,6 +265,57 @@ def parameters(rc: config.RunConfig, demand_rate_limit: int = 1
                 doc = _turbine_source(turbine, e["name"], float(v), doc)
             out.append((e["name"], float(v), e["unit"], doc))
     return out + _interface_params(demand_rate_limit)
+
+
+def generated_code_sha256() -> str:
+    """The hash of the generated code the library is made of: of generated/manifest.json's
+    artefacts and their sha256 (what a campaign's results record as
+    ``generated_code_sha256``: the same 16 hex digits)."""
+    code = manifest()["artefacts"]
+    return hashlib.sha256(json.dumps(code, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def differences(rc: config.RunConfig) -> list[tuple[str, float, float]]:
+    """(name, value, default) of every .IN value of ``rc`` that differs from its design's
+    defaults on its turbine (the bare design's export: ``{"controller": {"design": d}}``
+    with the same turbine and call interval)."""
+    base = {"controller": {"design": rc.controller}}
+    if "turbine" in rc.raw:
+        base["turbine"] = rc.raw["turbine"]
+    ref = parameters(run_config(base, rc.control_interval))
+    return [(n, v, b) for (n, v, *_), (m, b, *_) in zip(parameters(rc), ref, strict=True)
+            if v != b]
+
+
+def _turbine_file(t: turbine_file.Turbine) -> str:
+    builtin = turbine_file.path_of(t.name) if t.name in turbine_file.BUILTIN else None
+    if builtin is not None and Path(builtin).resolve() == Path(t.path).resolve():
+        return f"wtftc's built-in file {Path(t.path).name} (--turbine {t.name})"
+    return f"the file {Path(t.path).resolve()}"
+
+
+def header(rc: config.RunConfig, cfg=None) -> list[str]:
+    """What an export is, as the .IN's header and the README say it: the preset (or a
+    [controller] table), the turbine by name and file, the generated code's hash, every
+    setting that differs from the design's defaults, and the configuration's keys the
+    export left out (the scenario's)."""
+    t = turbine_file.load(rc.raw.get("turbine", turbine_file.DEFAULT))
+    preset = rc.raw.get("controller_preset")
+    doc = ctl.presets()[preset].doc if preset in ctl.presets() else ""
+    what = f"preset {preset}" if preset else "a [controller] table"
+    diff = differences(rc)
+    lines = [f"controller: {what}, design {rc.controller}" + (f" ({doc})" if doc else ""),
+             f"turbine: {t.name}, {_turbine_file(t)}",
+             f"generated code: sha256 {generated_code_sha256()} (of generated/manifest.json's "
+             "artefacts, as a campaign records it: generated_code_sha256)",
+             f"settings other than {rc.controller}'s defaults on {t.name}:"
+             + ("" if diff else " none")]
+    lines += [f"  {n} = {v!r} (default {b!r})" for n, v, b in diff]
+    left = scenario_keys(cfg)
+    if left:
+        lines.append("left out of the configuration (the scenario's, not the library's): "
+                     + ", ".join(left))
+    return lines
 
 
 def _turbine_source(turbine: turbine_file.Turbine, name: str, value: float, doc: str) -> str:
@@ -376,11 +499,14 @@ static const char *const WTFTC_PARAM_NAMES[WTFTC_N_PARAMS] = {{
 CP_FILE = "Cp_Ct_Cq.wtftc.txt"
 
 
-def input_file(rc: config.RunConfig, params: list, cp_file: str = CP_FILE) -> str:
-    """The .IN file: the Cp file if the controller needs one, then every parameter by
-    name, value, unit and source."""
+def input_file(rc: config.RunConfig, params: list, cp_file: str = CP_FILE,
+               about: list[str] | None = None) -> str:
+    """The .IN file: what the export is (``about``, :func:`header`'s lines, as comments),
+    the Cp file if the controller needs one, then every parameter by name, value, unit and
+    source."""
     lines = [f"! wtftc {rc.loop.controller}: the parameters of libwtftc_{rc.loop.controller}.so"
              f" (wtftc export discon; docs/discon.md)",
+             *(f"! {ln}" for ln in about or ()),
              "! name  value  ! unit - source. Every parameter must be set, once; edit the",
              "! values to tune or to describe another turbine. '!' starts a comment."]
     if needs_cp(rc.loop.controller):
@@ -421,6 +547,10 @@ def servodyn_snippet(controller: str, interval: float = CONTROL_DT,
 
 README = """libwtftc_{c}.so: wtftc's `{c}` controller with wtftc's FDI, as a Bladed-style DISCON.
 
+WHAT IT IS (also the header of wtftc_{c}.IN)
+{about}
+library sources: sha256 {sources} (the C it was compiled from, in this folder)
+
 Call it every {dt} s (DLL_DT; another interval is refused). It reads from avrSWAP (1-based
 records): #1 iStatus (0 first call, 1 running, -1 last; -8/-9 refused), #2 time, #3
 interval, #4/#33/#34 blade pitch [rad], #20 generator speed [rad/s, HSS], #21 rotor speed
@@ -445,24 +575,36 @@ The controller's states advance at the call interval as in wtftc's sampled loop;
 FDI runs inside and feeds the accommodation (wtftc's case 4). Details: docs/discon.md.
 
 THE PITCH ACTUATOR. The controller and its FDI are designed for the benchmark's pitch
-actuator between the demand and the blade: a second order (omega_n_nominal,
-zeta_nominal in the .IN: 11.11 rad/s and 0.6 for the NREL 5-MW) with a rate limit
-(pitch_rate_max, 8 deg/s) and the position limits. OpenFAST's decks have none: ElastoDyn
-applies the demand directly. Without an actuator this controller was unstable in
-OpenFAST 5.0.0 and its FDI raised alarms on every blade (issue 32), its demands reaching
--179 to 712 deg. So the library limits what it writes: every demand within
-pitch_min..pitch_max, and, with demand_rate_limit = 1 in the .IN (the default), within
-pitch_rate_max x DLL_DT of the last one, the rate the missing actuator would have
-allowed. That keeps the blades in range; it does not make the design right for such a
-host. Put the actuator in: `wtftc export discon --with-actuator` adds
-libwtftc_plant.so, wtftc's plant-side pitch actuator (its settings in wtftc_plant.in),
-which ServoDyn calls instead and which calls this library (demand_rate_limit = 0 then);
-`wtftc run --engine openfast` runs OpenFAST so (docs/openfast.md).
+actuator between the demand and the blade: a second order (omega_n_nominal = {wn:g} rad/s,
+zeta_nominal = {zeta:g} in the .IN) with a rate limit (pitch_rate_max, {rate:g} deg/s) and
+the position limits. OpenFAST's decks have none: ElastoDyn applies the demand directly,
+and the physical AFTC is then unstable in OpenFAST 5.0.0 (docs/openfast.md). So the
+library limits what it writes: every demand within pitch_min..pitch_max, and, with
+demand_rate_limit = 1 in the .IN (the default), within pitch_rate_max x DLL_DT of the
+last one, the rate the missing actuator would have allowed. That keeps the blades in
+range; it does not make the design right for such a host. Put the actuator in: `wtftc
+export discon --with-actuator` adds libwtftc_plant.so, wtftc's plant-side pitch
+actuator (its settings in wtftc_plant.in), which ServoDyn calls instead and which calls
+this library (demand_rate_limit = 0 then); `wtftc run --engine openfast` runs OpenFAST
+so (docs/openfast.md).
 
-INTO YOUR OWN DECK: copy every file of this folder beside the deck's ServoDyn input file
-(ServoDyn reads DLL_FileName and DLL_InFile relative to it, and the library reads the
-names in its input file relative to that file), paste servodyn_snippet.txt over the same
-keys, and keep the deck's DT a whole fraction of DLL_DT.
+INTO YOUR OWN DECK (OpenFAST 5.0, ServoDyn input file v3.x), step by step:
+1. Copy every file of this folder into the folder of the deck's ServoDyn input file
+   (ServoDyn reads DLL_FileName and DLL_InFile relative to that file, and each library
+   reads the names in its input file relative to that input file).
+2. In the ServoDyn input file, give the keys servodyn_snippet.txt lists (PCMode,
+   VSContrl, DLL_FileName, DLL_InFile, DLL_ProcName, DLL_DT, Ptch_Cntrl) its values;
+   leave every other line as it is.
+3. In the main input file (.fst), set DT to a whole fraction of DLL_DT = {dt} s, e.g.
+   {deck_dt:g} s, what `wtftc run --engine openfast` uses (ServoDyn refuses a DLL_DT that
+   is not a whole multiple of DT; ROSCO's NREL 5-MW deck has DT = 0.00625 s).
+4. In the ElastoDyn input file, start at the operating point of the wind at t = 0:
+   RotSpeed [rpm], BlPitch(1), BlPitch(2), BlPitch(3) [deg], TTDspFA [m]. The library
+   starts its states at its first readings; a start far from the operating point is a
+   start-up transient. `wtftc run --engine openfast --out OUT` of this controller and
+   that wind starts where wtftc's trim puts it: the values are in OUT/openfast/'s
+   ElastoDyn file.
+5. Run openfast on the main input file.
 """
 
 
@@ -499,12 +641,15 @@ def cp_file_name(table: CpTable) -> str:
     return Path(table.source).name if Path(table.source).suffix else CP_FILE
 
 
-def write_input(rc: config.RunConfig, path: Path, demand_rate_limit: int = 1) -> Path:
-    """The .IN file of ``rc``'s parameters at ``path``, and beside it the Cp file it names
-    when the controller needs one. ``demand_rate_limit``: 1 for a host without a pitch
-    actuator (the default), 0 for one with the benchmark actuator (:data:`DEMAND_RATE_LIMIT`)."""
+def write_input(rc: config.RunConfig, path: Path, demand_rate_limit: int = 1,
+                about: list[str] | None = None) -> Path:
+    """The .IN file of ``rc``'s parameters at ``path`` (``about``: its header, what the
+    export is), and beside it the Cp file it names when the controller needs one.
+    ``demand_rate_limit``: 1 for a host without a pitch actuator (the default), 0 for one
+    with the benchmark actuator (:data:`DEMAND_RATE_LIMIT`)."""
     cp = cp_file_name(rc.loop.table)
-    path.write_text(input_file(rc, parameters(rc, demand_rate_limit), cp), encoding="utf-8")
+    path.write_text(input_file(rc, parameters(rc, demand_rate_limit), cp, about),
+                    encoding="utf-8")
     if needs_cp(rc.loop.controller):
         _write_table(rc.loop.table, path.parent / cp)
     return path
@@ -604,24 +749,46 @@ def compile_command(out: Path, controller: str, cc: str = "gcc", opt: str = "-O2
             *(str(out / n) for n in SOURCES), "-lm"]
 
 
+#: the longest step an OpenFAST deck takes under wtftc (wtftc.openfast.case.MAX_DT) [s]
+DECK_DT_MAX = 0.005
+
+
 def build(rc: config.RunConfig, out: Path, cc: str = "gcc", opt: str = "-O2",
-          demand_rate_limit: int = 1) -> None:
-    """Generate the C of the library's functions into ``out`` and compile it there."""
-    write_sources(rc, out)
+          demand_rate_limit: int = 1, about: list[str] | None = None) -> None:
+    """Generate the C of the library's functions into ``out`` and compile it there; write
+    its .IN (headed by ``about``, :func:`header`'s lines), ServoDyn lines and README."""
+    sources = write_sources(rc, out)
     lib = out / f"libwtftc_{rc.loop.controller}.so"
     compile_library(compile_command(out, rc.loop.controller, cc, opt), cc)
     check_library(lib, cc)
-    write_input(rc, out / f"wtftc_{rc.loop.controller}.IN", demand_rate_limit)
+    write_input(rc, out / f"wtftc_{rc.loop.controller}.IN", demand_rate_limit, about)
     (out / "servodyn_snippet.txt").write_text(servodyn_snippet(rc.loop.controller,
                                                                rc.control_interval))
+    (out / "README.txt").write_text(readme(rc, about or [], sources_sha256(sources)))
+
+
+def sources_sha256(sources: list[Path]) -> str:
+    """The hash of a library's C sources (16 hex digits): each file's name and bytes."""
+    h = hashlib.sha256()
+    for p in sorted(sources, key=lambda p: p.name):
+        data = p.read_bytes()
+        h.update(p.name.encode() + b"\0" + len(data).to_bytes(8, "little") + data)
+    return h.hexdigest()[:16]
+
+
+def readme(rc: config.RunConfig, about: list[str], sources: str) -> str:
+    """The export's README.txt."""
     logged = ", ".join(f"fdi_{k}_{j}" for k in LOGGED for j in lay.blades()) \
         if rc.loop.fdi else "none"
     cp = (f"Its PerfFileName names the Cp_Ct_Cq file ({cp_file_name(rc.loop.table)}, "
           "relative to the .IN's folder)\nthe library reads at its first call to compute "
           "the dT/dbeta schedule.\n") if needs_cp(rc.loop.controller) else ""
-    (out / "README.txt").write_text(README.format(c=rc.loop.controller, cp=cp,
-                                                  dt=rc.control_interval,
-                                                  swap_max=SWAP_MAX, logged=logged))
+    dt = rc.control_interval
+    return README.format(c=rc.loop.controller, cp=cp, dt=dt, swap_max=SWAP_MAX,
+                         logged=logged, about="\n".join(about), sources=sources,
+                         deck_dt=dt / math.ceil(dt / DECK_DT_MAX - 1e-9),
+                         wn=rc.param("omega_n_nominal"), zeta=rc.param("zeta_nominal"),
+                         rate=math.degrees(rc.param("pitch_rate_max")))
 
 
 def _earlier_export(folder: Path) -> bool:
@@ -646,7 +813,7 @@ def _earlier_export(folder: Path) -> bool:
         cp = [cp_file_name(rc.loop.table)] if needs_cp(c) else []
         expected = {f"libwtftc_{c}.so", f"wtftc_{c}.IN", "servodyn_snippet.txt", "README.txt",
                     "wtftc_discon_gen.c", "wtftc_discon_meta.h", *SOURCES, *cp}
-        first = README.format(c=c, cp="", dt=dt, swap_max=SWAP_MAX, logged="").split("\n")[0]
+        first = README.split("\n")[0].format(c=c)
         infile = input_file(rc, parameters(rc), cp_file_name(rc.loop.table))
         return (set(entries) == expected
                 and (folder / "README.txt").read_text(encoding="utf-8").split("\n")[0] == first
@@ -656,22 +823,46 @@ def _earlier_export(folder: Path) -> bool:
         return False
 
 
-def export(controller: str, out_dir: Path, cc: str = "gcc", opt: str = "-O2",
-           interval: float = CONTROL_DT,
+def export(cfg, out_dir: Path, cc: str = "gcc", opt: str = "-O2",
+           interval: float | None = None,
            with_actuator: Callable[[config.RunConfig, Path], None] | None = None) -> Path:
-    """Build the library of ``controller`` into ``out_dir`` as a whole (wtftc.files.
-    owned_folder): in a hidden folder beside it, swapped in when every file is written.
-    ``out_dir`` may be new, empty, or a folder an export wrote and nobody changed since
-    (its marker; or :func:`_earlier_export`); anything else is refused in one line naming
-    --out, nothing touched.
+    """Build the library of the run configuration ``cfg`` (:func:`run_config`: a
+    ``[controller]`` table, a preset, a turbine; or a bare design's name) into ``out_dir``
+    as a whole (wtftc.files.owned_folder): in a hidden folder beside it, swapped in when
+    every file is written. ``out_dir`` may be new, empty, or a folder an export wrote and
+    nobody changed since (its marker; or :func:`_earlier_export`); anything else is
+    refused in one line naming --out, nothing touched. The .IN's header and the README
+    say what was exported (:func:`header`). Returns ``out_dir``, resolved
+    (:func:`written` lists its files).
 
     ``with_actuator`` (``export discon --with-actuator``: wtftc.openfast.plant_library.
     add_to_export) adds the plant-side actuator library the controller is designed for;
     the .IN then leaves the demands' rate to that actuator (demand_rate_limit = 0)."""
-    rc = run_config(controller, interval)
+    rc = run_config(cfg, interval)
+    about = header(rc, cfg)
     with files.owned_folder(out_dir, "--out", command="export discon",
                             legacy=_earlier_export) as tmp:
-        build(rc, tmp, cc, opt, demand_rate_limit=0 if with_actuator else 1)
+        build(rc, tmp, cc, opt, demand_rate_limit=0 if with_actuator else 1, about=about)
         if with_actuator is not None:
             with_actuator(rc, tmp)
     return Path(out_dir).resolve()
+
+
+#: the files of an export a user puts into a deck, in the order :func:`written` names
+#: them (the Cp file, of any name, after the .IN; the C sources last)
+_ORDER = ("libwtftc_plant.so", "wtftc_plant.in", "servodyn_snippet.txt", "README.txt")
+
+
+def written(out_dir: Path) -> list[str]:
+    """The files of the export in ``out_dir`` by name: the library, its .IN, the Cp file,
+    the plant library and its settings (--with-actuator), the ServoDyn lines, the README;
+    then the C sources it was compiled from."""
+    def rank(n: str) -> tuple:
+        if n in _ORDER:
+            return (3 + _ORDER.index(n), n)
+        if n.endswith((".c", ".h")):
+            return (9, n)
+        return (0 if n.endswith(".so") else 1 if n.endswith(".IN") else 2, n)
+
+    return sorted((e.name for e in os.scandir(out_dir)
+                   if e.is_file() and e.name != files.MARKER), key=rank)

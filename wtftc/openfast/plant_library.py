@@ -223,19 +223,37 @@ def add_to_export(rc, folder: Path) -> None:
     (folder / "servodyn_snippet.txt").write_text(
         discon.servodyn_snippet(c, rc.control_interval, LIBRARY, SETTINGS))
     with open(folder / "README.txt", "a", encoding="utf-8") as f:
-        f.write(f"""
+        f.write(actuator_readme(c, rc.control_interval))
+
+
+def actuator_readme(controller: str, interval: float) -> str:
+    """The README's section on the plant library an export with --with-actuator holds."""
+    sensors = " ".join(e["name"] for e in lay.layout()["sensors"])
+    return f"""
 WITH THE ACTUATOR (--with-actuator). {LIBRARY} is wtftc's plant-side pitch actuator
-library: ServoDyn calls it (servodyn_snippet.txt), it reads {SETTINGS}, passes the
-readings to libwtftc_{c}.so and drives each blade through the benchmark actuator (the
+library: ServoDyn calls it (servodyn_snippet.txt names it and {SETTINGS}: the steps
+above put it in as they are), it reads {SETTINGS}, passes the readings to
+libwtftc_{controller}.so and drives each blade through the benchmark actuator (the
 turbine parameters in {SETTINGS}: omega_n, zeta, rate and position limits), integrated
-at {ACTUATOR_DT:g} s inside each call. Sensors: exact. Faults: none; a line
-'fault <blade 1-3> <1 loss of effectiveness|2 lock|3 hydraulic> <onset s> <end s> <ramp s>
-<rho|angle rad|omega_n> <0|0|zeta>' adds one. Each call appends a row to {RECORDS}.
+at {ACTUATOR_DT:g} s inside each call of {interval:g} s. Every path in {SETTINGS} is
+relative to its folder. Each call appends a row to {RECORDS} there (wtftc's
+plant_library.read_records reads it: the demands, the blades, the readings).
+Faults: none; a line 'fault <blade 1-3> <1 loss of effectiveness|2 lock|3 hydraulic>
+<onset s> <end s> <ramp s> <rho|angle rad|omega_n> <0|0|zeta>' adds one.
+Sensors: exact (the resolution in p_sensors only) unless two lines name a noise table:
+'noise <file>' and 'noise_columns {NOISE_COLUMNS[0]}'. The file holds float64
+little-endian rows of {NOISE_COLUMNS[0]} standard normal draws, one row per call, the
+sensors in this order: {sensors}; the noise sigma of p_sensors scales them. A
+`wtftc run --engine openfast --out OUT` writes its run's draws as
+OUT/openfast/wtftc_noise.bin: with that table, the wind file of OUT/openfast/ and the
+operating point of step 4, your deck runs that run (tests/test_export_openfast.py).
 Every value of {SETTINGS} is checked at the first call against wtftc's own ranges (the
 turbine's, the sensors', a fault's; pitch_min below pitch_max; actuator_dt dividing the
 call interval): a bad one stops OpenFAST with one line naming the key, the value and
 what is allowed.
-""")
+"""
+
+
 def _numbers(values) -> str:
     return " ".join(repr(float(v)) for v in np.asarray(values, dtype=float).ravel())
 
