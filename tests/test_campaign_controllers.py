@@ -1,0 +1,207 @@
+"""Campaign columns as controller settings: every kept campaign folder still summarises and
+its migrated sweep file gives its runs, the former controller names run as they were
+defined, and a column refused is one line naming it."""
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import pytest
+
+from wtftc import controller
+from wtftc.campaign import compare, tune
+from wtftc.campaign.sweep import expand, load_sweep, parse_sweep, read_results, summarize
+from wtftc.errors import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
+KEPT = ROOT / "docs" / "campaigns"
+#: each kept folder with a sweep file → the example file it was made from, migrated
+EXAMPLE = {
+    "dlc12_openfast_ct_nrel5mw": "dlc12_openfast_ct",
+    "dlc12_openfast_iea15mw_ct": "dlc12_openfast_iea15mw_ct",
+    "dlc12_openfast_nrel5mw": "dlc12_openfast",
+    "dlc12_openfast_obs30_nrel5mw": "dlc12_openfast_obs30",
+    "dlc12_openfast_obs3to45_nrel5mw": "dlc12_openfast_obs3to45",
+    "dlc12_openfast_td_nrel5mw": "dlc12_openfast_td",
+    "dlc21_openfast_ct_nrel5mw": "dlc21_openfast_ct",
+    "dlc21_openfast_iea15mw_ct": "dlc21_openfast_iea15mw_ct",
+    "dlc21_openfast_nrel5mw": "dlc21_openfast",
+    "dlc21_openfast_obs30_nrel5mw": "dlc21_openfast_obs30",
+    "dlc21_openfast_obs3to45_nrel5mw": "dlc21_openfast_obs3to45",
+    "tower_damper_openfast_nrel5mw": "tower_damper_openfast",
+}
+#: the IEA 15-MW candidate, set in its folder's sweep file by its target mode, which the
+#: preset aftc-iea15mw holds as the gains that target solves to: other run ids, the same
+#: runs once the target is solved
+TUNED = {"physical_obs15_w04_ps_ct_fdi": "aftc-iea15mw"}
+
+#: the 21 controller names of the earlier wtftc (wtftc/campaign/compare.py at b2e8c34):
+#: name → (design, case under a fault, (ω_n, ζ) target or None, [controller_params],
+#: [turbine_params] beside the baseline torque law)
+OLD = {
+    "rosco": ("rosco", 2, None, {}, {}),
+    "paper": ("paper", 3, None, {}, {}),
+    "physical_fdi": ("physical", 4, None, {}, {}),
+    "physical_known": ("physical", 3, None, {}, {}),
+    "physical_unaccommodated": ("physical", 2, None, {}, {}),
+    "drivetrain_fdi": ("drivetrain", 4, None, {}, {}),
+    "pi": ("pi", 2, None, {}, {}),
+    "paper_fdi": ("paper", 4, None, {}, {}),
+    "physical_obs_fdi": ("physical", 4, None, {"phys_obs_omega": 6.0}, {}),
+    "pi_lpf": ("pi", 2, None, {"pi_lpf_corner": 6.0}, {}),
+    "physical_obs_ps_fdi": ("physical", 4, None,
+                            {"phys_obs_omega": 6.0, "phys_ps_pitch": 0.0349}, {}),
+    "pi_lpf_ps": ("pi", 2, None, {"pi_lpf_corner": 6.0, "pi_ps_pitch": 0.0349}, {}),
+    "physical_obs45_ps_fdi": ("physical", 4, None,
+                              {"phys_obs_omega": 4.5, "phys_ps_pitch": 0.0349}, {}),
+    "physical_obs45_ps_td_fdi": ("physical", 4, None, {
+        "phys_obs_omega": 4.5, "phys_ps_pitch": 0.0349, "phys_td_gain": 0.12}, {}),
+    "rosco_matched": ("rosco", 2, (0.7, 0.85), {}, {}),
+    "physical_obs45_ps_ct_fdi": ("physical", 4, None, {
+        "phys_obs_omega": 4.5, "phys_ps_pitch": 0.0349}, {"vs_constant_torque": 1.0}),
+    "physical_obs45_ps_td_ct_fdi": ("physical", 4, None, {
+        "phys_obs_omega": 4.5, "phys_ps_pitch": 0.0349, "phys_td_gain": 0.12},
+        {"vs_constant_torque": 1.0}),
+    "pi_lpf_ps_ct": ("pi", 2, None, {"pi_lpf_corner": 6.0, "pi_ps_pitch": 0.0349},
+                     {"vs_constant_torque": 1.0}),
+    "physical_obs30_ps_td_ct_fdi": ("physical", 4, None, {
+        "phys_obs_omega": 3.0, "phys_ps_pitch": 0.0349, "phys_td_gain": 0.12},
+        {"vs_constant_torque": 1.0}),
+    "physical_obs3to45_ps_td_ct_fdi": ("physical", 4, None, {
+        "phys_obs_omega": 3.0, "phys_obs_omega_max": 4.5, "phys_ps_pitch": 0.0349,
+        "phys_td_gain": 0.12}, {"vs_constant_torque": 1.0}),
+    "physical_obs15_w04_ps_ct_fdi": ("physical", 4, (0.4, 0.85), {
+        "phys_obs_omega": 1.5, "phys_ps_pitch": 0.0349}, {"vs_constant_torque": 1.0}),
+}
+
+
+def _old_run_keys(name: str, faulty: bool) -> dict:
+    """The keys the earlier variant_config set for ``name`` (its other keys: the run's)."""
+    design, case, tuning, params, turbine = OLD[name]
+    cfg = {"controller": design, "case": case if faulty else 1}
+    if tuning is not None:
+        cfg["tuning"] = {"omega_n_rad_s": tuning[0], "zeta": tuning[1]}
+    if params:
+        cfg["controller_params"] = dict(params)
+    if design != "rosco":
+        cfg["turbine_params"] = {"gen_torque_law": 1.0, **turbine}
+    return cfg
+
+
+def test_the_kept_folders_are_those_with_a_sweep_file():
+    assert sorted(EXAMPLE) == sorted(d.name for d in KEPT.iterdir()
+                                     if (d / "sweep.toml").is_file())
+
+
+@pytest.mark.parametrize("folder", sorted(EXAMPLE))
+def test_a_kept_folder_summarises_and_its_migrated_file_gives_its_runs(folder, tmp_path):
+    """The folder's sweep.json names its columns only: they resolve as former names, and
+    its summary is made again (in a copy). Its migrated example file lists the runs the
+    folder holds: the same run ids, the IEA 15-MW candidate's the same configuration once
+    its target is solved (the gains to 1e-9)."""
+    copy = tmp_path / folder
+    shutil.copytree(KEPT / folder, copy)
+    text = summarize(copy)
+    saved = read_results(copy).to_pylist()
+    assert f"{len(saved)} of {len(saved)} runs saved" in text
+    assert all(f"| {c} |" in text for c in {r["controller"] for r in saved})
+    runs, _ = expand(load_sweep(ROOT / "examples" / f"{EXAMPLE[folder]}.toml"))
+    assert len(runs) == len(saved)
+    ids = {pt["run_id"]: pt for pt in runs}
+    plain = [r for r in saved if r["controller"] not in TUNED]
+    assert plain and all(r["run_id"] in ids for r in plain)
+    for r in plain:  # the same column: the former name's settings under its new name
+        new = ids[r["run_id"]]["controller"]
+        assert load_sweep(ROOT / "examples" / f"{EXAMPLE[folder]}.toml").columns[new] \
+            .run_keys(True, True) == _old_run_keys(r["controller"], True)
+    tuned = [r for r in saved if r["controller"] in TUNED]
+    if tuned:
+        _same_once_solved(tuned, [pt for pt in runs if pt["controller"] in TUNED.values()])
+
+
+def _scenario(cfg: dict) -> str:
+    return json.dumps({k: v for k, v in cfg.items()
+                       if k not in ("label", "controller_params", "tuning")}, sort_keys=True)
+
+
+def _same_once_solved(saved: list[dict], runs: list[dict]) -> None:
+    """Each saved run of a tuned column has a run of its preset with the same
+    configuration after tune.resolve, its controller's gains equal to 1e-9."""
+    assert len(saved) == len(runs)
+    by = {_scenario(pt["config"]): tune.resolve(pt["config"]) for pt in runs}
+    for r in saved:
+        old = tune.resolve(json.loads(r["config_json"]))
+        new = by[_scenario(old)]
+        assert _scenario(new) == _scenario(old) and "tuning" not in new
+        a, b = old["controller_params"], new["controller_params"]
+        assert set(a) == set(b) >= {"phys_c1", "phys_c2", "phys_gamma"}
+        assert all(math.isclose(a[k], b[k], rel_tol=1e-9) for k in a), (a, b)
+
+
+@pytest.mark.parametrize("name", sorted(OLD))
+def test_a_former_name_runs_as_it_was_defined(name):
+    ctrl = controller.lookup(name)
+    for faulty in (False, True):
+        assert ctrl.run_keys(faulty, torque_default=True) == _old_run_keys(name, faulty)
+    assert compare.resolve_columns([name]) == {name: ctrl}
+
+
+def test_every_former_name_is_listed():
+    assert set(controller.former_names()) == set(OLD)
+
+
+@pytest.mark.parametrize(("entries", "field", "value"), [
+    (["pi", "fastest"], "controllers", "fastest"),
+    ([{"name": "obs", "preset": "physical-plain", "phys_obs_omegaa": 3.0}],
+     "controllers.obs.phys_obs_omegaa", 3.0),
+    ([{"name": "obs", "design": "physical", "phys_obs_omega": [2.0, "x"]}],
+     "controllers.obs.phys_obs_omega", "x"),
+    ([{"name": "obs", "preset": "fastest"}], "controllers.obs.preset", "fastest"),
+    ([{"preset": "pi"}], "controllers.name", None),
+    (["pi", {"name": "pi", "preset": "pi-filtered"}], "controllers", "pi"),
+    ([{"name": "obs", "preset": "physical-plain", "phys_obs_omega": [3.0, 3]}],
+     "controllers", "obs[phys_obs_omega=3]"),
+])
+def test_a_column_refused_is_one_line_naming_it(entries, field, value):
+    """An unknown name, a bad key or value, a table without a name, a name given twice
+    (by hand or by a list's values): one ConfigError naming the column, from the
+    resolver and from a sweep file alike."""
+    for call in (lambda: compare.resolve_columns(entries),
+                 lambda: parse_sweep({"controllers": entries})):
+        with pytest.raises(ConfigError) as e:
+            call()
+        assert (e.value.field, e.value.value) == (field, value), e.value
+        assert "\n" not in str(e.value)
+
+
+def test_a_sweep_records_its_columns_and_its_summary_reads_them_back():
+    """sweep.json keeps each column's settings written out: a folder whose file names a
+    preset since changed, or gone, still resolves to the columns it ran."""
+    from wtftc.campaign.sweep.summary import _sweep_of
+
+    raw = {"controllers": [{"name": "obs", "preset": "aftc-nrel5mw",
+                            "phys_obs_omega": [2.0, 3.0]}, "pi"],
+           "optional_controllers": ["rosco"], "wind": {"mean_mps": 16.0}}
+    sw = parse_sweep(raw)
+    assert list(sw.columns) == ["obs[phys_obs_omega=2]", "obs[phys_obs_omega=3]", "pi",
+                                "rosco"]
+    rec = json.loads(json.dumps(sw.record()))
+    meta = {"sweep": {**raw, "controllers": ["a-preset-gone"]}, **rec}
+    back = _sweep_of(meta, Path("unused"))
+    assert {c: v.run_keys(True, True) for c, v in back.columns.items()} == {
+        c: v.run_keys(True, True) for c, v in sw.columns.items()}
+    assert [pt["run_id"] for pt in expand(back)[0]] == [pt["run_id"] for pt in expand(sw)[0]]
+    with pytest.raises(ConfigError) as e:  # without the record, the name is resolved
+        _sweep_of({"sweep": meta["sweep"]}, Path("unused"))
+    assert "a-preset-gone" in str(e.value)
+
+
+def test_the_preset_option_replaces_a_sweep_files_controllers(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text('controllers = ["pi", "paper"]\noptional_controllers = ["rosco"]\n')
+    sw = load_sweep(path, preset="aftc-nrel5mw")
+    assert list(sw.columns) == ["aftc-nrel5mw", "rosco"]
+    with pytest.raises(ConfigError) as e:
+        load_sweep(path, preset="fastest")
+    assert (e.value.field, e.value.value) == ("--preset", "fastest")
