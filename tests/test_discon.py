@@ -621,11 +621,15 @@ def _one_line_refusal(capsys, code: int, option: str) -> str:
 
 
 def _earlier(lib: Path, tmp_path: Path, name: str) -> Path:
-    """A copy of the module's export as the export wrote it before the marker existed."""
+    """A copy of the module's export as the export wrote it before the marker existed: no
+    checks header, and a .IN without the header that says what the export is."""
     out = tmp_path / name
     shutil.copytree(lib, out)
     (out / files.MARKER).unlink()
     (out / "wtftc_discon_checks.h").unlink()
+    rc = discon.run_config("physical")
+    (out / "wtftc_physical.IN").write_text(discon.input_file(
+        rc, discon.parameters(rc), discon.cp_file_name(rc.loop.table)), encoding="utf-8")
     return out
 
 
@@ -666,7 +670,7 @@ def test_export_replaces_its_own_folder_whole_keeping_its_mode(lib, tmp_path, mo
     assert stat.S_IMODE(lib.stat().st_mode) == 0o777 & ~_umask()
     assert files.written_by_wtftc(lib)
 
-    def copy_build(rc, out, cc="gcc", opt="-O2", demand_rate_limit=1):
+    def copy_build(rc, out, cc="gcc", opt="-O2", demand_rate_limit=1, about=None):
         for p in lib.iterdir():
             if p.name != files.MARKER:
                 shutil.copy(p, out / p.name)
@@ -880,3 +884,129 @@ def test_the_fdi_substeps_are_calls_of_one_function_with_the_written_out_arithme
     # designs latch it before call 60 here: readings that jump to the demand are no
     # actuator the FDI knows)
     assert latch[0] < 0.5 < latch[-1]
+
+
+# -- any configuration on any turbine, and what the export says it is ---------------------
+
+def _in_values(path: Path) -> dict[str, float]:
+    """A .IN's numbers by name (comments and the Cp file's line left out)."""
+    out = {}
+    for line in path.read_text(encoding="utf-8").splitlines():
+        words = line.split("!")[0].split()
+        if len(words) == 2 and words[0] != discon.CP_KEY:
+            out[words[0]] = float(words[1])
+    return out
+
+
+def test_the_header_and_readme_name_the_preset_the_turbine_and_the_hash(tmp_path):
+    """An export of the aftc-nrel5mw preset from a run's configuration: the .IN's header
+    and the README name the preset, the turbine and its file, the generated code's hash
+    (the one a campaign records) and each setting off the design's defaults, and the
+    configuration's scenario keys it left out; the README the hash of the C it was built
+    from; the library reads the .IN with its header; written() names the files a user
+    puts into a deck first."""
+    from wtftc.campaign.sweep.store import versions
+    from wtftc.controller import preset
+
+    cfg = {"controller": {"preset": "aftc-nrel5mw"}, "wind": {"kind": "constant",
+                                                              "speed_mps": 16.0}, "seed": 4}
+    out = discon.export(cfg, tmp_path / "aftc", opt="-O0")
+    infile = (out / "wtftc_physical.IN").read_text(encoding="utf-8")
+    readme = (out / "README.txt").read_text(encoding="utf-8")
+    code = versions()["generated_code_sha256"]
+    assert code == discon.generated_code_sha256() and len(code) == 16
+    said = [f"controller: preset aftc-nrel5mw, design physical ({preset('aftc-nrel5mw').doc})",
+            "turbine: nrel5mw, wtftc's built-in file nrel5mw.toml (--turbine nrel5mw)",
+            f"generated code: sha256 {code}",
+            "settings other than physical's defaults on nrel5mw:",
+            "  phys_obs_omega = 3.0 (default 0.0)", "  phys_td_gain = 0.12 (default 0.0)",
+            "  vs_constant_torque = 1.0 (default 0.0)",
+            "left out of the configuration (the scenario's, not the library's): seed, wind"]
+    for line in said:
+        assert f"\n! {line}" in infile and f"\n{line}" in readme, line
+    sources = [out / n for n in ("wtftc_discon_gen.c", "wtftc_discon_meta.h",
+                                 "wtftc_discon_checks.h", *discon.SOURCES)]
+    assert f"library sources: sha256 {discon.sources_sha256(sources)}" in readme
+    assert "phys_c1" not in readme.split("library sources")[0]  # the design's own gain
+    host = Host(out / "libwtftc_physical.so", out / "wtftc_physical.IN")
+    assert host.call(0, 0.0, *RATED, [0.2] * 3)["fail"] == 0
+    assert discon.written(out)[:5] == ["libwtftc_physical.so", "wtftc_physical.IN",
+                                       "Cp_Ct_Cq.NREL5MW.txt", "servodyn_snippet.txt",
+                                       "README.txt"]
+    # a table from the preset, changed: no longer the preset, the change named
+    rc = discon.run_config({"controller": {"preset": "aftc-nrel5mw", "phys_obs_omega": 2.5}})
+    about = discon.header(rc)
+    assert about[0] == "controller: a [controller] table, design physical"
+    assert "  phys_obs_omega = 2.5 (default 0.0)" in about
+
+
+def test_aftc_iea15mw_on_the_iea15mw_holds_its_gains_and_the_turbines_values(tmp_path):
+    """`export discon --preset aftc-iea15mw --turbine iea15mw` builds; its .IN holds the
+    preset's gains and every turbine value of the IEA 15-MW's file (but the torque law's
+    options, the preset's), names both, and the library commands finite demands at the
+    IEA 15-MW's rated speed."""
+    from wtftc.controller import preset
+    from wtftc.model import turbine_file
+
+    out = discon.export({"controller": {"preset": "aftc-iea15mw"}, "turbine": "iea15mw"},
+                        tmp_path / "iea", opt="-O0")
+    vals = _in_values(out / "wtftc_physical.IN")
+    c = preset("aftc-iea15mw")
+    for name, v in c.params:
+        assert vals[name] == v, name
+    for name, v in c.torque:
+        assert vals[name] == v, name
+    t = turbine_file.load("iea15mw")
+    torque = dict(c.torque)
+    for name, v in t.values.items():
+        if name not in torque:
+            assert vals[name] == v, name
+    assert vals["rotor_radius"] != turbine_file.load("nrel5mw").values["rotor_radius"]
+    infile = (out / "wtftc_physical.IN").read_text(encoding="utf-8")
+    assert "! controller: preset aftc-iea15mw" in infile
+    assert "! turbine: iea15mw, wtftc's built-in file iea15mw.toml" in infile
+    assert f"  phys_c1 = {dict(c.params)['phys_c1']!r} (default 2.0)" in infile
+    w = t.values["omega_g_rated"]
+    host = Host(out / "libwtftc_physical.so", out / "wtftc_physical.IN")
+    got = host.call(0, 0.0, w, w * t.values["gearbox_ratio"], [0.2] * 3)
+    assert got["fail"] == 0, got["msg"]
+    got = host.call(1, 0.01, w, w * t.values["gearbox_ratio"], [0.2] * 3)
+    assert got["fail"] == 0 and np.all(np.isfinite(got["pitch"])), got["msg"]
+
+
+@pytest.mark.parametrize("cfg, field, text", [
+    ({"controller": {"design": "rosco"}}, "controller.design", "ROSCO's library is ROSCO's"),
+    ({"controller": {"preset": "rosco"}}, "controller.design", "ROSCO's library is ROSCO's"),
+    ({"controller": "rosco"}, "controller", "a design wtftc builds a library of"),
+    ({"controller": {"preset": "physical-oracle"}}, "controller.accommodation",
+     "fdi for an export of physical"),
+    ({"controller": {"design": "paper", "accommodation": "none"}},
+     "controller.accommodation", "fdi for an export of paper"),
+    ({"controller": {"preset": "aftc-nrel5mw", "phys_obs_omega": -1.0}},
+     "controller.phys_obs_omega", ">= 0"),
+    ({"controller": {"preset": "aftc-nrel5mw"}, "wnd": {}}, "wnd", "a known key"),
+    ({"controller": {"preset": "pi"}, "control_interval_s": 0.0015}, "control_interval_s",
+     "a whole multiple of 0.001 s"),
+])
+def test_a_configuration_no_library_can_be_is_refused_naming_the_field(cfg, field, text):
+    """ROSCO (its library is its own), an AFTC design told its faults or never told them
+    (the library's FDI feeds it), a value out of its range, an unknown key and a bad
+    interval: a ConfigError naming the field."""
+    with pytest.raises(config.ConfigError) as exc:
+        discon.run_config(cfg)
+    assert exc.value.field == field and text in str(exc.value), str(exc.value)
+
+
+def test_without_a_controller_the_turbines_recommended_preset_is_exported():
+    """No controller: the turbine's recommended preset (its file's recommended_preset); a
+    bare design's name is that design with its defaults, the run it always was."""
+    assert discon.run_config({}).raw["controller_preset"] == "aftc-nrel5mw"
+    rc = discon.run_config({"turbine": "iea15mw"})
+    assert rc.raw["controller_preset"] == "aftc-iea15mw" and rc.param("gearbox_ratio") == 1.0
+    bare = discon.run_config("physical")
+    flat = config.make_config({"case": 4, "controller": "physical", "profile": "realistic",
+                               "dt_s": discon.PLANT_DT, "control_interval_s": 0.01,
+                               "t_final_s": 60.0,
+                               "fdi": {"align_rate_per_s": config.HOST_ALIGN_RATE}})
+    assert discon.parameters(bare) == discon.parameters(flat)
+    assert discon.header(bare)[-1] == "settings other than physical's defaults on nrel5mw: none"
