@@ -72,7 +72,7 @@ def wtftc(*args, **kw):
 
 SCREEN = """t_final_s = 12.0
 plants = ["tower"]
-controllers = ["pi", "physical_fdi"]
+controllers = ["pi", "physical-plain"]
 [wind]
 mean_mps = [14.0, 18.0]
 rotor_radius_m = 63.0
@@ -121,7 +121,7 @@ def test_the_worst_scenario_of_a_screen_is_rerun_in_openfast_on_the_same_field(t
     assert all(json.loads(r["config_json"])["wind"]["field"] == "turbsim" for r in screen)
     worst = max(screen, key=lambda r: r["overspeed_peak_over_rated"])["mean_wind_mps"]
     rows = sweep.read_results(conf).to_pylist()
-    assert sorted(r["controller"] for r in rows) == ["physical_fdi", "pi"]
+    assert sorted(r["controller"] for r in rows) == ["physical-plain", "pi"]
     assert {r["mean_wind_mps"] for r in rows} == {worst}
     assert all(r["plant"] == "openfast" and r["status"] == "ok" for r in rows)
     of = confirm.openfast_sweep(sweep.load_sweep(f).raw)
@@ -139,7 +139,7 @@ def test_the_worst_scenario_of_a_screen_is_rerun_in_openfast_on_the_same_field(t
         assert float(cell["shaft_torque_del_1hz_Nm [N m]"]) == r["shaft_torque_del_1hz_Nm"]
         assert cell["outcome"] == "yes"
     report = (conf / "confirm.md").read_text()
-    for c in ("pi", "physical_fdi"):  # each cell: wtftc's value, then OpenFAST's
+    for c in ("pi", "physical-plain"):  # each cell: wtftc's value, then OpenFAST's
         mine = next(r for r in screen if r["controller"] == c and r["mean_wind_mps"] == worst)
         of_ = next(r for r in rows if r["controller"] == c)
         line = next(ln for ln in report.splitlines() if f"| {c} |" in ln)
@@ -183,7 +183,7 @@ def test_the_screen_example_confirms_runs_the_kept_openfast_campaign_also_made()
     root = Path(__file__).resolve().parent.parent / "examples"
     sw = sweep.load_sweep(root / "dlc21_screen.toml")
     runs, _ = sweep.expand(sw)
-    ours = [r for r in runs if r["controller"] == "physical_obs3to45_ps_td_ct_fdi"]
+    ours = [r for r in runs if r["controller"] == "aftc-nrel5mw"]
     assert len(ours) == 192 and {r["plant"] for r in runs} == {"tower_edge"}
     assert all(r["config"]["wind"]["field"] == "turbsim" for r in runs)
     twin = {pt["run_id"] for pt in sweep.expand(confirm.openfast_sweep(sw.raw))[0]

@@ -103,7 +103,7 @@ def test_ratios_between_controllers_over_the_same_bins_do_not_depend_on_the_norm
     life_a, life_b = dlc.lifetime(a, table, 4.0), dlc.lifetime(_two_bins(), table, 4.0)
     assert life_a["lifetime_shaft_del_1hz_Nm"] / life_b["lifetime_shaft_del_1hz_Nm"] \
         == pytest.approx(mlife, rel=1e-12)
-    row = next(ln for ln in dlc.against({"rosco": _two_bins(), "pi": a}, table, 4.0, 4.0)
+    row = next(ln for ln in dlc.against({"rosco": _two_bins(), "pi": a}, table, 4.0, 4.0, "rosco")
                if ln.startswith("| pi |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert float(cells[2]) == pytest.approx(mlife, abs=0.005)
@@ -191,7 +191,8 @@ def test_against_rosco_compares_over_the_bins_both_kept():
             "pi": {4.0: {**same, "mean_electrical_power_W": 9e9}, 8.0: dict(same),
                    16.0: {**same, "shaft_torque_damage_per_10min": 16 * 6.0e26}}}
     table = dlc.parse_dlc({})
-    lines = dlc.against(bins, table, 4.0, 4.0)
+    lines = dlc.against(bins, table, 4.0, 4.0, "rosco")
+    assert dlc.against(bins, table, 4.0, 4.0, None) == []  # no ROSCO column: no section
     row = next(ln for ln in lines if ln.startswith("| pi |"))
     cells = [c.strip() for c in row.strip("|").split("|")]
     assert cells[1] == "8, 16"
@@ -202,9 +203,9 @@ def test_against_rosco_compares_over_the_bins_both_kept():
 
 
 def test_the_openfast_dlc_examples_list_what_their_headers_say():
-    """examples/dlc12_openfast.toml and dlc21_openfast.toml (issue 34), and their IEA
-    15-MW twins, expand to the run counts their headers give (ROSCO's, optional, aside),
-    every run in OpenFAST, issue 34's variants with their options."""
+    """examples/dlc12_openfast.toml and dlc21_openfast.toml, and their IEA 15-MW twins,
+    expand to the run counts their headers give (ROSCO's, optional, aside), every run in
+    OpenFAST, the candidates' tables with their options."""
     from pathlib import Path
 
     from wtftc.sim import rosco
@@ -219,11 +220,11 @@ def test_the_openfast_dlc_examples_list_what_their_headers_say():
         assert len(ours) == n_runs, name
         assert all(r["config"]["engine"] == "openfast" for r in runs)
         assert all(r["config"].get("turbine") == turbine for r in runs), name
-        shaved = [r for r in runs if r["controller"] == "physical_obs45_ps_fdi"]
+        shaved = [r for r in runs if r["controller"] == "aftc-obs4.5-ps"]
         assert shaved and all(r["config"]["controller_params"]["phys_ps_pitch"] == 0.0349
                               and r["config"]["controller_params"]["phys_obs_omega"] == 4.5
                               for r in shaved)
-        matched = [r for r in runs if r["controller"] == "rosco_matched"]
+        matched = [r for r in runs if r["controller"] == "rosco-matched"]
         if rosco.available() is None:  # optional: one run per scenario where installed
             assert len(matched) == n_runs // len({r["controller"] for r in ours}), name
         assert all(r["config"]["tuning"] == {"omega_n_rad_s": 0.7, "zeta": 0.85}
@@ -231,12 +232,12 @@ def test_the_openfast_dlc_examples_list_what_their_headers_say():
 
 
 @pytest.mark.parametrize("suffix, candidate, omega_o", [
-    ("ct", "physical_obs45_ps_td_ct_fdi", 4.5), ("obs30", "physical_obs30_ps_td_ct_fdi", 3.0),
-    ("obs3to45", "physical_obs3to45_ps_td_ct_fdi", 3.0)])
+    ("ct", "aftc-obs4.5-ps-td-ct", 4.5), ("obs30", "aftc-obs3-ps-td-ct", 3.0),
+    ("obs3to45", "aftc-nrel5mw", 3.0)])
 def test_the_constant_torque_dlc_examples_run_the_candidate_with_its_options(
         suffix, candidate, omega_o):
-    """examples/dlc12_openfast_{ct,obs30,obs3to45}.toml and dlc21_openfast_{...}.toml
-    (issue 34): the candidate with its tower damper, the law's region 3 at constant torque
+    """examples/dlc12_openfast_{ct,obs30,obs3to45}.toml and dlc21_openfast_{...}.toml:
+    the candidate with its tower damper, the law's region 3 at constant torque
     and its observer's corner (scheduled up to 4.5 rad/s in the last), in OpenFAST, in the
     run counts their headers give (22 and 48, ROSCO's aside)."""
     from pathlib import Path
@@ -274,7 +275,7 @@ def _paired_row(controller, wind, seed, fault="lock", status="ok", peak=1.05, **
 
 
 def test_the_paired_section_compares_the_same_scenarios_both_held():
-    """summary.md's "Against rosco" (issue 34's goal table): each ratio is over the
+    """summary.md's "Against rosco" (the goal table): each ratio is over the
     scenarios both controllers ran and both held; a scenario one lost, or ran past the
     trip, is counted and left out, one either failed on is counted apart; a scenario only
     one ran is not paired, nor runs of another fault size or [tuning] target; a duplicate
@@ -283,7 +284,7 @@ def test_the_paired_section_compares_the_same_scenarios_both_held():
 
     from wtftc.campaign.sweep import paired
 
-    ours = "physical_obs45_ps_fdi"
+    ours = "aftc-obs4.5-ps"
     rows = [_paired_row("rosco", 12.0, 0), _paired_row("rosco", 16.0, 0),
             _paired_row("rosco", 20.0, 0, status="diverged"),
             _paired_row("rosco", 24.0, 0, peak=1.3), _paired_row("rosco", 14.0, 0),
@@ -297,7 +298,7 @@ def test_the_paired_section_compares_the_same_scenarios_both_held():
             _paired_row(ours, 12.0, 0, rho=0.3),  # another size: not paired
             # the same wind and seed, another fault type: its own scenario
             _paired_row(ours, 12.0, 0, fault="runaway", runaway_target_deg=90.0)]
-    lines, csv = paired.section(rows, trip=1.2)
+    lines, csv = paired.section(rows, 1.2, "rosco")
     rec = {(r["controller"], r["fault"]): r for r in csv_.DictReader(csv)}
     lock = rec[(ours, "lock")]
     assert [lock[k] for k in ("scenarios", "failed", "both_held", "lost_by_controller",
@@ -317,27 +318,45 @@ def test_the_paired_section_compares_the_same_scenarios_both_held():
              for c, w, e in (("rosco", 0.6, 0.02), ("rosco", 0.9, 0.01),
                              ("pi", 0.6, 0.03), ("pi", 0.9, 0.04))]
     rec = {(r["controller"], r["fault"]): r
-           for r in csv_.DictReader(paired.section(tuned, 1.2)[1])}
+           for r in csv_.DictReader(paired.section(tuned, 1.2, "rosco")[1])}
     assert float(rec[("pi at (0.6 rad/s; ζ 0.7)", "lock")][
         "rms_speed_error_rad_s_ratio_median"]) == pytest.approx(1.5)
     assert float(rec[("pi at (0.9 rad/s; ζ 0.7)", "lock")][
         "rms_speed_error_rad_s_ratio_median"]) == pytest.approx(4.0)
-    assert paired.section([r for r in rows if r["controller"] != "rosco"], 1.2) == ([], [])
-    assert paired.section([r for r in rows if r["controller"] == "rosco"], 1.2) == ([], [])
+    assert paired.section([r for r in rows if r["controller"] != "rosco"], 1.2,
+                          "rosco") == ([], [])
+    assert paired.section([r for r in rows if r["controller"] == "rosco"], 1.2,
+                          "rosco") == ([], [])
+    assert paired.section(rows, 1.2, None) == ([], [])  # a sweep without ROSCO
+
+
+def test_the_paired_reference_is_roscos_column_at_its_decks_tuning():
+    """The reference of the paired section is found by design, not by name: ROSCO's
+    column at its deck's gains first, a retuned one where it is the only one."""
+    from wtftc.campaign import compare
+    from wtftc.campaign.sweep import paired
+
+    def ref(entries):
+        return paired.reference(compare.resolve_columns(entries))
+
+    assert ref(["aftc-nrel5mw", "rosco-matched", {"name": "deck", "preset": "rosco"}]) \
+        == "deck"
+    assert ref(["pi", "rosco-matched"]) == "rosco-matched"
+    assert ref(["pi", "paper"]) is None
 
 
 def test_the_iea15mw_candidate_dlc_examples_run_its_retuned_design():
-    """examples/dlc12_openfast_iea15mw_ct.toml and dlc21_openfast_iea15mw_ct.toml (issue
-    34): the IEA 15-MW's candidate, its pitch loop retuned to 0.4 rad/s (ζ 0.85), on its
-    observer at 1.5 rad/s, without the tower damper, at constant torque above rated, in
-    OpenFAST on the IEA 15-MW, in the run counts their headers give (22 and 48 of its
-    own); its [tuning] resolves to the design's gains on that turbine."""
+    """examples/dlc12_openfast_iea15mw_ct.toml and dlc21_openfast_iea15mw_ct.toml: the
+    IEA 15-MW's candidate (the preset aftc-iea15mw), its pitch loop at the gains of 0.4
+    rad/s (ζ 0.85), on its observer at 1.5 rad/s, without the tower damper, at constant
+    torque above rated, in OpenFAST on the IEA 15-MW, in the run counts their headers
+    give (22 and 48 of its own); those gains are what that target solves to there."""
     from pathlib import Path
 
     from wtftc.campaign import tune
 
     root = Path(__file__).resolve().parent.parent / "examples"
-    cand = "physical_obs15_w04_ps_ct_fdi"
+    cand = "aftc-iea15mw"
     for name, n_runs in (("dlc12_openfast_iea15mw_ct.toml", 22),
                          ("dlc21_openfast_iea15mw_ct.toml", 48)):
         runs, _ = sweep.expand(sweep.load_sweep(root / name))
@@ -346,14 +365,20 @@ def test_the_iea15mw_candidate_dlc_examples_run_its_retuned_design():
         assert all(r["config"]["turbine"] == "iea15mw" and r["config"]["engine"] == "openfast"
                    for r in runs), name
         cfg = ours[0]["config"]
-        assert cfg["tuning"] == {"omega_n_rad_s": 0.4, "zeta": 0.85}
-        assert cfg["controller_params"] == {"phys_obs_omega": 1.5, "phys_ps_pitch": 0.0349}
+        assert "tuning" not in cfg and set(cfg["controller_params"]) == {
+            "phys_c1", "phys_c2", "phys_gamma", "phys_obs_omega", "phys_ps_pitch"}
+        assert cfg["controller_params"]["phys_obs_omega"] == 1.5
         assert cfg["turbine_params"] == {"gen_torque_law": 1.0, "vs_constant_torque": 1.0}
     # retuned: a gentler c1 and γ than the design's defaults (what it runs with without
-    # [tuning]: 0.69 rad/s on the IEA 15-MW), its own options kept
+    # them: 0.69 rad/s on the IEA 15-MW), its own options kept; the target they stand for
+    # solves to them on that turbine
     from wtftc.artefacts import layout as lay
 
     gains = tune.resolve(cfg)["controller_params"]
+    target = tune.resolve({**cfg, "controller_params": {"phys_obs_omega": 1.5},
+                           "tuning": {"omega_n_rad_s": 0.4, "zeta": 0.85}})
+    assert all(gains[k] == pytest.approx(target["controller_params"][k], rel=1e-9)
+               for k in ("phys_c1", "phys_c2", "phys_gamma"))
     default = lay.values("physical_params", lay.defaults("physical_params"))
     assert 0.0 < gains["phys_c1"] < 0.7 * default["phys_c1"]
     assert 0.0 < gains["phys_gamma"] < 0.7 * default["phys_gamma"]

@@ -91,25 +91,34 @@ def test_read_compare_reads_the_finished_cells(tmp_path):
                      "ntm_B_16/runaway": {"pi": {RMS: 0.3}}}
 
 
-def test_a_tuned_variant_runs_at_its_target(monkeypatch):
-    """compare's Variant.tuning (the ranking matrix's second tuning) becomes the
-    controller's own settings; the plant is the one asked for."""
+def test_a_tuned_column_runs_at_its_target():
+    """A column's target mode (the ranking matrix's second tuning, a table's omega_n_rad_s
+    and zeta) becomes the controller's own settings; the plant is the one asked for."""
+    import importlib.util
+    from pathlib import Path
+
     from wtftc.campaign import compare
 
-    for name in ("rosco", "pi"):
-        v = compare.CONTROLLERS[name]
-        monkeypatch.setitem(compare.CONTROLLERS, f"{name}_fast", compare.Variant(
-            v.controller, v.fault_case, v.doc, tuning=(0.9, 0.7)))
-    rosco = compare.cell_config("rosco_fast", "none", "ntm_B_16", 30.0, 1e-3, 0,
-                                plant="tower_edge")
+    path = Path(__file__).resolve().parent.parent / "examples" / "ranking_matrix.py"
+    spec = importlib.util.spec_from_file_location("ranking_matrix", path)
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    cols = compare.resolve_columns(example.CONTROLLERS)
+    assert list(cols) == ["rosco", "pi", "physical_fdi", "rosco_fast", "pi_fast",
+                          "physical_fdi_fast"]
+    rosco = compare.cell_config("rosco_fast", cols["rosco_fast"], "none", "ntm_B_16", 30.0,
+                                1e-3, 0, plant="tower_edge")
     assert rosco["rosco"] == {"omega_pc_rad_s": 0.9, "zeta_pc": 0.7} and "tuning" not in rosco
     assert rosco["plant"] == "tower_edge"
-    pi = compare.cell_config("pi_fast", "runaway", "ntm_B_16", 30.0, 1e-3, 0,
-                             engine="openfast")
+    pi = compare.cell_config("pi_fast", cols["pi_fast"], "runaway", "ntm_B_16", 30.0, 1e-3,
+                             0, engine="openfast")
     assert pi["controller_params"] == {"pi_omega_n": 0.9, "pi_zeta": 0.7}
     assert pi["engine"] == "openfast" and "plant" not in pi
-    assert "controller_params" not in compare.cell_config("pi", "none", "ntm_B_16", 30.0,
-                                                          1e-3, 0)
+    assert "controller_params" not in compare.cell_config("pi", cols["pi"], "none",
+                                                          "ntm_B_16", 30.0, 1e-3, 0)
+    phys = compare.cell_config("physical_fdi_fast", cols["physical_fdi_fast"], "lock",
+                               "ntm_B_16", 30.0, 1e-3, 0)
+    assert phys["case"] == 4 and {"phys_c1", "phys_gamma"} <= set(phys["controller_params"])
 
 
 def test_values_markdown_joins_the_engines():
