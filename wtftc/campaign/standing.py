@@ -342,10 +342,13 @@ def markdown(rows: list[dict], base: Path | None = None, command: str = COMMAND)
 def main(folders: list[Path] | None = None, out: Path | None = None) -> str:
     """``wtftc presets --standing [FOLDER ...] [--out FILE]``: the page of the folders
     (default: every folder of docs/campaigns/ with runs), written to ``out`` if given,
-    and returned (the CLI prints it without ``--out``)."""
+    and returned (the CLI prints it without ``--out``). Its links are relative to
+    ``out``'s folder; printed, to docs/ for the default folders (the page as committed),
+    else to the working folder."""
     default = not folders
     folders = default_folders() if default else [Path(f) for f in folders]
-    base = Path(out).resolve().parent if out is not None else Path.cwd()
+    base = Path(out).resolve().parent if out is not None else \
+        CAMPAIGNS.parent if default else Path.cwd()
     command = "wtftc presets --standing" + ("" if default else " " + " ".join(
         str(f) for f in folders)) + (f" --out {out}" if out is not None else "")
     text = markdown(standing(folders), base, command if (out or not default) else COMMAND)
