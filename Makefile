@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: help setup openfast regenerate check-generated test lint run verify bench clean
+.PHONY: help setup openfast regenerate check-generated test lint run verify bench standing clean
 
 help:
 	@echo "make run              set up, then the paper's three cases on both plants into results/"
@@ -15,6 +15,7 @@ help:
 	@echo "make check-generated  fail with a diff if generated/ is stale"
 	@echo "make bench            set up, time the closed loop through every method (out/bench/)"
 	@echo "make lint             ruff"
+	@echo "make standing         remake docs/standing.md and the README's table from docs/campaigns/"
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "wtftc needs Python >= 3.11; set PYTHON=python3.11")'
@@ -63,6 +64,10 @@ bench: setup openfast
 
 verify: setup check-generated
 	$(VENV)/bin/wtftc verify --out out/verify
+
+standing: setup
+	$(VENV)/bin/wtftc presets --standing --out docs/standing.md
+	$(PY) -c 'from pathlib import Path; from wtftc.campaign import standing as s; p = Path("README.md"); p.write_text(s.with_readme_table(p.read_text(), s.standing(s.default_folders())))'
 
 clean:
 	rm -rf out results .pytest_cache .ruff_cache

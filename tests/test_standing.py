@@ -174,3 +174,35 @@ def test_faults_grouped_and_page_written(tmp_path):
 def test_a_folder_without_a_sweep_is_refused(tmp_path):
     with pytest.raises(ConfigError, match="--standing.*sweep.json"):
         standing.standing([tmp_path])
+
+
+def test_the_readmes_table_is_what_the_folders_make():
+    """The README's standing table is made by `make standing`, not typed."""
+    rows = standing.standing(standing.default_folders())
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert standing.with_readme_table(readme, rows) == readme, "run `make standing`"
+    for preset in ("aftc-nrel5mw", "aftc-iea15mw"):
+        assert f"| `{preset}` | fault-free |" in readme and f"| `{preset}` | any fault |" in readme
+    with pytest.raises(ConfigError):
+        standing.with_readme_table("no marks here", rows)
+
+
+def test_presets_standing_writes_whole_and_refuses_a_users_file(tmp_path):
+    import subprocess
+    import sys
+
+    def cli(*args):
+        return subprocess.run([sys.executable, "-m", "wtftc.cli", "presets", "--standing",
+                               *map(str, args)], capture_output=True, text=True, cwd=ROOT)
+
+    mine = tmp_path / "notes.md"
+    mine.write_text("my notes\n")
+    p = cli("--out", mine)
+    assert p.returncode == 2 and "--out" in p.stderr and mine.read_text() == "my notes\n"
+    page = tmp_path / "standing.md"
+    assert cli("--out", page).returncode == 0
+    assert cli("--out", page).returncode == 0  # its own page is replaced
+    assert page.read_text().startswith("# Each preset against ROSCO, measured\n")
+    p = cli()
+    assert p.returncode == 0
+    assert p.stdout == (ROOT / "docs" / "standing.md").read_text(encoding="utf-8")

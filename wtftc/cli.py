@@ -257,16 +257,15 @@ def _add_run(sub) -> None:
                     "TOML --config file, which overrides the defaults (the turbine's "
                     "recommended controller preset with wtftc's FDI in the realistic "
                     "profile on the tower_edge plant, no fault, the paper's random wind "
-                    "around 12 m/s, 60 s at dt = 1 ms). Writes "
-                    "traces.csv (units in the "
+                    "around 12 m/s, 60 s at dt = 1 ms). Writes traces.csv (units in the "
                     "header), traces.parquet, metrics.json, config.toml and figures/ (PNG, PDF; "
                     "the FDI's in case 4) into --out.",
-        epilog="Example: wtftc run --case 3 --plant nrel5mw --wind ntm --wind-mean 16 "
-               "--t-final 60 --out out/ntm16. Config file keys: case, plant, controller, "
-               "[controller] (preset, design, accommodation and the design's settings: "
+        epilog="Example: wtftc run --fault default --wind ntm --wind-mean 16 --t-final 60 "
+               "--out out/ntm16. Config file keys: case, plant, controller, [controller] "
+               "(preset, design, accommodation and the design's settings: "
                "docs/controllers.md), t_final_s, dt_s, seed, output_rate_hz, control_sign, "
-               "reference_rad_s, "
-               "turbine, cp_table, label, profile, control_interval_s, control_delay, [sensors], "
+               "reference_rad_s, turbine, cp_table, label, profile, control_interval_s, "
+               "control_delay, [sensors], "
                "[mismatch], [fdi], [wind] (kind = constant | steps | paper_random | ntm | eog | "
                "file, ...), [[fault]] (blade, type, onset_s, ...), [controller_params], "
                "[turbine_params], [initial]. See docs/running.md.")
@@ -446,21 +445,33 @@ def _add_cases(sub) -> None:
 def _add_export(sub) -> None:
     e = sub.add_parser(
         "export", help="a controller as a DISCON library for OpenFAST (docs/discon.md)",
-        description="Builds a registered controller, with wtftc's FDI, as a Bladed-style "
+        description="Builds a controller configuration, with wtftc's FDI, as a Bladed-style "
                     "DISCON shared library (plain C, built with --cc), its input file of "
-                    "every parameter, the ServoDyn lines to paste and a README, into --out.")
+                    "every parameter (its header names the preset, the turbine and the "
+                    "generated code's hash), the ServoDyn lines to paste and a README of "
+                    "how to put it into a deck, into --out. Default: the turbine's "
+                    "recommended preset.",
+        epilog="Example: wtftc export discon --preset aftc-iea15mw --turbine iea15mw "
+               "--with-actuator --out discon/iea")
     e.add_argument("target", choices=("discon",), help="what to export")
-    e.add_argument("--controller", required=True,
-                   help="the registered controller: physical, pi, paper or drivetrain")
+    _add_preset(e, "export")
+    e.add_argument("--config", type=Path, help="a TOML run configuration: its [controller] "
+                   "table (or controller and controller_params), turbine, turbine_params, "
+                   "sensors and fdi make the library; the scenario's keys are named in "
+                   "its header and left out")
+    e.add_argument("--controller", help="a registered design with its default settings: "
+                   "physical, pi, paper or drivetrain")
+    e.add_argument("--turbine", help=TURBINE_HELP)
     e.add_argument("--out", type=Path, required=True,
                    help="output folder: new, empty or an earlier export's, replaced whole; "
                         "a folder holding anything else is refused")
     e.add_argument("--cc", default="gcc",
                    help="the C compiler (default gcc); stopped with every process it "
                         "started on Ctrl-C, SIGTERM or after 600 s")
-    e.add_argument("--interval", type=float, default=0.01,
-                   help="the call interval DLL_DT [s] the library is built for (default "
-                        "0.01, a multiple of 0.001 in (0, 1])")
+    e.add_argument("--interval", type=float,
+                   help="the call interval DLL_DT [s] the library is built for (default: "
+                        "--config's control_interval_s, else 0.01; a multiple of 0.001 in "
+                        "(0, 1])")
     e.add_argument("--with-actuator", action="store_true",
                    help="also emit libwtftc_plant.so, the benchmark pitch actuator the "
                         "controller is designed for, for a host without one (OpenFAST's "
@@ -468,21 +479,30 @@ def _add_export(sub) -> None:
 
 
 def _cmd_export(args) -> int:
+    from wtftc.config import load_toml
     from wtftc.export import discon
 
+    cfg = load_toml(args.config, "--config") if args.config else {}
+    if args.controller is not None:
+        if args.preset is not None:
+            raise ConfigError("--preset", args.preset, "--preset or --controller, not both "
+                              "(a preset names its design)")
+        cfg["controller"] = {"design": args.controller}
+    if args.turbine:
+        cfg["turbine"] = args.turbine
+    cfg = _pick_controller(args, cfg, default_preset=True, scenario=False)
     hook = None
     if args.with_actuator:
         from wtftc.openfast import plant_library
 
         hook = plant_library.add_to_export
-    out = discon.export(args.controller, args.out, cc=args.cc, interval=args.interval,
+    out = discon.export(cfg, args.out, cc=args.cc, interval=args.interval,
                         with_actuator=hook)
-    cp = [discon.cp_file_name(discon.run_config(args.controller, args.interval).loop.table)] \
-        if discon.needs_cp(args.controller) else []
-    plant = [plant_library.LIBRARY, plant_library.SETTINGS] if args.with_actuator else []
-    files = [f"libwtftc_{args.controller}.so", f"wtftc_{args.controller}.IN", *cp, *plant,
-             "servodyn_snippet.txt", "README.txt"]
-    print(f"written under {out}/: {', '.join(files)} (call interval {args.interval:g} s)")
+    rc = discon.run_config(cfg, args.interval)
+    names = [n for n in discon.written(out) if not n.endswith((".c", ".h"))]
+    print(f"written under {out}/: {', '.join(names)} (call interval "
+          f"{rc.control_interval:g} s)")
+    print("\n".join(discon.header(rc, cfg)))
     return 0
 
 
@@ -567,13 +587,14 @@ def _preset_help(command: str) -> str:
             + (f". Default: {default}" if default else ""))
 
 
-def _pick_controller(args, cfg: dict, default_preset: bool = False) -> dict:
+def _pick_controller(args, cfg: dict, default_preset: bool = False,
+                     scenario: bool = True) -> dict:
     """``cfg`` with the controller the options ask for: --preset as a [controller] table
     (refused beside --controller); with ``default_preset``, the turbine's recommended
     preset where nothing names a controller (a note where its file names none); and with
-    a preset, the realistic profile and the tower_edge plant unless given, and --fault
-    default puts the
-    default fault in (the preset's accommodation then sets the case)."""
+    a preset and ``scenario``, the realistic profile and the tower_edge plant unless
+    given, and --fault default puts the default fault in (the preset's accommodation then
+    sets the case)."""
     import copy
 
     from wtftc import controller
@@ -594,7 +615,7 @@ def _pick_controller(args, cfg: dict, default_preset: bool = False) -> dict:
             if isinstance(turbine, str) else (controller.FALLBACK_PRESET, None)
         _note(note)
         cfg["controller"] = {"preset": name}
-    if isinstance(cfg.get("controller"), dict):
+    if isinstance(cfg.get("controller"), dict) and scenario:
         # a preset is measured with sampled control and the benchmark's sensors, on the
         # plant validated against OpenFAST (docs/validation.md)
         cfg.setdefault("profile", "realistic")
@@ -1206,11 +1227,25 @@ def _add_presets(sub) -> None:
                     "to copy into a configuration and change. docs/controllers.md.",
         epilog="Example: wtftc presets aftc-nrel5mw")
     p.add_argument("name", nargs="?", metavar="NAME", help="a preset to show in full")
+    p.add_argument("--standing", nargs="*", type=Path, metavar="FOLDER",
+                   help="instead: each preset's standing against ROSCO, paired by scenario "
+                        "with a 95 %% interval, from these sweep folders (default: the "
+                        "campaign folders kept in the checkout's docs/campaigns/), as "
+                        "Markdown (docs/standing.md is this page)")
+    p.add_argument("--out", type=Path, help="with --standing: write the page here (a page "
+                   "it wrote is replaced; any other file is refused)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="with --out: replace an existing file that wtftc did not write")
 
 
 def _cmd_presets(args) -> int:
     from wtftc import config, controller
     from wtftc.model import turbine_file
+
+    if args.standing is not None:
+        return _standing(args)
+    if args.out is not None:
+        raise ConfigError("--out", str(args.out), "only with --standing")
 
     table = controller.presets()
     recommends = {}
@@ -1228,6 +1263,25 @@ def _cmd_presets(args) -> int:
     print(f"# preset {args.name}{by}: {c.doc}\n"
           + config.to_toml({"controller": {k: v for k, v in c.table().items()
                                            if k != "doc"}}), end="")
+    return 0
+
+
+def _standing(args) -> int:
+    """``wtftc presets --standing``: the page, printed or written whole to --out."""
+    from wtftc.campaign import standing
+    from wtftc.files import check_new_file
+    from wtftc.results.io import atomic_write_text
+
+    if args.name is not None:
+        raise ConfigError("NAME", args.name, "no preset name with --standing (the page "
+                          "holds every preset found in the folders)")
+    if args.out is not None:
+        check_new_file(args.out, "--out", args.overwrite, ours=standing.written_by_it)
+    text = standing.main(args.standing or None, out=args.out, write=atomic_write_text)
+    if args.out is None:
+        print(text, end="")
+    else:
+        print(f"written: {args.out}")
     return 0
 
 

@@ -339,7 +339,60 @@ def markdown(rows: list[dict], base: Path | None = None, command: str = COMMAND)
     return "\n".join(lines) + "\n"
 
 
-def main(folders: list[Path] | None = None, out: Path | None = None) -> str:
+#: the marks around the README's table (:func:`readme_table`)
+README_MARKS = ("<!-- standing:begin -->", "<!-- standing:end -->")
+
+
+def readme_table(rows: list[dict]) -> str:
+    """The README's short table: each preset's fault-free and any-fault standing, one
+    cell per metric (ratio, interval, verdict), the engine, seeds and winds behind it;
+    docs/standing.md has every fault type and the links."""
+    head = ["preset", "faults", "engine, turbine: seeds × winds, both held",
+            *(h for _, h, _ in METRICS), "generated code"]
+    lines = ["Ratio to ROSCO on the same scenarios (geometric mean, 95 % interval over "
+             "the scenarios both held; **tie** when it holds 1; lower is better), from "
+             "the campaign folders kept in `docs/campaigns/`, each made on the generated "
+             "code its row names (the hash `wtftc sweep` records in its sweep.json: a "
+             "row made on an earlier version of a design says so by its hash); every "
+             "fault type, the counts of runs lost and the folders: "
+             "[docs/standing.md](docs/standing.md).", "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    order = list(controller.presets())
+    for r in sorted((r for r in rows if r["faults"] in GROUP_TEXT),
+                    key=lambda r: (order.index(r["preset"]), r["faults"] != FAULT_FREE)):
+        cells = ["—" if m["ratio"] is None else
+                 f"{_g(m['ratio'])} ({_g(m['low'])}–{_g(m['high'])}) {m['verdict']}"
+                 for m in (r["metrics"][k] for k, _, _ in METRICS)]
+        lines.append("| " + " | ".join([
+            f"`{r['preset']}`", GROUP_TEXT[r["faults"]],
+            f"{r['engine']}, {r['turbine']}: {r['seeds']} × {r['winds']}, {r['both_held']}",
+            *cells, f"`{r['code']}`"]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def with_readme_table(text: str, rows: list[dict]) -> str:
+    """``text`` (the README) with :func:`readme_table` between its marks."""
+    begin, end = README_MARKS
+    if text.count(begin) != 1 or text.count(end) != 1 or text.index(begin) > text.index(end):
+        raise ConfigError("README", "its standing marks", f"one {begin} before one {end}")
+    head, rest = text.split(begin)
+    return head + begin + "\n" + readme_table(rows) + end + rest.split(end, 1)[1]
+
+
+def written_by_it(path: Path) -> bool:
+    """Whether ``path`` is a page this module wrote (its first two lines), which a new
+    page may replace."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            head = [fh.readline(), fh.readline(), fh.readline()]
+    except (OSError, UnicodeDecodeError):
+        return False
+    return head[0] == "# Each preset against ROSCO, measured\n" and \
+        head[2].startswith("<!-- made by `wtftc presets --standing")
+
+
+def main(folders: list[Path] | None = None, out: Path | None = None,
+         write=None) -> str:
     """``wtftc presets --standing [FOLDER ...] [--out FILE]``: the page of the folders
     (default: every folder of docs/campaigns/ with runs), written to ``out`` if given,
     and returned (the CLI prints it without ``--out``). Its links are relative to
@@ -353,5 +406,8 @@ def main(folders: list[Path] | None = None, out: Path | None = None) -> str:
         str(f) for f in folders)) + (f" --out {out}" if out is not None else "")
     text = markdown(standing(folders), base, command if (out or not default) else COMMAND)
     if out is not None:
-        Path(out).write_text(text, encoding="utf-8")
+        if write is None:
+            Path(out).write_text(text, encoding="utf-8")
+        else:  # whole or not at all (wtftc.results.io.atomic_write_text)
+            write(Path(out), text)
     return text
