@@ -205,3 +205,25 @@ def test_the_preset_option_replaces_a_sweep_files_controllers(tmp_path):
     with pytest.raises(ConfigError) as e:
         load_sweep(path, preset="fastest")
     assert (e.value.field, e.value.value) == ("--preset", "fastest")
+
+
+def test_a_folder_resumes_only_with_the_columns_it_recorded(tmp_path):
+    """A preset the sweep file names may change between two calls: the folder's recorded
+    settings must be those the file resolves to now (a doc's words aside), else the
+    resume is refused naming the column; a folder that recorded only names is not
+    checked."""
+    from wtftc.campaign.sweep import store
+
+    sw = parse_sweep({"controllers": ["aftc-nrel5mw", "pi"]})
+    rec = json.loads(json.dumps(sw.record()))
+    store._check_same_columns(tmp_path, rec, sw, False)
+    reworded = json.loads(json.dumps(rec))
+    reworded["controllers"][1]["doc"] = "another text"
+    store._check_same_columns(tmp_path, reworded, sw, False)
+    store._check_same_columns(tmp_path, {"sweep": {}}, sw, False)
+    changed = json.loads(json.dumps(rec))
+    changed["controllers"][0]["phys_obs_omega"] = 2.5
+    with pytest.raises(ConfigError) as e:
+        store._check_same_columns(tmp_path, changed, sw, False)
+    assert e.value.field == "--out" and "aftc-nrel5mw" in e.value.allowed
+    store._check_same_columns(tmp_path, changed, sw, True)  # --overwrite

@@ -104,7 +104,7 @@ def _check_05(out: Path, stdout: str) -> None:
         p.name for p in res.iterdir()}
     rows = pq.read_table(res / "runs").to_pylist()
     assert len(rows) == 8 and {r["status"] for r in rows} == {"ok"}
-    assert {r["controller"] for r in rows} == {"physical_fdi", "paper"}
+    assert {r["controller"] for r in rows} == {"physical-plain", "paper"}
     assert all(np.isfinite(r["rms_speed_error_rad_s"]) for r in rows)
     assert "8 of 8 runs done" in stdout and "8 of 8 runs saved" in stdout
     assert (res / "figures" / "rms_speed_error.png").is_file()

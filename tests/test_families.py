@@ -185,7 +185,7 @@ def test_dlc21_extremes_by_hand():
 def test_the_c2_ratio_is_a_setting_of_the_procedure():
     """[tuning] c2_over_c1 reaches every run's table; the physical AFTC's c2 follows it,
     the default being the revised 2 (issue 18)."""
-    sw = _family(controllers=["physical_fdi"], tuning={"omega_n_rad_s": 0.9, "zeta": 0.7,
+    sw = _family(controllers=["physical-plain"], tuning={"omega_n_rad_s": 0.9, "zeta": 0.7,
                                                    "c2_over_c1": 3.0})
     runs, _ = sweep.expand(sw)
     assert {r["config"]["tuning"]["c2_over_c1"] for r in runs} == {3.0}

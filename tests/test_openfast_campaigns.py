@@ -22,7 +22,7 @@ from wtftc.openfast.case import get_value
 from wtftc.results.metrics import NO_FDI, fdi_ran
 
 SWEEP = """t_final_s = 12.0
-controllers = ["rosco", "physical_fdi"]
+controllers = ["rosco", "physical-plain"]
 [wind]
 mean_mps = 16.0
 seed = 0
@@ -56,12 +56,12 @@ def test_a_sweep_in_openfast_on_two_workers_keeps_each_case_and_resumes(tmp_path
     assert p.returncode == 0, p.stderr
     assert "2 to run one a task" in p.stdout and "2 of 2 saved" in p.stdout
     rows = {r["controller"]: r for r in sweep.read_results(out).to_pylist()}
-    assert set(rows) == {"rosco", "physical_fdi"}
+    assert set(rows) == {"rosco", "physical-plain"}
     assert all(r["status"] == "ok" and r["plant"] == "openfast" for r in rows.values())
     assert all(json.loads(r["config_json"])["engine"] == "openfast" for r in rows.values())
     # ROSCO's library has no FDI: no false alarms to count, none to judge
     assert rows["rosco"]["false_alarms"] is None and rows["rosco"]["isolation_correct"] is None
-    assert rows["physical_fdi"]["false_alarms"] == 0
+    assert rows["physical-plain"]["false_alarms"] == 0
     record = (out / ".wtftc-sweep-written").read_text()
     for r in rows.values():
         case = out / "openfast" / r["run_id"]
@@ -107,14 +107,14 @@ def test_compare_in_openfast_runs_its_cells_as_dask_tasks(tmp_path, monkeypatch)
 
     monkeypatch.setattr(cluster, "client", client)
     out = tmp_path / "cmp"
-    code = main(["compare", "--engine", "openfast", "--controllers", "rosco", "physical_fdi",
+    code = main(["compare", "--engine", "openfast", "--controllers", "rosco", "physical-plain",
                  "--faults", "none", "--winds", "steady_16", "--t-final", "10", "--workers",
                  "2", "--quiet", "--out", str(out)])
     assert code == 0 and made == [2]
     rows = (out / "compare.csv").read_text().splitlines()
-    assert [r.split(",")[2] for r in rows[1:]] == ["rosco", "physical_fdi"]
+    assert [r.split(",")[2] for r in rows[1:]] == ["rosco", "physical-plain"]
     assert rows[1].endswith(",") and rows[2].endswith(",0")  # ROSCO: no FDI ("—")
-    for c, ran in (("rosco", False), ("physical_fdi", True)):
+    for c, ran in (("rosco", False), ("physical-plain", True)):
         cell = out / "steady_16" / "none" / c
         assert (cell / "openfast" / "NREL-5MW.outb").is_file() and (cell / "config.toml").is_file()
         m = json.loads((cell / "metrics.json").read_text())
@@ -130,9 +130,9 @@ def test_the_fdi_report_says_whether_an_fdi_ran_and_old_metrics_still_read():
     assert fdi_ran(None) is False and fdi_ran({"blades": {}, "false_alarms": []}) is True
     assert fdi_ran(dict(NO_FDI)) is False
     old = {"fdi": None, "diverged": None}
-    assert compare._row("rosco", "none", "steady_16", old)["false_alarms"] is None
+    assert compare._row("rosco", "none", "steady_16", old, False)["false_alarms"] is None
     new = {"fdi": dict(NO_FDI), "diverged": None}
-    assert compare._row("rosco", "none", "steady_16", new)["false_alarms"] is None
+    assert compare._row("rosco", "none", "steady_16", new, False)["false_alarms"] is None
 
 
 @pytest.mark.parametrize("change, key", [
@@ -186,13 +186,14 @@ def test_the_progress_of_runs_in_flight_is_read_from_openfasts_log(tmp_path):
     assert "50 % simulated" in cluster.describe([(60.0, 120.0)] * 5)
 
 
-def test_the_measured_matrix_names_its_variant_and_winds_without_changing_the_default():
-    """Issue 32's matrix (rosco, pi, physical_fdi, paper_fdi × every fault × steady 16,
-    steady 20, NTM B 12 and 16) is nameable; a bare `wtftc compare` runs what it ran."""
-    assert "paper_fdi" not in compare.DEFAULT_CONTROLLERS
+def test_the_measured_matrix_names_its_columns_and_winds_beside_the_default():
+    """docs/openfast.md's matrix (rosco, pi, physical-plain, paper-fdi × every fault ×
+    steady 16, steady 20, NTM B 12 and 16) is nameable; a bare `wtftc compare` keeps its
+    three winds."""
     assert compare.DEFAULT_WINDS == ("paper_random_12", "ntm_B_16", "eog_rated")
-    cfg = compare.cell_config("paper_fdi", "runaway", "steady_20", 30.0, 1e-3, 0,
-                              engine="openfast")
+    cols = compare.resolve_columns(["rosco", "pi", "physical-plain", "paper-fdi"])
+    cfg = compare.cell_config("paper-fdi", cols["paper-fdi"], "runaway", "steady_20", 30.0,
+                              1e-3, 0, engine="openfast")
     assert (cfg["controller"], cfg["case"], cfg["engine"]) == ("paper", 4, "openfast")
     assert cfg["wind"] == {"kind": "constant", "speed_mps": 20.0}
     assert compare.WINDS["ntm_B_12"]["mean_mps"] == 12.0

@@ -78,7 +78,7 @@ def test_bad_sweep_file_on_the_command_line_exits_2_and_writes_nothing(tmp_path)
 
 
 def test_runs_follow_from_the_sweep_file_deterministically():
-    grid = sweep.parse_sweep({**BASE, "controllers": ["paper", "physical_fdi"],
+    grid = sweep.parse_sweep({**BASE, "controllers": ["paper", "physical-plain"],
                               "fault": {"type": ["none", "lock"], "blade": [1, 2, 3],
                                         "onset_s": 5.0}})
     runs, dup = sweep.expand(grid)
@@ -217,7 +217,7 @@ def test_example_sweep_on_an_existing_scheduler_and_its_summary(tmp_path):
     assert table.num_rows == 32 and set(table.column("status").to_pylist()) == {"ok"}
     assert table.schema.field("rms_speed_error_rad_s").metadata[b"unit"] == b"rad/s"
     rows = table.to_pylist()
-    fdi = [r for r in rows if r["controller"] == "physical_fdi" and r["fault_type"] != "none"]
+    fdi = [r for r in rows if r["controller"] == "physical-plain" and r["fault_type"] != "none"]
     assert all(0 <= r["detection_delay_s"] < 2.0 and r["isolation_correct"] for r in fdi)
     assert all(r["false_alarms"] == 0 for r in rows)
     # any saved run re-runs alone to the same numbers, from its saved configuration
@@ -236,7 +236,7 @@ def test_example_sweep_on_an_existing_scheduler_and_its_summary(tmp_path):
     s = wtftc("sweep", "--summary", out)
     assert s.returncode == 0, s.stderr
     assert "32 of 32 runs saved" in s.stdout
-    assert "| physical_fdi | lock | 4 | 0 | 0 |" in s.stdout
+    assert "| physical-plain | lock | 4 | 0 | 0 |" in s.stdout
     assert {"rms_speed_error.png", "overspeed.png", "detection_delay.png"} <= {
         q.name for q in (out / "figures").iterdir()}
     assert (out / "summary.csv").read_text().count("\n") == 1 + 8
@@ -350,7 +350,7 @@ def test_a_sweep_too_large_to_list_is_refused_before_anything(tmp_path):
     """A grid of 2e10 runs once used 2 GB in 40 s without a word: now it is refused at
     once, with the axes' sizes, and nothing is written."""
     f = write_sweep(tmp_path / "huge.toml", 'mode = "grid"\nt_final_s = 5.0\n'
-                    'controllers = ["physical_fdi", "paper"]\n[wind]\n'
+                    'controllers = ["physical-plain", "paper"]\n[wind]\n'
                     "mean_mps = { min = 12.0, max = 20.0, n = 100000 }\n"
                     "seed = { min = 0, max = 99999 }\n")
     t0 = time.monotonic()
@@ -417,7 +417,7 @@ def test_fault_free_twins_pair_every_scenario_and_give_the_rms_ratio(tmp_path):
 samples = 3
 sampling_seed = 2
 t_final_s = 4.0
-controllers = ["physical_fdi"]
+controllers = ["physical-plain"]
 fault_free_twins = true
 profile = "ideal"
 [wind]
@@ -491,10 +491,10 @@ controllers = ["pi"]
     assert not (out / "sweep.lock").exists()
 
 
-@pytest.mark.parametrize("ctrl", ["rosco", "rosco_matched"])
+@pytest.mark.parametrize("ctrl", ["rosco", "rosco-matched"])
 def test_rosco_and_its_variants_are_refused_on_the_paper_plant(ctrl):
-    """ROSCO's DISCON.IN is the NREL 5-MW's: ROSCO, or a variant of it (issue 34's
-    rosco_matched, allowed as an optional controller), on plant paper is refused when the
+    """ROSCO's DISCON.IN is the NREL 5-MW's: a column of design rosco (rosco-matched
+    retuned, allowed as an optional controller, too), on plant paper is refused when the
     sweep file is read, not run by run."""
     for raw in ({**BASE, "controllers": ["pi", ctrl], "plants": ["paper"]},
                 {**BASE, "controllers": ["pi"], "optional_controllers": [ctrl],
