@@ -227,3 +227,15 @@ def test_a_folder_resumes_only_with_the_columns_it_recorded(tmp_path):
         store._check_same_columns(tmp_path, changed, sw, False)
     assert e.value.field == "--out" and "aftc-nrel5mw" in e.value.allowed
     store._check_same_columns(tmp_path, changed, sw, True)  # --overwrite
+
+
+def test_columns_as_an_array_of_tables(tmp_path):
+    """`[[controllers]]` entries are the same columns as inline tables."""
+    path = tmp_path / "s.toml"
+    path.write_text('t_final_s = 30.0\n[wind]\nmean_mps = 16.0\n'
+                    '[[controllers]]\nname = "obs"\npreset = "physical-plain"\n'
+                    'phys_obs_omega = [3.0, 4.5]\n[[controllers]]\nname = "base"\n'
+                    'preset = "pi"\n')
+    sw = load_sweep(path)
+    assert list(sw.columns) == ["obs[phys_obs_omega=3]", "obs[phys_obs_omega=4.5]", "base"]
+    assert dict(sw.columns["obs[phys_obs_omega=4.5]"].params) == {"phys_obs_omega": 4.5}
