@@ -86,14 +86,14 @@ def test_pitch_controllers_run_with_the_baseline_torque_law_and_rosco_with_its_o
     own = {"physical_obs15_w04_ps_ct_fdi": ("iea15mw", 120.97),
            "aftc-iea15mw": ("iea15mw", 120.97)}
     with pytest.raises(ConfigError) as e:
-        compare.cell_config("w04", cols["physical_obs15_w04_ps_ct_fdi"], "lock", "ntm_B_16",
-                            30.0, 1e-3, 0)
+        compare.cell_config("w04", "lock", "ntm_B_16", 30.0, 1e-3, 0,
+                            ctrl=cols["physical_obs15_w04_ps_ct_fdi"])
     assert e.value.field == "tuning"
     constant = set()
     for name, ctrl in cols.items():
         turbine, radius = own.get(name, (None, 63.0))
-        cfg = compare.cell_config(name, ctrl, "lock", "ntm_B_16", 30.0, 1e-3, 0,
-                                  turbine=turbine)
+        cfg = compare.cell_config(name, "lock", "ntm_B_16", 30.0, 1e-3, 0,
+                                  turbine=turbine, ctrl=ctrl)
         law = cfg.get("turbine_params", {}).get("gen_torque_law", 0.0)
         assert law == (0.0 if ctrl.design == "rosco" else 1.0), name
         region3 = cfg.get("turbine_params", {}).get("vs_constant_torque", 0.0)
@@ -105,8 +105,8 @@ def test_pitch_controllers_run_with_the_baseline_torque_law_and_rosco_with_its_o
                         "physical_obs3to45_ps_td_ct_fdi", "physical_obs15_w04_ps_ct_fdi",
                         "pi_lpf_ps_ct", "physical_obs45_ps_ct_fdi",
                         "physical_obs45_ps_td_ct_fdi", "physical_obs30_ps_td_ct_fdi"}
-    iea = compare.cell_config("pi", cols["pi"], "none", "ntm_B_16", 30.0, 1e-3, 0,
-                              turbine="iea15mw")
+    iea = compare.cell_config("pi", "none", "ntm_B_16", 30.0, 1e-3, 0,
+                              turbine="iea15mw", ctrl=cols["pi"])
     assert iea["wind"]["rotor_radius_m"] == 120.97
 
 
@@ -125,9 +125,10 @@ def test_the_matrix_has_every_actuator_fault_type_and_each_column_its_case():
     for name, ctrl in _every_named_controller().items():
         if ctrl.tuning and ctrl.design == "physical":
             continue  # (solved on its own turbine: the test above)
-        cfg = compare.cell_config(name, ctrl, "lock", "ntm_B_16", 30.0, 1e-3, 0)
+        cfg = compare.cell_config(name, "lock", "ntm_B_16", 30.0, 1e-3, 0, ctrl=ctrl)
         assert (cfg["controller"], cfg["case"]) == (ctrl.design, case[ctrl.accommodation])
-        assert compare.cell_config(name, ctrl, "none", "ntm_B_16", 30.0, 1e-3, 0)["case"] == 1
+        free = compare.cell_config(name, "none", "ntm_B_16", 30.0, 1e-3, 0, ctrl=ctrl)
+        assert free["case"] == 1
 
 
 def test_the_paper_with_wtftcs_fdi_runs_on_the_native_engine(tmp_path):
@@ -160,7 +161,8 @@ def test_a_columns_settings_reach_its_cells(tmp_path):
                           "obs[phys_obs_omega=4.5]", "obs[phys_obs_omega=6]", "lpf"]
 
     def cell(name, fault="lock"):
-        return compare.cell_config(name, cols[name], fault, "ntm_B_16", 30.0, 1e-3, 0)
+        return compare.cell_config(name, fault, "ntm_B_16", 30.0, 1e-3, 0,
+                                   ctrl=cols[name])
 
     assert cell("obs[phys_obs_omega=6]")["controller_params"] == {"phys_obs_omega": 6.0,
                                                                   "phys_ps_pitch": 0.0349}

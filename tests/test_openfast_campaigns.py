@@ -192,8 +192,8 @@ def test_the_measured_matrix_names_its_columns_and_winds_beside_the_default():
     three winds."""
     assert compare.DEFAULT_WINDS == ("paper_random_12", "ntm_B_16", "eog_rated")
     cols = compare.resolve_columns(["rosco", "pi", "physical-plain", "paper-fdi"])
-    cfg = compare.cell_config("paper-fdi", cols["paper-fdi"], "runaway", "steady_20", 30.0,
-                              1e-3, 0, engine="openfast")
+    cfg = compare.cell_config("paper-fdi", "runaway", "steady_20", 30.0, 1e-3, 0,
+                              engine="openfast", ctrl=cols["paper-fdi"])
     assert (cfg["controller"], cfg["case"], cfg["engine"]) == ("paper", 4, "openfast")
     assert cfg["wind"] == {"kind": "constant", "speed_mps": 20.0}
     assert compare.WINDS["ntm_B_12"]["mean_mps"] == 12.0

@@ -106,18 +106,18 @@ def test_a_tuned_column_runs_at_its_target():
     cols = compare.resolve_columns(example.CONTROLLERS)
     assert list(cols) == ["rosco", "pi", "physical_fdi", "rosco_fast", "pi_fast",
                           "physical_fdi_fast"]
-    rosco = compare.cell_config("rosco_fast", cols["rosco_fast"], "none", "ntm_B_16", 30.0,
-                                1e-3, 0, plant="tower_edge")
+    rosco = compare.cell_config("rosco_fast", "none", "ntm_B_16", 30.0, 1e-3, 0,
+                                plant="tower_edge", ctrl=cols["rosco_fast"])
     assert rosco["rosco"] == {"omega_pc_rad_s": 0.9, "zeta_pc": 0.7} and "tuning" not in rosco
     assert rosco["plant"] == "tower_edge"
-    pi = compare.cell_config("pi_fast", cols["pi_fast"], "runaway", "ntm_B_16", 30.0, 1e-3,
-                             0, engine="openfast")
+    pi = compare.cell_config("pi_fast", "runaway", "ntm_B_16", 30.0, 1e-3, 0,
+                             engine="openfast", ctrl=cols["pi_fast"])
     assert pi["controller_params"] == {"pi_omega_n": 0.9, "pi_zeta": 0.7}
     assert pi["engine"] == "openfast" and "plant" not in pi
-    assert "controller_params" not in compare.cell_config("pi", cols["pi"], "none",
-                                                          "ntm_B_16", 30.0, 1e-3, 0)
-    phys = compare.cell_config("physical_fdi_fast", cols["physical_fdi_fast"], "lock",
-                               "ntm_B_16", 30.0, 1e-3, 0)
+    assert "controller_params" not in compare.cell_config("pi", "none", "ntm_B_16", 30.0,
+                                                          1e-3, 0)
+    phys = compare.cell_config("physical_fdi_fast", "lock", "ntm_B_16", 30.0, 1e-3, 0,
+                               ctrl=cols["physical_fdi_fast"])
     assert phys["case"] == 4 and {"phys_c1", "phys_gamma"} <= set(phys["controller_params"])
 
 

@@ -219,10 +219,11 @@ PROFILE = "realistic"
 PLANT = "tower_edge"
 
 
-def cell_config(name: str, ctrl: Controller, fault: str, wind: str, t_final: float,
-                dt: float, seed: int, profile: str = PROFILE, turbine: str | None = None,
-                engine: str = "wtftc", plant: str = PLANT) -> dict:
-    """One cell's run configuration: column ``name`` (settings ``ctrl``), on ``plant``. The
+def cell_config(name: str, fault: str, wind: str, t_final: float, dt: float, seed: int,
+                profile: str = PROFILE, turbine: str | None = None, engine: str = "wtftc",
+                plant: str = PLANT, ctrl: Controller | None = None) -> dict:
+    """One cell's run configuration: column ``name``, its settings ``ctrl`` (default: the
+    preset or former name ``name``, wtftc.controller.lookup), on ``plant``. The
     turbulent wind is the rotor-effective one (averaged over the turbine's rotor disk:
     docs/wind.md). On a turbine other than the NREL 5-MW the gust of ``eog_rated`` comes
     at that turbine's rated wind (config.rated_wind_speed, to 0.01 m/s; the NREL 5-MW
@@ -233,6 +234,7 @@ def cell_config(name: str, ctrl: Controller, fault: str, wind: str, t_final: flo
         tab = {**tab, "mean_mps": round(config.rated_wind_speed(t.vector(), t.table), 2)}
     if tab["kind"] == "ntm":
         tab = {**tab, "rotor_radius_m": t.values["rotor_radius"]}
+    ctrl = controller.lookup(name) if ctrl is None else ctrl
     cfg = variant_config(ctrl, FAULTS[fault], tab, t_final, dt, seed,
                          label=f"{wind}/{fault}/{name}", profile=profile)
     where = {"plant": plant} if engine == "wtftc" else {"engine": engine}
@@ -298,8 +300,8 @@ def run_compare(out_dir: Path, controllers=None, faults=None, winds=None, t_fina
         raise ConfigError("t-final", t_final, f"more than {ONSET_S:g} s, the faults' onset "
                           "(or --faults none)")
     # validate every cell before running any
-    cells = {(w, f, c): cell_config(c, ctrl, f, w, t_final, dt, seed, profile, turbine,
-                                    engine, plant)
+    cells = {(w, f, c): cell_config(c, f, w, t_final, dt, seed, profile, turbine, engine,
+                                    plant, ctrl)
              for w in wind_names for f in fault_names for c, ctrl in columns.items()}
     for raw in cells.values():  # every cell checked before a TurbSim field is made
         config.check_before_field(raw)
