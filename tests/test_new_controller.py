@@ -58,7 +58,9 @@ for name in ("ctrl_toy", "init_toy", "alpha_toy", "closed_loop_toy_model"):
 fd = designs.alpha_dot_fd("toy")
 from wtftc.campaign import compare
 print(json.dumps({{"derived": designs.derived(), "sympy_worst": worst,
-                  "compare": compare.CONTROLLERS["toy_fdi"].controller,
+                  "compare": [compare.resolve_columns([{{"name": "toy", "design": "toy"}}])[
+                      "toy"].design, compare.resolve_columns([{{"name": "toy", "design": "toy"}}])[
+                      "toy"].accommodation],
                   "alphas": fd.alphas, "slopes": fd.slopes.tolist(),
                   "best": fd.errors.min(axis=0).tolist(), "alpha_dot": fd.alpha_dot.tolist()}}))
 """
@@ -101,7 +103,8 @@ def test_the_new_controller_matches_sympy_and_its_alpha_dot_converges(toy_genera
     res = json.loads(_python(CHECK.format(root=str(ROOT), tests=str(ROOT / "tests")),
                              env).strip().splitlines()[-1])
     assert "toy" in res["derived"] and "drivetrain" in res["derived"]
-    assert res["compare"] == "toy"  # wtftc compare --controllers toy_fdi
+    # wtftc compare --controllers '{ name = "toy", design = "toy" }': with wtftc's FDI
+    assert res["compare"] == ["toy", "fdi"]
     bad = {k: v for k, v in res["sympy_worst"].items() if v > 1e-12}
     assert not bad, bad
     assert res["alphas"] == ["alpha1"]

@@ -315,29 +315,25 @@ def _add_run(sub) -> None:
 def _add_compare(sub) -> None:
     k = sub.add_parser(
         "compare", help="controllers × faults × winds on the NREL 5-MW: one table, figures",
-        description="Runs every combination of controller variant (rosco when installed, "
-                    "paper, physical_fdi, physical_known, physical_unaccommodated, "
-                    "drivetrain_fdi, pi, and any other registered ControllerDesign as "
-                    "<name>_fdi; a wrong name lists them all), fault (none, "
-                    "loss_of_effectiveness, lock, pressure_drop, air_in_oil, runaway; from "
-                    "20 s) and wind (paper_random_12, ntm_B_16, eog_rated) and writes compare.md, "
-                    "compare.csv, compare.png/pdf, and each cell's config.toml and "
-                    "metrics.json under <out>/<wind>/<fault>/<controller>/ (re-run one with "
-                    "wtftc run --config). Named only: the variant paper_fdi (the paper's "
-                    "design fed by wtftc's FDI), issue 34's physical_obs_fdi, "
-                    "physical_obs_ps_fdi, physical_obs45_ps_fdi, physical_obs45_ps_td_fdi, "
-                    "physical_obs45_ps_ct_fdi, physical_obs45_ps_td_ct_fdi, "
-                    "physical_obs30_ps_td_ct_fdi, physical_obs3to45_ps_td_ct_fdi, "
-                    "physical_obs15_w04_ps_ct_fdi, pi_lpf, "
-                    "pi_lpf_ps, pi_lpf_ps_ct and "
-                    "rosco_matched (docs/compare.md), and the winds steady_16, steady_20, "
-                    "ntm_B_12. "
-                    "With --engine openfast the cells are Dask tasks (a local cluster of "
-                    "--workers processes, or --scheduler's). ROSCO needs the optional extra: "
-                    "pip install 'wtftc[rosco]'.")
+        description="Runs every combination of controller column (by default the "
+                    "turbine's recommended preset, the pi preset and rosco when installed), "
+                    "fault (none, loss_of_effectiveness, lock, pressure_drop, air_in_oil, "
+                    "runaway; from 20 s) and wind (paper_random_12, ntm_B_16, eog_rated) and "
+                    "writes compare.md, compare.csv, compare.png/pdf, and each cell's "
+                    "config.toml and metrics.json under <out>/<wind>/<fault>/<controller>/ "
+                    "(re-run one with wtftc run --config). Named only: the winds steady_16, "
+                    "steady_20, ntm_B_12. With --engine openfast the cells are Dask tasks (a "
+                    "local cluster of --workers processes, or --scheduler's). ROSCO needs the "
+                    "optional extra: pip install 'wtftc[rosco]'. docs/compare.md.",
+        epilog="Example: wtftc compare --controllers aftc-nrel5mw pi-filtered rosco "
+               "'{ name = \"obs\", preset = \"aftc-nrel5mw\", phys_obs_omega = [2.0, 4.0] }' "
+               "--faults none lock --winds ntm_B_16 --out out/cmp")
     k.add_argument("--out", type=Path, default=Path("results/compare"), help="output folder")
-    k.add_argument("--controllers", nargs="+",
-                   help="subset of the controller variants above")
+    _add_preset(k, "compare")
+    k.add_argument("--controllers", nargs="+", metavar="COLUMN",
+                   help="the columns instead: presets (wtftc presets) or TOML inline tables "
+                        "'{ name = ..., preset or design = ..., settings }', a setting given "
+                        "as a list making one column per value (docs/controllers.md)")
     k.add_argument("--faults", nargs="+", help="subset of faults")
     k.add_argument("--winds", nargs="+", help="subset of winds")
     k.add_argument("--turbine", help=TURBINE_HELP)
@@ -352,9 +348,9 @@ def _add_compare(sub) -> None:
                         "openfast/ (the variants told the fault are left out; "
                         "docs/openfast.md)")
     k.add_argument("--plant",
-                   help="wtftc's plant with --engine wtftc, one with a tower: tower (default, "
-                        "as docs/compare.md's results) or tower_edge (the blades' edgewise "
-                        "mode, validated against OpenFAST in docs/validation.md)")
+                   help="wtftc's plant with --engine wtftc, one with a tower: tower_edge "
+                        "(default: the blades' edgewise mode, validated against OpenFAST in "
+                        "docs/validation.md) or tower")
     k.add_argument("--workers", type=_positive_int,
                    help="the cells as Dask tasks on a local cluster of this many processes "
                         f"(default with --engine openfast: the cores, {os.cpu_count()}; "
@@ -385,6 +381,7 @@ def _add_sweep(sub) -> None:
                    help="the sweep file (see examples/)")
     w.add_argument("--out", type=Path,
                    help="results folder (default: out/sweep/<sweep file name>)")
+    _add_preset(w, "sweep")
     w.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1,
                    help="processes of the local cluster (default: the number of cores, "
                         f"{os.cpu_count()})")
@@ -576,7 +573,10 @@ def _preset_help(command: str) -> str:
     default = {"run": "the turbine's recommended preset (aftc-nrel5mw on the NREL 5-MW, "
                       "aftc-iea15mw on the IEA 15-MW)",
                "validate": "--controller's design", "linearize": "the turbine's "
-               "recommended preset", "tune": "--controller's design"}.get(command, "")
+               "recommended preset", "tune": "--controller's design",
+               "export": "the turbine's recommended preset",
+               "compare": "the turbine's recommended preset, as the column beside pi and "
+                          "rosco", "sweep": "the sweep file's controllers"}.get(command, "")
     try:
         from wtftc.controller import presets
 
@@ -675,7 +675,8 @@ def _cmd_sweep(args) -> int:
         done = sweep.run_sweep(args.sweep_file, out, workers=args.workers,
                                scheduler=args.scheduler, traces=args.traces,
                                overwrite=args.overwrite, quiet=args.quiet,
-                               retry_failed=args.retry_failed, engine=args.engine)
+                               retry_failed=args.retry_failed, engine=args.engine,
+                               preset=args.preset)
     except sweep.Interrupted as exc:
         n = sweep.read_results(out).num_rows
         print(f"\nwtftc sweep: interrupted ({exc}); {n} finished runs are saved in {out}; "
@@ -712,7 +713,7 @@ def _confirm(args, out: Path) -> int:
         done = sweep.run_confirm(args.sweep_file, out, args.confirm_openfast, args.confirm_out,
                                  workers=args.workers, scheduler=args.scheduler,
                                  overwrite=args.overwrite, quiet=args.quiet,
-                                 retry_failed=args.retry_failed)
+                                 retry_failed=args.retry_failed, preset=args.preset)
     except sweep.Interrupted as exc:
         print(f"\nwtftc sweep: interrupted ({exc}); the finished runs are saved in {out} "
               "and its confirmation folder; run the same command to resume", file=sys.stderr)
@@ -832,11 +833,12 @@ def _cmd_compare(args) -> int:
     check_out_folder(args.out, "--out", legacy=compare.is_legacy_compare)
     if args.engine == "openfast":
         _check_out_beside_deck(args.out, args.turbine)
-    compare.run_compare(args.out, args.controllers, args.faults, args.winds,
-                               t_final=args.t_final, seed=args.seed, progress=not args.quiet,
-                               profile=args.profile, turbine=args.turbine,
-                               engine=args.engine, workers=args.workers,
-                               scheduler=args.scheduler, plant=plant)
+    columns = compare.entries_from_text(args.controllers) if args.controllers else None
+    compare.run_compare(args.out, columns, args.faults, args.winds,
+                        t_final=args.t_final, seed=args.seed, progress=not args.quiet,
+                        profile=args.profile, turbine=args.turbine,
+                        engine=args.engine, workers=args.workers,
+                        scheduler=args.scheduler, plant=plant, preset=args.preset)
     print((args.out / "compare.md").read_text(), end="")
     print(f"written under {args.out}/: compare.md, compare.csv, compare.png, "
           "<wind>/<fault>/<controller>/{config.toml,metrics.json}")

@@ -40,7 +40,6 @@ from __future__ import annotations
 import copy
 import hashlib
 import importlib.resources
-import json
 import math
 import os
 import shutil
@@ -56,7 +55,7 @@ import numpy as np
 from wtftc import config, files
 from wtftc import controller as ctl
 from wtftc.artefacts import layout as lay
-from wtftc.artefacts.loader import load, manifest
+from wtftc.artefacts.loader import load
 from wtftc.errors import ConfigError
 from wtftc.export import discon_checks
 from wtftc.model import turbine_file
@@ -268,11 +267,11 @@ def parameters(rc: config.RunConfig, demand_rate_limit: int = 1
 
 
 def generated_code_sha256() -> str:
-    """The hash of the generated code the library is made of: of generated/manifest.json's
-    artefacts and their sha256 (what a campaign's results record as
-    ``generated_code_sha256``: the same 16 hex digits)."""
-    code = manifest()["artefacts"]
-    return hashlib.sha256(json.dumps(code, sort_keys=True).encode()).hexdigest()[:16]
+    """The hash of the generated code the library is made of (wtftc.artefacts.loader:
+    what a campaign's results record as ``generated_code_sha256``)."""
+    from wtftc.artefacts.loader import generated_code_sha256 as code_hash
+
+    return code_hash()
 
 
 def differences(rc: config.RunConfig) -> list[tuple[str, float, float]]:

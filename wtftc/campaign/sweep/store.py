@@ -72,10 +72,9 @@ def versions() -> dict:
     import pyarrow
 
     from wtftc import __version__
-    from wtftc.artefacts.loader import manifest
+    from wtftc.artefacts.loader import generated_code_sha256
 
-    code = manifest()["artefacts"]
-    gen = hashlib.sha256(json.dumps(code, sort_keys=True).encode()).hexdigest()[:16]
+    gen = generated_code_sha256()
     return {"wtftc": __version__, "python": platform.python_version(),
             "numpy": np.__version__, "casadi": casadi.__version__, "dask": dask.__version__,
             "distributed": distributed.__version__, "pyarrow": pyarrow.__version__,
