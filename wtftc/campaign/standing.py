@@ -43,12 +43,8 @@ METRICS = [("rms_speed_error_rad_s", "RMS ω error", "the RMS rotor-speed error 
 #: the preset every column is held against
 REFERENCE = "rosco"
 #: former column names that stand for a preset without storing the same settings:
-#: name → (preset, why)
-STANDS_FOR = {"physical_obs15_w04_ps_ct_fdi": (
-    "aftc-iea15mw", "stores the pitch loop's target mode (ω_n 0.4 rad/s, ζ 0.85) where the "
-    "preset stores the gains `wtftc turbine tune --turbine iea15mw --omega-n 0.4 --zeta "
-    "0.85` solves from it (tests/test_presets.py solves them again); every other setting "
-    "is the preset's")}
+#: name → (preset, why), from wtftc/data/presets.toml
+STANDS_FOR = controller.standing_for()
 #: the folders kept with the code, in a checkout
 CAMPAIGNS = Path(__file__).resolve().parents[2] / "docs" / "campaigns"
 #: the command that makes docs/standing.md
