@@ -197,3 +197,37 @@ def test_tune_from_a_preset_keeps_its_other_settings(tmp_path):
                               "pi_omega_n": 0.5, "pi_zeta": 0.8}
     rc = config.make_config(cfg)
     assert rc.param("vs_constant_torque") == 1.0
+
+
+def test_a_saved_runs_configuration_takes_a_fault_or_another_preset(tmp_path):
+    p = wtftc("run", "--t-final", 22, "--wind", "constant", "--wind-mean", 16, "--out",
+              tmp_path / "a", "--quiet")
+    assert p.returncode == 0, p.stderr
+    saved = tmp_path / "a" / "config.toml"
+    # its case 1 and --fault default: refused, not a run without the fault
+    p = wtftc("run", "--config", saved, "--fault", "default", "--out", tmp_path / "b")
+    assert p.returncode == 2 and "--fault = 'default'" in p.stderr
+    assert not (tmp_path / "b").exists()
+    # --preset replaces its controller: the preset's accommodation sets the case
+    p = wtftc("run", "--config", saved, "--preset", "pi", "--fault", "default", "--out",
+              tmp_path / "c", "--quiet")
+    assert p.returncode == 0, p.stderr
+    assert "preset pi (pi), case 2" in p.stdout
+
+
+def test_a_refusal_from_the_command_line_names_the_tables_key(tmp_path):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('[controller]\npreset = "aftc-nrel5mw"\nphys_obs_omega = -1\n')
+    p = wtftc("run", "--config", cfg, "--out", tmp_path / "a")
+    assert p.returncode == 2 and "controller.phys_obs_omega = -1.0" in p.stderr, p.stderr
+    cfg.write_text('[controller]\npreset = "aftc-nrel5mw"\nphys_obs_omgea = 1\n')
+    p = wtftc("run", "--config", cfg, "--out", tmp_path / "a")
+    assert p.returncode == 2 and "did you mean phys_obs_omega?" in p.stderr, p.stderr
+
+
+def test_the_export_of_a_design_without_accommodation_says_so(tmp_path):
+    p = wtftc("export", "discon", "--preset", "pi", "--out", tmp_path / "pi")
+    assert p.returncode == 0, p.stderr
+    text = (tmp_path / "pi" / "README.txt").read_text()
+    assert "the pi design has no fault accommodation" in text and "#53" in text
+    assert "feeds the accommodation" not in text

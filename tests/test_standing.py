@@ -206,3 +206,14 @@ def test_presets_standing_writes_whole_and_refuses_a_users_file(tmp_path):
     p = cli()
     assert p.returncode == 0
     assert p.stdout == (ROOT / "docs" / "standing.md").read_text(encoding="utf-8")
+
+
+def test_a_file_among_the_folders_is_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    p = subprocess.run([sys.executable, "-m", "wtftc.cli", "presets", "--standing",
+                        str(ROOT / "docs" / "campaigns" / "README.md")],
+                       capture_output=True, text=True)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1
+    assert "--standing = " in p.stderr and "README.md" in p.stderr

@@ -273,12 +273,11 @@ def _add_run(sub) -> None:
     r.add_argument("--case", type=int, choices=(1, 2, 3, 4),
                    help="1 no fault, 2 fault with the controller unaware, 3 fault known to "
                         "eq (49), 4 fault detected by wtftc's FDI")
-    r.add_argument("--plant", help="tower_edge (default with a preset), nrel5mw (default "
-                   "with --controller; two-mass drivetrain), tower (nrel5mw "
-                   "on a flexible tower: thrust, tower-base moment, Cp and Ct per blade), "
-                   "tower_edge (tower with the blades' edgewise mode in series with the "
-                   "shaft: OpenFAST's drivetrain mode; docs/validation.md) or paper (eqs "
-                   "(1)-(4), unloaded)")
+    r.add_argument("--plant", help="tower_edge (default with a preset: the tower plant "
+                   "with the blades' edgewise mode in series with the shaft, OpenFAST's "
+                   "drivetrain mode; docs/validation.md), nrel5mw (default with --controller; "
+                   "two-mass drivetrain), tower (nrel5mw on a flexible tower: thrust, "
+                   "tower-base moment, Cp and Ct per blade) or paper (eqs (1)-(4), unloaded)")
     _add_preset(r, "run")
     r.add_argument("--controller", help=_controller_help())
     r.add_argument("--turbine", help=TURBINE_HELP)
@@ -552,7 +551,9 @@ def _controller_help() -> str:
     except _UNREADABLE:
         regs = "the registered controllers (docs/controllers.md; the generated artefacts " \
                "cannot be read now: run a command for the reason)"
-    return regs + "; rosco: NREL's ROSCO (pip install 'wtftc[rosco]'). Default: paper"
+    return regs + ("; rosco: NREL's ROSCO (pip install 'wtftc[rosco]'). A design with its "
+                   "default settings, in the paper's world unless --profile says otherwise "
+                   "(the default is the turbine's recommended --preset)")
 
 
 def _controllers() -> dict:
@@ -606,7 +607,15 @@ def _pick_controller(args, cfg: dict, default_preset: bool = False,
         if getattr(args, "controller", None) is not None:
             raise ConfigError("--preset", preset, "--preset or --controller, not both (a "
                               "preset names its design)")
-        controller.preset(preset)  # an unknown name named as --preset
+        torque = controller.preset(preset).torque  # an unknown name named as --preset
+        # it replaces the controller of --config (a saved run's flat keys too)
+        for key in ("controller_params", "tuning", "controller_preset", "rosco"):
+            cfg.pop(key, None)
+        if getattr(args, "case", None) is None:  # the preset's accommodation sets it
+            cfg.pop("case", None)
+        if isinstance(cfg.get("turbine_params"), dict):
+            cfg["turbine_params"] = {k: v for k, v in cfg["turbine_params"].items()
+                                     if k not in dict(torque)}
         cfg["controller"] = {"preset": preset}
     elif default_preset and "controller" not in cfg \
             and not {"controller_params", "tuning"} & set(cfg):
@@ -623,6 +632,12 @@ def _pick_controller(args, cfg: dict, default_preset: bool = False,
             cfg.setdefault("plant", "tower_edge")
         if getattr(args, "fault", None) == "default":
             cfg.setdefault("fault", copy.deepcopy(DEFAULT_FAULT))
+    elif getattr(args, "fault", None) == "default" and cfg.get("case", 1) == 1 \
+            and not cfg.get("fault"):
+        raise ConfigError("--fault", "default", "a run with a fault: with a design (or a "
+                          "saved run's configuration) give its case, --case 2 (unaware), 3 "
+                          "(told the fault) or 4 (wtftc's FDI); with a preset its "
+                          "accommodation sets it")
     return cfg
 
 

@@ -1233,7 +1233,8 @@ def check_turbine(p_turbine, given=()) -> None:
 def _faults(raw: dict, case: int, t_final: float) -> list:
     if case == FAULT_FREE_CASE:
         if raw.get("fault"):
-            raise ConfigError("fault", raw["fault"], "no fault in case 1 (use case 2 or 3)")
+            raise ConfigError("fault", raw["fault"], "no fault in case 1 (use case 2, 3 or "
+                              "4, or a [controller] table, whose accommodation sets the case)")
         return []
     default = "fault" not in raw
     raw.setdefault("fault", copy.deepcopy(DEFAULT_FAULT))

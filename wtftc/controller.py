@@ -214,7 +214,11 @@ def _settings(tab: dict, design: str, base: Controller | None, field: str
                 raise ConfigError(where, val, f"a number in [{lo:g}, {hi:g}]")
             tuning[key] = v
         else:
-            raise ConfigError(where, val, f"a setting of {design}: " + _known_names(design))
+            import difflib
+
+            near = difflib.get_close_matches(key, _known_names(design).split(", "), n=1)
+            raise ConfigError(where, val, (f"did you mean {near[0]}? " if near else "")
+                              + f"a setting of {design}: " + _known_names(design))
     if tuning and not {"omega_n_rad_s", "zeta"} <= set(tuning):
         raise ConfigError(f"{field}.omega_n_rad_s" if "omega_n_rad_s" not in tuning
                           else f"{field}.zeta", None, "both omega_n_rad_s and zeta: the "

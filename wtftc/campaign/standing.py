@@ -59,8 +59,9 @@ def default_folders() -> list[Path]:
     """Every folder of docs/campaigns/ with saved runs (a checkout's; an installed wtftc
     has none, and is told to name the folders)."""
     if not CAMPAIGNS.is_dir():
-        raise ConfigError("--standing", str(CAMPAIGNS), "a checkout's docs/campaigns/ "
-                          "(an installed wtftc has none: name the results folders)")
+        raise ConfigError("--standing", "(no folder)", "the sweep results folders to read "
+                          "(wtftc presets --standing FOLDER ...): only a checkout of wtftc "
+                          "has its campaign folders, in docs/campaigns/")
     return sorted(p for p in CAMPAIGNS.iterdir()
                   if p.is_dir() and any((p / "runs").glob("part-*.parquet")))
 
@@ -106,6 +107,9 @@ def _meta(folder: Path) -> dict:
     """The folder's sweep.json (its sweep, versions and, where it keeps them, its
     columns' settings), read as a regular file under a cap."""
     path = folder / "sweep.json"
+    if not Path(folder).is_dir():
+        raise ConfigError("--standing", str(folder), "a sweep's results folder (with "
+                          "sweep.json)")
     try:
         meta = json.loads(record.read_file(path, "--standing", MAX_TOML_BYTES))
         meta["sweep"].get, meta["versions"].get  # noqa: B018
@@ -324,7 +328,9 @@ def markdown(rows: list[dict], base: Path | None = None, command: str = COMMAND)
              "default); a scenario either controller lost is counted under that side, not "
              "compared. A scenario one side has no run of is left out. Every number links "
              "to the campaign folder it comes from (docs/campaigns/README.md says how each "
-             "was run); the folder's `generated code` is the hash its `sweep.json` records.",
+             "was run); the folder's `generated code` is the hash its `sweep.json` records "
+             "(this version's is `" + _current_code() + "`, as `wtftc export discon` names "
+             "it: a folder with another hash measured an earlier version of the designs).",
              ""]
     for turbine in sorted({r["turbine"] for r in rows}):
         lines += [f"## {_title(turbine)}", "", *_table([r for r in rows if r["turbine"] == turbine],
@@ -333,6 +339,12 @@ def markdown(rows: list[dict], base: Path | None = None, command: str = COMMAND)
               f"Made by `{command}`; tests/test_standing.py checks that this page is what "
               "it makes."]
     return "\n".join(lines) + "\n"
+
+
+def _current_code() -> str:
+    from wtftc.artefacts.loader import generated_code_sha256
+
+    return generated_code_sha256()
 
 
 #: the marks around the README's table (:func:`readme_table`)
@@ -348,9 +360,10 @@ def readme_table(rows: list[dict]) -> str:
     lines = ["Ratio to ROSCO on the same scenarios (geometric mean, 95 % interval over "
              "the scenarios both held; **tie** when it holds 1; lower is better), from "
              "the campaign folders kept in `docs/campaigns/`, each made on the generated "
-             "code its row names (the hash `wtftc sweep` records in its sweep.json: a "
-             "row made on an earlier version of a design says so by its hash); every "
-             "fault type, the counts of runs lost and the folders: "
+             "code its row names (the hash `wtftc sweep` records in its sweep.json); "
+             "this version's is `" + _current_code() + "`, which an export's header "
+             "names too: a row with another hash measured an earlier version of the "
+             "designs. Every fault type, the counts of runs lost and the folders: "
              "[docs/standing.md](docs/standing.md).", "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     order = list(controller.presets())

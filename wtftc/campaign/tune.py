@@ -159,6 +159,9 @@ def resolve(cfg: dict) -> dict:
     (:func:`_solve_physical` at the design wind, on the run's turbine; solved once per
     process and target). Without [tuning], ``cfg`` as it is. A [controller] table is
     turned into those keys first (wtftc.controller.expand)."""
+    tab = cfg.get("controller")
+    if isinstance(tab, dict) and not settings.parse(tab).tuning:
+        return cfg  # (expanded by make_config, which names its keys controller.<key>)
     cfg, _ = settings.expand(cfg)
     if "tuning" not in cfg:
         return cfg

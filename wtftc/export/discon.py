@@ -553,7 +553,9 @@ library sources: sha256 {sources} (the C it was compiled from, in this folder)
 Call it every {dt} s (DLL_DT; another interval is refused). It reads from avrSWAP (1-based
 records): #1 iStatus (0 first call, 1 running, -1 last; -8/-9 refused), #2 time, #3
 interval, #4/#33/#34 blade pitch [rad], #20 generator speed [rad/s, HSS], #21 rotor speed
-[rad/s], #28 Ptch_Cntrl (must be 1: individual pitch), #50 and the input file name;
+[rad/s], #28 Ptch_Cntrl (must be 1: individual pitch), #53 the tower-top fore-aft
+acceleration [m/s^2, positive downwind] (read by a tower damper only, phys_td_gain > 0 in
+the .IN; a host that leaves it 0 gives the damper nothing), #50 and the input file name;
 #63 the first record for logged channels (none written if 0 or beyond record {swap_max}).
 It writes #42-#44 the blade pitch demands [rad], #45 = #42, #47 the generator torque
 demand [N m, HSS], #35 = 1, #36 = 0, #55 = #56 = 0, #65 the number of logged channels,
@@ -571,7 +573,7 @@ interval, a non-finite measurement, an unknown iStatus, a demand that would not 
 float) set aviFAIL = -1 with a message in avcMSG; the host keeps running. No call returns
 aviFAIL = 0 with a demand that is not finite.
 The controller's states advance at the call interval as in wtftc's sampled loop; the
-FDI runs inside and feeds the accommodation (wtftc's case 4). Details: docs/discon.md.
+FDI runs inside and {fdi_use}. Details: docs/discon.md.
 
 THE PITCH ACTUATOR. The controller and its FDI are designed for the benchmark's pitch
 actuator between the demand and the blade: a second order (omega_n_nominal = {wn:g} rad/s,
@@ -787,7 +789,11 @@ def readme(rc: config.RunConfig, about: list[str], sources: str) -> str:
                          logged=logged, about="\n".join(about), sources=sources,
                          deck_dt=dt / math.ceil(dt / DECK_DT_MAX - 1e-9),
                          wn=rc.param("omega_n_nominal"), zeta=rc.param("zeta_nominal"),
-                         rate=math.degrees(rc.param("pitch_rate_max")))
+                         rate=math.degrees(rc.param("pitch_rate_max")),
+                         fdi_use="feeds the accommodation (wtftc's case 4)"
+                         if "fdi" in ctl.accommodations(rc.loop.controller) else
+                         f"its findings are logged; the {rc.loop.controller} design has no "
+                         "fault accommodation, so what it commands does not change with them")
 
 
 def _earlier_export(folder: Path) -> bool:
