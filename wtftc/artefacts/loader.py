@@ -170,16 +170,14 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-@cache
 def generated_code_sha256() -> str:
     """The generated code's identity: 16 hex digits of the sha256 of the manifest's
     artefacts (what a campaign records in its sweep.json and an export in its header)."""
-    import hashlib
-
     code = manifest()["artefacts"]
     return hashlib.sha256(json.dumps(code, sort_keys=True).encode()).hexdigest()[:16]
 
 
+@cache
 def manifest(folder: Path | None = None) -> dict:
     folder = folder or generated_dir()
     path = folder / "manifest.json"
