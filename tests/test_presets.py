@@ -231,3 +231,84 @@ def test_the_export_of_a_design_without_accommodation_says_so(tmp_path):
     text = (tmp_path / "pi" / "README.txt").read_text()
     assert "the pi design has no fault accommodation" in text and "#53" in text
     assert "feeds the accommodation" not in text
+
+
+@pytest.mark.parametrize("name", list(controller.presets()))
+def test_validate_takes_every_preset_on_the_baseline_torque_law(name):
+    """wtftc validate puts every design but ROSCO on the baseline torque law unless its
+    settings say: with a preset's table that must not clash with the preset's own."""
+    import argparse
+
+    from wtftc import cli
+    from wtftc.campaign import tune
+
+    args = argparse.Namespace(preset=name, controller=None, case=None, fault=None)
+    raw = tune.resolve(cli._pick_controller(args, {"t_final_s": 30.0}))
+    cli._on_the_baseline_torque_law(raw)
+    if cli._design_of(raw) == "rosco":
+        assert "turbine_params" not in raw
+        return
+    rc = config.make_config(raw)
+    assert rc.param("gen_torque_law") == 1.0
+
+
+def test_export_takes_a_table_with_a_target_mode(tmp_path):
+    pytest.importorskip("control", reason="python-control: pip install 'wtftc[linear]'")
+    cfg = tmp_path / "t.toml"
+    cfg.write_text('turbine = "iea15mw"\n[controller]\npreset = "pi-filtered"\n'
+                   "omega_n_rad_s = 0.5\nzeta = 0.8\n")
+    p = wtftc("export", "discon", "--config", cfg, "--out", tmp_path / "ex")
+    assert p.returncode == 0, p.stderr
+    text = (tmp_path / "ex" / "wtftc_pi.IN").read_text()
+    values = {line.split()[0]: line.split()[1] for line in text.splitlines()
+              if line and not line.startswith("!") and len(line.split()) > 1}
+    assert float(values["pi_omega_n"]) == 0.5 and float(values["pi_lpf_corner"]) == 6.0
+
+
+def test_a_preset_over_a_saved_run_leaves_none_of_its_settings(tmp_path):
+    p = wtftc("run", "--t-final", 12, "--wind", "constant", "--wind-mean", 16, "--out",
+              tmp_path / "a", "--quiet")
+    assert p.returncode == 0, p.stderr
+    p = wtftc("run", "--config", tmp_path / "a" / "config.toml", "--preset", "physical-plain",
+              "--out", tmp_path / "b", "--quiet")
+    assert p.returncode == 0, p.stderr
+    saved = tomllib.loads((tmp_path / "b" / "config.toml").read_text())
+    assert saved["controller_preset"] == "physical-plain"
+    assert saved["turbine_params"].get("vs_constant_torque", 0.0) == 0.0
+    assert "controller_params" not in saved
+    # --controller over it drops the record: the settings are no longer the preset's
+    p = wtftc("run", "--config", tmp_path / "a" / "config.toml", "--controller", "pi",
+              "--out", tmp_path / "c", "--quiet")
+    assert p.returncode == 0, p.stderr
+    assert "controller_preset" not in tomllib.loads((tmp_path / "c" / "config.toml").read_text())
+
+
+def test_a_record_of_a_preset_the_settings_are_not_is_refused():
+    with pytest.raises(ConfigError) as exc:
+        config.make_config({"controller": "pi", "controller_preset": "aftc-nrel5mw"})
+    assert exc.value.field == "controller_preset"
+    with pytest.raises(ConfigError):  # one setting more than the preset's
+        config.make_config({"controller": "pi", "controller_preset": "pi",
+                            "controller_params": {"pi_lpf_corner": 3.0}})
+    # a case other than its accommodation's: the run is no longer the preset, and no
+    # record is written
+    rc = config.make_config({"controller": {"preset": "paper"}, "case": 4, "t_final_s": 30.0})
+    assert "controller_preset" not in rc.raw
+    assert config.make_config({"controller": "pi", "controller_preset": "pi",
+                               "turbine_params": {"gen_torque_law": 1.0}}).controller == "pi"
+
+
+def test_linearize_refuses_rosco_as_a_preset(tmp_path):
+    p = wtftc("linearize", "--preset", "rosco", "--winds", 16, "--out", tmp_path / "l")
+    assert p.returncode == 2 and "rosco" in p.stderr, p.stderr
+    assert not (tmp_path / "l").exists()
+
+
+def test_a_preset_tuned_for_another_turbine_says_so(tmp_path):
+    p = wtftc("run", "--preset", "aftc-iea15mw", "--t-final", 12, "--wind", "constant",
+              "--wind-mean", 16, "--out", tmp_path / "a", "--quiet")
+    assert p.returncode == 0, p.stderr
+    assert "tuned for the iea15mw" in p.stderr
+    p = wtftc("run", "--turbine", "iea15mw", "--t-final", 12, "--wind", "constant",
+              "--wind-mean", 16, "--out", tmp_path / "b", "--quiet")
+    assert p.returncode == 0 and "tuned for" not in p.stderr, p.stderr

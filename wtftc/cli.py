@@ -145,8 +145,7 @@ def _cmd_validate(args) -> int:
         args.controller = "rosco"
     raw = tune.resolve(_pick_controller(args, _run_overrides(args)))
     _check_out_beside_deck(args.out, raw.get("turbine"))
-    if raw["controller"] != "rosco":
-        raw.setdefault("turbine_params", {"gen_torque_law": 1.0})  # as compare runs them
+    _on_the_baseline_torque_law(raw)  # as compare runs them
     from wtftc.campaign.modes import tower_plants
 
     plant = _plant(args.plant, "--plant", tower_plants())
@@ -159,6 +158,29 @@ def _cmd_validate(args) -> int:
           f"OpenFAST); written: {args.out}/validation.json, validation.md, time_series.png, "
           "spectra.png, openfast/, wtftc/")
     return 0
+
+
+def _design_of(raw: dict):
+    """The design a configuration runs: its [controller] table's, or its controller."""
+    from wtftc import controller
+
+    tab = raw.get("controller")
+    return controller.parse(tab).design if isinstance(tab, dict) else tab
+
+
+def _on_the_baseline_torque_law(raw: dict) -> None:
+    """Every design but ROSCO on the baseline torque law unless its settings say
+    otherwise (wtftc.controller.Controller.run_keys' torque_default)."""
+    from wtftc import controller
+
+    tab = raw.get("controller")
+    if isinstance(tab, dict):
+        c = controller.parse(tab)
+        if c.design != "rosco" and "gen_torque_law" not in dict(c.torque) \
+                and "gen_torque_law" not in (raw.get("turbine_params") or {}):
+            raw["controller"] = {**tab, "gen_torque_law": 1.0}
+    elif tab != "rosco":
+        raw.setdefault("turbine_params", {"gen_torque_law": 1.0})
 
 
 #: `wtftc validate`'s mean wind by default [m/s]: above rated on both built-in turbines
@@ -273,7 +295,8 @@ def _add_run(sub) -> None:
     r.add_argument("--case", type=int, choices=(1, 2, 3, 4),
                    help="1 no fault, 2 fault with the controller unaware, 3 fault known to "
                         "eq (49), 4 fault detected by wtftc's FDI")
-    r.add_argument("--plant", help="tower_edge (default with a preset: the tower plant "
+    r.add_argument("--plant", help="tower_edge (default with a preset or a [controller] "
+                   "table: the tower plant "
                    "with the blades' edgewise mode in series with the shaft, OpenFAST's "
                    "drivetrain mode; docs/validation.md), nrel5mw (default with --controller; "
                    "two-mass drivetrain), tower (nrel5mw on a flexible tower: thrust, "
@@ -292,7 +315,8 @@ def _add_run(sub) -> None:
                    help="control sign: -1 corrected (default), +1 as written (pitches the "
                         "wrong way and stalls the rotor: paper-notes defect 2)")
     r.add_argument("--profile", choices=("ideal", "realistic"),
-                   help="realistic (default with a preset): 100 Hz sampled controller, "
+                   help="realistic (default with a preset or a [controller] table): 100 Hz "
+                        "sampled controller, "
                         "the benchmark's sensor noise, the baseline torque law; ideal "
                         "(default with --controller): continuous-time controller, exact "
                         "sensors, the paper's world (docs/sensors.md)")
@@ -313,7 +337,7 @@ def _add_run(sub) -> None:
 
 def _add_compare(sub) -> None:
     k = sub.add_parser(
-        "compare", help="controllers × faults × winds on the NREL 5-MW: one table, figures",
+        "compare", help="controllers × faults × winds on a turbine: one table, figures",
         description="Runs every combination of controller column (by default the "
                     "turbine's recommended preset, the pi preset and rosco when installed), "
                     "fault (none, loss_of_effectiveness, lock, pressure_drop, air_in_oil, "
@@ -475,6 +499,7 @@ def _add_export(sub) -> None:
 
 
 def _cmd_export(args) -> int:
+    from wtftc.campaign import tune
     from wtftc.config import load_toml
     from wtftc.export import discon
 
@@ -486,7 +511,7 @@ def _cmd_export(args) -> int:
         cfg["controller"] = {"design": args.controller}
     if args.turbine:
         cfg["turbine"] = args.turbine
-    cfg = _pick_controller(args, cfg, default_preset=True, scenario=False)
+    cfg = tune.resolve(_pick_controller(args, cfg, default_preset=True, scenario=False))
     hook = None
     if args.with_actuator:
         from wtftc.openfast import plant_library
@@ -506,7 +531,7 @@ def _run_overrides(args) -> dict:
     from wtftc.config import load_toml
 
     cfg = load_toml(args.config, "--config") if getattr(args, "config", None) else {}
-    simple = {"case": "case", "plant": "plant", "controller": "controller",
+    simple = {"case": "case", "plant": "plant",
               "t_final": "t_final_s", "dt": "dt_s", "seed": "seed", "sign": "control_sign",
               "profile": "profile", "control_interval": "control_interval_s",
               "turbine": "turbine", "engine": "engine"}
@@ -590,43 +615,87 @@ def _preset_help(command: str) -> str:
 
 def _pick_controller(args, cfg: dict, default_preset: bool = False,
                      scenario: bool = True) -> dict:
-    """``cfg`` with the controller the options ask for: --preset as a [controller] table
-    (refused beside --controller); with ``default_preset``, the turbine's recommended
-    preset where nothing names a controller (a note where its file names none); and with
-    a preset and ``scenario``, the realistic profile and the tower_edge plant unless
-    given, and --fault default puts the default fault in (the preset's accommodation then
-    sets the case)."""
-    import copy
-
-    from wtftc import controller
-    from wtftc.model import turbine_file
-    from wtftc.model.faults import DEFAULT_FAULT
-
-    preset = getattr(args, "preset", None)
-    if preset is not None:
-        if getattr(args, "controller", None) is not None:
-            raise ConfigError("--preset", preset, "--preset or --controller, not both (a "
-                              "preset names its design)")
-        torque = controller.preset(preset).torque  # an unknown name named as --preset
-        # it replaces the controller of --config (a saved run's flat keys too)
-        for key in ("controller_params", "tuning", "controller_preset", "rosco"):
-            cfg.pop(key, None)
-        if getattr(args, "case", None) is None:  # the preset's accommodation sets it
-            cfg.pop("case", None)
-        if isinstance(cfg.get("turbine_params"), dict):
-            cfg["turbine_params"] = {k: v for k, v in cfg["turbine_params"].items()
-                                     if k not in dict(torque)}
-        cfg["controller"] = {"preset": preset}
-    elif default_preset and "controller" not in cfg \
+    """``cfg`` with the controller the options ask for (:func:`_controller_options`);
+    with ``default_preset``, the turbine's recommended preset where nothing names a
+    controller; with ``scenario``, a table's run defaults and --fault
+    (:func:`_scenario_options`)."""
+    _controller_options(args, cfg)
+    if default_preset and "controller" not in cfg \
             and not {"controller_params", "tuning"} & set(cfg):
+        from wtftc import controller
+        from wtftc.model import turbine_file
+
         turbine = cfg.get("turbine", turbine_file.DEFAULT)
         name, note = controller.recommended(turbine_file.load(turbine)) \
             if isinstance(turbine, str) else (controller.FALLBACK_PRESET, None)
         _note(note)
         cfg["controller"] = {"preset": name}
-    if isinstance(cfg.get("controller"), dict) and scenario:
-        # a preset is measured with sampled control and the benchmark's sensors, on the
-        # plant validated against OpenFAST (docs/validation.md)
+    _note_turbine_of_preset(cfg)
+    if scenario:
+        _scenario_options(args, cfg)
+    return cfg
+
+
+#: what a configuration holds of its controller beside ``controller`` (a saved run's
+#: flat keys): replaced with it by --preset or --controller
+CONTROLLER_KEYS = ("controller_params", "tuning", "controller_preset", "rosco")
+
+
+def _controller_options(args, cfg: dict) -> None:
+    """--preset (as a [controller] table) or --controller, refused together, each
+    replacing the controller of --config: its settings, its torque law and, unless --case
+    is given, its case (a preset's accommodation sets it)."""
+    from wtftc import controller
+
+    preset, design = getattr(args, "preset", None), getattr(args, "controller", None)
+    if preset is not None and design is not None:
+        raise ConfigError("--preset", preset, "--preset or --controller, not both (a "
+                          "preset names its design)")
+    if preset is None and design is None:
+        return
+    if preset is not None:
+        controller.preset(preset)  # an unknown name named as --preset
+    cfg.pop("controller_preset", None)
+    if preset is None and cfg.get("controller") == design:
+        return  # the design --config names: its settings kept
+    for key in CONTROLLER_KEYS:
+        cfg.pop(key, None)
+    if preset is not None and getattr(args, "case", None) is None:
+        cfg.pop("case", None)
+    if isinstance(cfg.get("turbine_params"), dict):
+        cfg["turbine_params"] = {k: v for k, v in cfg["turbine_params"].items()
+                                 if k not in controller.torque_keys()}
+    cfg["controller"] = {"preset": preset} if preset is not None else design
+
+
+def _note_turbine_of_preset(cfg: dict) -> None:
+    """A note when a preset tuned for one turbine runs on another."""
+    from wtftc import controller
+    from wtftc.model import turbine_file
+
+    tab = cfg.get("controller")
+    name = tab.get("preset") if isinstance(tab, dict) else None
+    if not isinstance(name, str) or name not in controller.presets():
+        return
+    tuned = controller.presets()[name].tuned_for
+    turbine = cfg.get("turbine", turbine_file.DEFAULT)
+    if tuned and turbine != tuned:
+        _note(f"note: preset {name} is tuned for the {tuned}; this run's turbine is "
+              f"{turbine} (its recommended preset: wtftc presets)")
+
+
+def _scenario_options(args, cfg: dict) -> None:
+    """A [controller] table runs as its settings were measured: the realistic profile
+    and the tower_edge plant unless given; --fault default puts the default fault in
+    (the accommodation then sets the case); without a table, --fault default needs a
+    case with a fault."""
+    import copy
+
+    from wtftc.model.faults import DEFAULT_FAULT
+
+    if isinstance(cfg.get("controller"), dict):
+        # sampled control and the benchmark's sensors, on the plant validated against
+        # OpenFAST (docs/validation.md)
         cfg.setdefault("profile", "realistic")
         if cfg.get("engine", "wtftc") == "wtftc":
             cfg.setdefault("plant", "tower_edge")
@@ -638,7 +707,6 @@ def _pick_controller(args, cfg: dict, default_preset: bool = False,
                           "saved run's configuration) give its case, --case 2 (unaware), 3 "
                           "(told the fault) or 4 (wtftc's FDI); with a preset its "
                           "accommodation sets it")
-    return cfg
 
 
 def _describe_controller(raw: dict) -> str:
@@ -1067,7 +1135,7 @@ def _cmd_linearize(args) -> int:
 
     _check_out_name(args.out)
     raw = _linearize_config(args)
-    if raw["controller"] == "rosco":  # it ran, and its "model" was the loop without it
+    if _design_of(raw) == "rosco":  # it ran, and its "model" was the loop without it
         raise ConfigError("--controller", "rosco", "a controller generated by wtftc, one of "
                           + ", ".join(linearize.linearizable()) + " (ROSCO is an external "
                           "DISCON library: nothing here can differentiate it)")
@@ -1107,7 +1175,7 @@ def _linearize_config(args) -> dict:
         cfg["controller"] = args.controller
     if args.turbine:
         cfg["turbine"] = args.turbine
-    cfg = tune.resolve(_pick_controller(args, cfg, default_preset=True))
+    cfg = tune.resolve(_pick_controller(args, cfg, default_preset=True, scenario=False))
     if args.config:
         config.make_config(dict(cfg))
     if ignored and not args.quiet:

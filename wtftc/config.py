@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from wtftc.artefacts import layout as lay
-from wtftc.controller import FAULT_FREE_CASE, FDI_CASE, ORACLE_CASE, UNAWARE_CASE  # noqa: F401
+from wtftc.controller import FAULT_FREE_CASE, FDI_CASE, ORACLE_CASE, UNAWARE_CASE, check_record  # noqa: F401
 from wtftc.controller import expand as expand_controller
 from wtftc.errors import ConfigError, EngineError, MissingExtra, range_text
 from wtftc.files import check_user_file
@@ -326,9 +326,7 @@ def make_config(cfg: dict | None = None) -> RunConfig:
 
 
 def _make_config(cfg: dict) -> RunConfig:
-    if not isinstance(cfg.get("controller_preset", ""), str):
-        raise ConfigError("controller_preset", cfg["controller_preset"], "the name of the "
-                          "preset the controller settings came from (a record)")
+    check_record(cfg)
     raw = {**copy.deepcopy(DEFAULTS), **cfg}
     case = raw["case"]
     if isinstance(case, bool) or not isinstance(case, numbers.Integral) or case not in CASES:

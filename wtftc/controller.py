@@ -42,7 +42,7 @@ TUNING_KEYS = {"omega_n_rad_s": (None, 0.01, 10.0), "zeta": (None, 0.1, 2.0),
 #: the turbine's facts, set in its file or in [turbine_params])
 TORQUE_FLAGS = ("gen_torque_law", "gen_constant_power", "vs_constant_torque")
 #: a table's keys that are not settings
-META_KEYS = ("preset", "design", "accommodation", "doc")
+META_KEYS = ("preset", "design", "accommodation", "doc", "tuned_for")
 #: the presets' file, in wtftc/data
 PRESETS_FILE = "presets.toml"
 #: the default of a turbine file that names no recommended preset
@@ -90,6 +90,8 @@ class Controller:
     doc: str = ""
     #: the preset its settings came from, where they did (a record)
     preset: str | None = None
+    #: the turbine its settings are tuned for (a preset's), where they are
+    tuned_for: str | None = None
 
     @property
     def fault_case(self) -> int:
@@ -173,12 +175,15 @@ def parse(tab, field: str = "controller", name: str | None = None) -> Controller
                           f"{design}" + ("" if len(allowed) > 1 else
                                          " (it has no fault accommodation)"))
     doc = tab.get("doc", base.doc if base else "")
-    if not isinstance(doc, str):
-        raise ConfigError(f"{field}.doc", doc, "a string")
+    tuned = tab.get("tuned_for", base.tuned_for if base else None)
+    for key, val in (("doc", doc), ("tuned_for", tuned)):
+        if val is not None and not isinstance(val, str):
+            raise ConfigError(f"{field}.{key}", val, "a string")
     params, torque, tuning = _settings(tab, design, base, field)
     return Controller(design, acc, tuple(params.items()), tuple(torque.items()),
                       tuple(tuning.items()), doc,
-                      preset=base.preset if base and set(tab) <= {"preset", "doc"} else None)
+                      preset=base.preset if base and set(tab) <= {"preset", "doc"} else None,
+                      tuned_for=tuned)
 
 
 def _settings(tab: dict, design: str, base: Controller | None, field: str
@@ -357,14 +362,42 @@ def expand(cfg: dict) -> tuple[dict, dict]:
         raise ConfigError("turbine_params", turbine, "a table of turbine_params names = "
                           "numbers (see generated/layout.json)")
     if "turbine_params" in keys:
-        both = sorted(set(turbine) & set(keys["turbine_params"]))
+        both = sorted(k for k in set(turbine) & set(keys["turbine_params"])
+                      if turbine[k] != keys["turbine_params"][k])
         if both:
-            raise ConfigError(f"turbine_params.{both[0]}", turbine[both[0]], "none: the "
-                              "[controller] table sets it")
+            raise ConfigError(f"turbine_params.{both[0]}", turbine[both[0]], "none, or "
+                              f"{keys['turbine_params'][both[0]]:g}: the [controller] "
+                              "table sets it (its torque law)")
         keys["turbine_params"] = {**turbine, **keys["turbine_params"]}
     names = {f"controller_params.{k}": f"controller.{k}" for k, _ in c.params} \
         | {f"turbine_params.{k}": f"controller.{k}" for k, _ in c.torque} \
         | {f"tuning.{k}": f"controller.{k}" for k, _ in c.tuning}
-    if c.preset:
+    if c.preset and keys["case"] in (FAULT_FREE_CASE, c.fault_case):
         keys["controller_preset"] = c.preset
     return out | keys, names
+
+
+def check_record(cfg: dict) -> None:
+    """Refuse a ``controller_preset`` record (a saved run's) that the keys beside it do
+    not hold: the design, the design's parameters, the torque law and the case of that
+    preset, nothing more (a record that would name settings it does not describe)."""
+    name = cfg.get("controller_preset")
+    if name is None:
+        return
+    if not isinstance(name, str) or name not in presets():
+        raise ConfigError("controller_preset", name, "the name of the preset the "
+                          "controller's settings came from (a record): " + ", ".join(presets()))
+    p = presets()[name]
+    torque = {k: v for k, v in (cfg.get("turbine_params") or {}).items()
+              if k in torque_keys()} if isinstance(cfg.get("turbine_params"), dict) else {}
+    held = (cfg.get("controller") == p.design
+            and (cfg.get("controller_params") or {}) == dict(p.params)
+            and all(torque.get(k) == v for k, v in p.torque)
+            and (cfg.get("case", FAULT_FREE_CASE) in (FAULT_FREE_CASE, p.fault_case)
+                 or accommodations(p.design) == ("none",))  # (a case it cannot act on)
+            and (not p.tuning or cfg.get("rosco") == {"omega_pc_rad_s": dict(p.tuning)[
+                "omega_n_rad_s"], "zeta_pc": dict(p.tuning)["zeta"]}))
+    if not held:
+        raise ConfigError("controller_preset", name, "a record of the preset whose settings "
+                          "the keys beside it hold; they are not this preset's (remove the "
+                          "record, or run --preset " + name + ")")

@@ -346,6 +346,10 @@ def _columns(controllers, preset: str | None, turbine: str | None,
         resolve_columns(controllers) if asked
         else default_columns(t, preset, lambda m: print(m, flush=True)))
     if faulty_openfast:
+        if preset is not None and columns.get(preset) is not None \
+                and columns[preset].accommodation == "known":
+            raise ConfigError("--preset", preset, "a preset OpenFAST can run under a fault: "
+                              "not one told the fault (accommodation = known)")
         _without_oracles(columns, asked)
     roscos = [c for c, ctrl in columns.items() if is_rosco(ctrl)]
     reason = rosco.available() if roscos else None

@@ -107,8 +107,9 @@ def tune(controller: str, turbine: str | None, omega_n: float, zeta: float,
         if not (lo <= val <= hi):
             raise ConfigError(name, val, f"a number in [{lo:g}, {hi:g}]")
     where = {"turbine": turbine} if turbine else {}
-    base = settings.expand({"controller": {"preset": preset}, **where})[0] if preset \
-        else {"controller": controller, **where}
+    base = {k: v for k, v in settings.expand({"controller": {"preset": preset}, **where})[0]
+            .items() if k != "controller_preset"} if preset \
+        else {"controller": controller, **where}  # (retuned: no longer the preset)
     rc = config.make_config(base)
     try:
         if controller == "pi":
