@@ -234,8 +234,9 @@ def test_oracles_and_rosco_are_left_out_with_a_note_or_refused_when_asked(monkey
         compare._columns(["pi", "paper"], None, None, True)
     assert e.value.field == "controllers" and "paper" in str(e.value)
     assert list(compare._columns(["pi", "paper"], None, None, False)) == ["pi", "paper"]
-    assert list(compare._columns(None, "physical-oracle", None, True)) == ["pi", "rosco"]
-    assert "physical-oracle" in capsys.readouterr().out
+    with pytest.raises(ConfigError) as exc:  # the preset asked for: refused, not dropped
+        compare._columns(None, "physical-oracle", None, True)
+    assert exc.value.field == "--preset"
     monkeypatch.setattr(rosco, "available", lambda: "ROSCO is not installed here")
     assert list(compare._columns(None, None, None, False)) == ["aftc-nrel5mw", "pi"]
     assert "ROSCO is not installed here" in capsys.readouterr().out
