@@ -316,8 +316,8 @@ def _add_run(sub) -> None:
                         "wrong way and stalls the rotor: paper-notes defect 2)")
     r.add_argument("--profile", choices=("ideal", "realistic"),
                    help="realistic (default with a preset or a [controller] table): 100 Hz "
-                        "sampled controller, "
-                        "the benchmark's sensor noise, the baseline torque law; ideal "
+                        "sampled controller, the benchmark's sensor noise, the baseline "
+                        "torque law; ideal "
                         "(default with --controller): continuous-time controller, exact "
                         "sensors, the paper's world (docs/sensors.md)")
     r.add_argument("--control-interval", type=float, metavar="SECONDS",
