@@ -317,9 +317,8 @@ def _add_run(sub) -> None:
     r.add_argument("--profile", choices=("ideal", "realistic"),
                    help="realistic (default with a preset or a [controller] table): 100 Hz "
                         "sampled controller, the benchmark's sensor noise, the baseline "
-                        "torque law; ideal "
-                        "(default with --controller): continuous-time controller, exact "
-                        "sensors, the paper's world (docs/sensors.md)")
+                        "torque law; ideal (default with --controller): continuous-time "
+                        "controller, exact sensors, the paper's world (docs/sensors.md)")
     r.add_argument("--control-interval", type=float, metavar="SECONDS",
                    help="controller and FDI sampling interval [s], a multiple of --dt; 0: "
                         "continuous time (default of the ideal profile)")
