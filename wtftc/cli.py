@@ -677,10 +677,13 @@ def _note_turbine_of_preset(cfg: dict) -> None:
     if not isinstance(name, str) or name not in controller.presets():
         return
     tuned = controller.presets()[name].tuned_for
-    turbine = cfg.get("turbine", turbine_file.DEFAULT)
-    if tuned and turbine != tuned:
+    try:  # (a turbine file that cannot be read is refused where the run is configured)
+        turbine = turbine_file.load(cfg.get("turbine", turbine_file.DEFAULT))
+    except ConfigError:
+        return
+    if tuned and tuned != turbine.name and turbine.recommended_preset != name:
         _note(f"note: preset {name} is tuned for the {tuned}; this run's turbine is "
-              f"{turbine} (its recommended preset: wtftc presets)")
+              f"{turbine.name} (its recommended preset: wtftc presets)")
 
 
 def _scenario_options(args, cfg: dict) -> None:
