@@ -85,6 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_openfast(sub)
     _add_validate(sub)
     _add_presets(sub)
+    _add_scorecard(sub)
     return p
 
 
@@ -601,7 +602,8 @@ def _preset_help(command: str) -> str:
                "recommended preset", "tune": "--controller's design",
                "export": "the turbine's recommended preset",
                "compare": "the turbine's recommended preset, as the column beside pi and "
-                          "rosco", "sweep": "the sweep file's controllers"}.get(command, "")
+                          "rosco", "sweep": "the sweep file's controllers",
+               "scorecard": "the turbine's recommended preset"}.get(command, "")
     try:
         from wtftc.controller import presets
 
@@ -1353,6 +1355,76 @@ def _cmd_presets(args) -> int:
     return 0
 
 
+def _add_scorecard(sub) -> None:
+    p = sub.add_parser(
+        "scorecard", help="a controller against ROSCO over the design load cases, with "
+                          "intervals: the report a control engineer asks for",
+        description="Runs the case matrix (wtftc/data/scorecard.toml: normal power "
+                    "production from cut-in to cut-out, every pitch actuator fault at four "
+                    "winds) for the controller and its baseline, the same runs for both, "
+                    "each group a resumable sweep on Dask under --out, then writes "
+                    "scorecard.md and scorecard.json: each metric's ratio to the baseline, "
+                    "paired by scenario, with a bootstrap interval over the seeds and a "
+                    "verdict (a tie where it holds 1). docs/scorecard.md.",
+        epilog="Example: wtftc scorecard --seeds 2 --out results/scorecard_nrel5mw")
+    _add_preset(p, "scorecard")
+    p.add_argument("--config", type=Path, help="a TOML file whose [controller] table is the "
+                   "controller scored")
+    p.add_argument("--against", default="rosco", metavar="PRESET", help="the baseline: a "
+                   "preset, or a TOML inline table '{ name = ..., preset or design = ... }' "
+                   "(default rosco, at the deck's tuning)")
+    p.add_argument("--turbine", help=TURBINE_HELP)
+    p.add_argument("--engine", choices=("openfast", "wtftc"), default="openfast",
+                   help="openfast (default): OpenFAST 5.0 on the turbine's deck behind the "
+                        "benchmark actuator; wtftc: the validated tower_edge plant")
+    p.add_argument("--seeds", type=_positive_int, help="turbulence seeds per case "
+                   "(default: the matrix's, 6)")
+    p.add_argument("--matrix", type=Path, help="another case matrix file (default: the "
+                   "shipped one)")
+    p.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1,
+                   help=f"processes of the local Dask cluster (default: the cores, "
+                        f"{os.cpu_count()})")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="run on an existing Dask cluster")
+    p.add_argument("--out", type=Path, required=True, help="the scorecard's folder: new, "
+                   "empty, or an earlier scorecard's, which it resumes")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def _cmd_scorecard(args) -> int:
+    from wtftc.campaign import compare
+    from wtftc.campaign.scorecard import report, run
+    from wtftc.config import load_toml
+
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise MissingExtra("wtftc scorecard", "Dask", "sweep", "dask and distributed") \
+            from None
+    cfg = load_toml(args.config, "--config") if args.config else {}
+    if args.preset is not None and "controller" in cfg:
+        raise ConfigError("--preset", args.preset, "--preset or --config's [controller], "
+                          "not both")
+    args.controller = None
+    cfg = _pick_controller(args, cfg if args.turbine is None else {**cfg,
+                                                                    "turbine": args.turbine},
+                           default_preset=True, scenario=False)
+    tab = cfg["controller"]
+    candidate = tab["preset"] if isinstance(tab, dict) and set(tab) == {"preset"} else tab
+    if not isinstance(candidate, str | dict):
+        raise ConfigError("--config", str(args.config), "a [controller] table")
+    against = compare.entries_from_text([args.against])[0]
+    _check_out_name(args.out)
+    result = run.run_scorecard(candidate, args.out, cfg.get("turbine"), against,
+                               args.engine, args.seeds, args.workers, args.scheduler,
+                               args.matrix, args.quiet)
+    text = report.write(args.out, result, cfg.get("turbine"))
+    print(text, end="")
+    print(f"written under {args.out}/: scorecard.md, scorecard.json, and each group's "
+          "results folder")
+    return 0
+
+
 def _standing(args) -> int:
     """``wtftc presets --standing``: the page, printed or written whole to --out."""
     from wtftc.campaign import standing
@@ -1375,7 +1447,8 @@ def _standing(args) -> int:
 COMMANDS = {"validate": _cmd_validate, "verify": _cmd_verify, "run": _cmd_run, "cases": _cmd_cases,
             "compare": _cmd_compare, "sweep": _cmd_sweep, "functions": _cmd_functions,
             "export": _cmd_export, "turbine": _cmd_turbine, "linearize": _cmd_linearize,
-            "modes": _cmd_modes, "openfast": _cmd_openfast, "presets": _cmd_presets}
+            "modes": _cmd_modes, "openfast": _cmd_openfast, "presets": _cmd_presets,
+            "scorecard": _cmd_scorecard}
 
 
 #: every top-level table of layout.json the runtime reads: artefacts generated by an older

@@ -1,0 +1,116 @@
+"""`wtftc scorecard` end to end on a short matrix on wtftc's plant: the report, its
+figures against the runs, resuming, and refusals."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+pytest.importorskip("distributed", reason="Dask: pip install 'wtftc[sweep]'")
+
+from wtftc.campaign.scorecard import report, stats  # noqa: E402
+from wtftc.campaign.sweep.store import read_results  # noqa: E402
+
+SHORT = """annual_mean_mps = 10.0
+turbulence_class = "B"
+start_up_s = 10.0
+
+[groups.normal_production]
+iec = "1.2"
+what = "two bins, a short run"
+bin_width_mps = 6.0
+cut_out_mps = 20.0
+seeds = 2
+scored_s = 20.0
+overspeed_trip = 1.2
+
+[groups.actuator_faults]
+iec = "2.1"
+what = "a lock and both runaways at one wind"
+winds_mps = [16.0]
+seeds = 2
+scored_s = 20.0
+onset_s = 5.0
+blade = 1
+types = ["lock", "runaway"]
+rho = 0.5
+angle_deg = "current"
+severity = 1.0
+runaway_targets_deg = [0.0, 90.0]
+overspeed_trip = 1.2
+"""
+
+
+def wtftc(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "wtftc.cli", *map(str, args)],
+                          capture_output=True, text=True, cwd=cwd)
+
+
+@pytest.fixture(scope="module")
+def card(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("scorecard")
+    (tmp / "short.toml").write_text(SHORT)
+    args = ("scorecard", "--engine", "wtftc", "--against", "pi", "--matrix",
+            tmp / "short.toml", "--workers", 2, "--out", tmp / "out", "--quiet")
+    p = wtftc(*args)
+    assert p.returncode == 0, p.stderr
+    return tmp, args, p
+
+
+def test_the_report_holds_every_group_and_its_figures_are_the_runs(card):
+    tmp, _, p = card
+    out = tmp / "out"
+    doc = json.loads((out / "scorecard.json").read_text())
+    assert doc["controller"] == "aftc-nrel5mw" and doc["baseline"] == "pi"
+    assert (out / "scorecard.md").read_text() == p.stdout.split("written under")[0]
+    assert set(doc["groups"]) == {"normal_production", "actuator_faults"}
+    # the RMS speed error's ratio, made again from the saved runs by hand
+    rows = read_results(out / "normal_production").to_pylist()
+    pp, counts = stats.held_pairs([r for r in rows if r["controller"] == "aftc-nrel5mw"],
+                                  [r for r in rows if r["controller"] == "pi"])
+    assert counts["scenarios"] == 2 * 2 and len(pp) == counts["both_held"]
+    import math
+
+    logs = [math.log(a["rms_speed_error_rad_s"] / b["rms_speed_error_rad_s"]) for a, b in pp]
+    got = next(m for m in doc["groups"]["normal_production"]["metrics"]
+               if m["metric"] == "rms_speed_error_rad_s")
+    assert got["ratio"] == pytest.approx(math.exp(sum(logs) / len(logs)), rel=1e-12)
+    assert got["n_seeds"] == 2 and got["verdict"] == "not enough seeds"
+    # every fault run counted in one outcome, none dropped
+    faults = read_results(out / "actuator_faults").to_pylist()
+    counted = sum(sum(n.values()) for cols in doc["groups"]["actuator_faults"]["outcomes"]
+                  .values() for n in cols.values())
+    assert counted == len(faults) == 1 * 2 * 3 * 2
+    assert "| runaway_feather | aftc-nrel5mw |" in p.stdout
+
+
+def test_the_same_command_resumes_with_nothing_to_run(card):
+    tmp, args, _ = card
+    p = wtftc(*args)
+    assert p.returncode == 0, p.stderr
+    doc = json.loads((tmp / "out" / "scorecard.json").read_text())
+    assert all(g["counts"]["scenarios"] for g in doc["groups"].values())
+    assert report.markdown(doc) == (tmp / "out" / "scorecard.md").read_text()
+
+
+@pytest.mark.parametrize("args, field", [
+    (("--against", "nope"), "--against"),
+    (("--preset", "nope"), "--preset"),
+    (("--seeds", 0), "--seeds"),
+    (("--against", '{ name = "x", preset = "pi", pi_lpf_corner = [3.0, 6.0] }'),
+     "--against.pi_lpf_corner"),
+])
+def test_a_refusal_is_one_line_and_nothing_runs(tmp_path, args, field):
+    p = wtftc("scorecard", "--engine", "wtftc", *args, "--out", tmp_path / "out")
+    assert p.returncode == 2, p.stderr
+    assert field in p.stderr and p.stderr.count("\n") == 1, p.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_folder_that_is_not_a_scorecards_is_refused(tmp_path):
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "thesis.md").write_text("mine\n")
+    p = wtftc("scorecard", "--engine", "wtftc", "--out", tmp_path / "out")
+    assert p.returncode == 2 and "--out" in p.stderr
+    assert sorted(x.name for x in (tmp_path / "out").iterdir()) == ["thesis.md"]

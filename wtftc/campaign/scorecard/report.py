@@ -1,0 +1,170 @@
+"""The scorecard's report: ``scorecard.json`` (every figure) and ``scorecard.md`` (the
+verdict table first), from the groups' results folders (wtftc.campaign.scorecard.run).
+
+Every ratio is the controller's over the baseline's on the same scenario, over the
+scenarios both held (wtftc.campaign.scorecard.stats.held_pairs), with a bootstrap
+interval over the seeds and a verdict: better, worse, or a tie where the interval holds 1
+(stats.paired_ratio; fewer than stats.MIN_SEEDS seeds: no verdict). Every fault run's
+outcome is counted (wtftc.campaign.scorecard.outcome): none is dropped.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from wtftc.campaign.scorecard import outcome, stats
+
+#: the paired metrics of each group: (key, what, unit, lower is better)
+METRICS = {
+    "normal_production": [
+        ("rms_speed_error_rad_s", "RMS rotor-speed error", "rad/s", True),
+        ("shaft_torque_del_1hz_Nm", "shaft-torque DEL (1 Hz)", "N m", True),
+        ("tower_base_del_1hz_Nm", "tower-base DEL (1 Hz)", "N m", True),
+        ("pitch_adc", "pitch actuator duty cycle", "-", True),
+        ("mean_electrical_power_W", "mean electrical power", "W", False)],
+    "actuator_faults": [
+        ("rms_speed_error_after_fault_rad_s", "RMS rotor-speed error after the onset",
+         "rad/s", True),
+        ("overspeed_peak_over_rated", "peak rotor speed / rated (whole scored run)", "-",
+         True),
+        ("shaft_torque_del_1hz_Nm", "shaft-torque DEL (1 Hz)", "N m", True),
+        ("tower_base_del_1hz_Nm", "tower-base DEL (1 Hz)", "N m", True),
+        ("pitch_adc", "pitch actuator duty cycle", "-", True)],
+}
+
+
+def _rows(out: Path, group: str) -> list[dict]:
+    from wtftc.campaign.sweep.store import read_results
+
+    return read_results(out / group).to_pylist()
+
+
+def _paired(pp: list, key: str, lower: bool) -> dict:
+    return stats.paired_ratio([(a["seed"], a[key], b[key]) for a, b in pp],
+                              lower_is_better=lower)
+
+
+def _metrics(group: str, pp: list) -> list[dict]:
+    return [{"metric": key, "what": what, "unit": unit, **_paired(pp, key, lower)}
+            for key, what, unit, lower in METRICS[group]]
+
+
+def _lifetime(rows_c: list, rows_b: list, m: dict, turbine: str | None) -> dict:
+    """Lifetime shaft and tower DELs and AEP, whole and below or above rated."""
+    from wtftc import config
+
+    g = m["groups"]["normal_production"]
+    rc = config.make_config({"controller": "pi", **({"turbine": turbine} if turbine else {})})
+    rated = config.rated_wind_speed(rc.loop.p_turbine, rc.loop.table)
+    loads = config.loads_options({})
+    out = {"rated_wind_mps": rated, "annual_mean_mps": m["annual_mean_mps"]}
+    for name, key, exp in (("shaft", "shaft_torque_damage_per_10min",
+                            loads["shaft_wohler_exponent"]),
+                           ("tower", "tower_base_damage_per_10min",
+                            loads["tower_wohler_exponent"])):
+        out[name] = stats.lifetime_ratio(rows_c, rows_b, m["annual_mean_mps"],
+                                         g["bin_width_mps"], exp, key, rated,
+                                         g["overspeed_trip"])
+    return out
+
+
+def _outcomes(rows: list, trip: float) -> dict:
+    """Each fault type's outcomes per column: {label: {column: {outcome: n}}}."""
+    from wtftc.campaign.sweep.dlc import fault_label
+
+    out: dict = {}
+    for r in rows:
+        cell = out.setdefault(fault_label(r), {}).setdefault(
+            r["controller"], dict.fromkeys(outcome.OUTCOMES, 0))
+        cell[outcome.classify(r, r.get("onset_s"), trip)] += 1
+    return out
+
+
+def analyse(out: Path, result: dict, turbine: str | None = None) -> dict:
+    """Every figure of the scorecard, as scorecard.json holds it."""
+    from wtftc.artefacts.loader import generated_code_sha256
+    from wtftc.campaign.sweep.dlc import fault_label
+
+    m = result["matrix"]
+    cand, base = (c["name"] for c in result["columns"])
+    doc = {"controller": cand, "baseline": base, "matrix_hash": result["matrix_hash"],
+           "generated_code_sha256": generated_code_sha256(), "turbine": turbine,
+           "groups": {}}
+    for group in m["groups"]:
+        rows = _rows(Path(out), group)
+        trip = m["groups"][group]["overspeed_trip"]
+        mine = [r for r in rows if r["controller"] == cand]
+        theirs = [r for r in rows if r["controller"] == base]
+        pp, counts = stats.held_pairs(mine, theirs, trip)
+        g = {"iec": m["groups"][group]["iec"], "counts": counts,
+             "metrics": _metrics(group, pp), "wall_s": result["groups"][group]["wall_s"]}
+        if group == "normal_production":
+            g["lifetime"] = _lifetime(mine, theirs, m, turbine)
+        else:
+            g["outcomes"] = _outcomes(rows, trip)
+            g["by_fault"] = {}
+            for label in sorted({fault_label(r) for r in rows}):
+                sub = [(a, b) for a, b in pp if fault_label(a) == label]
+                g["by_fault"][label] = _metrics(group, sub)
+        doc["groups"][group] = g
+    return doc
+
+
+def _cell(r: dict) -> str:
+    if r.get("ratio") is None:
+        return "—"
+    if r.get("low") is None:
+        return f"{r['ratio']:.3g} ({r['verdict']})"
+    return f"{r['ratio']:.3g} ({r['low']:.3g}–{r['high']:.3g}) **{r['verdict']}**"
+
+
+def markdown(doc: dict) -> str:
+    """The report: the verdict table first, then the lifetime figures, the outcomes of
+    the fault runs, and the provenance."""
+    lines = [f"# Scorecard: `{doc['controller']}` against `{doc['baseline']}`", "",
+             "Each cell: the ratio controller / baseline (geometric mean over the scenarios "
+             "both held), its 90 % bootstrap interval over the seeds, and the verdict "
+             "(better, worse, or a tie where the interval holds 1).", "",
+             "| group | metric | ratio (interval) verdict | pairs | seeds |",
+             "|---|---|---|---|---|"]
+    for name, g in doc["groups"].items():
+        for r in g["metrics"]:
+            lines.append(f"| {name} (DLC {g['iec']}) | {r['what']} [{r['unit']}] | "
+                         f"{_cell(r)} | {r['n_pairs']} | {r['n_seeds']} |")
+    life = doc["groups"].get("normal_production", {}).get("lifetime")
+    if life:
+        lines += ["", f"## Lifetime (Rayleigh mean {life['annual_mean_mps']:g} m/s, rated "
+                  f"wind {life['rated_wind_mps']:.3g} m/s)", "",
+                  "| load | part | DEL ratio | AEP ratio |", "|---|---|---|---|"]
+        for load in ("shaft", "tower"):
+            for part in stats.PARTS:
+                p = life[load].get(part) or {}
+                lines.append(f"| {load} | {part} | {_cell(p.get('del') or {})} | "
+                             f"{_cell(p.get('aep') or {})} |")
+    for name, g in doc["groups"].items():
+        if "outcomes" in g:
+            lines += ["", f"## Outcomes of {name} (every run)", "",
+                      "| fault | column | " + " | ".join(outcome.OUTCOMES) + " |",
+                      "|" + "---|" * (2 + len(outcome.OUTCOMES))]
+            for label, cols in g["outcomes"].items():
+                for col, n in cols.items():
+                    lines.append(f"| {label} | {col} | "
+                                 + " | ".join(str(n[o]) for o in outcome.OUTCOMES) + " |")
+    lines += ["", "## Provenance", "",
+              f"- generated code: `{doc['generated_code_sha256']}`; case matrix: "
+              f"`{doc['matrix_hash']}`; turbine: {doc['turbine'] or 'nrel5mw'}",
+              *(f"- {name}: {g['counts']['scenarios']} scenarios, wall "
+                f"{g['wall_s']:.0f} s this call" for name, g in doc["groups"].items())]
+    return "\n".join(lines) + "\n"
+
+
+def write(out: Path, result: dict, turbine: str | None = None) -> str:
+    """scorecard.json and scorecard.md into ``out``, each written whole; the Markdown."""
+    from wtftc.results.io import atomic_write_text
+
+    doc = analyse(out, result, turbine)
+    text = markdown(doc)
+    atomic_write_text(Path(out) / "scorecard.json", json.dumps(doc, indent=1, default=str))
+    atomic_write_text(Path(out) / "scorecard.md", text)
+    return text

@@ -1,0 +1,100 @@
+"""`wtftc scorecard`: a controller against its baseline over the case matrix
+(:mod:`wtftc.campaign.scorecard.matrix`), each group of cases a sweep of its own in the
+scorecard's folder, run on Dask and resumed as a sweep is.
+
+The folder::
+
+    <out>/.wtftc-scorecard         the folder's marker (a folder without it, not empty,
+                                   is refused)
+    <out>/sweeps/<group>.toml      each group's sweep file, as run
+    <out>/<group>/                 each group's results (a sweep's results folder)
+
+Run again with the same arguments, a scorecard resumes where it stopped; with other
+arguments, each group's sweep refuses the folder it would change (docs/sweep.md).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from wtftc.errors import ConfigError
+
+#: the marker of a scorecard's folder
+MARKER = ".wtftc-scorecard"
+
+
+def column(entry, field: str) -> dict:
+    """A column of the scorecard as a sweep's controller table: a preset's name, or a
+    [controller] table with its ``name`` (default ``field`` without its dashes); one
+    column, so no setting given as a list."""
+    from wtftc import controller
+
+    if isinstance(entry, str):
+        controller.preset(entry, field)
+        return {"name": entry, "preset": entry}
+    if not isinstance(entry, dict):
+        raise ConfigError(field, entry, "a preset's name or a [controller] table")
+    listed = sorted(k for k, v in entry.items() if isinstance(v, list))
+    if listed:
+        raise ConfigError(f"{field}.{listed[0]}", entry[listed[0]], "one value: a "
+                          "scorecard scores one controller (compare or sweep take lists)")
+    tab = {"name": field.lstrip("-"), **entry}
+    controller.parse({k: v for k, v in tab.items() if k != "name"}, field)
+    return tab
+
+
+def prepare(out: Path) -> Path:
+    """``out`` made, or an earlier scorecard's (its marker), or new; any other folder
+    that holds anything is refused, naming --out."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError("--out", str(out), "a folder (this is a file)")
+    if out.is_dir() and any(out.iterdir()) and not (out / MARKER).is_file():
+        raise ConfigError("--out", str(out), "a new or empty folder, or an earlier "
+                          "scorecard's (it has no .wtftc-scorecard marker: not one)")
+    (out / "sweeps").mkdir(parents=True, exist_ok=True)
+    (out / MARKER).touch()
+    return out
+
+
+def write_sweep(out: Path, group: str, raw: dict) -> Path:
+    """The group's sweep file, written whole (wtftc.results.io.atomic_write_text)."""
+    from wtftc.config import to_toml
+    from wtftc.results.io import atomic_write_text
+
+    path = out / "sweeps" / f"{group}.toml"
+    atomic_write_text(path, f"# wtftc scorecard: the {group} group's sweep\n" + to_toml(raw))
+    return path
+
+
+def run_scorecard(candidate, out: Path, turbine: str | None = None, against="rosco",
+                  engine: str = "openfast", seeds: int | None = None, workers: int = 2,
+                  scheduler: str | None = None, matrix_path: Path | None = None,
+                  quiet: bool = False) -> dict:
+    """Every group of the matrix for ``candidate`` and ``against`` (each a preset's name
+    or a [controller] table) on ``turbine`` in ``engine``; each group's counts and wall
+    time. Everything is checked before the first run: the columns, the matrix, every
+    group's sweep (its runs too)."""
+    from wtftc.campaign import sweep
+    from wtftc.campaign.scorecard import matrix
+    from wtftc.campaign.sweep import spec
+
+    cand, base = column(candidate, "controller"), column(against, "--against")
+    if cand["name"] == base["name"]:
+        base = {**base, "name": f"{base['name']} (baseline)"}
+    m = matrix.load(matrix_path)
+    raws = matrix.sweeps(m, [cand, base], turbine, engine, seeds)
+    for raw in raws.values():
+        spec.expand(spec.parse_sweep(raw))  # every run checked before any
+    out = prepare(out)
+    done = {}
+    for group, raw in raws.items():
+        if not quiet:
+            print(f"[scorecard] {group} (DLC {m['groups'][group]['iec']})", flush=True)
+        t0 = time.perf_counter()
+        counts = sweep.run_sweep(write_sweep(out, group, raw), out / group, workers,
+                                 scheduler, quiet=quiet)
+        done[group] = {**counts, "wall_s": time.perf_counter() - t0}
+    return {"matrix": m, "matrix_hash": matrix.matrix_hash(m), "columns": [cand, base],
+            "groups": done}
