@@ -104,6 +104,11 @@ def metrics(rc: RunConfig, res: integrate.Result) -> dict:
         "settling_band_rad_s": 0.01 * rc.reference,
         "overspeed_peak_rad_s": float(np.max(w)) if w.size else None,
         "overspeed_peak_over_rated": float(np.max(w) / rated) if w.size else None,
+        # the extremes of a fault's effect: from its onset on (none without a fault)
+        "overspeed_peak_over_rated_after_onset": float(np.max(w[post]) / rated)
+        if post.any() else None,
+        "speed_min_over_rated_after_onset": float(np.min(w[post]) / rated)
+        if post.any() else None,
         "pitch_min_deg": float(np.degrees(beta.min())) if beta.size else None,
         "pitch_max_deg": float(np.degrees(beta.max())) if beta.size else None,
         "pitch_rate_rms_deg_s": float(np.degrees(np.sqrt(np.mean(rate**2)))) if beta.size

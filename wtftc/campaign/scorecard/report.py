@@ -26,8 +26,8 @@ METRICS = {
     "actuator_faults": [
         ("rms_speed_error_after_fault_rad_s", "RMS rotor-speed error after the onset",
          "rad/s", True),
-        ("overspeed_peak_over_rated", "peak rotor speed / rated (whole scored run)", "-",
-         True),
+        ("overspeed_peak_over_rated_after_onset", "peak rotor speed / rated after the "
+         "onset", "-", True),
         ("shaft_torque_del_1hz_Nm", "shaft-torque DEL (1 Hz)", "N m", True),
         ("tower_base_del_1hz_Nm", "tower-base DEL (1 Hz)", "N m", True),
         ("pitch_adc", "pitch actuator duty cycle", "-", True)],

@@ -43,7 +43,10 @@ METRICS = [("rms_speed_error_rad_s", "rad/s"), ("max_abs_speed_error_rad_s", "ra
            ("rms_speed_error_own_below_rated_rad_s", "rad/s"), ("time_above_1p1_rated_s", "s"),
            # on the tower plant (None on the others)
            ("tower_base_del_1hz_Nm", "N m"), ("tower_base_damage_per_10min", "(N m)^m"),
-           ("tower_base_max_abs_Nm", "N m")]
+           ("tower_base_max_abs_Nm", "N m"),
+           # a fault's extremes, from its onset on (None without a fault)
+           ("overspeed_peak_over_rated_after_onset", "-"),
+           ("speed_min_over_rated_after_onset", "-")]
 STATUS = ("ok", "diverged", "failed")
 #: a run whose external program (OpenFAST) was ended by a signal wtftc did not send, or
 #: whose case folder another run held: neither a result nor a failure, so not saved; the
@@ -129,7 +132,9 @@ def read_results(out_dir: Path, option: str = "--out"):
     import pyarrow as pa
 
     tables = [table for _, _, table in _batches(Path(out_dir), option)]
-    return pa.concat_tables(tables) if tables else schema().empty_table()
+    # (a column added since a batch was saved: null in its rows)
+    return pa.concat_tables(tables, promote_options="default") if tables \
+        else schema().empty_table()
 
 
 def _batches(out_dir: Path, option: str, rec: Record | None = None):
