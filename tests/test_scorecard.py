@@ -22,7 +22,7 @@ what = "two bins, a short run"
 bin_width_mps = 6.0
 cut_out_mps = 20.0
 seeds = 2
-scored_s = 20.0
+scored_s = 30.0
 overspeed_trip = 1.2
 
 [groups.actuator_faults]
@@ -30,7 +30,7 @@ iec = "2.1"
 what = "a lock and both runaways at one wind"
 winds_mps = [16.0]
 seeds = 2
-scored_s = 20.0
+scored_s = 30.0
 onset_s = 5.0
 blade = 1
 types = ["lock", "runaway"]

@@ -85,6 +85,8 @@ def test_its_fault_cases_are_the_kept_dlc21_campaigns_runs():
     ({"groups": {"actuator_faults": {"winds_mps": [50.0]}}},
      "groups.actuator_faults.winds_mps"),
     ({"groups": {"other": {}}}, "groups"),
+    ({"start_up_s": 20.0}, "start_up_s"),
+    ({"groups": {"actuator_faults": {"scored_s": 30.0}}}, "start_up_s"),
 ])
 def test_a_refused_matrix_names_its_key(tmp_path, edit, field):
     m = matrix.load()

@@ -104,11 +104,7 @@ def metrics(rc: RunConfig, res: integrate.Result) -> dict:
         "settling_band_rad_s": 0.01 * rc.reference,
         "overspeed_peak_rad_s": float(np.max(w)) if w.size else None,
         "overspeed_peak_over_rated": float(np.max(w) / rated) if w.size else None,
-        # the extremes of a fault's effect: from its onset on (none without a fault)
-        "overspeed_peak_over_rated_after_onset": float(np.max(w[post]) / rated)
-        if post.any() else None,
-        "speed_min_over_rated_after_onset": float(np.min(w[post]) / rated)
-        if post.any() else None,
+        **_after_onset(w, post, rated),
         "pitch_min_deg": float(np.degrees(beta.min())) if beta.size else None,
         "pitch_max_deg": float(np.degrees(beta.max())) if beta.size else None,
         "pitch_rate_rms_deg_s": float(np.degrees(np.sqrt(np.mean(rate**2)))) if beta.size
@@ -125,6 +121,15 @@ def metrics(rc: RunConfig, res: integrate.Result) -> dict:
         "config": res.config,
     }
     return m | cost(rc, res, sig)
+
+
+def _after_onset(w: np.ndarray, post: np.ndarray, rated: float) -> dict:
+    """The extremes of a fault's effect on the rotor speed, from its onset on (None
+    without a fault): its peak and its minimum over rated."""
+    return {"overspeed_peak_over_rated_after_onset":
+            float(np.max(w[post]) / rated) if post.any() else None,
+            "speed_min_over_rated_after_onset":
+            float(np.min(w[post]) / rated) if post.any() else None}
 
 
 def _rms(x: np.ndarray) -> float | None:

@@ -56,11 +56,11 @@ def load(path: Path | None = None) -> dict:
     return check(tomllib.loads(text), where)
 
 
-def _number(tab: dict, key: str, where: str, lo: float, hi: float) -> float:
+def _number(tab: dict, key: str, where: str, lo: float, hi: float, prefix: str = "") -> float:
     v = tab.get(key)
     if isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v) \
             or not lo <= v <= hi:
-        raise ConfigError(key, v, f"a number in [{lo:g}, {hi:g}]", where=where)
+        raise ConfigError(prefix + key, v, f"a number in [{lo:g}, {hi:g}]", where=where)
     return float(v)
 
 
@@ -80,7 +80,22 @@ def check(m: dict, where: str) -> dict:
         raise ConfigError("groups", groups, "tables of " + ", ".join(GROUPS), where=where)
     for name, g in groups.items():
         _check_group(name, g, where)
+        _check_start_up(m["start_up_s"], name, g, where)
     return m
+
+
+def _check_start_up(start: float, name: str, g: dict, where: str) -> None:
+    """The start-up must be the window the group's runs leave out of their metrics
+    (config.transient_window: 30 s, a quarter of a run shorter than 120 s), so that what
+    the matrix says is scored is what is."""
+    from wtftc.config import TRANSIENT_S
+
+    t_final = start + g["scored_s"]
+    window = min(TRANSIENT_S, t_final / 4)
+    if abs(start - window) > 1e-9:
+        raise ConfigError("start_up_s", start, f"the start-up the runs of groups.{name} "
+                          f"leave out, {window:g} s ({TRANSIENT_S:g} s, or a quarter of a "
+                          "run shorter than 120 s: start_up_s + scored_s)", where=where)
 
 
 def _check_group(name: str, g, where: str) -> None:
@@ -94,11 +109,11 @@ def _check_group(name: str, g, where: str) -> None:
     if isinstance(seeds, bool) or not isinstance(seeds, int) or not 1 <= seeds <= MAX_SEEDS:
         raise ConfigError(f"groups.{name}.seeds", seeds, f"an integer in [1, {MAX_SEEDS}]",
                           where=where)
-    _number(g, "scored_s", where, 1.0, 7200.0)
-    _number(g, "overspeed_trip", where, 1.0, 2.0)
+    _number(g, "scored_s", where, 1.0, 7200.0, f"groups.{name}.")
+    _number(g, "overspeed_trip", where, 1.0, 2.0, f"groups.{name}.")
     if name == "normal_production":
-        _number(g, "bin_width_mps", where, 0.5, 10.0)
-        _number(g, "cut_out_mps", where, 5.0, 40.0)
+        _number(g, "bin_width_mps", where, 0.5, 10.0, f"groups.{name}.")
+        _number(g, "cut_out_mps", where, 5.0, 40.0, f"groups.{name}.")
         return
     winds = g.get("winds_mps")
     if not isinstance(winds, list) or not winds or any(
@@ -111,7 +126,7 @@ def _check_group(name: str, g, where: str) -> None:
             t not in faults.ACTUATOR_FAULT_TYPES for t in types):
         raise ConfigError(f"groups.{name}.types", types, "a list of "
                           + ", ".join(faults.ACTUATOR_FAULT_TYPES), where=where)
-    if not 0.0 <= _number(g, "onset_s", where, 0.0, 7200.0) < g["scored_s"]:
+    if not 0.0 <= _number(g, "onset_s", where, 0.0, 7200.0, f"groups.{name}.") < g["scored_s"]:
         raise ConfigError(f"groups.{name}.onset_s", g["onset_s"], "a time inside the "
                           f"scored {g['scored_s']:g} s", where=where)
 
