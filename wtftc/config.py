@@ -15,7 +15,15 @@ from pathlib import Path
 import numpy as np
 
 from wtftc.artefacts import layout as lay
-from wtftc.controller import FAULT_FREE_CASE, FDI_CASE, ORACLE_CASE, UNAWARE_CASE, check_record  # noqa: F401
+from wtftc.controller import (  # noqa: F401
+    FAULT_FREE_CASE,
+    FDI_CASE,
+    LIBRARIES,
+    ORACLE_CASE,
+    UNAWARE_CASE,
+    check_record,
+    discon_files,
+)
 from wtftc.controller import expand as expand_controller
 from wtftc.errors import ConfigError, EngineError, MissingExtra, range_text
 from wtftc.files import check_user_file
@@ -34,7 +42,7 @@ TOP_KEYS = {"case", "plant", "controller", "t_final_s", "dt_s", "seed", "output_
             "control_sign", "reference_rad_s", "cp_table", "wind", "fault", "controller_params",
             "turbine_params", "initial", "label", "profile", "control_interval_s",
             "control_delay", "sensors", "mismatch", "fdi", "turbine", "loads", "rosco",
-            "tuning", "engine", "openfast", "controller_preset"}
+            "tuning", "engine", "openfast", "controller_preset", "discon"}
 
 DEFAULTS = {
     "case": 1, "plant": "nrel5mw", "controller": "paper", "t_final_s": 60.0, "dt_s": 1e-3,
@@ -176,6 +184,17 @@ class RunConfig:
         return self.raw["controller"] == "rosco"
 
     @property
+    def uses_discon(self) -> bool:
+        """A DISCON library wtftc did not build (controller = "discon", its [discon])."""
+        return self.raw["controller"] == "discon"
+
+    @property
+    def library_controller(self) -> bool:
+        """The controller is a DISCON library commanding the pitch and the generator torque
+        itself (ROSCO's, or any other: wtftc.controller.LIBRARIES)."""
+        return self.raw["controller"] in LIBRARIES
+
+    @property
     def told_fault(self) -> bool:
         """Eq (49) is given the fault as it happens (case 3, an oracle)."""
         return self.case == ORACLE_CASE
@@ -224,6 +243,8 @@ class RunConfig:
             from wtftc.sim.rosco import discon_values
 
             rosco = discon_values(self.rosco_discon)
+        elif self.uses_discon:
+            rosco = rosco_like(self.raw["discon"]["input"])
         yd = self.yd if self.closed_loop_rest else None
         wind0 = float(self.wind(0.0))
         try:
@@ -334,6 +355,7 @@ def _make_config(cfg: dict) -> RunConfig:
                           "3 (fault known to eq (49)) or 4 (fault detected by wtftc's FDI)")
     raw["case"] = case = int(case)  # a NumPy integer too
     _engine(raw, cfg)
+    _discon(raw)
     if not isinstance(raw["plant"], str) or raw["plant"] not in rhs.PLANTS:
         raise ConfigError("plant", raw["plant"], "one of " + ", ".join(
             f"{k} ({v['doc']})" for k, v in rhs.PLANTS.items()))
@@ -804,15 +826,16 @@ def _profile(raw: dict, given: dict) -> None:
                           + " (docs/sensors.md)")
     prof = PROFILES[name]
     interval = prof["control_interval_s"]
-    if raw["controller"] == "rosco" and interval > 0:
-        interval = ROSCO_INTERVAL_S  # ROSCO is called at its own interval
+    if raw["controller"] in LIBRARIES and interval > 0:
+        interval = ROSCO_INTERVAL_S  # ROSCO is called at its own interval (any library:
+        # ROSCO's unless control_interval_s is given)
     raw.setdefault("control_interval_s", interval)
     if not isinstance(raw.get("sensors", {}), dict):
         raise ConfigError("sensors", raw["sensors"], "a table of sensor keys (docs/sensors.md)")
     raw["sensors"] = {**prof["sensors"], **raw.get("sensors", {})}
     for key, table in prof.items():
-        if key == "turbine_params" and raw["controller"] == "rosco":
-            continue  # ROSCO commands the generator torque itself
+        if key == "turbine_params" and raw["controller"] in LIBRARIES:
+            continue  # ROSCO (a DISCON library) commands the generator torque itself
         if key.endswith("_params") and isinstance(given.get(key, {}), dict):
             raw[key] = {**table, **given.get(key, {})}
 
@@ -825,6 +848,13 @@ def _control_interval(raw: dict, dt: float, t_final: float) -> int:
     """The controller's sampling interval in plant steps (0: continuous time). ROSCO
     samples the loop itself, every 5 ms: its compiled loop stays continuous (0)."""
     val = _finite(raw["control_interval_s"], "control_interval_s")
+    if raw["controller"] == "discon":  # the interval OpenFAST calls the library at
+        if not 0 < val <= 1.0 or raw["control_delay"] is not False:
+            raise ConfigError("control_interval_s" if not 0 < val <= 1.0 else "control_delay",
+                              val if not 0 < val <= 1.0 else raw["control_delay"],
+                              "an interval in (0, 1] s and no delay with controller = discon "
+                              "(OpenFAST calls the library every interval)")
+        return 0
     if raw["controller"] == "rosco":
         if val not in (0.0, ROSCO_INTERVAL_S) or raw["control_delay"] is not False:
             raise ConfigError("control_interval_s" if val not in (0.0, ROSCO_INTERVAL_S)
@@ -897,7 +927,7 @@ def _sensors(raw: dict, interval: int) -> np.ndarray:
         if kind != "bias" and x < 0:
             raise ConfigError(f"sensors.{key}", val, "a number >= 0")
         if kind in ("noise", "lag") and x > 0 and interval == 0 \
-                and raw["controller"] != "rosco":
+                and raw["controller"] not in LIBRARIES:
             raise ConfigError(f"sensors.{key}", val, "0 with control_interval_s = 0: noise and "
                               "lags need a sampled controller (e.g. control_interval_s = 0.01, "
                               "or profile = \"realistic\")")
@@ -914,11 +944,12 @@ def _torque_law(raw: dict, p_turbine: np.ndarray, wind, t_final: float, table) -
     15). The paper's own wind keeps the paper's fixed torque (docs/cases.md), and ROSCO
     commands its own torque."""
     tp = raw.get("turbine_params", {})
-    if raw["controller"] == "rosco" and p_turbine[lay.index("turbine_params",
-                                                           "gen_torque_law")] != 0.0:
+    if raw["controller"] in LIBRARIES and p_turbine[lay.index("turbine_params",
+                                                             "gen_torque_law")] != 0.0:
         raise ConfigError("turbine_params.gen_torque_law", tp.get("gen_torque_law"),
-                          "0 with controller = rosco (ROSCO commands the generator torque)")
-    if (raw["plant"] == "paper" or "gen_torque_law" in tp or raw["controller"] == "rosco"
+                          f"0 with controller = {raw['controller']} (the library commands "
+                          "the generator torque)")
+    if (raw["plant"] == "paper" or "gen_torque_law" in tp or raw["controller"] in LIBRARIES
             or raw["wind"].get("kind") == "paper_random"):
         return
     if float(np.min(wind(np.linspace(0.0, t_final, int(t_final / 0.1) + 2)))) \
@@ -1008,9 +1039,58 @@ def _initial(raw: dict) -> tuple[float, bool]:
             rest)
 
 
+#: the keys of a run's [discon] table (wtftc.controller.DISCON_KEYS)
+DISCON_TABLE_KEYS = ("library", "input", "library_sha256", "input_sha256")
+
+
+def _discon(raw: dict) -> None:
+    """controller = "discon": its [discon] table (library, input, their sha256: checked,
+    and filled in where not given), in OpenFAST only, told of no fault (case 1 or 2)."""
+    tab = raw.get("discon")
+    if raw["controller"] != "discon":
+        if tab is not None:
+            raise ConfigError("discon", tab, 'none unless controller = "discon" (a DISCON '
+                              "library's files; docs/openfast.md)")
+        return
+    if raw["engine"] != "openfast":
+        raise ConfigError("controller", "discon", 'a DISCON library with engine = "openfast" '
+                          "only (wtftc's own plants run its generated controllers and ROSCO)")
+    if raw["case"] not in (FAULT_FREE_CASE, UNAWARE_CASE):
+        raise ConfigError("case", raw["case"], "1 or 2 with controller = discon (a DISCON "
+                          "library is told of no fault: accommodation none)")
+    if not isinstance(tab, dict):
+        raise ConfigError("discon", tab, "a table with library and input (the DISCON "
+                          "library's path and its input file's) with controller = discon")
+    for key in tab:
+        if key not in DISCON_TABLE_KEYS:
+            raise ConfigError(f"discon.{key}", tab[key], "a known key: "
+                              + ", ".join(DISCON_TABLE_KEYS))
+    raw["discon"] = dict(discon_files(tab, "discon"))
+
+
+def rosco_like(path: str) -> dict | None:
+    """A DISCON library's input file read as a ROSCO DISCON.IN, where it is one with the
+    values ROSCO's operating point needs (wtftc.sim.trim.rosco_operating_point: the run
+    starts where ROSCO's laws rest); else None (the turbine's baseline operating point)."""
+    from wtftc.model.turbine_import import read_discon
+
+    try:
+        values = read_discon(Path(path), "discon.input")
+        for key in ("PC_RefSpd", "PC_FinePit", "PS_Mode", "VS_TSRopt", "VS_MinOMSpd"):
+            np.array(values[key].split(), dtype=float)[0]  # noqa: B018 - a number, or out
+        if float(values["PS_Mode"].split()[0]) > 0:
+            for key in ("PS_WindSpeeds", "PS_BldPitchMin"):
+                np.array(values[key].split(), dtype=float)  # noqa: B018
+    except (ConfigError, KeyError, ValueError, IndexError):
+        return None
+    return values
+
+
 def _controller(name) -> str:
     """The registered controller a name runs ("external" for ROSCO, which drives it)."""
     regs = {k: v for k, v in rhs.controllers().items() if k != "external"}
+    if name == "discon":  # a DISCON library: it drives the loop, as ROSCO does
+        return "external"
     if name == "rosco":
         from wtftc.sim import rosco
 
@@ -1019,7 +1099,7 @@ def _controller(name) -> str:
             raise ConfigError("controller", "rosco", reason)
         return "external"
     if not isinstance(name, str) or name not in regs:
-        raise ConfigError("controller", name, "one of " + ", ".join([*regs, "rosco"])
+        raise ConfigError("controller", name, "one of " + ", ".join([*regs, *LIBRARIES])
                           + " (docs/controllers.md)")
     return name
 

@@ -5,7 +5,7 @@ A table names a design, how it accommodates a pitch fault, and any of its settin
 
     [controller]
     preset = "aftc-nrel5mw"    # optional: start from a preset; the keys below change it
-    design = "physical"        # physical, pi, paper, drivetrain, rosco (or any registered)
+    design = "physical"        # physical, pi, paper, drivetrain, rosco, discon (or any registered)
     accommodation = "fdi"      # none | known (told the fault: an oracle) | fdi
     phys_obs_omega = 3.0       # the design's parameters, by their generated/layout.json name
     vs_constant_torque = 1     # the torque law's options (turbine_params gen_*, vs_*)
@@ -15,17 +15,31 @@ A table names a design, how it accommodates a pitch fault, and any of its settin
 :func:`expand` turns it into the keys every engine reads (``controller``, ``case``,
 ``controller_params``, ``turbine_params``, ``tuning``); their ranges are checked there
 (wtftc.config), and a refusal names ``controller.<key>``.
+
+``design = "discon"`` runs a Bladed-style DISCON library wtftc did not build, in OpenFAST
+behind the plant library's actuator, faults and sensors, as ROSCO runs (docs/openfast.md)::
+
+    [controller]
+    design = "discon"
+    library = "build/libdiscon.so"   # a shared object; relative: to the folder wtftc runs in
+    input = "build/DISCON.IN"        # its input file, given to it as it is (not copied)
+
+Both are kept absolute with their sha256 (``library_sha256``, ``input_sha256``): a table
+that gives a hash refuses a file that no longer has it.
 """
 
 from __future__ import annotations
 
 import copy
 import functools
+import hashlib
 import importlib.resources
 import math
 import numbers
+import os
 import tomllib
 from dataclasses import dataclass
+from pathlib import Path
 
 from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError
@@ -47,6 +61,11 @@ META_KEYS = ("preset", "design", "accommodation", "doc", "tuned_for")
 PRESETS_FILE = "presets.toml"
 #: the default of a turbine file that names no recommended preset
 FALLBACK_PRESET = "pi"
+#: a DISCON library's keys (design = "discon"; the run's [discon] table): its files, and the
+#: sha256 each must have
+DISCON_KEYS = ("library", "input", "library_sha256", "input_sha256")
+#: an ELF file's first bytes, and its e_type of a shared object (ET_DYN)
+ELF_MAGIC, ELF_SHARED = b"\x7fELF", 3
 
 
 def designs() -> dict[str, str]:
@@ -56,7 +75,9 @@ def designs() -> dict[str, str]:
 
     regs = {k: v["doc"] for k, v in controllers().items() if k != "external"}
     return regs | {"rosco": "NREL's ROSCO 2.10.6 through its ControllerInterface "
-                            "(pip install 'wtftc[rosco]')"}
+                            "(pip install 'wtftc[rosco]')",
+                   "discon": "any Bladed-style DISCON library with its input file (library, "
+                             "input; engine = openfast)"}
 
 
 def torque_keys() -> tuple[str, ...]:
@@ -70,7 +91,7 @@ def design_params(design: str) -> tuple[str, ...]:
     control sign (a top-level key) and the fault estimates its case sets."""
     from wtftc.sim.rhs import controllers
 
-    if design == "rosco":
+    if design in ("rosco", "discon"):
         return ()
     return tuple(n for n in lay.names(controllers()[design]["params"])
                  if n != "control_sign" and not n.startswith(("rho_hat", "lock_hat",
@@ -92,6 +113,9 @@ class Controller:
     preset: str | None = None
     #: the turbine its settings are tuned for (a preset's), where they are
     tuned_for: str | None = None
+    #: a DISCON library's files (design = "discon"): (key, value) of :data:`DISCON_KEYS`,
+    #: the paths absolute
+    files: tuple = ()
 
     @property
     def fault_case(self) -> int:
@@ -106,8 +130,8 @@ class Controller:
     def table(self) -> dict:
         """Its [controller] table, every setting written out (no preset to look up)."""
         return {"design": self.design, "accommodation": self.accommodation,
-                **({"doc": self.doc} if self.doc else {}), **dict(self.params),
-                **dict(self.torque), **dict(self.tuning)}
+                **({"doc": self.doc} if self.doc else {}), **dict(self.files),
+                **dict(self.params), **dict(self.torque), **dict(self.tuning)}
 
     def run_keys(self, faulty: bool, torque_default: bool = False) -> dict:
         """The run configuration's keys it sets: the design, the case (its accommodation's
@@ -115,12 +139,14 @@ class Controller:
         ``torque_default``: every design but ROSCO on the baseline torque law unless it
         says otherwise (the campaigns' convention: wtftc.campaign.compare)."""
         cfg = {"controller": self.design, "case": self.fault_case if faulty else 1}
+        if self.files:
+            cfg["discon"] = dict(self.files)
         if self.tuning:
             cfg["tuning"] = dict(self.tuning)
         if self.params:
             cfg["controller_params"] = copy.deepcopy(dict(self.params))
         torque = dict(self.torque)
-        if torque_default and self.design != "rosco":
+        if torque_default and self.design not in LIBRARIES:
             # ROSCO commands the generator torque itself; every other pitch controller
             # runs with the NREL 5-MW baseline variable-speed torque law (Jonkman 2009,
             # 7.1) unless it says otherwise, so that all compete with a standard one
@@ -141,6 +167,8 @@ def _number(val, field: str):
 
 
 def _known_names(design: str) -> str:
+    if design == "discon":
+        return ", ".join([*META_KEYS, *DISCON_KEYS])
     return ", ".join([*META_KEYS, *design_params(design), *torque_keys(), *TUNING_KEYS])
 
 
@@ -180,10 +208,11 @@ def parse(tab, field: str = "controller", name: str | None = None) -> Controller
         if val is not None and not isinstance(val, str):
             raise ConfigError(f"{field}.{key}", val, "a string")
     params, torque, tuning = _settings(tab, design, base, field)
+    files = discon_files(tab, field) if design == "discon" else ()
     return Controller(design, acc, tuple(params.items()), tuple(torque.items()),
                       tuple(tuning.items()), doc,
                       preset=base.preset if base and set(tab) <= {"preset", "doc"} else None,
-                      tuned_for=tuned)
+                      tuned_for=tuned, files=files)
 
 
 def _settings(tab: dict, design: str, base: Controller | None, field: str
@@ -197,9 +226,12 @@ def _settings(tab: dict, design: str, base: Controller | None, field: str
                                       == n.rsplit("_", 1)[0]]
                 for n in own if n.rsplit("_", 1)[-1].isdigit()}
     for key, val in tab.items():
-        if key in META_KEYS:
+        if key in META_KEYS or (design == "discon" and key in DISCON_KEYS):
             continue
         where = f"{field}.{key}"
+        if design == "discon":
+            raise ConfigError(where, val, "a key of a DISCON library's table: "
+                              + _known_names(design) + " (its settings are its input file's)")
         if key in own or key in numbered:
             v = _number(val, where)
             if key in numbered and (not isinstance(v, list) or len(v) != len(numbered[key])):
@@ -236,6 +268,76 @@ def _settings(tab: dict, design: str, base: Controller | None, field: str
 
 #: the designs a target mode retunes (wtftc.campaign.tune.resolve)
 RETUNABLE = ("rosco", "pi", "physical")
+#: the designs that are a DISCON library commanding the blade pitch and the generator
+#: torque itself, called at its own interval: ROSCO's, and any other (design = "discon")
+LIBRARIES = ("rosco", "discon")
+
+
+def _user_file(val, field: str, what: str) -> Path:
+    """``val`` as the absolute path of an existing, readable regular file (relative: to
+    the folder wtftc runs in); else one line naming ``field``."""
+    if not isinstance(val, str) or not val.strip():
+        raise ConfigError(field, val, f"the path of {what}")
+    path = Path(val).expanduser().absolute()
+    if not path.is_file():
+        raise ConfigError(field, val, f"an existing regular file: {what} ("
+                          + ("a folder" if path.is_dir() else "no such file" if not
+                             path.exists() else "not a regular file") + f" at {path})")
+    if not os.access(path, os.R_OK):
+        raise ConfigError(field, val, f"a file wtftc may read: {what} ({path} is not "
+                          "readable)")
+    return Path(os.path.normpath(path))
+
+
+def _check_shared_object(path: Path, val, field: str) -> None:
+    """A shared object's ELF header (the magic, e_type ET_DYN in the file's byte order)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(18)
+    except OSError as exc:
+        raise ConfigError(field, val, f"a file wtftc may read ({exc.strerror})") from None
+    order = "big" if head[5:6] == b"\x02" else "little"
+    if head[:4] != ELF_MAGIC or int.from_bytes(head[16:18], order) != ELF_SHARED:
+        raise ConfigError(field, val, "a DISCON library: a shared object (ELF, .so; "
+                          f"{path} is " + ("an ELF file of another kind" if
+                                           head[:4] == ELF_MAGIC else "no ELF file") + ")")
+
+
+@functools.lru_cache(maxsize=64)
+def _sha256(path: str, mtime_ns: int, size: int) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def sha256_of(path: Path) -> str:
+    """The sha256 of a file's bytes (computed once while its size and time stay)."""
+    st = Path(path).stat()
+    return _sha256(str(path), st.st_mtime_ns, st.st_size)
+
+
+def discon_files(tab: dict, field: str) -> tuple:
+    """A DISCON library's table (``library``, ``input``, and optionally the sha256 each
+    must have) as ((key, value), ...) of :data:`DISCON_KEYS`: the paths absolute, each
+    file's sha256 as it is now; a hash given that the file no longer has is refused, so
+    that a saved configuration never runs a changed library silently."""
+    lib = _user_file(tab.get("library"), f"{field}.library", "the DISCON library, a shared "
+                     "object (.so)")
+    _check_shared_object(lib, tab.get("library"), f"{field}.library")
+    inp = _user_file(tab.get("input"), f"{field}.input", "the library's input file (its "
+                     "DISCON.IN)")
+    out = {"library": str(lib), "input": str(inp)}
+    for key, path in (("library", lib), ("input", inp)):
+        digest, given = sha256_of(path), tab.get(f"{key}_sha256")
+        if given is not None and given != digest:
+            raise ConfigError(f"{field}.{key}_sha256", given, f"{digest}, the sha256 of "
+                              f"{path} now: the file changed since this configuration was "
+                              f"written (restore it, or leave {key}_sha256 out to run it "
+                              "as it is)")
+        out[f"{key}_sha256"] = digest
+    return tuple(out.items())
 
 
 def accommodations(design: str) -> tuple[str, ...]:
@@ -243,7 +345,7 @@ def accommodations(design: str) -> tuple[str, ...]:
     accommodation); none, known or fdi for the AFTC designs (eq (49)'s inputs)."""
     from wtftc.sim.rhs import controllers
 
-    if design in ("rosco", "pi") or design not in controllers():
+    if design in ("rosco", "pi", "discon") or design not in controllers():
         return ("none",)
     return tuple(ACCOMMODATIONS)
 
@@ -323,7 +425,7 @@ def recommended(turbine) -> tuple[str, str | None]:
 
 
 #: the keys of a run's configuration a [controller] table sets in its place
-RUN_KEYS = ("controller_params", "tuning")
+RUN_KEYS = ("controller_params", "tuning", "discon")
 
 
 def expand(cfg: dict) -> tuple[dict, dict]:
@@ -342,9 +444,10 @@ def expand(cfg: dict) -> tuple[dict, dict]:
     c = parse(tab)
     for key in RUN_KEYS:
         if key in cfg:
+            what = {"controller_params": "design's settings", "tuning": "target mode",
+                    "discon": "library and input"}[key]
             raise ConfigError(key, cfg[key], f"none beside a [controller] table: set the "
-                              f"{'design' if key == 'controller_params' else 'target mode'}"
-                              "'s settings in it (docs/controllers.md)")
+                              f"{what} in it (docs/controllers.md)")
     faulty = bool(cfg.get("fault"))
     keys = c.run_keys(faulty)
     out = {k: v for k, v in cfg.items() if k != "controller"}
@@ -372,6 +475,9 @@ def expand(cfg: dict) -> tuple[dict, dict]:
     names = {f"controller_params.{k}": f"controller.{k}" for k, _ in c.params} \
         | {f"turbine_params.{k}": f"controller.{k}" for k, _ in c.torque} \
         | {f"tuning.{k}": f"controller.{k}" for k, _ in c.tuning}
+    if c.design == "discon":  # the run's refusals of a DISCON library, by the table's keys
+        names |= {"controller": "controller.design",
+                  **{f"discon.{k}": f"controller.{k}" for k in DISCON_KEYS}}
     if c.preset and keys["case"] in (FAULT_FREE_CASE, c.fault_case):
         keys["controller_preset"] = c.preset
     return out | keys, names

@@ -1,8 +1,9 @@
 """A run in OpenFAST (``--engine openfast``, issue 32; ours).
 
 :func:`run` writes the case (wtftc.openfast.case) into ``folder``, builds or finds the
-controller library (ROSCO's ``libdiscon.so`` with the turbine's DISCON.IN, or the run's
-controller exported as wtftc exports it, ``wtftc export discon``), runs OpenFAST there
+controller library (ROSCO's ``libdiscon.so`` with the turbine's DISCON.IN, any DISCON
+library with its input file, or the run's controller exported as wtftc exports it,
+``wtftc export discon``), runs OpenFAST there
 and reads its binary output and the plant library's records back into an
 :class:`wtftc.sim.integrate.Result` with the native engine's output columns, so that the
 same metrics, traces and figures follow. A column OpenFAST has no counterpart of (the
@@ -59,8 +60,15 @@ def deck_of(rc) -> Path:
 
 def controller_library(rc, folder: Path) -> tuple[Path, Path]:
     """(library, its input file) of the run's controller, in ``folder``: ROSCO's with the
-    turbine's DISCON.IN (retuned as the run says), or the run's controller exported."""
+    turbine's DISCON.IN (retuned as the run says), a DISCON library wtftc did not build
+    with its input file (controller = "discon": both where they are, each checked against
+    the sha256 the run keeps), or the run's controller exported."""
     folder.mkdir(parents=True, exist_ok=True)
+    if rc.uses_discon:
+        from wtftc.controller import discon_files
+
+        files = dict(discon_files(rc.raw["discon"], "discon"))
+        return Path(files["library"]), Path(files["input"])
     if rc.uses_rosco:
         from wtftc.sim import rosco
 
