@@ -115,3 +115,32 @@ def test_every_scored_metric_agrees_with_an_independent_read_of_the_outb(card):
                     row["speed_min_over_rated_after_onset"], rel=0.01)
             checked += 1
     assert checked == 2 * 2 + 2  # the controller's and ROSCO's: two bins, one fault
+
+
+def test_a_screened_scorecard_shows_both_engines_side_by_side(tmp_path):
+    (tmp_path / "micro.toml").write_text(MICRO)
+    p = subprocess.run([sys.executable, "-m", "wtftc.cli", "scorecard", "--matrix",
+                        tmp_path / "micro.toml", "--screen", "1", "--workers", "2", "--out",
+                        tmp_path / "out", "--quiet"], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    out = tmp_path / "out"
+    doc = json.loads((out / "scorecard.json").read_text())
+    assert doc["screen"] == 1
+    for group, g in doc["groups"].items():
+        screen = read_results(out / group).to_pylist()
+        confirmed = read_results(out / f"{group}_openfast").to_pylist()
+        assert {r["plant"] for r in screen} == {"tower_edge"}
+        assert {r["plant"] for r in confirmed} == {"openfast"} and len(confirmed) == 2
+        assert g["confirmed"]["counts"]["scenarios"] == 1
+        for m in g["confirmed"]["metrics"]:
+            if m["ratio"] is not None and m["screen_ratio"] is not None:
+                assert m["agree"] == ((m["ratio"] - 1) * (m["screen_ratio"] - 1) >= 0)
+    assert "## The screen, confirmed in OpenFAST (--screen 1)" in p.stdout
+
+
+def test_screen_goes_with_openfast(tmp_path):
+    p = subprocess.run([sys.executable, "-m", "wtftc.cli", "scorecard", "--engine", "wtftc",
+                        "--screen", "3", "--out", tmp_path / "out"],
+                       capture_output=True, text=True)
+    assert p.returncode == 2 and "--screen" in p.stderr and p.stderr.count("\n") == 1
+    assert not (tmp_path / "out").exists()

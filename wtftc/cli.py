@@ -1379,6 +1379,10 @@ def _add_scorecard(sub) -> None:
                         "benchmark actuator; wtftc: the validated tower_edge plant")
     p.add_argument("--seeds", type=_positive_int, help="turbulence seeds per case "
                    "(default: the matrix's, 6)")
+    p.add_argument("--screen", type=_positive_int, metavar="N", help="with --engine "
+                   "openfast: run every case on wtftc's tower_edge plant (on TurbSim's "
+                   "fields), then its N scenarios that matter most in OpenFAST, and report "
+                   "both engines side by side")
     p.add_argument("--matrix", type=Path, help="another case matrix file (default: the "
                    "shipped one)")
     p.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1,
@@ -1417,7 +1421,7 @@ def _cmd_scorecard(args) -> int:
     _check_out_name(args.out)
     result = run.run_scorecard(candidate, args.out, cfg.get("turbine"), against,
                                args.engine, args.seeds, args.workers, args.scheduler,
-                               args.matrix, args.quiet)
+                               args.matrix, args.quiet, args.screen)
     text = report.write(args.out, result, cfg.get("turbine"))
     print(text, end="")
     print(f"written under {args.out}/: scorecard.md, scorecard.json, and each group's "

@@ -81,6 +81,31 @@ def _outcomes(rows: list, trip: float) -> dict:
     return out
 
 
+def _same_scenario(r: dict) -> tuple:
+    """A scenario's key on either engine (the plant left out: tower_edge or openfast)."""
+    from wtftc.campaign.sweep import paired
+
+    return paired.scenario({**r, "plant": None})
+
+
+def _confirmed(screen_rows: list, conf_rows: list, group: str, cand: str, base: str,
+               trip: float) -> dict:
+    """The confirmed scenarios on both engines: each metric's ratio in OpenFAST and on the
+    screen over the same scenarios, and whether the two fall on the same side of 1."""
+    keys = {_same_scenario(r) for r in conf_rows}
+    mine = [r for r in screen_rows if _same_scenario(r) in keys]
+    on = {}
+    for name, rows in (("openfast", conf_rows), ("screen", mine)):
+        pp, counts = stats.held_pairs([r for r in rows if r["controller"] == cand],
+                                      [r for r in rows if r["controller"] == base], trip)
+        on[name] = {"counts": counts, "metrics": _metrics(group, pp)}
+    for a, b in zip(on["openfast"]["metrics"], on["screen"]["metrics"], strict=True):
+        a["screen_ratio"] = b.get("ratio")
+        a["agree"] = None if None in (a.get("ratio"), b.get("ratio")) else \
+            (a["ratio"] - 1.0) * (b["ratio"] - 1.0) >= 0.0
+    return on["openfast"]
+
+
 def analyse(out: Path, result: dict, turbine: str | None = None) -> dict:
     """Every figure of the scorecard, as scorecard.json holds it."""
     from wtftc.artefacts.loader import generated_code_sha256
@@ -107,7 +132,12 @@ def analyse(out: Path, result: dict, turbine: str | None = None) -> dict:
             for label in sorted({fault_label(r) for r in rows}):
                 sub = [(a, b) for a, b in pp if fault_label(a) == label]
                 g["by_fault"][label] = _metrics(group, sub)
+        conf = Path(out) / f"{group}_openfast"
+        if result.get("screen") is not None and conf.is_dir():
+            g["confirmed"] = _confirmed(rows, _rows(Path(out), conf.name), group, cand,
+                                        base, trip)
         doc["groups"][group] = g
+    doc["screen"] = result.get("screen")
     return doc
 
 
@@ -132,6 +162,7 @@ def markdown(doc: dict) -> str:
         for r in g["metrics"]:
             lines.append(f"| {name} (DLC {g['iec']}) | {r['what']} [{r['unit']}] | "
                          f"{_cell(r)} | {r['n_pairs']} | {r['n_seeds']} |")
+    lines += _confirmed_lines(doc)
     life = doc["groups"].get("normal_production", {}).get("lifetime")
     if life:
         lines += ["", f"## Lifetime (Rayleigh mean {life['annual_mean_mps']:g} m/s, rated "
@@ -157,6 +188,24 @@ def markdown(doc: dict) -> str:
               *(f"- {name}: {g['counts']['scenarios']} scenarios, wall "
                 f"{g['wall_s']:.0f} s this call" for name, g in doc["groups"].items())]
     return "\n".join(lines) + "\n"
+
+
+def _confirmed_lines(doc: dict) -> list[str]:
+    """The screen's confirmed scenarios on both engines, side by side."""
+    if doc.get("screen") is None:
+        return []
+    lines = ["", f"## The screen, confirmed in OpenFAST (--screen {doc['screen']})", "",
+             "The verdicts above are the screen's, on wtftc's tower_edge plant over every "
+             "scenario. Here the scenarios confirmed in OpenFAST, on both engines: a ratio "
+             "on the other side of 1 in OpenFAST is a disagreement.", "",
+             "| group | metric | OpenFAST | screen, same scenarios | agree |",
+             "|---|---|---|---|---|"]
+    for name, g in doc["groups"].items():
+        for r in g.get("confirmed", {}).get("metrics", []):
+            screen = "—" if r["screen_ratio"] is None else f"{r['screen_ratio']:.3g}"
+            agree = {None: "—", True: "yes", False: "**no**"}[r["agree"]]
+            lines.append(f"| {name} | {r['what']} | {_cell(r)} | {screen} | {agree} |")
+    return lines
 
 
 def write(out: Path, result: dict, turbine: str | None = None) -> str:

@@ -68,33 +68,60 @@ def write_sweep(out: Path, group: str, raw: dict) -> Path:
     return path
 
 
+#: where a screened group's OpenFAST confirmation goes, beside its screen
+CONFIRMED = "{group}_openfast"
+
+
+def _sweeps(m: dict, columns: list, turbine: str | None, engine: str, seeds: int | None,
+            screen: int | None) -> dict[str, dict]:
+    """Each group's sweep; screened, on wtftc's plant and TurbSim's fields (those its
+    OpenFAST confirmation runs on)."""
+    from wtftc.campaign.scorecard import matrix
+
+    if screen is not None and engine != "openfast":
+        raise ConfigError("--screen", screen, "with --engine openfast: the screen runs on "
+                          "wtftc's plant, then OpenFAST confirms the scenarios that decide")
+    raws = matrix.sweeps(m, columns, turbine, "wtftc" if screen else engine, seeds)
+    if screen is not None:
+        for raw in raws.values():
+            raw["wind"]["field"] = "turbsim"
+    return raws
+
+
 def run_scorecard(candidate, out: Path, turbine: str | None = None, against="rosco",
                   engine: str = "openfast", seeds: int | None = None, workers: int = 2,
                   scheduler: str | None = None, matrix_path: Path | None = None,
-                  quiet: bool = False) -> dict:
+                  quiet: bool = False, screen: int | None = None) -> dict:
     """Every group of the matrix for ``candidate`` and ``against`` (each a preset's name
     or a [controller] table) on ``turbine`` in ``engine``; each group's counts and wall
-    time. Everything is checked before the first run: the columns, the matrix, every
-    group's sweep (its runs too)."""
+    time. ``screen`` N: each group on wtftc's tower_edge plant, then its N scenarios that
+    matter most in OpenFAST (wtftc.campaign.sweep.confirm) into ``<group>_openfast``.
+    Everything is checked before the first run: the columns, the matrix, every group's
+    sweep (its runs too)."""
     from wtftc.campaign import sweep
     from wtftc.campaign.scorecard import matrix
-    from wtftc.campaign.sweep import spec
+    from wtftc.campaign.sweep import confirm, spec
 
     cand, base = column(candidate, "controller"), column(against, "--against")
     if cand["name"] == base["name"]:
         base = {**base, "name": f"{base['name']} (baseline)"}
     m = matrix.load(matrix_path)
-    raws = matrix.sweeps(m, [cand, base], turbine, engine, seeds)
+    raws = _sweeps(m, [cand, base], turbine, engine, seeds, screen)
     for raw in raws.values():
-        spec.expand(spec.parse_sweep(raw))  # every run checked before any
+        sw = spec.parse_sweep(raw)
+        spec.expand(sw)  # every run checked before any
+        if screen is not None:
+            confirm.check_screen(sw, screen)
     out = prepare(out)
     done = {}
     for group, raw in raws.items():
         if not quiet:
             print(f"[scorecard] {group} (DLC {m['groups'][group]['iec']})", flush=True)
-        t0 = time.perf_counter()
-        counts = sweep.run_sweep(write_sweep(out, group, raw), out / group, workers,
-                                 scheduler, quiet=quiet)
+        t0, path = time.perf_counter(), write_sweep(out, group, raw)
+        counts = sweep.run_sweep(path, out / group, workers, scheduler, quiet=quiet) \
+            if screen is None else sweep.run_confirm(
+                path, out / group, screen, out / CONFIRMED.format(group=group), workers,
+                scheduler, quiet=quiet)
         done[group] = {**counts, "wall_s": time.perf_counter() - t0}
     return {"matrix": m, "matrix_hash": matrix.matrix_hash(m), "columns": [cand, base],
-            "groups": done}
+            "groups": done, "screen": screen, "engine": engine}
