@@ -83,6 +83,13 @@ def test_the_report_holds_every_group_and_its_figures_are_the_runs(card):
                   .values() for n in cols.values())
     assert counted == len(faults) == 1 * 2 * 3 * 2
     assert "| runaway_feather | aftc-nrel5mw |" in p.stdout
+    # the self-contained page: every table of the Markdown, the per-bin figure inside it
+    page = (out / "scorecard.html").read_text()
+    tables = sum(line.startswith("|---") for line in
+                 (out / "scorecard.md").read_text().splitlines())
+    assert tables >= 3 and page.count("<table>") == tables
+    assert page.count('src="data:image/png;base64,') == 1
+    assert (out / "figures" / "normal_production_per_bin.pdf").stat().st_size > 0
 
 
 def test_the_same_command_resumes_with_nothing_to_run(card):

@@ -1,5 +1,6 @@
-"""The scorecard's report: ``scorecard.json`` (every figure) and ``scorecard.md`` (the
-verdict table first), from the groups' results folders (wtftc.campaign.scorecard.run).
+"""The scorecard's report: ``scorecard.json`` (every figure), ``scorecard.md`` (the
+verdict table first), ``scorecard.html`` (the same with its figures inside) and
+``figures/``, from the groups' results folders (wtftc.campaign.scorecard.run).
 
 Every ratio is the controller's over the baseline's on the same scenario, over the
 scenarios both held (wtftc.campaign.scorecard.stats.held_pairs), with a bootstrap
@@ -210,10 +211,17 @@ def _confirmed_lines(doc: dict) -> list[str]:
 
 def write(out: Path, result: dict, turbine: str | None = None) -> str:
     """scorecard.json and scorecard.md into ``out``, each written whole; the Markdown."""
+    from wtftc.campaign.scorecard import html
     from wtftc.results.io import atomic_write_text
 
     doc = analyse(out, result, turbine)
     text = markdown(doc)
+    figures = html.per_bin_figure(_rows(Path(out), "normal_production"),
+                                  [doc["controller"], doc["baseline"]], Path(out)) \
+        if "normal_production" in doc["groups"] else []
     atomic_write_text(Path(out) / "scorecard.json", json.dumps(doc, indent=1, default=str))
     atomic_write_text(Path(out) / "scorecard.md", text)
+    atomic_write_text(Path(out) / "scorecard.html", html.to_html(
+        text, [p for p in figures if p.suffix == ".png"],
+        f"Scorecard: {doc['controller']} against {doc['baseline']}"))
     return text

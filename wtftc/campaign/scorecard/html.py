@@ -1,0 +1,107 @@
+"""The scorecard's figures (``<out>/figures/``, PNG and PDF) and its self-contained
+``scorecard.html``: the Markdown report as HTML with the figures inside it."""
+
+from __future__ import annotations
+
+import base64
+import html
+from pathlib import Path
+
+#: the per-bin figure's metrics: (key, label with its unit, scale)
+PER_BIN = [("rms_speed_error_rad_s", "RMS rotor-speed error [rad/s]", 1.0),
+           ("shaft_torque_del_1hz_Nm", "shaft-torque DEL, 1 Hz [MN m]", 1e-6),
+           ("tower_base_del_1hz_Nm", "tower-base DEL, 1 Hz [MN m]", 1e-6),
+           ("pitch_adc", "pitch actuator duty cycle [-]", 1.0),
+           ("mean_electrical_power_W", "mean electrical power [MW]", 1e-6)]
+
+
+def per_bin_figure(rows: list[dict], columns: list[str], out: Path) -> list[Path]:
+    """Each metric against the mean wind, per column: the mean over the seeds with the
+    seeds' range, the runs that held only (status ok)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from wtftc.results.io import atomic_savefig
+
+    fig, axes = plt.subplots(len(PER_BIN), 1, figsize=(7.5, 2.4 * len(PER_BIN)),
+                             sharex=True)
+    for ax, (key, label, scale) in zip(axes, PER_BIN, strict=True):
+        for c in columns:
+            by: dict[float, list] = {}
+            for r in rows:
+                if r["controller"] == c and r["status"] == "ok" and r[key] is not None:
+                    by.setdefault(r["mean_wind_mps"], []).append(r[key] * scale)
+            v = sorted(by)
+            mean = [np.mean(by[x]) for x in v]
+            lo = [mean[i] - min(by[x]) for i, x in enumerate(v)]
+            hi = [max(by[x]) - mean[i] for i, x in enumerate(v)]
+            ax.errorbar(v, mean, yerr=[lo, hi], marker="o", capsize=3, label=c)
+        ax.set_ylabel(label, fontsize=8)
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("mean wind at hub height [m/s]")
+    axes[0].legend(fontsize=8)
+    axes[0].set_title("normal power production: mean over the seeds, bars their range",
+                      fontsize=9)
+    fig.tight_layout()
+    paths = []
+    for ext in ("png", "pdf"):
+        p = Path(out) / "figures" / f"normal_production_per_bin.{ext}"
+        atomic_savefig(fig, p, dpi=110)
+        paths.append(p)
+    plt.close(fig)
+    return paths
+
+
+def _inline(text: str) -> str:
+    """Markdown's inline code and bold as HTML (the text escaped first)."""
+    out, parts = [], html.escape(text).split("`")
+    for i, part in enumerate(parts):
+        if i % 2:
+            out.append(f"<code>{part}</code>")
+        else:
+            bold = part.split("**")
+            out.append("".join(f"<b>{b}</b>" if j % 2 else b for j, b in enumerate(bold)))
+    return "".join(out)
+
+
+def to_html(markdown: str, figures: list[Path], title: str) -> str:
+    """The report's Markdown (headings, paragraphs, lists, tables: what report.markdown
+    writes) as one HTML page, each PNG figure inside it."""
+    body, table = [], []
+
+    def flush():
+        if table:
+            rows = [r for r in table if set(r.replace("|", "").strip()) - {"-"}]
+            cells = [[c.strip() for c in r.strip().strip("|").split("|")] for r in rows]
+            body.append("<table><tr>" + "".join(f"<th>{_inline(c)}</th>" for c in cells[0])
+                        + "</tr>" + "".join("<tr>" + "".join(f"<td>{_inline(c)}</td>"
+                                                             for c in r) + "</tr>"
+                                            for r in cells[1:]) + "</table>")
+            table.clear()
+
+    for line in markdown.splitlines():
+        if line.startswith("|"):
+            table.append(line)
+            continue
+        flush()
+        if line.startswith("#"):
+            level = len(line) - len(line.lstrip("#"))
+            body.append(f"<h{level}>{_inline(line[level:].strip())}</h{level}>")
+        elif line.startswith("- "):
+            body.append(f"<ul><li>{_inline(line[2:])}</li></ul>")
+        elif line.strip():
+            body.append(f"<p>{_inline(line)}</p>")
+    flush()
+    for p in figures:
+        data = base64.b64encode(Path(p).read_bytes()).decode()
+        body.append(f'<figure><img alt="{html.escape(p.stem)}" '
+                    f'src="data:image/png;base64,{data}"></figure>')
+    style = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto}"
+             "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #bbb;"
+             "padding:3px 6px;font-size:90%}img{max-width:100%}")
+    return (f"<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>"
+            f"{html.escape(title)}</title><style>{style}</style></head><body>\n"
+            + "\n".join(body) + "\n</body></html>\n")
