@@ -16,6 +16,7 @@ import numpy as np
 
 from wtftc.artefacts import layout as lay
 from wtftc.controller import (  # noqa: F401
+    DISCON_KEYS,
     FAULT_FREE_CASE,
     FDI_CASE,
     LIBRARIES,
@@ -1039,10 +1040,6 @@ def _initial(raw: dict) -> tuple[float, bool]:
             rest)
 
 
-#: the keys of a run's [discon] table (wtftc.controller.DISCON_KEYS)
-DISCON_TABLE_KEYS = ("library", "input", "library_sha256", "input_sha256")
-
-
 def _discon(raw: dict) -> None:
     """controller = "discon": its [discon] table (library, input, their sha256: checked,
     and filled in where not given), in OpenFAST only, told of no fault (case 1 or 2)."""
@@ -1062,9 +1059,9 @@ def _discon(raw: dict) -> None:
         raise ConfigError("discon", tab, "a table with library and input (the DISCON "
                           "library's path and its input file's) with controller = discon")
     for key in tab:
-        if key not in DISCON_TABLE_KEYS:
+        if key not in DISCON_KEYS:
             raise ConfigError(f"discon.{key}", tab[key], "a known key: "
-                              + ", ".join(DISCON_TABLE_KEYS))
+                              + ", ".join(DISCON_KEYS))
     raw["discon"] = dict(discon_files(tab, "discon"))
 
 
