@@ -202,17 +202,23 @@ def _part(bins: dict, table: dict, m: float) -> dict | None:
 def held_pairs(preset_rows, baseline_rows, trip: float = 1.2) -> tuple[list, dict]:
     """The (preset's run, baseline's run) of each scenario both ran
     (:func:`wtftc.campaign.sweep.paired.scenario`) and both held
-    (:func:`wtftc.campaign.sweep.paired.held`), and the counts: ``scenarios`` both ran,
+    (:func:`wtftc.campaign.scorecard.outcome.classify`: a fault's extremes from its onset
+    on), and the counts: ``scenarios`` both ran,
     ``failed`` (either run's status "failed": an error, not the rotor), ``both_held``,
     ``lost_by_preset``, ``lost_by_baseline``, ``unpaired`` (a scenario one side ran)."""
+    from wtftc.campaign.scorecard.outcome import classify
+
+    def held(r):  # (a fault's extremes from its onset on: outcome.classify)
+        return classify(r, r.get("onset_s"), trip) == "held"
+
     base = {paired.scenario(r): r for r in baseline_rows}
     mine = {paired.scenario(r): r for r in preset_rows}
     pp = [(a, base[k]) for k, a in mine.items() if k in base]
     ok = [(a, b) for a, b in pp if "failed" not in (a["status"], b["status"])]
-    both = [(a, b) for a, b in ok if paired.held(a, trip) and paired.held(b, trip)]
+    both = [(a, b) for a, b in ok if held(a) and held(b)]
     return both, {"scenarios": len(pp), "failed": len(pp) - len(ok), "both_held": len(both),
-                  "lost_by_preset": sum(not paired.held(a, trip) for a, _ in ok),
-                  "lost_by_baseline": sum(not paired.held(b, trip) for _, b in ok),
+                  "lost_by_preset": sum(not held(a) for a, _ in ok),
+                  "lost_by_baseline": sum(not held(b) for _, b in ok),
                   "unpaired": len(set(mine) ^ set(base))}
 
 
