@@ -226,3 +226,20 @@ def test_a_sweep_column_survives_its_record_and_its_run_ids(tmp_path):
     back = _sweep_of(meta, Path("unused"))
     assert back.columns["mine"] == sw.columns["mine"]
     assert [pt["run_id"] for pt in expand(back)[0]] == [pt["run_id"] for pt in runs]
+
+
+def test_a_runs_turbsim_field_is_the_one_rosco_s_run_reads(tmp_path, monkeypatch):
+    """The TurbSim field made before a run (wtftc.openfast.turbsim.make_field reads it on
+    wtftc's own plant, where a DISCON library does not run) is the wind's, turbine's and
+    length's: the field of the same run with controller = "rosco"."""
+    from wtftc.openfast import turbsim
+
+    lib, inp = _elf_copy(tmp_path), _users_input(tmp_path / "user")
+    monkeypatch.setattr(turbsim, "generate", lambda field: field)
+    wind = {"kind": "ntm", "mean_mps": 16.0, "turbulence_class": "B", "field": "turbsim"}
+    files = {"library": str(lib), "input": str(inp)}
+    made = [turbsim.make_field({**BASE, "wind": wind, "seed": 3, **keys}) for keys in (
+        {"controller": _table(lib, inp)}, {"controller": "discon", "discon": files},
+        {"controller": "rosco"})]
+    assert made[0] == made[1] == made[2]
+    assert (made[0].seed, made[0].mean_mps) == (3, 16.0)

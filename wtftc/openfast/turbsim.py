@@ -199,6 +199,12 @@ def make_field(cfg: dict) -> Path:
                           '"turbsim" in an NTM [wind] table, for a field to make')
     # the configuration as wtftc's own plant would run it, for its wind, turbine and length
     native = {k: v for k, v in cfg.items() if k not in ("engine", "openfast", "plant")}
+    ctrl = native.get("controller")
+    if ctrl == "discon" or (isinstance(ctrl, dict) and ctrl.get("design") == "discon"):
+        # a DISCON library runs in OpenFAST only: the field is the wind's, turbine's and
+        # length's alone, read here with a design wtftc's own plant runs
+        native = {k: v for k, v in native.items() if k not in ("discon", "case", "fault")} \
+            | {"controller": "pi"}
     spectral = {k: v for k, v in table.items() if k not in ("rotor_wind", "blade_speed_rad_s")}
     rc = config.make_config({**native, "wind": {**spectral, "field": "spectral"}})
     name = rc.raw.get("turbine", turbine_file.DEFAULT)
