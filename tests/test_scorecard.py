@@ -152,3 +152,14 @@ def test_a_faults_extremes_are_taken_after_its_onset():
     free = config.make_config({"controller": {"preset": "pi"}, "t_final_s": 35.0})
     assert metrics(free, cases.run(free, progress=False))[
         "overspeed_peak_over_rated_after_onset"] is None
+
+
+def test_a_discon_library_is_scored_in_openfast_only(tmp_path):
+    from wtftc.sim import rosco
+
+    assert rosco.available() is None  # (make setup installs ROSCO's library)
+    lib, deck = rosco.discon_library(), rosco.discon_path(rosco.NREL5MW_DISCON)
+    table = f'{{ name = "own", design = "discon", library = "{lib}", input = "{deck}" }}'
+    p = wtftc("scorecard", "--engine", "wtftc", "--against", table, "--out", tmp_path / "o")
+    assert p.returncode == 2 and "--against.design = 'discon'" in p.stderr, p.stderr
+    assert not (tmp_path / "o").exists()

@@ -177,10 +177,10 @@ def _on_the_baseline_torque_law(raw: dict) -> None:
     tab = raw.get("controller")
     if isinstance(tab, dict):
         c = controller.parse(tab)
-        if c.design != "rosco" and "gen_torque_law" not in dict(c.torque) \
+        if c.design not in controller.LIBRARIES and "gen_torque_law" not in dict(c.torque) \
                 and "gen_torque_law" not in (raw.get("turbine_params") or {}):
             raw["controller"] = {**tab, "gen_torque_law": 1.0}
-    elif tab != "rosco":
+    elif tab not in controller.LIBRARIES:
         raw.setdefault("turbine_params", {"gen_torque_law": 1.0})
 
 
@@ -1371,8 +1371,10 @@ def _add_scorecard(sub) -> None:
     p.add_argument("--config", type=Path, help="a TOML file whose [controller] table is the "
                    "controller scored")
     p.add_argument("--against", default="rosco", metavar="PRESET", help="the baseline: a "
-                   "preset, or a TOML inline table '{ name = ..., preset or design = ... }' "
-                   "(default rosco, at the deck's tuning)")
+                   "preset, or a TOML inline table '{ name = ..., preset or design = ... }', "
+                   "also any DISCON library: '{ name = \"mine\", design = \"discon\", "
+                   "library = \"/abs/libdiscon.so\", input = \"/abs/DISCON.IN\" }' "
+                   "(OpenFAST only; default rosco, at the deck's tuning)")
     p.add_argument("--turbine", help=TURBINE_HELP)
     p.add_argument("--engine", choices=("openfast", "wtftc"), default="openfast",
                    help="openfast (default): OpenFAST 5.0 on the turbine's deck behind the "

@@ -95,9 +95,10 @@ def _check_batch(rcs: list[RunConfig], threads: int) -> None:
         raise ConfigError("threads", threads, "a positive integer")
     first = rcs[0]
     for i, rc in enumerate(rcs):
-        if rc.uses_rosco:
+        if rc.library_controller:
             raise ConfigError(f"runs[{i}].controller", rc.controller,
-                              "a generated controller (ROSCO runs one at a time)")
+                              "a generated controller (a DISCON library, ROSCO's or "
+                              "another, runs one at a time)")
         for key in ("plant", "controller", "table_key", "dt", "t_final", "decimate"):
             if getattr(rc, key) != getattr(first, key):
                 raise ConfigError(f"runs[{i}].{key}", getattr(rc, key),
@@ -166,7 +167,7 @@ def write_run_figures(out_dir: Path, rc: RunConfig, res: Result, m: dict) -> lis
     rec = run_record(rc, res, m)
     fdir = Path(out_dir) / "figures"
     paths = figures.rotor_speed(rec, fdir, "rotor_speed", rc.label)
-    if not rc.uses_rosco:
+    if not rc.library_controller:  # (a library's commands are not wtftc's outputs)
         paths += figures.control(rec, fdir, "control", rc.label)
     if res.schedule is not None:
         paths += figures.fault_shape(rec, fdir, "fault")

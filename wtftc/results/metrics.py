@@ -201,7 +201,7 @@ def own_reference(rc: RunConfig, wind: np.ndarray) -> np.ndarray:
     with the fixed rated torque or on the paper's plant, rated speed throughout."""
     tp = lay.values("turbine_params", rc.p_turbine)
     rated = np.full_like(wind, rc.reference)
-    torque_law = rc.uses_rosco or tp["gen_torque_law"] > 0.5
+    torque_law = rc.library_controller or tp["gen_torque_law"] > 0.5
     if rc.plant == "paper" or not torque_law:
         return rated
     _, tsr_opt, _ = rc.table.cp_max()

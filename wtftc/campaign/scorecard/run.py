@@ -39,9 +39,11 @@ def column(entry, field: str) -> dict:
     if listed:
         raise ConfigError(f"{field}.{listed[0]}", entry[listed[0]], "one value: a "
                           "scorecard scores one controller (compare or sweep take lists)")
-    tab = {"name": field.lstrip("-"), **entry}
-    controller.parse({k: v for k, v in tab.items() if k != "name"}, field)
-    return tab
+    name = entry.get("name", field.lstrip("-"))
+    # every setting written out (a library's absolute paths and hashes too), so that each
+    # resume runs what the first call ran
+    return {"name": name, **controller.parse({k: v for k, v in entry.items()
+                                              if k != "name"}, field).table()}
 
 
 def prepare(out: Path) -> Path:
@@ -103,6 +105,10 @@ def run_scorecard(candidate, out: Path, turbine: str | None = None, against="ros
     from wtftc.campaign.sweep import confirm, spec
 
     cand, base = column(candidate, "controller"), column(against, "--against")
+    for tab, field in ((cand, "controller"), (base, "--against")):
+        if tab.get("design") == "discon" and (engine != "openfast" or screen is not None):
+            raise ConfigError(f"{field}.design", "discon", "a DISCON library runs in "
+                              "OpenFAST only: --engine openfast, without --screen")
     if cand["name"] == base["name"]:
         base = {**base, "name": f"{base['name']} (baseline)"}
     m = matrix.load(matrix_path)
