@@ -63,6 +63,8 @@ def test_the_report_holds_every_group_and_its_figures_are_the_runs(card):
     out = tmp / "out"
     doc = json.loads((out / "scorecard.json").read_text())
     assert doc["controller"] == "aftc-nrel5mw" and doc["baseline"] == "pi"
+    assert doc["engine"] == "wtftc" and doc["versions"]["wtftc"] and \
+        doc["versions"]["generated_code_sha256"] == doc["generated_code_sha256"]
     assert (out / "scorecard.md").read_text() == p.stdout.split("written under")[0]
     assert set(doc["groups"]) == {"normal_production", "actuator_faults"}
     # the RMS speed error's ratio, made again from the saved runs by hand

@@ -144,3 +144,24 @@ def test_screen_goes_with_openfast(tmp_path):
                        capture_output=True, text=True)
     assert p.returncode == 2 and "--screen" in p.stderr and p.stderr.count("\n") == 1
     assert not (tmp_path / "out").exists()
+
+
+def test_rosco_against_its_own_library_as_any_discon_is_a_tie_of_ones(tmp_path):
+    """A DISCON library wtftc did not build, as --against: ROSCO's own libdiscon.so and
+    its DISCON.IN given as design = "discon" run what the preset rosco runs, so every
+    ratio is 1 (the same library, input, deck and noise: bit for bit on one machine; 1e-12
+    for the last bits of a geometric mean)."""
+    from wtftc.sim import rosco
+
+    (tmp_path / "micro.toml").write_text(MICRO)
+    lib, deck = rosco.discon_library(), rosco.discon_path(rosco.NREL5MW_DISCON)
+    table = f'{{ name = "own", design = "discon", library = "{lib}", input = "{deck}" }}'
+    p = subprocess.run([sys.executable, "-m", "wtftc.cli", "scorecard", "--preset", "rosco",
+                        "--against", table, "--matrix", tmp_path / "micro.toml",
+                        "--workers", "2", "--out", tmp_path / "out", "--quiet"],
+                       capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    doc = json.loads((tmp_path / "out" / "scorecard.json").read_text())
+    assert doc["baseline"] == "own"
+    ratios = [m["ratio"] for g in doc["groups"].values() for m in g["metrics"]]
+    assert len(ratios) == 10 and all(r == pytest.approx(1.0, abs=1e-12) for r in ratios)

@@ -114,9 +114,11 @@ def analyse(out: Path, result: dict, turbine: str | None = None) -> dict:
 
     m = result["matrix"]
     cand, base = (c["name"] for c in result["columns"])
+    from wtftc.campaign.sweep.store import versions
+
     doc = {"controller": cand, "baseline": base, "matrix_hash": result["matrix_hash"],
            "generated_code_sha256": generated_code_sha256(), "turbine": turbine,
-           "groups": {}}
+           "engine": result.get("engine"), "versions": versions(), "groups": {}}
     for group in m["groups"]:
         rows = _rows(Path(out), group)
         trip = m["groups"][group]["overspeed_trip"]
@@ -185,7 +187,10 @@ def markdown(doc: dict) -> str:
                                  + " | ".join(str(n[o]) for o in outcome.OUTCOMES) + " |")
     lines += ["", "## Provenance", "",
               f"- generated code: `{doc['generated_code_sha256']}`; case matrix: "
-              f"`{doc['matrix_hash']}`; turbine: {doc['turbine'] or 'nrel5mw'}",
+              f"`{doc['matrix_hash']}`; turbine: {doc['turbine'] or 'nrel5mw'}; engine: "
+              f"{doc.get('engine') or 'openfast'}",
+              "- versions: " + ", ".join(f"{k} {v}" for k, v in doc["versions"].items()
+                                         if k != "generated_code_sha256"),
               *(f"- {name}: {g['counts']['scenarios']} scenarios, wall "
                 f"{g['wall_s']:.0f} s this call" for name, g in doc["groups"].items())]
     return "\n".join(lines) + "\n"
