@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import copy
 import functools
-import hashlib
 import importlib.resources
 import math
 import numbers
@@ -305,11 +304,9 @@ def _check_shared_object(path: Path, val, field: str) -> None:
 
 @functools.lru_cache(maxsize=64)
 def _sha256(path: str, mtime_ns: int, size: int) -> str:
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
+    from wtftc.files import file_sha256
+
+    return file_sha256(path)
 
 
 def sha256_of(path: Path) -> str:
