@@ -42,7 +42,8 @@ from wtftc.files import MAX_INPUT_BYTES, check_user_file, decode_text, read_user
 #: ElastoDyn's output channels the results read (its OutList is replaced by these);
 #: AeroDyn's, InflowWind's and ServoDyn's lists of the deck are kept
 ELASTODYN_CHANNELS = ("BldPitch1", "BldPitch2", "BldPitch3", "RotSpeed", "GenSpeed",
-                      "TTDspFA", "RotTorq", "TwrBsMyt", "RotThrust")
+                      "TTDspFA", "RotTorq", "TwrBsMyt", "RotThrust", "RootMyb1", "RootMyb2",
+                      "RootMyb3")
 #: the channels read from the other modules' lists (the decks of ROSCO's examples have them)
 OTHER_CHANNELS = ("Wind1VelX", "GenPwr", "GenTq")
 #: the wind file's sample interval [s] (InflowWind interpolates linearly between rows)
