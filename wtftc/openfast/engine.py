@@ -307,14 +307,16 @@ def _held(t_rec: np.ndarray, x: np.ndarray, t: np.ndarray) -> np.ndarray:
 
 def _fine(rc, ch: dict, rec: dict) -> tuple[np.ndarray, dict]:
     """The metric series at every OpenFAST step (Result.full): the rotor and generator
-    speeds, the blades, the low-speed shaft's torque and the tower base's moment as
+    speeds, the blades, the low-speed shaft's torque, the tower base's moment and the
+    blades' root flapwise bending moments (RootMyb1-3, ``blade_root_flap_j`` [N m]) as
     OpenFAST computes them, the FDI's latches as the library logged them."""
     t = ch["Time"]
     n_g = rc.param("gearbox_ratio")
     fine = {"omega_r": ch["RotSpeed"] * RPM, "omega_g": ch["GenSpeed"] * RPM / n_g,
             **{f"beta_{j}": np.radians(ch[f"BldPitch{j}"]) for j in lay.blades()},
             "tower_x": ch["TTDspFA"], "shaft_torque": ch["RotTorq"] * 1e3,
-            "tower_moment": ch["TwrBsMyt"] * 1e3}
+            "tower_moment": ch["TwrBsMyt"] * 1e3,
+            **{f"blade_root_flap_{j}": ch[f"RootMyb{j}"] * 1e3 for j in lay.blades()}}
     for j in lay.blades():
         if f"latch_{j}" in rec:
             fine[f"fdi_latch_{j}"] = _held(rec["t"], rec[f"latch_{j}"], t)

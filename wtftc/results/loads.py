@@ -21,6 +21,14 @@ import rainflow
 
 #: the seconds of the reference period of a fatigue figure (IEC 61400-1 DLC 1.2 runs)
 TEN_MINUTES_S = 600.0
+#: the blade root's Wöhler exponent m: 10 for a composite blade, the slope WEIS gives its
+#: blade-root channels RootMyb1-3 (weis/aeroelasticse/runFAST_pywrapper.py,
+#: fatigue_channels_default, beside 4 for the tower base and the shaft)
+BLADE_WOHLER_EXPONENT = 10.0
+#: the half-width of a spectral band around n × the rotor frequency, a fraction of its
+#: centre: ±10 % holds the rotor frequency as the speed wanders about its mean above rated
+#: (the overspeed trip is at +20 %), and the 1P, 2P and 3P bands stay apart
+BAND_HALF_WIDTH = 0.1
 #: a pitch reversal is counted when the blade turns back by more than this [rad]: 0.1°,
 #: above the sensors' resolution and the actuator's jitter under noise
 REVERSAL_HYSTERESIS = np.radians(0.1)
@@ -114,3 +122,42 @@ def pitch_duty(beta: np.ndarray, dt: float, rate_max: float,
             "travel_deg": float(np.degrees(np.mean(np.sum(steps, axis=0)))),
             "reversals": float(np.mean([reversals(b[:, j], hysteresis)
                                         for j in range(b.shape[1])]))}
+
+
+def band_std(series: np.ndarray, dt: float, f_low: float, f_high: float) -> float | None:
+    """The standard deviation of a series' content between ``f_low`` and ``f_high`` [Hz],
+    in the series' unit: the square root of its one-sided power spectral density summed
+    over the band's bins. The density is the periodogram of the whole series, its mean
+    removed, under a Hann window w (Welch's estimate with one segment; Welch, IEEE Trans.
+    Audio Electroacoust. 15(2), 1967), normalised so that its sum over every bin is the
+    windowed variance Σ (x w)² / Σ w² (Parseval):
+
+        σ_band² = Σ_{f_low ≤ f_k ≤ f_high} c_k |X_k|² / (N Σ w²),   X = rfft(x w)
+
+    with c_k = 2 but at 0 Hz and at the Nyquist frequency (1 there). A sine of amplitude A
+    inside the band, a few bins from its edges, gives A/√2. None for fewer than 4 samples
+    or a band that holds no bin (a window shorter than 1 / the band's width)."""
+    x = np.asarray(series, dtype=float)
+    n = x.size
+    if n < 4 or not f_high > f_low:
+        return None
+    w = np.hanning(n)
+    spec = np.abs(np.fft.rfft((x - x.mean()) * w)) ** 2
+    f = np.fft.rfftfreq(n, dt)
+    c = np.full(f.size, 2.0)
+    c[0] = 1.0
+    if n % 2 == 0:
+        c[-1] = 1.0
+    band = (f >= f_low) & (f <= f_high)
+    if not band.any():
+        return None
+    return float(np.sqrt(np.sum(c[band] * spec[band]) / (n * np.sum(w**2))))
+
+
+def harmonic_std(series: np.ndarray, dt: float, f_rotor: float, n: int,
+                 half_width: float = BAND_HALF_WIDTH) -> float | None:
+    """:func:`band_std` in the band n f_rotor (1 ± ``half_width``) [Hz]: the content at
+    nP, the rotor frequency f_rotor = mean ω_r / 2π (None where the rotor stands)."""
+    if not f_rotor > 0:
+        return None
+    return band_std(series, dt, n * f_rotor * (1 - half_width), n * f_rotor * (1 + half_width))

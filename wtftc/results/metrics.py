@@ -24,7 +24,9 @@ class Signals:
     the first time scored [s]. The shaft torque is k_s θ_s + d_s (ω_r − ω_g) (eq (6)); the
     tower base's moment k_t x_t h (derivation/turbine.py), None without a tower; a run in
     OpenFAST carries both as OpenFAST computes them (``shaft_torque``, ``tower_moment``:
-    ElastoDyn's RotTorq and TwrBsMyt, wtftc.openfast.engine)."""
+    ElastoDyn's RotTorq and TwrBsMyt, wtftc.openfast.engine), and the blades' root
+    flapwise bending moments (``blade_flap``, (samples, blades) [N m]: RootMyb1-3), which
+    wtftc's own plants have not (None)."""
 
     t: np.ndarray
     dt: float
@@ -34,6 +36,7 @@ class Signals:
     shaft: np.ndarray
     tower: np.ndarray | None
     t0: float
+    blade_flap: np.ndarray | None = None
 
 
 def signals(rc: RunConfig, res: integrate.Result, t0: float) -> Signals:
@@ -60,8 +63,12 @@ def signals(rc: RunConfig, res: integrate.Result, t0: float) -> Signals:
     elif not full and "M_tower" in res.names:
         tower = res.column("M_tower")
     beta = np.column_stack([col(f"beta_{j}") for j in lay.blades()])
+    flap = None
+    if full and "blade_root_flap_1" in res.full_names:  # OpenFAST's RootMyb1-3
+        flap = np.column_stack([col(f"blade_root_flap_{j}") for j in lay.blades()])[keep]
     return Signals(t=t[keep], dt=dt, rate=rate, omega_r=w[keep], beta=beta[keep],
-                   shaft=shaft[keep], tower=None if tower is None else tower[keep], t0=t0)
+                   shaft=shaft[keep], tower=None if tower is None else tower[keep], t0=t0,
+                   blade_flap=flap)
 
 
 def metrics(rc: RunConfig, res: integrate.Result) -> dict:
@@ -104,11 +111,13 @@ def metrics(rc: RunConfig, res: integrate.Result) -> dict:
         "settling_band_rad_s": 0.01 * rc.reference,
         "overspeed_peak_rad_s": float(np.max(w)) if w.size else None,
         "overspeed_peak_over_rated": float(np.max(w) / rated) if w.size else None,
-        **_after_onset(w, post, rated),
+        **_after_onset(w, post, rated), **loads_after_onset(sig, post),
+        "energy_after_onset_J": energy_after(res.t, res.column("P_gen") * eta, onset),
         "pitch_min_deg": float(np.degrees(beta.min())) if beta.size else None,
         "pitch_max_deg": float(np.degrees(beta.max())) if beta.size else None,
         "pitch_rate_rms_deg_s": float(np.degrees(np.sqrt(np.mean(rate**2)))) if beta.size
         else None,
+        "pitch_rate_max_abs_deg_s": _max_abs_deg(rate),  # WEIS's test bench's, any blade
         "actuator_travel_deg": float(np.degrees(np.sum(np.abs(np.diff(beta, axis=0))))),
         "mean_electrical_power_W": (float(np.mean(res.column("P_gen")[scored]) * eta)
                                     if scored.any() else None),
@@ -130,6 +139,36 @@ def _after_onset(w: np.ndarray, post: np.ndarray, rated: float) -> dict:
             float(np.max(w[post]) / rated) if post.any() else None,
             "speed_min_over_rated_after_onset":
             float(np.min(w[post]) / rated) if post.any() else None}
+
+
+def loads_after_onset(sig: Signals, post: np.ndarray) -> dict:
+    """The largest |load| from the fault's onset on (``post``: the samples of ``sig`` at
+    or after it): the shaft torque's, the tower base's and the largest of the blades' root
+    flapwise moments [N m]; None without a fault, or on a plant without that load."""
+    def peak(x):
+        return float(np.max(np.abs(x[post]))) if x is not None and post.any() else None
+
+    return {"shaft_torque_max_abs_after_onset_Nm": peak(sig.shaft),
+            "tower_base_max_abs_after_onset_Nm": peak(sig.tower),
+            "blade_root_flap_max_abs_after_onset_Nm": peak(sig.blade_flap)}
+
+
+def energy_after(t: np.ndarray, power: np.ndarray, onset: float | None) -> float | None:
+    """The electrical energy [J] from ``onset`` [s] to the run's end, ∫ P dt by the
+    trapezoidal rule over the samples at or after it (a run that ended early, a turbine
+    brought down, keeps what it made until then); None without a fault."""
+    if onset is None:
+        return None
+    sel = t >= onset - 1e-9 * max(1.0, onset)
+    tt, p = t[sel], power[sel]
+    if tt.size < 2:
+        return 0.0
+    return float(np.sum(0.5 * (p[1:] + p[:-1]) * np.diff(tt)))
+
+
+def _max_abs_deg(x: np.ndarray) -> float | None:
+    """The largest |x| in degrees (x in rad or rad/s), None for no sample."""
+    return float(np.degrees(np.max(np.abs(x)))) if x.size else None
 
 
 def _rms(x: np.ndarray) -> float | None:
@@ -166,7 +205,10 @@ def cost(rc: RunConfig, res: integrate.Result, sig: Signals) -> dict:
                             np.radians(opts["reversal_hysteresis_deg"]))
     above, below = own_speed_errors(rc, sig)
     rated = rc.p_turbine[lay.index("turbine_params", "omega_g_rated")]
-    return tower_cost(sig, duration, opts["tower_wohler_exponent"]) | {
+    blade = blade_cost(sig, duration, opts.get("blade_wohler_exponent",
+                                               loads.BLADE_WOHLER_EXPONENT))
+    return tower_cost(sig, duration, opts["tower_wohler_exponent"]) | blade | spectra(
+        sig, blade["blade_root_flap_worst_blade"]) | {
         "shaft_torque_del_1hz_Nm": fat["del_1hz"],
         "shaft_torque_damage_per_10min": fat["damage_per_10min"],
         "shaft_torque_max_abs_Nm": fat["max_abs"],
@@ -193,6 +235,39 @@ def tower_cost(sig: Signals, duration: float, m: float) -> dict:
     fat = loads.fatigue(sig.tower, duration, m)
     return dict(zip(keys, (fat["del_1hz"], fat["damage_per_10min"], fat["max_abs"]),
                     strict=True)) | {"tower_wohler_exponent": m}
+
+
+def blade_cost(sig: Signals, duration: float, m: float) -> dict:
+    """The blade-root flapwise bending moment's fatigue and extreme (None on a plant
+    without blades that bend: wtftc's own): the 1-Hz DEL and the damage per 10 min of the
+    blade whose DEL is the largest (``blade_root_flap_worst_blade``, 1-based), and the
+    largest |moment| over every blade."""
+    keys = ("blade_root_flap_del_1hz_Nm", "blade_root_flap_damage_per_10min",
+            "blade_root_flap_max_abs_Nm", "blade_root_flap_worst_blade")
+    if sig.blade_flap is None or not len(sig.blade_flap):
+        return dict.fromkeys(keys) | {"blade_wohler_exponent": m}
+    fats = [loads.fatigue(sig.blade_flap[:, k], duration, m)
+            for k in range(sig.blade_flap.shape[1])]
+    worst = max(range(len(fats)), key=lambda k: fats[k]["del_1hz"])
+    return dict(zip(keys, (fats[worst]["del_1hz"], fats[worst]["damage_per_10min"],
+                           max(f["max_abs"] for f in fats), worst + 1), strict=True)) | {
+        "blade_wohler_exponent": m}
+
+
+def spectra(sig: Signals, blade: int | None) -> dict:
+    """The tower base's and the blade root's content in the 1P and 3P bands (the standard
+    deviation in n × the mean rotor frequency ± loads.BAND_HALF_WIDTH, loads.harmonic_std)
+    over the scored window [N m]; the blade's is the blade with the largest flapwise DEL
+    (``blade``, 1-based: blade_cost's). None where the plant has not the load, or the
+    rotor stands."""
+    f_rotor = float(np.mean(sig.omega_r)) / (2 * np.pi) if len(sig.omega_r) else 0.0
+    flap = None if sig.blade_flap is None or blade is None else sig.blade_flap[:, blade - 1]
+    out = {}
+    for name, x in (("tower_base", sig.tower), ("blade_root_flap", flap)):
+        for n in (1, 3):
+            out[f"{name}_{n}p_std_Nm"] = (None if x is None else
+                                          loads.harmonic_std(x, sig.dt, f_rotor, n))
+    return out
 
 
 def own_reference(rc: RunConfig, wind: np.ndarray) -> np.ndarray:

@@ -46,7 +46,17 @@ METRICS = [("rms_speed_error_rad_s", "rad/s"), ("max_abs_speed_error_rad_s", "ra
            ("tower_base_max_abs_Nm", "N m"),
            # a fault's extremes, from its onset on (None without a fault)
            ("overspeed_peak_over_rated_after_onset", "-"),
-           ("speed_min_over_rated_after_onset", "-")]
+           ("speed_min_over_rated_after_onset", "-"),
+           ("shaft_torque_max_abs_after_onset_Nm", "N m"),
+           ("tower_base_max_abs_after_onset_Nm", "N m"),
+           ("blade_root_flap_max_abs_after_onset_Nm", "N m"), ("energy_after_onset_J", "J"),
+           # the blade root's flapwise bending from OpenFAST (None on wtftc's own plants)
+           ("blade_root_flap_del_1hz_Nm", "N m"), ("blade_root_flap_damage_per_10min", "(N m)^m"),
+           ("blade_root_flap_max_abs_Nm", "N m"),
+           # WEIS's controller test bench's maximum pitch rate, and its 1P and 3P bands
+           ("pitch_rate_max_abs_deg_s", "deg/s"),
+           ("tower_base_1p_std_Nm", "N m"), ("tower_base_3p_std_Nm", "N m"),
+           ("blade_root_flap_1p_std_Nm", "N m"), ("blade_root_flap_3p_std_Nm", "N m")]
 STATUS = ("ok", "diverged", "failed")
 #: a run whose external program (OpenFAST) was ended by a signal wtftc did not send, or
 #: whose case folder another run held: neither a result nor a failure, so not saved; the
