@@ -90,8 +90,35 @@ def test_the_report_holds_every_group_and_its_figures_are_the_runs(card):
     tables = sum(line.startswith("|---") for line in
                  (out / "scorecard.md").read_text().splitlines())
     assert tables >= 3 and page.count("<table>") == tables
-    assert page.count('src="data:image/png;base64,') == 1
-    assert (out / "figures" / "normal_production_per_bin.pdf").stat().st_size > 0
+    assert page.count('src="data:image/png;base64,') == 2  # per bin, and the trade-off
+    for stem in ("normal_production_per_bin", "normal_production_trade_off"):
+        assert (out / "figures" / f"{stem}.pdf").stat().st_size > 0
+
+
+def test_the_fdi_and_its_false_alarms_are_counted_from_the_runs(card):
+    tmp, _, p = card
+    out = tmp / "out"
+    doc = json.loads((out / "scorecard.json").read_text())
+    free = [r for r in read_results(out / "normal_production").to_pylist()
+            if r["controller"] == "aftc-nrel5mw"]
+    fa = doc["groups"]["normal_production"]["false_alarms"]
+    assert set(fa) == {"aftc-nrel5mw"}  # the PI runs no FDI: no rate is made up for it
+    alarms = sum(r["false_alarms"] for r in free)
+    hours = len(free) * 30.0 / 3600.0
+    assert fa["aftc-nrel5mw"]["alarms"] == alarms and fa["aftc-nrel5mw"]["hours"] == \
+        pytest.approx(hours, rel=1e-12)
+    assert fa["aftc-nrel5mw"]["per_hour_upper_95"] == pytest.approx(
+        stats.upper_rate_bound(alarms, hours, 0.95), rel=1e-12)
+    assert "## False alarms in the fault-free hours" in p.stdout
+    faults = [r for r in read_results(out / "actuator_faults").to_pylist()
+              if r["controller"] == "aftc-nrel5mw" and r["fault_type"] == "lock"]
+    lock = doc["groups"]["actuator_faults"]["fdi"]["aftc-nrel5mw"]["lock"]
+    assert lock["runs"] == len(faults) == 2
+    assert lock["detected"] == sum(bool(r["fault_detected"]) for r in faults)
+    delays = sorted(r["detection_delay_s"] for r in faults
+                    if r["detection_delay_s"] is not None)
+    assert lock["max_delay_s"] == (delays[-1] if delays else None)
+    assert "pi" not in doc["groups"]["actuator_faults"]["fdi"]
 
 
 def test_the_same_command_resumes_with_nothing_to_run(card):

@@ -15,24 +15,7 @@ import json
 from pathlib import Path
 
 from wtftc.campaign.scorecard import outcome, stats
-
-#: the paired metrics of each group: (key, what, unit, lower is better)
-METRICS = {
-    "normal_production": [
-        ("rms_speed_error_rad_s", "RMS rotor-speed error", "rad/s", True),
-        ("shaft_torque_del_1hz_Nm", "shaft-torque DEL (1 Hz)", "N m", True),
-        ("tower_base_del_1hz_Nm", "tower-base DEL (1 Hz)", "N m", True),
-        ("pitch_adc", "pitch actuator duty cycle", "-", True),
-        ("mean_electrical_power_W", "mean electrical power", "W", False)],
-    "actuator_faults": [
-        ("rms_speed_error_after_fault_rad_s", "RMS rotor-speed error after the onset",
-         "rad/s", True),
-        ("overspeed_peak_over_rated_after_onset", "peak rotor speed / rated after the "
-         "onset", "-", True),
-        ("shaft_torque_del_1hz_Nm", "shaft-torque DEL (1 Hz)", "N m", True),
-        ("tower_base_del_1hz_Nm", "tower-base DEL (1 Hz)", "N m", True),
-        ("pitch_adc", "pitch actuator duty cycle", "-", True)],
-}
+from wtftc.campaign.scorecard.scored import METRICS, SPECTRA
 
 
 def _rows(out: Path, group: str) -> list[dict]:
@@ -42,13 +25,83 @@ def _rows(out: Path, group: str) -> list[dict]:
 
 
 def _paired(pp: list, key: str, lower: bool) -> dict:
-    return stats.paired_ratio([(a["seed"], a[key], b[key]) for a, b in pp],
+    return stats.paired_ratio([(a["seed"], a.get(key), b.get(key)) for a, b in pp],
                               lower_is_better=lower)
 
 
-def _metrics(group: str, pp: list) -> list[dict]:
+def _metrics(group: str, pp: list, table=None) -> list[dict]:
     return [{"metric": key, "what": what, "unit": unit, **_paired(pp, key, lower)}
-            for key, what, unit, lower in METRICS[group]]
+            for key, what, unit, lower in (METRICS[group] if table is None else table)]
+
+
+def fdi_columns(columns: list[dict]) -> set[str]:
+    """The names of the columns (scorecard.run.column's tables) whose accommodation is
+    wtftc's FDI: on wtftc's plant the FDI watches every run, but acts, and is judged, only
+    in these."""
+    from wtftc import controller
+
+    return {c["name"] for c in columns
+            if controller.parse({k: v for k, v in c.items() if k != "name"}).uses_fdi}
+
+
+def _fdi(rows: list[dict], judged: set[str]) -> dict:
+    """The FDI's timing per column that runs it (``judged``), per fault type: runs,
+    detected, isolated (the right blade and kind), the median and largest detection delay
+    [s] from the onset."""
+    import numpy as np
+
+    from wtftc.campaign.sweep.dlc import fault_label
+
+    out: dict = {}
+    for r in rows:
+        if r["status"] == "failed" or r["controller"] not in judged:
+            continue
+        cell = out.setdefault(r["controller"], {}).setdefault(
+            fault_label(r), {"runs": 0, "detected": 0, "isolated": 0, "delays_s": []})
+        cell["runs"] += 1
+        cell["detected"] += bool(r.get("fault_detected"))
+        cell["isolated"] += bool(r.get("fault_correct"))
+        if r.get("detection_delay_s") is not None:
+            cell["delays_s"].append(r["detection_delay_s"])
+    for cols in out.values():
+        for cell in cols.values():
+            d = cell.pop("delays_s")
+            cell["median_delay_s"] = float(np.median(d)) if d else None
+            cell["max_delay_s"] = max(d) if d else None
+    return out
+
+
+def _false_alarms(rows: list[dict], scored_s: float, judged: set[str]) -> dict:
+    """Per column that runs wtftc's FDI (``judged``), over the fault-free runs: its false
+    alarms, the hours scored, the rate and its 95 % upper bound (stats.upper_rate_bound)."""
+    out = {}
+    for c in sorted(judged):
+        free = [r for r in rows if r["controller"] == c and r["status"] != "failed"
+                and r["fault_type"] == "none" and r.get("false_alarms") is not None]
+        if free:
+            n, hours = sum(r["false_alarms"] for r in free), len(free) * scored_s / 3600.0
+            out[c] = {"alarms": n, "hours": hours, "runs": len(free),
+                      "runs_with_an_alarm": sum(r["false_alarms"] > 0 for r in free),
+                      "per_hour": n / hours,
+                      "per_hour_upper_95": stats.upper_rate_bound(n, hours, 0.95)}
+    return out
+
+
+def _energy(rows: list[dict]) -> dict:
+    """What a faulted turbine keeps, per fault type and column: the mean electrical
+    energy from the onset to the run's end [J] over every run that finished (held or
+    not: the outcome table says which)."""
+    import numpy as np
+
+    from wtftc.campaign.sweep.dlc import fault_label
+
+    by: dict = {}
+    for r in rows:
+        if r["status"] != "failed" and r.get("energy_after_onset_J") is not None:
+            by.setdefault(fault_label(r), {}).setdefault(r["controller"], []).append(
+                r["energy_after_onset_J"])
+    return {f: {c: {"runs": len(v), "mean_J": float(np.mean(v))} for c, v in cols.items()}
+            for f, cols in by.items()}
 
 
 def _lifetime(rows_c: list, rows_b: list, m: dict, turbine: str | None) -> dict:
@@ -114,6 +167,7 @@ def analyse(out: Path, result: dict, turbine: str | None = None) -> dict:
 
     m = result["matrix"]
     cand, base = (c["name"] for c in result["columns"])
+    judged = fdi_columns(result["columns"])
     from wtftc.campaign.sweep.store import versions
 
     doc = {"controller": cand, "baseline": base, "matrix_hash": result["matrix_hash"],
@@ -127,10 +181,14 @@ def analyse(out: Path, result: dict, turbine: str | None = None) -> dict:
         pp, counts = stats.held_pairs(mine, theirs, trip)
         g = {"iec": m["groups"][group]["iec"], "counts": counts,
              "metrics": _metrics(group, pp), "wall_s": result["groups"][group]["wall_s"]}
+        g["fdi"] = _fdi(rows, judged)
         if group == "normal_production":
             g["lifetime"] = _lifetime(mine, theirs, m, turbine)
+            g["spectra"] = _metrics(group, pp, SPECTRA)
+            g["false_alarms"] = _false_alarms(rows, m["groups"][group]["scored_s"], judged)
         else:
             g["outcomes"] = _outcomes(rows, trip)
+            g["energy_after_onset"] = _energy(rows)
             g["by_fault"] = {}
             for label in sorted({fault_label(r) for r in rows}):
                 sub = [(a, b) for a, b in pp if fault_label(a) == label]
@@ -153,8 +211,9 @@ def _cell(r: dict) -> str:
 
 
 def markdown(doc: dict) -> str:
-    """The report: the verdict table first, then the lifetime figures, the outcomes of
-    the fault runs, and the provenance."""
+    """The report: the verdict table first; the screen's confirmation; the lifetime
+    figures; the loads in the 1P and 3P bands; the outcomes of the fault runs with the
+    energy each kept; the FDI's timing and false alarms; the provenance."""
     lines = [f"# Scorecard: `{doc['controller']}` against `{doc['baseline']}`", "",
              "Each cell: the ratio controller / baseline (geometric mean over the scenarios "
              "both held), its 90 % bootstrap interval over the seeds, and the verdict "
@@ -165,35 +224,97 @@ def markdown(doc: dict) -> str:
         for r in g["metrics"]:
             lines.append(f"| {name} (DLC {g['iec']}) | {r['what']} [{r['unit']}] | "
                          f"{_cell(r)} | {r['n_pairs']} | {r['n_seeds']} |")
-    lines += _confirmed_lines(doc)
+    for section in (_confirmed_lines, _lifetime_lines, _spectra_lines, _outcome_lines,
+                    _fdi_lines, _alarm_lines, _provenance_lines):
+        lines += section(doc)
+    return "\n".join(lines) + "\n"
+
+
+def _lifetime_lines(doc: dict) -> list[str]:
     life = doc["groups"].get("normal_production", {}).get("lifetime")
-    if life:
-        lines += ["", f"## Lifetime (Rayleigh mean {life['annual_mean_mps']:g} m/s, rated "
-                  f"wind {life['rated_wind_mps']:.3g} m/s)", "",
-                  "| load | part | DEL ratio | AEP ratio |", "|---|---|---|---|"]
-        for load in ("shaft", "tower"):
-            for part in stats.PARTS:
-                p = life[load].get(part) or {}
+    if not life:
+        return []
+    lines = ["", f"## Lifetime (Rayleigh mean {life['annual_mean_mps']:g} m/s, rated "
+             f"wind {life['rated_wind_mps']:.3g} m/s)", "",
+             "| load | part | DEL ratio | AEP ratio |", "|---|---|---|---|"]
+    for load in ("shaft", "tower", "blade"):
+        for part in stats.PARTS:
+            p = (life.get(load) or {}).get(part) or {}
+            if load in life:
                 lines.append(f"| {load} | {part} | {_cell(p.get('del') or {})} | "
                              f"{_cell(p.get('aep') or {})} |")
+    return lines
+
+
+def _spectra_lines(doc: dict) -> list[str]:
+    rows = doc["groups"].get("normal_production", {}).get("spectra") or []
+    if not any(r.get("ratio") is not None for r in rows):
+        return []
+    return ["", "## Loads in the rotor's 1P and 3P bands (normal production)", "",
+            "| load, band | ratio (interval) verdict | pairs |", "|---|---|---|",
+            *(f"| {r['what']} [{r['unit']}] | {_cell(r)} | {r['n_pairs']} |"
+              for r in rows if r.get("ratio") is not None)]
+
+
+def _outcome_lines(doc: dict) -> list[str]:
+    lines = []
     for name, g in doc["groups"].items():
-        if "outcomes" in g:
-            lines += ["", f"## Outcomes of {name} (every run)", "",
-                      "| fault | column | " + " | ".join(outcome.OUTCOMES) + " |",
-                      "|" + "---|" * (2 + len(outcome.OUTCOMES))]
-            for label, cols in g["outcomes"].items():
-                for col, n in cols.items():
-                    lines.append(f"| {label} | {col} | "
-                                 + " | ".join(str(n[o]) for o in outcome.OUTCOMES) + " |")
-    lines += ["", "## Provenance", "",
-              f"- generated code: `{doc['generated_code_sha256']}`; case matrix: "
-              f"`{doc['matrix_hash']}`; turbine: {doc['turbine'] or 'nrel5mw'}; engine: "
-              f"{doc.get('engine') or 'openfast'}",
-              "- versions: " + ", ".join(f"{k} {v}" for k, v in doc["versions"].items()
-                                         if k != "generated_code_sha256"),
-              *(f"- {name}: {g['counts']['scenarios']} scenarios, wall "
-                f"{g['wall_s']:.0f} s this call" for name, g in doc["groups"].items())]
-    return "\n".join(lines) + "\n"
+        if "outcomes" not in g:
+            continue
+        energy = g.get("energy_after_onset") or {}
+        lines += ["", f"## Outcomes of {name} (every run), and the energy kept", "",
+                  "| fault | column | " + " | ".join(outcome.OUTCOMES)
+                  + " | mean energy after the onset [MWh] |",
+                  "|" + "---|" * (3 + len(outcome.OUTCOMES))]
+        for label, cols in g["outcomes"].items():
+            for col, n in cols.items():
+                e = (energy.get(label) or {}).get(col)
+                kept = "—" if e is None else f"{e['mean_J'] / 3.6e9:.3g}"
+                lines.append(f"| {label} | {col} | "
+                             + " | ".join(str(n[o]) for o in outcome.OUTCOMES)
+                             + f" | {kept} |")
+    return lines
+
+
+def _fdi_lines(doc: dict) -> list[str]:
+    lines = []
+    for name, g in doc["groups"].items():
+        cells = [(col, label, c) for col, by in (g.get("fdi") or {}).items()
+                 for label, c in by.items() if label != "none"]
+        if not cells:
+            continue
+        lines += ["", f"## The FDI's detection and isolation ({name})", "",
+                  "| column | fault | runs | detected | isolated | median delay [s] | "
+                  "largest delay [s] |", "|---|---|---|---|---|---|---|"]
+        for col, label, c in cells:
+            med = "—" if c["median_delay_s"] is None else f"{c['median_delay_s']:.3g}"
+            top = "—" if c["max_delay_s"] is None else f"{c['max_delay_s']:.3g}"
+            lines.append(f"| {col} | {label} | {c['runs']} | {c['detected']} | "
+                         f"{c['isolated']} | {med} | {top} |")
+    return lines
+
+
+def _alarm_lines(doc: dict) -> list[str]:
+    rates = doc["groups"].get("normal_production", {}).get("false_alarms") or {}
+    if not rates:
+        return []
+    return ["", "## False alarms in the fault-free hours", "",
+            "| column | alarms | hours | runs with one | per hour | 95 % upper bound per "
+            "hour |", "|---|---|---|---|---|---|",
+            *(f"| {c} | {a['alarms']} | {a['hours']:.3g} | {a['runs_with_an_alarm']} of "
+              f"{a['runs']} | {a['per_hour']:.3g} | {a['per_hour_upper_95']:.3g} |"
+              for c, a in rates.items())]
+
+
+def _provenance_lines(doc: dict) -> list[str]:
+    return ["", "## Provenance", "",
+            f"- generated code: `{doc['generated_code_sha256']}`; case matrix: "
+            f"`{doc['matrix_hash']}`; turbine: {doc['turbine'] or 'nrel5mw'}; engine: "
+            f"{doc.get('engine') or 'openfast'}",
+            "- versions: " + ", ".join(f"{k} {v}" for k, v in doc["versions"].items()
+                                       if k != "generated_code_sha256"),
+            *(f"- {name}: {g['counts']['scenarios']} scenarios, wall "
+              f"{g['wall_s']:.0f} s this call" for name, g in doc["groups"].items())]
 
 
 def _confirmed_lines(doc: dict) -> list[str]:
@@ -221,9 +342,12 @@ def write(out: Path, result: dict, turbine: str | None = None) -> str:
 
     doc = analyse(out, result, turbine)
     text = markdown(doc)
-    figures = html.per_bin_figure(_rows(Path(out), "normal_production"),
-                                  [doc["controller"], doc["baseline"]], Path(out)) \
-        if "normal_production" in doc["groups"] else []
+    figures = []
+    if "normal_production" in doc["groups"]:
+        rows, cols = _rows(Path(out), "normal_production"), [doc["controller"],
+                                                               doc["baseline"]]
+        figures = [*html.per_bin_figure(rows, cols, Path(out)),
+                   *html.trade_off_figure(rows, cols, Path(out))]
     atomic_write_text(Path(out) / "scorecard.json", json.dumps(doc, indent=1, default=str))
     atomic_write_text(Path(out) / "scorecard.md", text)
     atomic_write_text(Path(out) / "scorecard.html", html.to_html(

@@ -90,14 +90,23 @@ def _sweeps(m: dict, columns: list, turbine: str | None, engine: str, seeds: int
     return raws
 
 
+def deciding(group: str, cand: str, base: str):
+    """The screen's choice of what OpenFAST confirms in ``group``: the scenarios that
+    decide its verdicts (wtftc.campaign.scorecard.screen.decisive)."""
+    from wtftc.campaign.scorecard import screen
+
+    return lambda rows, n, trip: screen.decisive(rows, n, trip, group, cand, base)
+
+
 def run_scorecard(candidate, out: Path, turbine: str | None = None, against="rosco",
                   engine: str = "openfast", seeds: int | None = None, workers: int = 2,
                   scheduler: str | None = None, matrix_path: Path | None = None,
                   quiet: bool = False, screen: int | None = None) -> dict:
     """Every group of the matrix for ``candidate`` and ``against`` (each a preset's name
     or a [controller] table) on ``turbine`` in ``engine``; each group's counts and wall
-    time. ``screen`` N: each group on wtftc's tower_edge plant, then its N scenarios that
-    matter most in OpenFAST (wtftc.campaign.sweep.confirm) into ``<group>_openfast``.
+    time. ``screen`` N: each group on wtftc's tower_edge plant, then the scenarios that
+    decide its verdicts, at least N, in OpenFAST (:func:`deciding`) into
+    ``<group>_openfast``.
     Everything is checked before the first run: the columns, the matrix, every group's
     sweep (its runs too)."""
     from wtftc.campaign import sweep
@@ -127,7 +136,7 @@ def run_scorecard(candidate, out: Path, turbine: str | None = None, against="ros
         counts = sweep.run_sweep(path, out / group, workers, scheduler, quiet=quiet) \
             if screen is None else sweep.run_confirm(
                 path, out / group, screen, out / CONFIRMED.format(group=group), workers,
-                scheduler, quiet=quiet)
+                scheduler, quiet=quiet, pick=deciding(group, cand["name"], base["name"]))
         done[group] = {**counts, "wall_s": time.perf_counter() - t0}
     return {"matrix": m, "matrix_hash": matrix.matrix_hash(m), "columns": [cand, base],
             "groups": done, "screen": screen, "engine": engine}

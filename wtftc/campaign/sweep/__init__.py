@@ -284,9 +284,10 @@ class Incomplete(Exception):
 def run_confirm(sweep_path: Path, out_dir: Path, n: int, confirm_out: Path | None = None,
                 workers: int = 2, scheduler: str | None = None, overwrite: bool = False,
                 quiet: bool = False, retry_failed: bool = False,
-                preset: str | None = None) -> dict:
+                preset: str | None = None, pick=None) -> dict:
     """``--confirm-openfast N`` (wtftc.campaign.sweep.confirm): the sweep on wtftc's plant
-    into ``out_dir``, then its ``n`` scenarios that matter most in OpenFAST into
+    into ``out_dir``, then its ``n`` scenarios that matter most (``pick(rows, n, trip)``'s,
+    default confirm.pick's) in OpenFAST into
     ``confirm_out`` (default: ``<out_dir>_openfast``), then the report, confirm.md there.
     Both folders are checked before anything runs, and resume as a sweep's do. Raises
     Incomplete when the screen has runs missing. Returns both calls' counts, the report,
@@ -308,7 +309,7 @@ def run_confirm(sweep_path: Path, out_dir: Path, n: int, confirm_out: Path | Non
     if len({r["run_id"] for r in saved}) < screen["runs"]:
         raise Incomplete(f"{len(saved)} of {screen['runs']} screen runs saved in {out_dir}")
     trip = confirm.trip_of(sw)
-    chosen = confirm.pick(saved, n, trip)
+    chosen = (pick or confirm.pick)(saved, n, trip)
     runs = confirm.confirm_runs(sw_of, chosen)
     if not quiet:
         print(f"confirming {len(chosen)} scenarios in OpenFAST ({len(runs)} runs): "

@@ -1,0 +1,90 @@
+"""The screen's choice of what OpenFAST confirms (wtftc.campaign.scorecard.screen): the
+scenarios that decide a group's verdicts, on rows whose answer is known."""
+
+from wtftc.campaign.scorecard import screen
+from wtftc.campaign.scorecard.scored import METRICS
+from wtftc.campaign.sweep import confirm
+
+KEYS = [k for k, *_ in METRICS["normal_production"]]
+
+
+def row(controller, wind, seed, status="ok", cause=None, peak=1.05, fault="none",
+        target=None, **values):
+    """A sweep row with what the chooser and the outcome rules read; every metric 1
+    unless given."""
+    return {"controller": controller, "mean_wind_mps": wind, "turbulence_class": "B",
+            "seed": seed, "fault_type": fault, "runaway_target_deg": target,
+            "onset_s": None if fault == "none" else 40.0, "status": status, "cause": cause,
+            "diverged_at_s": None if status == "ok" else 50.0,
+            "overspeed_peak_over_rated": peak, "overspeed_peak_over_rated_after_onset":
+            None if fault == "none" else peak, "speed_min_over_rated_after_onset": None,
+            "transient_s": 30.0, **{k: 1.0 for k in KEYS}, **values}
+
+
+def grid(ratios):
+    """Two columns over winds × seeds, the controller's metric ``ratios[(wind, seed)]``
+    times the baseline's."""
+    rows = []
+    for (wind, seed), x in ratios.items():
+        rows.append(row("pi", wind, seed))
+        rows.append(row("aftc", wind, seed, rms_speed_error_rad_s=x))
+    return rows
+
+
+def test_each_metric_sends_its_two_ends_and_no_more_than_it_needs():
+    ratios = {(w, s): 0.8 for w in (8.0, 12.0, 16.0) for s in range(4)}
+    ratios[(12.0, 2)] = 1.3  # the scenario most against "better"
+    ratios[(16.0, 1)] = 0.5  # the one most for it
+    chosen = screen.decisive(grid(ratios), 2, 1.2, "normal_production", "aftc", "pi")
+    keys = {k for k, _ in chosen}
+    by = {confirm.scenario(r): (r["mean_wind_mps"], r["seed"]) for r in grid(ratios)}
+    assert {by[k] for k in keys} >= {(12.0, 2), (16.0, 1)}
+    why = dict(chosen)
+    against = next(k for k in keys if by[k] == (12.0, 2))
+    assert "#1 against" in why[against] and "1.3" in why[against]
+    # every other metric is 1 everywhere: its ends are ties, two scenarios at most each
+    assert len(chosen) <= 2 * len(KEYS)
+
+
+def test_a_worse_controller_is_argued_against_by_its_best_scenario():
+    ratios = {(w, s): 1.2 for w in (8.0, 12.0) for s in range(4)}
+    ratios[(8.0, 3)] = 0.7
+    chosen = screen.decisive(grid(ratios), 1, 1.2, "normal_production", "aftc", "pi")
+    first = next(why for _, why in chosen if why.startswith("RMS"))
+    assert "#1 against" in first and "0.7" in first
+
+
+def test_at_least_n_are_chosen_where_the_group_has_them():
+    ratios = {(w, s): 0.9 + 0.01 * s + 0.001 * w for w in (8.0, 12.0, 16.0)
+              for s in range(6)}
+    for n in (1, 5, 12, 18, 40):
+        chosen = screen.decisive(grid(ratios), n, 1.2, "normal_production", "aftc", "pi")
+        assert len(chosen) >= min(n, len(ratios))
+        assert len({k for k, _ in chosen}) == len(chosen)
+
+
+def test_outcomes_that_differ_come_first_and_a_fault_lost_by_both_once():
+    rows = []
+    for seed in range(3):
+        for c in ("aftc", "rosco"):
+            rows.append(row(c, 16.0, seed, fault="runaway", target=90.0,
+                            peak=1.3 + 0.01 * seed))  # tripped by both
+        rows.append(row("aftc", 12.0, seed, fault="lock", peak=1.1))
+        rows.append(row("rosco", 12.0, seed, fault="lock", peak=1.25 if seed == 1 else 1.1))
+    chosen = screen.decisive(rows, 1, 1.2, "actuator_faults", "aftc", "rosco")
+    first_key, first_why = chosen[0]
+    assert first_key[0] == "lock" and "controller held, baseline tripped" in first_why
+    feather = [(k, why) for k, why in chosen if k[0] == "runaway_feather"]
+    assert len(feather) == 1 and "tripped by both" in feather[0][1]
+    assert feather[0][0][confirm.AXES.index("seed") + 1] == 2  # the highest peak
+
+
+def test_a_metric_without_values_sends_nothing():
+    rows = grid({(8.0, 0): 0.9, (12.0, 0): 0.95})
+    for r in rows:
+        r["blade_root_flap_del_1hz_Nm"] = None  # wtftc's plant has no blade flap
+    ends = screen._ends(screen._by_scenario(rows, "aftc", "pi"), 1.2,
+                        ("blade_root_flap_del_1hz_Nm", "blade", "N m", True))
+    assert ends == []
+    chosen = screen.decisive(rows, 1, 1.2, "normal_production", "aftc", "pi")
+    assert not any(why.startswith("blade") for _, why in chosen)

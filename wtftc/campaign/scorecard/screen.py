@@ -1,0 +1,108 @@
+"""Which scenarios a screened scorecard runs again in OpenFAST: those that decide its
+verdicts (``wtftc scorecard --screen N``).
+
+The screen runs every scenario of a group on wtftc's plant. A verdict is a paired ratio
+over the scenarios both columns held (wtftc.campaign.scorecard.stats), and an outcome
+count over every scenario (wtftc.campaign.scorecard.outcome). What decides them, and so
+what OpenFAST confirms, in this order:
+
+1. **every scenario whose outcome differs between the columns** (one held, the other
+   tripped or was brought down): these decide the outcome counts, and leave the ratios;
+2. **one scenario of each fault both columns lost**, the one with the highest peak speed:
+   whether OpenFAST loses it too;
+3. **each metric's two ends**: the scenario whose paired ratio argues most against the
+   screen's ratio (the largest log ratio where the controller is better, the smallest
+   where it is worse) and the one that carries it most. A verdict rests on its ends: the
+   bootstrap interval over the seeds is widest where they differ most;
+
+then further ends of every metric in turn, the next-to-last and so on, until at least N
+are chosen. The list holds every scenario of steps 1 to 3 even when that is more than N:
+a verdict is confirmed whole or not at all.
+"""
+
+from __future__ import annotations
+
+import math
+
+from wtftc.campaign.scorecard import outcome, scored
+from wtftc.campaign.sweep import confirm
+from wtftc.campaign.sweep.dlc import fault_label
+
+
+def _by_scenario(rows: list[dict], cand: str, base: str) -> dict[tuple, dict]:
+    """{scenario: {"cand": row, "base": row}} over the scenarios both columns ran."""
+    by: dict[tuple, dict] = {}
+    for r in rows:
+        side = "cand" if r["controller"] == cand else "base" if r["controller"] == base \
+            else None
+        if side is not None:
+            by.setdefault(confirm.scenario(r), {})[side] = r
+    return {k: v for k, v in by.items() if len(v) == 2}
+
+
+def _outcomes(pair: dict, trip: float) -> tuple[str, str]:
+    return tuple(outcome.classify(pair[s], pair[s].get("onset_s"), trip)
+                 for s in ("cand", "base"))
+
+
+def _peak(pair: dict) -> float:
+    vals = [pair[s].get("overspeed_peak_over_rated") for s in ("cand", "base")]
+    return max((v for v in vals if v is not None and math.isfinite(v)), default=0.0)
+
+
+def _lost(by: dict, trip: float) -> dict[tuple, str]:
+    """Steps 1 and 2 of the module docstring: {scenario: why}."""
+    chosen: dict[tuple, str] = {}
+    worst_both: dict[str, tuple] = {}
+    for k in sorted(by, key=lambda k: -_peak(by[k])):
+        mine, theirs = _outcomes(by[k], trip)
+        if mine != theirs:
+            chosen[k] = f"outcomes differ: controller {mine}, baseline {theirs}"
+        elif mine != "held":
+            worst_both.setdefault(fault_label(by[k]["cand"]), k)
+    for label, k in worst_both.items():
+        chosen.setdefault(k, f"{label} {_outcomes(by[k], trip)[0]} by both (the highest "
+                             "peak speed of those)")
+    return chosen
+
+
+def _ends(by: dict, trip: float, metric: tuple) -> list[tuple[tuple, str]]:
+    """One metric's scenarios both held, by how strongly each argues against the screen's
+    ratio, then for it, alternately: [against #1, for #1, against #2, ...]."""
+    key, what = metric[0], metric[1]
+    logs = []
+    for k, pair in by.items():
+        if _outcomes(pair, trip) != ("held", "held"):
+            continue
+        a, b = pair["cand"].get(key), pair["base"].get(key)
+        if a is None or b is None or not (math.isfinite(a) and math.isfinite(b)) \
+                or a <= 0.0 or b <= 0.0:
+            continue
+        logs.append((math.log(a / b), k))
+    if not logs:
+        return []
+    mean = sum(x for x, _ in logs) / len(logs)
+    against = sorted(logs, key=lambda e: -e[0] if mean <= 0.0 else e[0])
+    out = []
+    for i in range(len(logs)):
+        for side, (x, k) in (("against", against[i]), ("for", against[-1 - i])):
+            out.append((k, f"{what}: #{i + 1} {side} the screen's ratio ({math.exp(x):.3g})"))
+    return out
+
+
+def decisive(rows: list[dict], n: int, trip: float, group: str, cand: str,
+             base: str) -> list[tuple[tuple, str]]:
+    """The scenarios (confirm.scenario keys, each with why) of one group's screened
+    ``rows`` that OpenFAST confirms: the module docstring's, at least ``n`` where the group
+    has them."""
+    by = _by_scenario(rows, cand, base)
+    chosen = _lost(by, trip)
+    ends = [_ends(by, trip, m) for m in scored.METRICS.get(group, [])]
+    depth = max((len(e) for e in ends), default=0)
+    for i in range(depth):
+        if i >= 2 and len(chosen) >= n:  # the first two of each: against and for
+            break
+        for e in ends:
+            if i < len(e):
+                chosen.setdefault(*e[i])
+    return list(chosen.items())
