@@ -24,6 +24,13 @@ Kinds (fields, units and defaults in ``docs/wind.md``):
   0, the default here, keeps the hub-height point. A run's configuration fills in its
   turbine's rotor radius when none is given (wtftc.config: the rotor-effective wind).
 - ``eog``: IEC 61400-1 ed. 3 extreme operating gust (6.3.2.2), closed form.
+- ``ecd``: IEC 61400-1 ed. 3 extreme coherent gust with direction change (6.3.2.5), closed
+  form: the horizontal speed and its direction. wtftc's plants have no yaw: they take the
+  rotor-normal component V cos θ (:meth:`Wind.__call__`); OpenFAST's uniform wind file gets
+  the speed and the direction (:meth:`Wind.horizontal`, :meth:`Wind.direction`).
+- ``ramp``: ``speed_mps`` until ``start_s``, linear to ``end_mps`` over ``duration_s``, held
+  after (the ramp of NREL's controller test bench in WEIS, ``examples/19_controller_test_
+  bench``: a start speed, a change and a duration).
 - ``file``: an OpenFAST InflowWind uniform wind file (``.hh``/``.wnd``/anything not ``.csv``)
   or a CSV with a header ``time_s,speed_mps``; linear in time, held outside the range.
 
@@ -68,7 +75,9 @@ from wtftc.artefacts import layout as lay
 from wtftc.errors import ConfigError
 from wtftc.files import read_user_bytes
 
-KINDS = ("constant", "steps", "paper_random", "ntm", "eog", "file")
+KINDS = ("constant", "steps", "paper_random", "ntm", "eog", "file", "ecd", "ramp")
+#: the kinds without a seed: one run per scenario (a sweep runs each once)
+DETERMINISTIC = ("constant", "steps", "eog", "ecd", "ramp")
 #: where an NTM comes from ([wind] field): wtftc's own synthesis at one point (filtered
 #: over the rotor), or read from TurbSim's full field, the one OpenFAST's engine uses
 #: (wtftc.config resolves it: wtftc.model.wind_field)
@@ -86,6 +95,8 @@ V_REF = {"I": 50.0, "II": 42.5, "III": 37.5}
 LAMBDA1_M = 42.0  # turbulence scale parameter Λ1 [m], hub height >= 60 m (IEC 6.3)
 KAIMAL_LU_OVER_LAMBDA1 = 8.1  # L_u = 8.1 Λ1 (IEC Annex B, Table B.1)
 EOG_T_S = 10.5  # EOG duration T [s] (IEC 6.3.2.2)
+ECD_T_S = 10.0  # ECD rise time T [s] (IEC 6.3.2.5)
+ECD_V_CG_MPS = 15.0  # ECD gust magnitude V_cg [m/s] (IEC 6.3.2.5)
 V_MAX_MPS = 70.0  # upper bound of configured speeds: V_e50 of class I (1.4 × 50 m/s)
 NTM_MIN_PERIOD_S = 600.0  # the 10-min period over which σ1 is defined
 SYNTH_MARGIN_S = 10.0  # synthesized series extend this far past t_final
@@ -100,6 +111,8 @@ _FIELDS = {
     "eog": {"mean_mps": 11.4, "start_s": 20.0, "turbine_class": "I", "turbulence_class": "B",
             "rotor_diameter_m": 126.0},
     "file": {"path": None},
+    "ecd": {"mean_mps": 11.4, "start_s": 20.0, "sign": 1, "turbine_class": "I"},
+    "ramp": {"speed_mps": 9.4, "end_mps": 13.4, "start_s": 20.0, "duration_s": 125.0},
 }
 
 
@@ -163,6 +176,16 @@ class Wind:
     def _eval(self, t: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def horizontal(self, t) -> np.ndarray:
+        """The horizontal speed [m/s] at hub height, whatever its direction (an ECD's
+        differs from the rotor-normal wind the plant takes: :class:`ECDWind`)."""
+        return self(t)
+
+    def direction(self, t) -> np.ndarray:
+        """The wind's direction [rad] from the rotor's axis (0: along it; no kind but the
+        ECD turns)."""
+        return np.zeros(np.shape(np.asarray(t, dtype=float)))
+
     def describe(self) -> dict:
         """JSON-serializable record: kind, the resolved fields (defaults filled in: feed them
         back with the kind to :func:`wind_from_config` to rebuild this wind), seed (None if
@@ -223,6 +246,57 @@ class EOGWind(Wind):
         shape = np.sin(3.0 * np.pi * x) * (1.0 - np.cos(2.0 * np.pi * x))
         return np.where((x >= 0.0) & (x <= 1.0), self.mean_mps - 0.37 * self.v_gust_mps * shape,
                         self.mean_mps)
+
+
+def ecd_direction_change_rad(mean_mps: float) -> float:
+    """θ_cg [rad]: 180° below V_hub = 4 m/s, 720° / V_hub (V_hub in m/s) from 4 m/s to V_ref
+    (IEC 61400-1 ed. 3, 6.3.2.5)."""
+    return math.radians(180.0 if mean_mps < 4.0 else 720.0 / mean_mps)
+
+
+class ECDWind(Wind):
+    """IEC ECD (IEC 61400-1 ed. 3, 6.3.2.5): for τ = t - start in [0, T], T = 10 s,
+    V = V_hub + 0.5 V_cg (1 - cos(π τ/T)) and θ = ±0.5 θ_cg (1 - cos(π τ/T)); before, V_hub
+    and 0; after, V_hub + V_cg and ±θ_cg. Called, the rotor-normal component V cos θ: what a
+    rotor that does not yaw takes along its axis (wtftc's plants have no yaw DOF)."""
+
+    kind = "ecd"
+
+    def __init__(self, mean_mps: float, start_s: float, sign: int, **kw):
+        super().__init__(**kw)
+        self.mean_mps, self.start_s, self.sign = mean_mps, start_s, sign
+        self.theta_cg = ecd_direction_change_rad(mean_mps)
+
+    def _rise(self, t) -> np.ndarray:
+        """0.5 (1 - cos(π τ/T)) clipped to [0, 1]: the shape of both the speed's
+        rise and the direction's (6.3.2.5)."""
+        tau = np.clip((np.asarray(t, dtype=float) - self.start_s) / ECD_T_S, 0.0, 1.0)
+        return 0.5 * (1.0 - np.cos(np.pi * tau))
+
+    def horizontal(self, t) -> np.ndarray:
+        return self.mean_mps + ECD_V_CG_MPS * self._rise(t)  # IEC 6.3.2.5, V(z, t)
+
+    def direction(self, t) -> np.ndarray:
+        return self.sign * self.theta_cg * self._rise(t)  # IEC 6.3.2.5, θ(t)
+
+    def _eval(self, t):
+        return self.horizontal(t) * np.cos(self.direction(t))
+
+
+class RampWind(Wind):
+    """``speed`` until ``start``, linear to ``end`` over ``duration``, then held."""
+
+    kind = "ramp"
+
+    def __init__(self, speed_mps: float, end_mps: float, start_s: float, duration_s: float,
+                 **kw):
+        super().__init__(**kw)
+        self.speed_mps, self.end_mps = speed_mps, end_mps
+        self.start_s, self.duration_s = start_s, duration_s
+
+    def _eval(self, t):
+        x = np.clip((t - self.start_s) / self.duration_s, 0.0, 1.0)
+        return self.speed_mps + (self.end_mps - self.speed_mps) * x
 
 
 # --------------------------------------------------------------------------- validation
@@ -309,7 +383,49 @@ def wind_from_config(cfg: dict, t_final: float, seed: int = 0, where: str = "win
         return _ntm(p, f, t_final, seed)
     if kind == "eog":
         return _eog(p, f, t_final)
+    if kind == "ecd":
+        return _ecd(p, f, t_final)
+    if kind == "ramp":
+        return _ramp(p, f, t_final)
     return _file(p["path"], f["path"])
+
+
+def _start(value, field: str, t_final: float, what: str) -> float:
+    start = _number(value, field, lo=0.0, lo_open=False, unit=" [s]")
+    if start >= t_final:
+        raise ConfigError(field, start, f"a time in [0, t_final_s = {t_final:g}) s, so that "
+                                        f"{what} starts within the run")
+    return start
+
+
+def _ecd(p, f, t_final) -> ECDWind:
+    tb = _choice(p["turbine_class"], f["turbine_class"], tuple(V_REF))
+    mean = _number(p["mean_mps"], f["mean_mps"], lo=0.0, hi=V_REF[tb],
+                   unit=f" [m/s] (up to V_ref = {V_REF[tb]:g} m/s of turbine class {tb})")
+    sign = p["sign"]
+    if isinstance(sign, bool) or sign not in (1, -1):
+        raise ConfigError(f["sign"], sign, "1 or -1: the direction change's sign")
+    start = _start(p["start_s"], f["start_s"], t_final, "the gust")
+    theta = ecd_direction_change_rad(mean)
+    return ECDWind(mean, start, int(sign),
+                   parameters={"mean_mps": mean, "start_s": start, "sign": int(sign),
+                               "turbine_class": tb},
+                   derived={"standard": "IEC 61400-1 ed. 3, 6.3.2.5 ECD", "T_s": ECD_T_S,
+                            "V_cg_mps": ECD_V_CG_MPS, "theta_cg_deg": math.degrees(theta),
+                            "rotor_normal": "the plant takes V cos(theta): it has no yaw",
+                            "v_end_mps": mean + ECD_V_CG_MPS,
+                            "v_end_rotor_normal_mps": (mean + ECD_V_CG_MPS) * math.cos(theta)})
+
+
+def _ramp(p, f, t_final) -> RampWind:
+    v0 = _speed(p["speed_mps"], f["speed_mps"])
+    v1 = _speed(p["end_mps"], f["end_mps"])
+    start = _start(p["start_s"], f["start_s"], t_final, "the ramp")
+    duration = _number(p["duration_s"], f["duration_s"], lo=0.0, hi=36000.0, unit=" [s]")
+    return RampWind(v0, v1, start, duration,
+                    parameters={"speed_mps": v0, "end_mps": v1, "start_s": start,
+                                "duration_s": duration},
+                    derived={"rate_mps2": (v1 - v0) / duration})
 
 
 def _steps(p, f) -> StepWind:

@@ -488,14 +488,20 @@ def module_file(fst: Path, key: str) -> Path:
 
 
 def write_wind(path: Path, t_final: float, wind) -> None:
-    """The run's wind as InflowWind's uniform wind file: speed every WIND_DT s, no
-    direction, no shear, no gust."""
+    """The run's wind as InflowWind's uniform wind file, every WIND_DT s: the horizontal
+    speed and its direction (wind.horizontal, wind.direction: an ECD turns, every other
+    kind blows along the rotor's axis), no shear, no gust. The direction goes in degrees,
+    InflowWind's unit, with wtftc's sign: positive turns counter-clockwise seen from above,
+    as InflowWind's Delta does."""
     t = np.arange(0.0, t_final + 2 * WIND_DT, WIND_DT)
-    u = np.broadcast_to(np.asarray(wind(t), dtype=float), t.shape)
+    u = np.broadcast_to(np.asarray(wind.horizontal(t), dtype=float), t.shape)
+    direction_deg = np.degrees(np.broadcast_to(np.asarray(wind.direction(t), dtype=float),
+                                               t.shape))
     head = ["! wtftc: the run's wind (uniform over the rotor), docs/openfast.md",
             "! Time  Wind  Wind  Vert.  Horiz.  Pwr.Law  Lin.Vert.  Gust",
             "! (s)  (m/s)  (deg)  (m/s)  (-)  (-)  (-)  (m/s)"]
-    rows = [f"{a:.4f} {b:.6f} 0 0 0 0 0 0" for a, b in zip(t, u, strict=True)]
+    rows = [f"{a:.4f} {b:.6f} {c:.6f} 0 0 0 0 0"
+            for a, b, c in zip(t, u, direction_deg, strict=True)]
     path.write_text("\n".join(head + rows) + "\n")
 
 

@@ -28,11 +28,21 @@ from wtftc.sim import rhs
 
 TOP_KEYS = {"name", "mode", "samples", "sampling_seed", "t_final_s", "dt_s", "output_rate_hz",
             "batch_size", "controllers", "optional_controllers", "plants", "wind", "fault",
-            "profile", "mismatch", "fault_free_twins", "turbine", "dlc", "tuning", "engine"}
+            "profile", "mismatch", "fault_free_twins", "turbine", "dlc", "tuning", "engine", "host"}
 #: the [mismatch] table's keys: the plant's factors against the controllers' model
 #: (config.MISMATCH), each an axis like any other (1.0: none)
 MISMATCH_KEYS = tuple(config.MISMATCH)
-WIND_KEYS = {"mean_mps", "turbulence_class", "seed", "rotor_radius_m", "field"}
+WIND_KEYS = {"mean_mps", "turbulence_class", "seed", "rotor_radius_m", "field", "kind",
+             "event_s", "step_mps", "ramp_mps", "ramp_s", "sign", "turbine_class"}
+#: the kinds a sweep's wind may be ([wind] kind, an axis): the NTM, or a deterministic wind
+#: built around the scenario's mean_mps (:func:`deterministic_wind`), run once (no seed)
+WIND_KINDS = ("ntm", "eog", "ecd", "steps", "ramp")
+#: the deterministic winds' shape: [wind] key → (default, low, high, what), one value for
+#: the sweep (the WEIS controller test bench's step and ramp are one size each)
+WIND_SHAPE = {"event_s": (40.0, 0.0, 36000.0, "when the gust, step or ramp starts [s]"),
+              "step_mps": (2.0, -30.0, 30.0, "the step's size [m/s], centred on mean_mps"),
+              "ramp_mps": (4.0, -30.0, 30.0, "the ramp's change [m/s], centred on mean_mps"),
+              "ramp_s": (125.0, 0.0, 36000.0, "the ramp's duration [s]")}
 #: one fault per run, an actuator's or a sensor's (model/faults.py's list), or none
 FAULT_TYPES = ("none", *faults.ACTUATOR_FAULT_TYPES, *faults.SENSOR_FAULT_TYPES)
 #: the fault table key each fault type reads its magnitude from
@@ -118,6 +128,12 @@ class Sweep:
     #: where wtftc's plant takes every run's NTM from ([wind] field): None, its own
     #: synthesis; "turbsim", the TurbSim field OpenFAST runs on (in OpenFAST: always)
     wind_field: str | None = None
+    #: the deterministic winds' shape ([wind] event_s, step_mps, ramp_mps, ramp_s, sign,
+    #: turbine_class), None for a sweep of NTM winds only
+    wind_shape: dict | None = None
+    #: what stands between the controllers and the plant (HOSTS): the benchmark's sensors
+    #: and actuator, or the controller as its deck ships it
+    host: str = "benchmark"
     #: every column, the optional ones too: name → wtftc.controller.Controller, in the
     #: file's order (the summary's order)
     columns: dict = field(default_factory=dict)
@@ -257,7 +273,70 @@ def _settings(raw: dict) -> dict:
         "rotor_radius": _rotor_radius(raw),
         "engine": engine,
         "wind_field": _wind_field(raw),
+        "host": _host(raw),
     }
+
+
+#: what stands between a sweep's controllers and the plant ([host]): the benchmark's
+#: sensors and pitch actuator (the default), or the controller as its deck ships it
+HOSTS = ("benchmark", "as_shipped")
+
+
+def _host(raw: dict) -> str:
+    """host: "benchmark" (the sweep's profile; in OpenFAST the benchmark actuator) or
+    "as_shipped" (exact sensors, and in OpenFAST no benchmark actuator: :func:`_as_shipped`),
+    fault-free only (the faults are the benchmark actuator's and sensors')."""
+    host = raw.get("host", "benchmark")
+    if not isinstance(host, str) or host not in HOSTS:
+        raise ConfigError("host", host, "one of " + ", ".join(HOSTS))
+    fault = raw.get("fault", {})
+    types = _listed(fault.get("type", "none")) if isinstance(fault, dict) else []
+    if host == "as_shipped" and any(t != "none" for t in types):
+        raise ConfigError("host", host, 'benchmark with faults (fault.type other than "none": '
+                          "the faults are the benchmark actuator's and sensors')")
+    return host
+
+
+def _wind_shape(raw: dict, t_final: float, turbine: str | None) -> dict | None:
+    """The deterministic winds' shape (WIND_SHAPE, sign, turbine_class, and the turbine's
+    rotor diameter for the EOG), one value each; None when every kind is the NTM, whose
+    runs refuse those keys. A sweep of deterministic winds only takes one seed and no
+    rotor radius (they draw nothing and are uniform over the rotor)."""
+    tab = raw.get("wind", {})
+    if not isinstance(tab, dict):
+        return None  # (refused by _tables)
+    kinds = _listed(tab.get("kind", "ntm"))
+    for k in kinds:
+        _check_value("wind.kind", k, "str", choices=WIND_KINDS)
+    given = [k for k in (*WIND_SHAPE, "sign", "turbine_class") if k in tab]
+    if set(kinds) == {"ntm"}:
+        if given:
+            raise ConfigError(f"wind.{given[0]}", tab[given[0]], "a key of a deterministic "
+                              "wind only (kind = " + ", ".join(WIND_KINDS[1:]) + ")")
+        return None
+    if "ntm" not in kinds:
+        for key, why in (("seed", "one seed: a deterministic wind draws nothing"),
+                         ("rotor_radius_m", "no rotor radius: a deterministic wind is "
+                          "uniform over the rotor")):
+            if key in tab and (key == "rotor_radius_m" or len(_listed(tab[key])) > 1
+                               or isinstance(tab[key], dict)):
+                raise ConfigError(f"wind.{key}", tab[key], why)
+    shape = {k: _check_value(f"wind.{k}", tab.get(k, d), "float", lo=lo, hi=hi)
+             for k, (d, lo, hi, _) in WIND_SHAPE.items()}
+    if shape["event_s"] >= t_final:
+        raise ConfigError("wind.event_s", shape["event_s"], f"a time before t_final_s = "
+                          f"{t_final:g} s")
+    if shape["ramp_s"] <= 0:
+        raise ConfigError("wind.ramp_s", shape["ramp_s"], "a duration > 0 s")
+    sign = tab.get("sign", 1)
+    if isinstance(sign, bool) or sign not in (1, -1):
+        raise ConfigError("wind.sign", sign, "1 or -1: the sign of the ECD's direction change")
+    shape["sign"] = int(sign)
+    shape["turbine_class"] = _check_value("wind.turbine_class", tab.get("turbine_class", "I"),
+                                          "str", choices=tuple(wind.V_REF))
+    t = turbine_file.load(turbine or turbine_file.DEFAULT)
+    shape["rotor_diameter_m"] = 2.0 * float(t.values["rotor_radius"])
+    return shape
 
 
 def _wind_field(raw: dict) -> str | None:
@@ -409,24 +488,48 @@ def _axes(raw: dict, wind_tab: dict, fault_tab: dict, mode: str, t_final: float,
         # a default onset that fits the run: never refuse a value the user did not write
         _axis("fault.onset_s", fault_tab.get("onset_s", min(20.0, t_final / 2)), "float",
               mode, lo=0.0, hi=t_final, lo_open=False),
-        _axis("fault.rho", fault_tab.get("rho", 0.5), "float", mode, lo=0.0, hi=1.0,
+        _magnitude_axis("fault.rho", fault_tab.get("rho", 0.5), "float", mode, lo=0.0, hi=1.0,
               lo_open=True),
         _axis("fault.angle_deg", fault_tab.get("angle_deg", "current"), "angle", mode,
               lo=0.0, hi=90.0),
-        _axis("fault.severity", fault_tab.get("severity", 1.0), "float", mode, lo=0.0,
+        _magnitude_axis("fault.severity", fault_tab.get("severity", 1.0), "float", mode, lo=0.0,
               hi=1.0, lo_open=True),
-        *[_axis(f"fault.{k}", fault_tab.get(k, d), "float", mode, lo=lo, hi=hi,
-                lo_open=lo == 0.0) for k, (d, lo, hi, _) in SENSOR_MAGNITUDES.items()],
+        *[_magnitude_axis(f"fault.{k}", fault_tab.get(k, d), "float", mode, lo=lo, hi=hi,
+                          lo_open=lo == 0.0) for k, (d, lo, hi, _) in SENSOR_MAGNITUDES.items()],
         *[_axis(f"mismatch.{k}", raw.get("mismatch", {}).get(k, 1.0), "float", mode,
                 lo=0.1, hi=10.0, lo_open=False) for k in MISMATCH_KEYS],
         # which of a quantity's two sensors a sensor fault hits (last: a single value
         # draws nothing, and earlier sweeps' scenarios stay what they were)
         _axis("fault.sensor", fault_tab.get("sensor", 1), "int", mode, lo=1, hi=2),
         # a runaway's target (last, as the sensor: earlier sweeps' scenarios unchanged)
-        _axis("fault.target_deg", fault_tab.get("target_deg", 0.0), "float", mode, lo=0.0,
+        _magnitude_axis("fault.target_deg", fault_tab.get("target_deg", 0.0), "float", mode,
+                        lo=0.0,
               hi=90.0, lo_open=False),
+        # the wind's kind (last, as the sensor: earlier sweeps' scenarios unchanged)
+        _axis("wind.kind", wind_tab.get("kind", "ntm"), "str", mode, choices=WIND_KINDS),
         *_tuning_axes(raw.get("tuning"), mode),
     ]
+
+
+class ByType(tuple):
+    """A fault magnitude given per fault type, ((type, value), ...) sorted by type: one
+    value of its axis, each run taking its own type's (e.g. the benchmark's gains, 1.2 on
+    a pitch sensor and 1.1 on a rotor speed sensor, in one sweep)."""
+
+
+def _magnitude_axis(key: str, spec, kind: str, mode: str, **bounds) -> Axis:
+    """A fault magnitude's axis (:func:`_axis`), or a table of one value per fault type
+    that reads it ({pitch_sensor_gain = 1.2, rotor_speed_sensor_gain = 1.1}): one value."""
+    if not isinstance(spec, dict) or not spec or set(spec) <= {"min", "max", "n"}:
+        return _axis(key, spec, kind, mode, **bounds)
+    mag = key.removeprefix("fault.")
+    readers = sorted(t for t, m in MAGNITUDE.items() if m == mag)
+    for typ, v in spec.items():
+        if typ not in readers:
+            raise ConfigError(f"{key}.{typ}", v, "a fault type that reads " + mag + ": "
+                              + ", ".join(readers) + " (or a range {min, max, n})")
+        _check_value(f"{key}.{typ}", v, kind, **bounds)
+    return Axis(key, values=(ByType(sorted((t, float(v)) for t, v in spec.items())),))
 
 
 def _tuning_axes(tab, mode: str) -> list[Axis]:
@@ -459,6 +562,36 @@ def _check_together(by_key: dict[str, Axis], t_final: float, columns: dict) -> N
     if roscos and "paper" in (by_key["plants"].values or ()):
         raise ConfigError("plants", "paper", f"nrel5mw or tower when controllers include "
                           f"{roscos[0]} (ROSCO's DISCON.IN is tuned for the NREL 5-MW)")
+
+
+def _check_winds(by_key: dict[str, Axis], shape: dict | None, t_final: float) -> None:
+    """Every deterministic wind of the sweep built once (wtftc.model.wind checks it: an
+    EOG's mean below V_e1, speeds > 0), a refusal naming the sweep's key: a step or ramp
+    that would reach a calm names its size."""
+    if shape is None:
+        return
+    a = by_key["wind.mean_mps"]
+    means = a.grid() if a.values is not None or a.n else list(a.range)
+    for kind in by_key["wind.kind"].grid():
+        for mean in means if kind != "ntm" else ():
+            for tc in by_key["wind.turbulence_class"].grid():
+                tab = deterministic_wind(kind, float(mean), tc, shape)
+                if kind in ("steps", "ramp") and min(tab["speed_mps"], tab.get(
+                        "end_mps", tab.get("steps", [[0, 1.0]])[0][1])) <= 0:
+                    key = "wind.step_mps" if kind == "steps" else "wind.ramp_mps"
+                    raise ConfigError(key, shape[key[5:]], f"a change that keeps the {kind} "
+                                      f"around mean_mps = {mean:g} m/s above 0 m/s")
+                wind.wind_from_config(tab, t_final, where="wind")
+
+
+def _check_by_type(by_key: dict[str, Axis]) -> None:
+    """A magnitude given per fault type names every swept type that reads it."""
+    types = [t for t in by_key["fault.type"].grid() if t != "none"]
+    for t in types:
+        value = by_key[f"fault.{MAGNITUDE[t]}"].values
+        if value and isinstance(value[0], ByType) and t not in dict(value[0]):
+            raise ConfigError(f"fault.{MAGNITUDE[t]}", dict(value[0]), f"a value for every "
+                              f"swept fault type that reads it: {t} has none")
 
 
 #: the most runs one sweep may hold (before duplicates are dropped): about a week of the
@@ -506,9 +639,12 @@ def parse_sweep(raw: dict) -> Sweep:
     columns, optional = resolve(raw)
     _check_oracles(raw, columns)
     wind_tab, fault_tab = _tables(raw)
+    settings["wind_shape"] = _wind_shape(raw, settings["t_final"], settings["turbine"])
     axes = _axes(raw, wind_tab, fault_tab, mode, settings["t_final"], settings["engine"],
                  _controllers(columns, optional))
     _check_together({a.key: a for a in axes}, settings["t_final"], columns)
+    _check_winds({a.key: a for a in axes}, settings["wind_shape"], settings["t_final"])
+    _check_by_type({a.key: a for a in axes})
     _check_size(mode, samples, axes, settings["fault_free_twins"])
     # (engine = "wtftc" is the default: absent, the ids of earlier sweeps)
     canonical = json.dumps({**{k: v for k, v in raw.items() if k != "engine"}, "mode": mode,
@@ -548,33 +684,13 @@ def load_sweep(path: Path, engine: str | None = None, preset: str | None = None)
 
 def _point(sw: Sweep, values: dict) -> dict:
     """One run: the axis values that matter for it (the rest None) and its configuration."""
-    ftype = values["fault.type"]
     p = {"controller": values["controllers"], "plant": values["plants"],
          "mean_wind_mps": float(values["wind.mean_mps"]),
          "turbulence_class": values["wind.turbulence_class"], "seed": int(values["wind.seed"]),
-         "fault_type": ftype, "blade": None, "onset_s": None, "fault_sensor": None,
-         **dict.fromkeys(MAGNITUDE_COLUMN.values())}
-    fault_tabs = None
-    if ftype != "none":
-        p["blade"], p["onset_s"] = int(values["fault.blade"]), float(values["fault.onset_s"])
-        tab = {"blade": p["blade"], "type": ftype, "onset_s": p["onset_s"]}
-        if faults.TYPES[ftype].signal not in ("", "pitch"):  # a speed sensor: no blade
-            p["blade"] = None
-            del tab["blade"]
-        if faults.TYPES[ftype].acts_on == "sensor":
-            p["fault_sensor"] = int(values["fault.sensor"])
-            if p["fault_sensor"] != 1:  # (absent: the run ids of earlier sweeps)
-                tab["sensor"] = p["fault_sensor"]
-        mag = MAGNITUDE[ftype]
-        tab[mag] = values[f"fault.{mag}"]
-        p[MAGNITUDE_COLUMN[mag]] = str(tab[mag]) if mag == "angle_deg" else float(tab[mag])
-        fault_tabs = [tab]
-    wind_tab = {"kind": "ntm", "mean_mps": p["mean_wind_mps"],
-                "turbulence_class": p["turbulence_class"]}
-    if sw.rotor_radius:  # (absent: the run ids of earlier sweeps)
-        wind_tab["rotor_radius_m"] = sw.rotor_radius
-    if sw.wind_field and sw.engine == "wtftc":  # (OpenFAST's runs read it anyway: their ids
-        wind_tab["field"] = sw.wind_field       # are those of the same file without it)
+         "fault_type": values["fault.type"], "blade": None, "onset_s": None,
+         "fault_sensor": None, **dict.fromkeys(MAGNITUDE_COLUMN.values())}
+    fault_tabs = _fault_tables(values, p)
+    wind_tab = _run_wind(sw, values, p)
     cfg = variant_config(sw.columns[p["controller"]], fault_tabs, wind_tab, sw.t_final,
                          sw.dt, p["seed"], "", profile=sw.profile)
     # OpenFAST's plant is the turbine's deck (config: engine = "openfast")
@@ -582,6 +698,8 @@ def _point(sw: Sweep, values: dict) -> dict:
                output_rate_hz=sw.output_rate_hz)
     if sw.turbine:  # (absent: the run ids of earlier sweeps)
         cfg["turbine"] = sw.turbine
+    if sw.host == "as_shipped":
+        _as_shipped(sw, cfg)
     _tuning(sw, values, p, cfg)
     mismatch = {k: float(values[f"mismatch.{k}"]) for k in MISMATCH_KEYS}
     p.update({f"mismatch_{k}": v for k, v in mismatch.items()})
@@ -589,13 +707,100 @@ def _point(sw: Sweep, values: dict) -> dict:
         cfg["mismatch"] = mismatch
     run_id = hashlib.sha256(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]
     cfg["label"] = f"sweep-{run_id}"
-    if not sw.rotor_radius:  # a sweep without one keeps the hub-height point, said, as a
-        # run's NTM now takes its turbine's rotor by default (wtftc.config); after the id:
-        # the run ids of earlier sweeps
+    if not sw.rotor_radius and p["wind_kind"] == "ntm":  # a sweep without one keeps the
+        # hub-height point, said, as a run's NTM now takes its turbine's rotor by default
+        # (wtftc.config); after the id: the run ids of earlier sweeps
         cfg["wind"]["rotor_radius_m"] = 0.0
     twin = {"twin_onset_s": float(values["twin_onset_s"])} if values.get("twin_onset_s") \
         is not None else {}
     return {"run_id": run_id, **p, "config": cfg, **twin}
+
+
+def _fault_tables(values: dict, p: dict) -> list | None:
+    """The run's fault tables (None without a fault), its fault's axes written into ``p``;
+    a magnitude given per fault type takes the run's type's value."""
+    ftype = values["fault.type"]
+    if ftype == "none":
+        return None
+    p["blade"], p["onset_s"] = int(values["fault.blade"]), float(values["fault.onset_s"])
+    tab = {"blade": p["blade"], "type": ftype, "onset_s": p["onset_s"]}
+    if faults.TYPES[ftype].signal not in ("", "pitch"):  # a speed sensor: no blade
+        p["blade"] = None
+        del tab["blade"]
+    if faults.TYPES[ftype].acts_on == "sensor":
+        p["fault_sensor"] = int(values["fault.sensor"])
+        if p["fault_sensor"] != 1:  # (absent: the run ids of earlier sweeps)
+            tab["sensor"] = p["fault_sensor"]
+    mag = MAGNITUDE[ftype]
+    value = values[f"fault.{mag}"]
+    tab[mag] = dict(value)[ftype] if isinstance(value, ByType) else value
+    p[MAGNITUDE_COLUMN[mag]] = str(tab[mag]) if mag == "angle_deg" else float(tab[mag])
+    return [tab]
+
+
+def _run_wind(sw: Sweep, values: dict, p: dict) -> dict:
+    """The run's [wind] table, its kind written into ``p`` (``wind_kind``): the NTM at the
+    scenario's mean, class and seed, or a deterministic wind around the mean, seed 0 (it
+    draws nothing) and a turbulence class only where it is used (the EOG's σ1)."""
+    kind = values.get("wind.kind", "ntm")
+    p["wind_kind"] = kind
+    if kind != "ntm":
+        p["seed"] = 0
+        if kind != "eog":
+            p["turbulence_class"] = None
+        return deterministic_wind(kind, p["mean_wind_mps"], p["turbulence_class"],
+                                  sw.wind_shape)
+    wind_tab = {"kind": "ntm", "mean_mps": p["mean_wind_mps"],
+                "turbulence_class": p["turbulence_class"]}
+    if sw.rotor_radius:  # (absent: the run ids of earlier sweeps)
+        wind_tab["rotor_radius_m"] = sw.rotor_radius
+    if sw.wind_field and sw.engine == "wtftc":  # (OpenFAST's runs read it anyway: their ids
+        wind_tab["field"] = sw.wind_field       # are those of the same file without it)
+    return wind_tab
+
+
+def deterministic_wind(kind: str, mean: float, turbulence_class: str | None,
+                       shape: dict) -> dict:
+    """The [wind] table (wtftc.model.wind) of a sweep's deterministic ``kind`` around the
+    scenario's ``mean`` [m/s], with the sweep's ``shape`` (its [wind] event_s, step_mps,
+    ramp_mps, ramp_s, sign, turbine_class and the turbine's rotor_diameter_m):
+
+    * eog: the IEC EOG at V_hub = mean from event_s (IEC 61400-1 ed. 3, 6.3.2.2);
+    * ecd: the IEC ECD at V_hub = mean from event_s, its direction turning by sign × θ_cg
+      (6.3.2.5);
+    * steps: mean - step_mps/2 until event_s, then mean + step_mps/2;
+    * ramp: mean - ramp_mps/2 until event_s, then linear to mean + ramp_mps/2 over ramp_s
+      (the WEIS controller test bench's ramp: a start speed, a change, a duration)."""
+    event = shape["event_s"]
+    if kind == "eog":
+        return {"kind": "eog", "mean_mps": mean, "start_s": event,
+                "turbine_class": shape["turbine_class"], "turbulence_class": turbulence_class,
+                "rotor_diameter_m": shape["rotor_diameter_m"]}
+    if kind == "ecd":
+        return {"kind": "ecd", "mean_mps": mean, "start_s": event, "sign": shape["sign"],
+                "turbine_class": shape["turbine_class"]}
+    if kind == "steps":
+        half = shape["step_mps"] / 2
+        return {"kind": "steps", "speed_mps": round(mean - half, 9),
+                "steps": [[event, round(mean + half, 9)]]}
+    half = shape["ramp_mps"] / 2
+    return {"kind": "ramp", "speed_mps": round(mean - half, 9),
+            "end_mps": round(mean + half, 9), "start_s": event,
+            "duration_s": shape["ramp_s"]}
+
+
+def _as_shipped(sw: Sweep, cfg: dict) -> None:
+    """host = "as_shipped": the controller as its deck ships it, without the benchmark's
+    sensor noise or pitch actuator. In OpenFAST: every sensor exact (the realistic
+    profile's noise set to 0) and no actuator between the controller and the blades
+    ([openfast] actuator = false: ElastoDyn takes the demand); on wtftc's plant the ideal
+    profile (exact sensors, continuous time); its plant keeps the actuator's dynamics,
+    which are the plant's own there (docs/sweep.md)."""
+    if sw.engine == "wtftc":
+        cfg["profile"] = "ideal"
+        return
+    cfg["sensors"] = dict.fromkeys(config.PROFILES["realistic"]["sensors"], 0.0)
+    cfg["openfast"] = {"actuator": False}
 
 
 def _tuning(sw: Sweep, values: dict, p: dict, cfg: dict) -> None:
