@@ -20,7 +20,8 @@ def _runs(raw: dict) -> list[dict]:
 
 def test_the_shipped_matrix_is_checked_and_names_its_hash():
     m = matrix.load()
-    assert set(m["groups"]) == {"normal_production", "actuator_faults"}
+    assert set(m["groups"]) == {"normal_production", "actuator_faults", "sensor_faults",
+                                "deterministic", "baseline_as_shipped"}
     h = matrix.matrix_hash(m)
     assert len(h) == 16 and h == matrix.matrix_hash(matrix.load())
     edited = {**m, "annual_mean_mps": 8.5}
@@ -47,6 +48,9 @@ def test_every_controller_runs_the_same_scenarios():
             key = tuple((k, v) for k, v in sorted(r.items())
                         if k not in ("run_id", "controller", "config"))
             by.setdefault(r["controller"], set()).add(key)
+        if raw["controllers"] == ["rosco"]:  # the baseline alone, as shipped
+            assert len(by) == 1 and raw.get("host") == "as_shipped"
+            continue
         assert len(by) == 3 and by["aftc-nrel5mw"] == by["pi"] == by["rosco"]
 
 
@@ -86,6 +90,19 @@ def test_its_fault_cases_are_the_kept_dlc21_campaigns_runs():
      "groups.actuator_faults.winds_mps"),
     ({"groups": {"other": {}}}, "groups"),
     ({"start_up_s": 20.0}, "start_up_s"),
+    ({"groups": {"sensor_faults": {"types": ["lock"]}}}, "groups.sensor_faults.types"),
+    ({"groups": {"sensor_faults": {"magnitudes": {"pitch_sensor_stuck": 5.0}}}},
+     "groups.sensor_faults.magnitudes"),
+    ({"groups": {"sensor_faults": {"sensor": 3}}}, "groups.sensor_faults.sensor"),
+    ({"groups": {"deterministic": {"kinds": ["eog", "ntm"]}}}, "groups.deterministic.kinds"),
+    ({"groups": {"deterministic": {"seeds": 6}}}, "groups.deterministic.seeds"),
+    ({"groups": {"deterministic": {"ramp_s": 200.0}}}, "groups.deterministic.ramp_s"),
+    ({"groups": {"deterministic": {"ecd_sign": 0}}}, "groups.deterministic.ecd_sign"),
+    ({"groups": {"deterministic": {"winds_from_rated_mps": [9.0]}}},
+     "groups.deterministic.winds_from_rated_mps"),
+    ({"groups": {"baseline_as_shipped": {"near_mps": []}}},
+     "groups.baseline_as_shipped.near_mps"),
+    ({"groups": {"baseline_as_shipped": {"seeds": 2}}}, "groups.baseline_as_shipped.seeds"),
     ({"groups": {"actuator_faults": {"scored_s": 30.0}}}, "start_up_s"),
 ])
 def test_a_refused_matrix_names_its_key(tmp_path, edit, field):
@@ -99,3 +116,81 @@ def test_a_refused_matrix_names_its_key(tmp_path, edit, field):
     with pytest.raises(ConfigError) as exc:
         matrix.check(m, "edited.toml")
     assert exc.value.field == field and exc.value.where == "edited.toml"
+
+
+def test_the_sensor_fault_group_gives_each_type_its_magnitude():
+    """Each sensor fault at the benchmark's or FOWLTY's magnitude, a speed sensor's scaled
+    by its shaft's rated speed: on the NREL 5-MW, the benchmark's 1.4 rad/s and the
+    FDI runs' 100 rad/s (docs/fdi.md), to the 1e-7 the fractions are written to."""
+    m = matrix.load()
+    runs = _runs(matrix.sweeps(m, ["pi"], None, "wtftc", seeds=2)["sensor_faults"])
+    assert len(runs) == 10 * 2 * 2  # types × winds × seeds
+    mag = {}
+    for r in runs:
+        tab = r["config"]["fault"][0]
+        key = spec.MAGNITUDE[r["fault_type"]]
+        mag[r["fault_type"]] = tab[key]
+        assert tab["onset_s"] == 40.0 and tab.get("blade", 1) == 1 and "sensor" not in tab
+    assert mag["pitch_sensor_stuck"] == 5.0 and mag["pitch_sensor_gain"] == 1.2
+    assert mag["rotor_speed_sensor_gain"] == 1.1 and mag["generator_speed_sensor_gain"] == 0.9
+    assert mag["rotor_speed_sensor_stuck"] == pytest.approx(1.4, rel=1e-7)
+    assert mag["rotor_speed_sensor_offset"] == pytest.approx(0.1, rel=1e-7)
+    assert mag["generator_speed_sensor_stuck"] == pytest.approx(100.0, rel=1e-7)
+    assert mag["generator_speed_sensor_offset"] == pytest.approx(2.0, rel=1e-7)
+    # on the IEA 15-MW the same fractions of its own rated speed (0.79168 rad/s, direct drive)
+    iea = _runs(matrix.sweeps(m, ["pi"], "iea15mw", "wtftc", seeds=1)["sensor_faults"])
+    stuck = {r["fault_type"]: r["sensor_value_rad_s"] for r in iea}
+    assert stuck["rotor_speed_sensor_stuck"] == pytest.approx(1.1048765 * 0.79168, rel=1e-9)
+
+
+@pytest.mark.parametrize("turbine, rated", [("nrel5mw", 11.4), ("iea15mw", 10.6)])
+def test_the_deterministic_group_runs_each_wind_once_around_rated(turbine, rated):
+    m = matrix.load()
+    raw = matrix.sweeps(m, ["pi", "rosco"], turbine, "wtftc", seeds=6)["deterministic"]
+    runs = _runs(raw)
+    assert len(runs) == 4 * 3 * 2  # kinds × winds × columns, whatever --seeds says
+    assert {r["seed"] for r in runs} == {0}
+    got = {(r["wind_kind"], r["mean_wind_mps"]) for r in runs}
+    winds = [round(rated + d, 6) for d in (-2.0, 0.0, 2.0)]
+    assert got == {(k, v) for k in ("eog", "ecd", "steps", "ramp") for v in winds}
+    at_rated = {r["wind_kind"]: r["config"]["wind"] for r in runs
+                if r["mean_wind_mps"] == rated}
+    assert at_rated["steps"] == {"kind": "steps", "speed_mps": round(rated - 1, 9),
+                                 "steps": [[40.0, round(rated + 1, 9)]]}
+    assert at_rated["ramp"]["speed_mps"] == round(rated - 2, 9)
+    assert at_rated["ramp"]["end_mps"] == round(rated + 2, 9)
+    assert at_rated["ecd"]["start_s"] == at_rated["eog"]["start_s"] == 40.0
+    assert {r["config"]["t_final_s"] for r in runs} == {210.0}
+
+
+def test_the_baseline_as_shipped_pairs_with_normal_production():
+    """The baseline alone, as shipped, on normal-production scenarios: each of its runs is
+    the baseline's normal-production run of the same bin and seed but for the host (its
+    configuration's profile)."""
+    m = matrix.load()
+    sw = matrix.sweeps(m, ["pi", "rosco"], None, "wtftc", seeds=2)
+    shipped, npp = _runs(sw["baseline_as_shipped"]), _runs(sw["normal_production"])
+    assert {r["controller"] for r in shipped} == {"rosco"} and len(shipped) == 3 * 2
+    base = {(r["mean_wind_mps"], r["seed"]): r for r in npp if r["controller"] == "rosco"}
+    for r in shipped:
+        twin = base[(r["mean_wind_mps"], r["seed"])]
+        assert r["config"]["profile"] == "ideal" and twin["config"]["profile"] == "realistic"
+        same = {k: v for k, v in r["config"].items() if k not in ("profile", "label")}
+        assert same == {k: v for k, v in twin["config"].items()
+                        if k not in ("profile", "label")}
+    assert sorted({r["mean_wind_mps"] for r in shipped}) == [8.0, 14.0, 20.0]
+    # in OpenFAST: exact sensors and no benchmark actuator
+    of = _runs(matrix.sweeps(m, ["pi", "rosco"], None, "openfast",
+                             seeds=1)["baseline_as_shipped"])[0]["config"]
+    assert of["openfast"] == {"actuator": False} and set(of["sensors"].values()) == {0.0}
+
+
+def test_plan_counts_every_groups_runs():
+    p = matrix.plan(matrix.load(), seeds=6)
+    assert {g: (v["columns"], v["runs_per_column"]) for g, v in p.items()} == {
+        "normal_production": (2, 11 * 6), "actuator_faults": (2, 4 * 6 * 6),
+        "sensor_faults": (2, 10 * 2 * 6), "deterministic": (2, 4 * 3),
+        "baseline_as_shipped": (1, 3 * 6)}
+    d = p["deterministic"]
+    assert d["simulated_s_per_column"] == 12 * 210.0
+    assert d["openfast_cpu_s"] == pytest.approx(2 * 12 * 210.0 * 0.43)
