@@ -98,7 +98,7 @@ def test_seed_sensitivity(kind):
 
 
 def test_kinds_listed():
-    assert KINDS == ("constant", "steps", "paper_random", "ntm", "eog", "file")
+    assert KINDS == ("constant", "steps", "paper_random", "ntm", "eog", "file", "ecd", "ramp")
 
 
 def test_constant_default_and_value():
@@ -492,3 +492,77 @@ def test_the_rotor_effective_ntm_is_the_point_series_filtered():
         assert w(t).min() > 0
     with pytest.raises(ConfigError):
         wind.wind_from_config({"kind": "ntm", "mean_mps": 4.0}, 600.0, 0)
+
+
+# ----------------------------------------------------------------- ecd and ramp
+
+@pytest.mark.parametrize("v_hub, theta_deg", [(11.4, 720.0 / 11.4), (9.0, 80.0),
+                                              (25.0, 28.8)])
+def test_ecd_speed_and_direction_follow_iec(v_hub, theta_deg):
+    """IEC 61400-1 ed. 3, 6.3.2.5: V rises by V_cg = 15 m/s and the direction turns by
+    θ_cg (720°/V_hub from 4 m/s; wtftc takes V_hub > 8 m/s) as 0.5 (1 - cos(π τ/T)), T = 10 s; the
+    plant's wind is the rotor-normal component V cos θ. Closed forms: to the last bits."""
+    w = wind_from_config({"kind": "ecd", "mean_mps": v_hub, "start_s": 20.0}, 60.0)
+    t = np.array([0.0, 20.0, 25.0, 30.0, 59.0])
+    rise = np.array([0.0, 0.0, 0.5, 1.0, 1.0])
+    v = v_hub + 15.0 * rise
+    theta = np.radians(theta_deg) * rise
+    np.testing.assert_allclose(w.horizontal(t), v, rtol=1e-14)
+    np.testing.assert_allclose(w.direction(t), theta, rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(w(t), v * np.cos(theta), rtol=1e-14)
+    neg = wind_from_config({"kind": "ecd", "mean_mps": v_hub, "start_s": 20.0, "sign": -1},
+                           60.0)
+    np.testing.assert_allclose(neg.direction(t), -theta, rtol=1e-14, atol=1e-15)
+    np.testing.assert_allclose(neg(t), w(t), rtol=1e-14)  # cos θ: the sign is lost
+
+
+def test_ecd_rotor_normal_departure_at_rated():
+    """The departure docs/wind.md states: after the gust the NREL 5-MW's plant takes
+    26.4 m/s × cos 63.16° = 11.92 m/s, where OpenFAST gets 26.4 m/s at 63.16°."""
+    d = wind_from_config({"kind": "ecd", "mean_mps": 11.4}, 60.0).describe()["derived"]
+    assert d["v_end_mps"] == pytest.approx(26.4, rel=1e-14)
+    assert d["theta_cg_deg"] == pytest.approx(63.157894736842, rel=1e-12)
+    assert d["v_end_rotor_normal_mps"] == pytest.approx(11.9204806594, rel=1e-10)
+
+
+def test_ramp_is_linear_and_held():
+    w = wind_from_config({"kind": "ramp", "speed_mps": 9.4, "end_mps": 13.4,
+                          "start_s": 40.0, "duration_s": 125.0}, 300.0)
+    t = np.array([0.0, 40.0, 102.5, 165.0, 300.0])
+    np.testing.assert_allclose(w(t), [9.4, 9.4, 11.4, 13.4, 13.4], rtol=1e-14)
+    assert w.describe()["derived"]["rate_mps2"] == pytest.approx(0.032, rel=1e-12)
+    np.testing.assert_array_equal(w.direction(t), 0.0)
+
+
+@pytest.mark.parametrize("cfg, field", [
+    ({"kind": "ecd", "mean_mps": 51.0}, "wind.mean_mps"),
+    ({"kind": "ecd", "mean_mps": 8.0}, "wind.mean_mps"),
+    ({"kind": "ecd", "sign": 2}, "wind.sign"),
+    ({"kind": "ecd", "sign": True}, "wind.sign"),
+    ({"kind": "ecd", "start_s": 60.0}, "wind.start_s"),
+    ({"kind": "ecd", "turbine_class": "IV"}, "wind.turbine_class"),
+    ({"kind": "ramp", "duration_s": 0.0}, "wind.duration_s"),
+    ({"kind": "ramp", "end_mps": -1.0}, "wind.end_mps"),
+    ({"kind": "ramp", "start_s": -1.0}, "wind.start_s"),
+    ({"kind": "ramp", "rotor_radius_m": 63.0}, "wind.rotor_radius_m"),
+])
+def test_ecd_and_ramp_errors_name_the_field(cfg, field):
+    with pytest.raises(ConfigError) as exc:
+        wind_from_config(cfg, 60.0)
+    assert exc.value.field == field
+
+
+def test_the_uniform_wind_file_carries_the_ecd_direction(tmp_path):
+    """case.write_wind: the horizontal speed and the direction in degrees, as InflowWind
+    reads them (columns 2 and 3); any other kind, direction 0."""
+    from wtftc.openfast.case import write_wind
+
+    w = wind_from_config({"kind": "ecd", "mean_mps": 11.4, "start_s": 2.0}, 20.0)
+    write_wind(tmp_path / "w.uni", 20.0, w)
+    rows = np.loadtxt(tmp_path / "w.uni", comments="!")
+    t = rows[:, 0]
+    np.testing.assert_allclose(rows[:, 1], w.horizontal(t), atol=1e-6)  # 6 decimals
+    np.testing.assert_allclose(rows[:, 2], np.degrees(w.direction(t)), atol=1e-6)
+    assert rows[-1, 2] == pytest.approx(720.0 / 11.4, abs=1e-6)
+    write_wind(tmp_path / "s.uni", 20.0, wind_from_config(CONFIGS["steps"], 20.0))
+    assert not np.loadtxt(tmp_path / "s.uni", comments="!")[:, 2].any()

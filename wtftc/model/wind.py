@@ -97,6 +97,9 @@ KAIMAL_LU_OVER_LAMBDA1 = 8.1  # L_u = 8.1 Λ1 (IEC Annex B, Table B.1)
 EOG_T_S = 10.5  # EOG duration T [s] (IEC 6.3.2.2)
 ECD_T_S = 10.0  # ECD rise time T [s] (IEC 6.3.2.5)
 ECD_V_CG_MPS = 15.0  # ECD gust magnitude V_cg [m/s] (IEC 6.3.2.5)
+#: the lowest ECD mean [m/s], exclusive: θ_cg = 720°/V_hub is 90° at 8 m/s, where V cos θ,
+#: the wind wtftc's plants take, falls to 0 (below it, it would blow from behind)
+ECD_MIN_MEAN_MPS = 8.0
 V_MAX_MPS = 70.0  # upper bound of configured speeds: V_e50 of class I (1.4 × 50 m/s)
 NTM_MIN_PERIOD_S = 600.0  # the 10-min period over which σ1 is defined
 SYNTH_MARGIN_S = 10.0  # synthesized series extend this far past t_final
@@ -400,8 +403,10 @@ def _start(value, field: str, t_final: float, what: str) -> float:
 
 def _ecd(p, f, t_final) -> ECDWind:
     tb = _choice(p["turbine_class"], f["turbine_class"], tuple(V_REF))
-    mean = _number(p["mean_mps"], f["mean_mps"], lo=0.0, hi=V_REF[tb],
-                   unit=f" [m/s] (up to V_ref = {V_REF[tb]:g} m/s of turbine class {tb})")
+    mean = _number(p["mean_mps"], f["mean_mps"], lo=ECD_MIN_MEAN_MPS, hi=V_REF[tb],
+                   unit=f" [m/s] (up to V_ref = {V_REF[tb]:g} m/s of turbine class {tb}; "
+                        "above 8 m/s, where θ_cg = 720°/V_hub passes 90° and the "
+                        "rotor-normal wind the plant takes would reach 0)")
     sign = p["sign"]
     if isinstance(sign, bool) or sign not in (1, -1):
         raise ConfigError(f["sign"], sign, "1 or -1: the direction change's sign")
