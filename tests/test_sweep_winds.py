@@ -96,3 +96,32 @@ def test_an_ecd_run_on_wtftcs_plant_sees_the_rotor_normal_wind():
     rise = 0.5 * (1 - np.cos(np.pi * tau))
     expected = (12.0 + 15.0 * rise) * np.cos(np.radians(60.0) * rise)
     np.testing.assert_allclose(v, expected, rtol=1e-14)
+
+
+def test_an_ecd_reaches_inflowwind_with_its_direction(tmp_path):
+    """One short OpenFAST run (4 s) under an ECD from 0.5 s: InflowWind's wind at the hub,
+    as OpenFAST reports it, is the ECD's speed turned by its direction, u = V cos θ along
+    the rotor's axis (the wind wtftc's plant takes) and v = -V sin θ across it. 1e-3 m/s:
+    the file's 0.02-s rows interpolated and the outputs' float32 (6e-5 m/s measured)."""
+    import subprocess
+    import sys
+
+    from openfast_io.FAST_output_reader import FASTOutputFile
+
+    from wtftc.openfast import install
+
+    install.require()
+    (tmp_path / "ecd.toml").write_text('engine = "openfast"\nt_final_s = 4.0\n[wind]\n'
+                                       'kind = "ecd"\nmean_mps = 12.0\nstart_s = 0.5\n')
+    p = subprocess.run([sys.executable, "-m", "wtftc.cli", "run", "--config",
+                        tmp_path / "ecd.toml", "--fault", "none", "--out", tmp_path / "out",
+                        "--quiet"], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    f = FASTOutputFile(str(tmp_path / "out" / "openfast" / "NREL-5MW.outb"))
+    ch = dict(zip(f.info["attribute_names"], f.data.T, strict=True))
+    t = ch["Time"]
+    rise = 0.5 * (1 - np.cos(np.pi * np.clip((t - 0.5) / 10.0, 0.0, 1.0)))
+    v, theta = 12.0 + 15.0 * rise, np.radians(720.0 / 12.0) * rise
+    assert t[-1] == pytest.approx(4.0) and theta[-1] > np.radians(15.0)  # turned 16°
+    np.testing.assert_allclose(ch["Wind1VelX"], v * np.cos(theta), atol=1e-3)
+    np.testing.assert_allclose(ch["Wind1VelY"], -v * np.sin(theta), atol=1e-3)

@@ -491,8 +491,9 @@ def write_wind(path: Path, t_final: float, wind) -> None:
     """The run's wind as InflowWind's uniform wind file, every WIND_DT s: the horizontal
     speed and its direction (wind.horizontal, wind.direction: an ECD turns, every other
     kind blows along the rotor's axis), no shear, no gust. The direction goes in degrees,
-    InflowWind's unit, with wtftc's sign: positive turns counter-clockwise seen from above,
-    as InflowWind's Delta does."""
+    InflowWind's unit and sign: its components are u = V cos Δ along the rotor's axis and
+    v = -V sin Δ across it (as OpenFAST reports them: Wind1VelX, Wind1VelY;
+    tests/test_sweep_winds.py)."""
     t = np.arange(0.0, t_final + 2 * WIND_DT, WIND_DT)
     u = np.broadcast_to(np.asarray(wind.horizontal(t), dtype=float), t.shape)
     direction_deg = np.degrees(np.broadcast_to(np.asarray(wind.direction(t), dtype=float),
