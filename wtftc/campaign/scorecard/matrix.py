@@ -69,7 +69,7 @@ DETERMINISTIC_KINDS = ("eog", "ecd", "steps", "ramp")
 #: a speed sensor fault's magnitude given as a fraction of its shaft's rated speed
 SPEED_FRACTIONS = ("value_rad_s", "offset_rad_s")
 #: one OpenFAST run of the NREL 5-MW on one core: about 0.43 s of wall time per simulated
-#: second (the filtered PI under an ECD on a 2-core machine shared with other work:
+#: second (the aftc-nrel5mw preset under an ECD, on a 2-core machine shared with others:
 #: 6.8 s for 4 s simulated, 21.9 s for 40 s, 0.42 s a second past the start), a
 #: projection for :func:`plan`
 OPENFAST_WALL_PER_SIM_S = 0.43
