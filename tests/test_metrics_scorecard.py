@@ -166,3 +166,11 @@ def test_a_fault_free_native_run_has_no_after_onset_figures():
               "blade_root_flap_max_abs_after_onset_Nm", "energy_after_onset_J"):
         assert m[k] is None, k
     assert m["pitch_rate_max_abs_deg_s"] > 0
+
+
+def test_the_blade_exponent_is_a_loads_setting_checked_like_the_others():
+    assert config.loads_options({})["blade_wohler_exponent"] == loads.BLADE_WOHLER_EXPONENT
+    assert config.loads_options({"loads": {"blade_wohler_exponent": 12.0}})[
+        "blade_wohler_exponent"] == 12.0
+    with pytest.raises(config.ConfigError, match="loads.blade_wohler_exponent"):
+        config.loads_options({"loads": {"blade_wohler_exponent": 25.0}})

@@ -128,6 +128,13 @@ def test_the_same_command_resumes_with_nothing_to_run(card):
     doc = json.loads((tmp / "out" / "scorecard.json").read_text())
     assert all(g["counts"]["scenarios"] for g in doc["groups"].values())
     assert report.markdown(doc) == (tmp / "out" / "scorecard.md").read_text()
+    # both calls' wall times kept, the first one's (which ran everything) the longer
+    walls = json.loads((tmp / "out" / "walls.json").read_text())
+    for group, calls in walls.items():
+        assert [c["workers"] for c in calls] == [2, 2]
+        assert calls[0]["wall_s"] > calls[1]["wall_s"] > 0.0
+        assert doc["groups"][group]["calls"] == calls
+        assert f"over its 2 calls ({calls[0]['wall_s']:.0f} s on 2 workers" in p.stdout
 
 
 @pytest.mark.parametrize("args, field", [

@@ -610,6 +610,10 @@ LOADS_KEYS = {"shaft_wohler_exponent": (4.0, 1.0, 20.0, "the shaft's Wöhler exp
                                                           "needs [deg]"),
               "tower_wohler_exponent": (4.0, 1.0, 20.0, "the tower base's Wöhler exponent m "
                                                         "of its damage-equivalent load"),
+              # WEIS's fatigue channels give the blade root's RootMyb slope 10
+              "blade_wohler_exponent": (10.0, 1.0, 20.0, "the blade root's Wöhler exponent "
+                                                         "m of its flapwise damage-equivalent "
+                                                         "load"),
               # None: the default window, transient_window's
               "transient_s": (None, 0.0, 36000.0, "the start-up left out of every metric "
                                                   "[s]")}

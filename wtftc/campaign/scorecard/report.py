@@ -116,7 +116,9 @@ def _lifetime(rows_c: list, rows_b: list, m: dict, turbine: str | None) -> dict:
     for name, key, exp in (("shaft", "shaft_torque_damage_per_10min",
                             loads["shaft_wohler_exponent"]),
                            ("tower", "tower_base_damage_per_10min",
-                            loads["tower_wohler_exponent"])):
+                            loads["tower_wohler_exponent"]),
+                           ("blade", "blade_root_flap_damage_per_10min",
+                            loads["blade_wohler_exponent"])):
         out[name] = stats.lifetime_ratio(rows_c, rows_b, m["annual_mean_mps"],
                                          g["bin_width_mps"], exp, key, rated,
                                          g["overspeed_trip"])
@@ -180,7 +182,8 @@ def analyse(out: Path, result: dict, turbine: str | None = None) -> dict:
         theirs = [r for r in rows if r["controller"] == base]
         pp, counts = stats.held_pairs(mine, theirs, trip)
         g = {"iec": m["groups"][group]["iec"], "counts": counts,
-             "metrics": _metrics(group, pp), "wall_s": result["groups"][group]["wall_s"]}
+             "metrics": _metrics(group, pp), "wall_s": result["groups"][group]["wall_s"],
+             "calls": result["groups"][group].get("calls_wall_s")}
         g["fdi"] = _fdi(rows, judged)
         if group == "normal_production":
             g["lifetime"] = _lifetime(mine, theirs, m, turbine)
@@ -313,8 +316,17 @@ def _provenance_lines(doc: dict) -> list[str]:
             f"{doc.get('engine') or 'openfast'}",
             "- versions: " + ", ".join(f"{k} {v}" for k, v in doc["versions"].items()
                                        if k != "generated_code_sha256"),
-            *(f"- {name}: {g['counts']['scenarios']} scenarios, wall "
-              f"{g['wall_s']:.0f} s this call" for name, g in doc["groups"].items())]
+            *(f"- {name}: {g['counts']['scenarios']} scenarios, wall {g['wall_s']:.0f} s "
+              "this call" + _calls(g.get("calls") or []) for name, g in doc["groups"].items())]
+
+
+def _calls(calls: list[dict]) -> str:
+    """The wall times of every call that ran the group, where there were several."""
+    if len(calls) < 2:
+        return ""
+    return (f", {sum(c['wall_s'] for c in calls):.0f} s over its {len(calls)} calls ("
+            + ", ".join(f"{c['wall_s']:.0f} s on {c['workers']} workers" for c in calls)
+            + ")")
 
 
 def _confirmed_lines(doc: dict) -> list[str]:

@@ -90,6 +90,27 @@ def _sweeps(m: dict, columns: list, turbine: str | None, engine: str, seeds: int
     return raws
 
 
+#: each call's wall time per group, kept across resumed calls
+WALLS = "walls.json"
+
+
+def log_wall(out: Path, group: str, wall_s: float, workers: int,
+             screen: int | None) -> list[dict]:
+    """Every call's wall time on ``group`` so far, this one's appended and the file
+    written whole: a scorecard run over several calls (resumed) reports them all."""
+    import json
+
+    from wtftc.results.io import atomic_write_text
+
+    path = Path(out) / WALLS
+    calls = json.loads(path.read_text("utf-8")) if path.is_file() else {}
+    calls.setdefault(group, []).append({"wall_s": wall_s, "workers": workers,
+                                        "screen": screen, "at": time.strftime(
+                                            "%Y-%m-%dT%H:%M:%SZ", time.gmtime())})
+    atomic_write_text(path, json.dumps(calls, indent=1))
+    return calls[group]
+
+
 def deciding(group: str, cand: str, base: str):
     """The screen's choice of what OpenFAST confirms in ``group``: the scenarios that
     decide its verdicts (wtftc.campaign.scorecard.screen.decisive)."""
@@ -138,5 +159,7 @@ def run_scorecard(candidate, out: Path, turbine: str | None = None, against="ros
                 path, out / group, screen, out / CONFIRMED.format(group=group), workers,
                 scheduler, quiet=quiet, pick=deciding(group, cand["name"], base["name"]))
         done[group] = {**counts, "wall_s": time.perf_counter() - t0}
+        done[group]["calls_wall_s"] = log_wall(out, group, done[group]["wall_s"], workers,
+                                               screen)
     return {"matrix": m, "matrix_hash": matrix.matrix_hash(m), "columns": [cand, base],
             "groups": done, "screen": screen, "engine": engine}
