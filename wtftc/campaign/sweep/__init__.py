@@ -142,9 +142,30 @@ class Interrupted(Exception):
     """Ctrl-C or SIGTERM: the sweep stopped; what finished is saved."""
 
 
-def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
+def _make_fields(raws: list[dict], jobs: int, quiet: bool) -> None:
+    """Each TurbSim field the runs read, made into the cache before the runs, ``jobs``
+    at a time (TurbSim is a program of its own, so threads suffice; a field two runs
+    share is made once, under its key's lock: wtftc.openfast.turbsim.generate); its
+    progress on stdout. The first failure is raised once the fields under way end."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from wtftc.openfast.turbsim import needs_field
+
+    todo = [raw for raw in raws if needs_field(raw)]
+    if not todo:
+        return
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(max(1, jobs)) as pool:
+        for i, _ in enumerate(pool.map(ensure_field, todo), 1):
+            if not quiet and (i == len(todo) or i % 10 == 0):
+                print(f"TurbSim fields: {i} of {len(todo)} runs' ready "
+                      f"({time.perf_counter() - t0:.0f} s)", flush=True)
+
+
+def _check_runs(sw: Sweep, runs: list[dict], quiet: bool, jobs: int = 1) -> None:
     """Every run's configuration is valid, and ROSCO installed where it runs, before any
-    runs; the optional controllers skipped are noted."""
+    runs; the optional controllers skipped are noted. The TurbSim fields are made
+    ``jobs`` at a time (:func:`_make_fields`)."""
     def uses_rosco(pt: dict) -> bool:  # ROSCO, at its deck's tuning or retuned
         return sw.columns[pt["controller"]].design == "rosco"
 
@@ -154,9 +175,9 @@ def _check_runs(sw: Sweep, runs: list[dict], quiet: bool) -> None:
     for pt, raw in raws:  # every run checked before a TurbSim field is made
         if not uses_rosco(pt):  # ROSCO's availability is checked below
             config.check_before_field(raw)
+    _make_fields([raw for _, raw in raws], jobs, quiet)
     above = None
     for pt, raw in raws:
-        ensure_field(raw)  # each TurbSim field a run reads, made once, before the runs
         if not uses_rosco(pt):
             above = above or config.cut_out_note(config.make_config(raw))
     if above:  # one line for the sweep: the first such run's
@@ -244,7 +265,7 @@ def run_sweep(sweep_path: Path, out_dir: Path, workers: int = 2, scheduler: str 
     check_path(out_dir, "--out")  # a link loop, a dangling link, a file: before any work
     sw = load_sweep(sweep_path, engine, preset)
     runs, dup = expand(sw)
-    _check_runs(sw, runs, quiet)
+    _check_runs(sw, runs, quiet, workers if scheduler is None else 2)
     if sw.engine == "openfast":
         _check_out_beside_decks(out_dir, runs)
     # a remote scheduler first: one that cannot be reached leaves nothing in out_dir
@@ -314,7 +335,7 @@ def run_confirm(sweep_path: Path, out_dir: Path, n: int, confirm_out: Path | Non
     if not quiet:
         print(f"confirming {len(chosen)} scenarios in OpenFAST ({len(runs)} runs): "
               + "; ".join(why for _, why in chosen), flush=True)
-    _check_runs(sw_of, runs, quiet)
+    _check_runs(sw_of, runs, quiet, workers if scheduler is None else 2)
     from wtftc.openfast import install
 
     install.require()
