@@ -76,8 +76,6 @@ from wtftc.errors import ConfigError
 from wtftc.files import read_user_bytes
 
 KINDS = ("constant", "steps", "paper_random", "ntm", "eog", "file", "ecd", "ramp")
-#: the kinds without a seed: one run per scenario (a sweep runs each once)
-DETERMINISTIC = ("constant", "steps", "eog", "ecd", "ramp")
 #: where an NTM comes from ([wind] field): wtftc's own synthesis at one point (filtered
 #: over the rotor), or read from TurbSim's full field, the one OpenFAST's engine uses
 #: (wtftc.config resolves it: wtftc.model.wind_field)
