@@ -39,6 +39,42 @@ angle_deg = "current"
 severity = 1.0
 runaway_targets_deg = [0.0, 90.0]
 overspeed_trip = 1.2
+
+[groups.sensor_faults]
+iec = "2.1"
+what = "a stuck pitch sensor and a rotor-speed gain at one wind"
+winds_mps = [16.0]
+seeds = 2
+scored_s = 30.0
+onset_s = 5.0
+blade = 1
+sensor = 1
+types = ["pitch_sensor_stuck", "rotor_speed_sensor_gain"]
+overspeed_trip = 1.2
+
+[groups.sensor_faults.magnitudes]
+pitch_sensor_stuck = 5.0
+rotor_speed_sensor_gain = 1.1
+
+[groups.deterministic]
+iec = "1.4 and test bench"
+what = "an EOG and a ramp at rated"
+kinds = ["eog", "ramp"]
+winds_from_rated_mps = [0.0]
+scored_s = 30.0
+event_s = 5.0
+step_mps = 2.0
+ramp_mps = 4.0
+ramp_s = 20.0
+ecd_sign = 1
+turbine_class = "I"
+overspeed_trip = 1.2
+
+[groups.baseline_as_shipped]
+iec = "1.2"
+what = "the baseline as shipped at the upper bin"
+near_mps = [14.0]
+overspeed_trip = 1.2
 """
 
 
@@ -66,7 +102,8 @@ def test_the_report_holds_every_group_and_its_figures_are_the_runs(card):
     assert doc["engine"] == "wtftc" and doc["versions"]["wtftc"] and \
         doc["versions"]["generated_code_sha256"] == doc["generated_code_sha256"]
     assert (out / "scorecard.md").read_text() == p.stdout.split("written under")[0]
-    assert set(doc["groups"]) == {"normal_production", "actuator_faults"}
+    assert set(doc["groups"]) == {"normal_production", "actuator_faults", "sensor_faults",
+                                  "deterministic", "baseline_as_shipped"}
     # the RMS speed error's ratio, made again from the saved runs by hand
     rows = read_results(out / "normal_production").to_pylist()
     pp, counts = stats.held_pairs([r for r in rows if r["controller"] == "aftc-nrel5mw"],
@@ -199,3 +236,62 @@ def test_a_discon_library_is_scored_in_openfast_only(tmp_path):
     p = wtftc("scorecard", "--engine", "wtftc", "--against", table, "--out", tmp_path / "o")
     assert p.returncode == 2 and "--against.design = 'discon'" in p.stderr, p.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_the_new_groups_are_paired_as_they_should_be(card):
+    import math
+
+    tmp, _, p = card
+    out = tmp / "out"
+    doc = json.loads((out / "scorecard.json").read_text())
+    # the baseline as shipped, against its own normal-production runs at the same wind
+    # and seed: the ratio by hand
+    shipped = read_results(out / "baseline_as_shipped").to_pylist()
+    assert {r["controller"] for r in shipped} == {"pi"} and len(shipped) == 2
+    normal = {(r["mean_wind_mps"], r["seed"]): r
+              for r in read_results(out / "normal_production").to_pylist()
+              if r["controller"] == "pi"}
+    logs = [math.log(normal[(r["mean_wind_mps"], r["seed"])]["pitch_adc"] / r["pitch_adc"])
+            for r in shipped]
+    got = next(m for m in doc["groups"]["baseline_as_shipped"]["metrics"]
+               if m["metric"] == "pitch_adc")
+    assert got["ratio"] == pytest.approx(math.exp(sum(logs) / len(logs)), rel=1e-12)
+    assert "## What the benchmark's actuator and sensors cost `pi`" in p.stdout
+    # one run per deterministic case and column, each case's ratio its two runs'
+    det = read_results(out / "deterministic").to_pylist()
+    assert sorted(r["wind_kind"] for r in det) == ["eog", "eog", "ramp", "ramp"]
+    cases = doc["groups"]["deterministic"]["by_case"]
+    assert set(cases) == {f"{k} at {det[0]['mean_wind_mps']:g} m/s" for k in ("eog", "ramp")}
+    for kind in ("eog", "ramp"):
+        a, b = (next(r for r in det if r["wind_kind"] == kind and r["controller"] == c)
+                for c in ("aftc-nrel5mw", "pi"))
+        peak = next(m for m in cases[f"{kind} at {a['mean_wind_mps']:g} m/s"]
+                    if m["metric"] == "overspeed_peak_over_rated")
+        assert peak["ratio"] == pytest.approx(a["overspeed_peak_over_rated"]
+                                              / b["overspeed_peak_over_rated"], rel=1e-12)
+    # the sensor faults: outcomes counted per type, the FDI judged in its column only
+    sens = doc["groups"]["sensor_faults"]
+    assert sum(sum(n.values()) for cols in sens["outcomes"].values()
+               for n in cols.values()) == 2 * 2 * 2
+    assert set(sens["fdi"]) == {"aftc-nrel5mw"}
+
+
+def test_the_plan_counts_the_runs_and_runs_nothing(tmp_path):
+    from wtftc.campaign.scorecard import matrix
+
+    (tmp_path / "short.toml").write_text(SHORT)
+    p = wtftc("scorecard", "--plan", "--matrix", tmp_path / "short.toml", "--seeds", 3,
+              "--workers", 2, cwd=tmp_path)
+    assert p.returncode == 0, p.stderr
+    plan = matrix.plan(matrix.load(tmp_path / "short.toml"), None, 3)
+    total = sum(g["runs_per_column"] * g["columns"] for g in plan.values())
+    # bins × seeds × columns; fault labels (a lock, two runaways) × seeds × columns; sensor
+    # types × seeds × columns; kinds × columns, no seeds; one bin × seeds, one column
+    assert total == 2 * 3 * 2 + 3 * 3 * 2 + 2 * 3 * 2 + 2 * 2 + 1 * 3 * 1
+    assert f"{total} runs;" in p.stdout
+    for name, g in plan.items():
+        assert any(line.split()[0] == name and line.split()[-3] == str(g["runs_per_column"])
+                   for line in p.stdout.splitlines())
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["short.toml"]
+    q = wtftc("scorecard", "--matrix", tmp_path / "short.toml", cwd=tmp_path)
+    assert q.returncode == 2 and q.stderr.startswith("wtftc: error: --out = None")

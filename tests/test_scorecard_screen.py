@@ -76,7 +76,7 @@ def test_outcomes_that_differ_come_first_and_a_fault_lost_by_both_once():
     assert first_key[0] == "lock" and "controller held, baseline tripped" in first_why
     feather = [(k, why) for k, why in chosen if k[0] == "runaway_feather"]
     assert len(feather) == 1 and "tripped by both" in feather[0][1]
-    assert feather[0][0][confirm.AXES.index("seed") + 1] == 2  # the highest peak
+    assert feather[0][0][confirm.AXES.index("seed") + 2] == 2  # the highest peak
 
 
 def test_a_metric_without_values_sends_nothing():

@@ -566,3 +566,16 @@ def test_the_uniform_wind_file_carries_the_ecd_direction(tmp_path):
     assert rows[-1, 2] == pytest.approx(720.0 / 11.4, abs=1e-6)
     write_wind(tmp_path / "s.uni", 20.0, wind_from_config(CONFIGS["steps"], 20.0))
     assert not np.loadtxt(tmp_path / "s.uni", comments="!")[:, 2].any()
+
+
+@pytest.mark.parametrize("kind, extra, what", [
+    ("ecd", {"mean_mps": 11.4}, "the gust's start"),
+    ("ramp", {"speed_mps": 9.4, "end_mps": 13.4, "duration_s": 60.0}, "the ramp's start"),
+    ("eog", {"mean_mps": 11.4}, "the gust's start")])
+def test_a_gust_or_ramp_inside_the_start_up_cuts_the_window_to_its_start(kind, extra, what):
+    from wtftc import config
+
+    rc = config.make_config({"controller": "pi", "t_final_s": 100.0,
+                             "wind": {"kind": kind, "start_s": 12.0, **extra}})
+    assert config.first_event([], rc.wind) == (12.0, what)
+    assert rc.transient[0] == pytest.approx(12.0)

@@ -1360,13 +1360,16 @@ def _add_scorecard(sub) -> None:
         "scorecard", help="a controller against ROSCO over the design load cases, with "
                           "intervals: the report a control engineer asks for",
         description="Runs the case matrix (wtftc/data/scorecard.toml: normal power "
-                    "production from cut-in to cut-out, every pitch actuator fault at four "
-                    "winds) for the controller and its baseline, the same runs for both, "
-                    "each group a resumable sweep on Dask under --out, then writes "
-                    "scorecard.md and scorecard.json: each metric's ratio to the baseline, "
-                    "paired by scenario, with a bootstrap interval over the seeds and a "
-                    "verdict (a tie where it holds 1). docs/scorecard.md.",
-        epilog="Example: wtftc scorecard --seeds 2 --out results/scorecard_nrel5mw")
+                    "production from cut-in to cut-out, every pitch actuator fault and "
+                    "the sensor faults at several winds, deterministic gusts, steps and "
+                    "ramps around rated, and the baseline as its deck ships it) for the "
+                    "controller and its baseline, the same runs for both, each group a "
+                    "resumable sweep on Dask under --out, then writes scorecard.md, "
+                    "scorecard.json and scorecard.html: each metric's ratio to the "
+                    "baseline, paired by scenario, with a bootstrap interval over the seeds "
+                    "and a verdict (a tie where it holds 1). docs/scorecard.md.",
+        epilog="Examples: wtftc scorecard --plan; wtftc scorecard --screen 10 --out "
+               "out/card; wtftc scorecard --turbine iea15mw --out out/card_iea")
     _add_preset(p, "scorecard")
     p.add_argument("--config", type=Path, help="a TOML file whose [controller] table is the "
                    "controller scored")
@@ -1383,8 +1386,10 @@ def _add_scorecard(sub) -> None:
                    "(default: the matrix's, 6)")
     p.add_argument("--screen", type=_positive_int, metavar="N", help="with --engine "
                    "openfast: run every case on wtftc's tower_edge plant (on TurbSim's "
-                   "fields), then its N scenarios that matter most in OpenFAST, and report "
-                   "both engines side by side")
+                   "fields), then in OpenFAST the scenarios that decide each verdict, at "
+                   "least N a group, and report both engines side by side")
+    p.add_argument("--plan", action="store_true", help="print each group's runs, simulated "
+                   "time and OpenFAST's cost, and run nothing")
     p.add_argument("--matrix", type=Path, help="another case matrix file (default: the "
                    "shipped one)")
     p.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1,
@@ -1392,9 +1397,31 @@ def _add_scorecard(sub) -> None:
                         f"{os.cpu_count()})")
     p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
                    help="run on an existing Dask cluster")
-    p.add_argument("--out", type=Path, required=True, help="the scorecard's folder: new, "
-                   "empty, or an earlier scorecard's, which it resumes")
+    p.add_argument("--out", type=Path, help="the scorecard's folder: new, empty, or an "
+                   "earlier scorecard's, which it resumes (needed but with --plan)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def _scorecard_plan(args, turbine: str | None) -> int:
+    """``wtftc scorecard --plan``: each group's runs and their cost, nothing run."""
+    from wtftc.campaign.scorecard import matrix
+
+    m = matrix.load(args.matrix)
+    plan = matrix.plan(m, turbine, args.seeds)
+    rate = matrix.OPENFAST_WALL_PER_SIM_S
+    print(f"{'group':<20} {'DLC':<19} {'columns':>7} {'runs/column':>11} "
+          f"{'simulated/column [h]':>20} {'OpenFAST CPU [h]':>16}")
+    for name, g in plan.items():
+        print(f"{name:<20} {g['iec']:<19} {g['columns']:>7} {g['runs_per_column']:>11} "
+              f"{g['simulated_s_per_column'] / 3600:>20.2f} {g['openfast_cpu_s'] / 3600:>16.2f}")
+    cpu = sum(g["openfast_cpu_s"] for g in plan.values())
+    runs = sum(g["runs_per_column"] * g["columns"] for g in plan.values())
+    print(f"{runs} runs; in OpenFAST about {cpu / 3600:.1f} h of one core at {rate:g} s of "
+          f"wall a simulated second (the NREL 5-MW's, measured), so about "
+          f"{cpu / 3600 / args.workers:.1f} h on {args.workers} workers. With --screen N "
+          "every run is on wtftc's plant (minutes, after the TurbSim fields), then the "
+          "scenarios that decide each verdict in OpenFAST.")
+    return 0
 
 
 def _cmd_scorecard(args) -> int:
@@ -1420,6 +1447,11 @@ def _cmd_scorecard(args) -> int:
     if not isinstance(candidate, str | dict):
         raise ConfigError("--config", str(args.config), "a [controller] table")
     against = compare.entries_from_text([args.against])[0]
+    if args.plan:
+        return _scorecard_plan(args, cfg.get("turbine"))
+    if args.out is None:
+        raise ConfigError("--out", None, "the scorecard's folder (or --plan to see what "
+                          "it would run)")
     _check_out_name(args.out)
     result = run.run_scorecard(candidate, args.out, cfg.get("turbine"), against,
                                args.engine, args.seeds, args.workers, args.scheduler,

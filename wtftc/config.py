@@ -625,11 +625,14 @@ TRANSIENT_S = 30.0
 
 
 def first_event(faults: list, wind) -> tuple[float, str] | None:
-    """The first thing a run is about, (time [s], what): a fault's onset, an EOG's start or
-    a step of the wind; None for a wind and faults that have no moment."""
+    """The first thing a run is about, (time [s], what): a fault's onset, a gust's (EOG,
+    ECD) or a ramp's start, or a step of the wind; None for a wind and faults that have
+    no moment."""
     events = [(f.onset_s, "the first fault's onset") for f in faults]
-    if getattr(wind, "kind", None) == "eog":
-        events.append((float(wind.start_s), "the gust's start"))
+    kind = getattr(wind, "kind", None)
+    if kind in ("eog", "ecd", "ramp"):
+        events.append((float(wind.start_s), "the ramp's start" if kind == "ramp"
+                       else "the gust's start"))
     if getattr(wind, "kind", None) == "steps" and len(wind.times):
         events.append((float(wind.times[0]), "the wind's first step"))
     return min(events, default=None)

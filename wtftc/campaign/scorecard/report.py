@@ -15,7 +15,7 @@ import json
 from pathlib import Path
 
 from wtftc.campaign.scorecard import outcome, stats
-from wtftc.campaign.scorecard.scored import METRICS, SPECTRA
+from wtftc.campaign.scorecard.scored import FAULT_GROUPS, METRICS, SPECTRA
 
 
 def _rows(out: Path, group: str) -> list[dict]:
@@ -125,13 +125,14 @@ def _lifetime(rows_c: list, rows_b: list, m: dict, turbine: str | None) -> dict:
     return out
 
 
-def _outcomes(rows: list, trip: float) -> dict:
-    """Each fault type's outcomes per column: {label: {column: {outcome: n}}}."""
+def _outcomes(rows: list, trip: float, label=None) -> dict:
+    """Each fault type's (or ``label(row)``'s) outcomes per column:
+    {label: {column: {outcome: n}}}."""
     from wtftc.campaign.sweep.dlc import fault_label
 
     out: dict = {}
     for r in rows:
-        cell = out.setdefault(fault_label(r), {}).setdefault(
+        cell = out.setdefault((label or fault_label)(r), {}).setdefault(
             r["controller"], dict.fromkeys(outcome.OUTCOMES, 0))
         cell[outcome.classify(r, r.get("onset_s"), trip)] += 1
     return out
@@ -165,37 +166,23 @@ def _confirmed(screen_rows: list, conf_rows: list, group: str, cand: str, base: 
 def analyse(out: Path, result: dict, turbine: str | None = None) -> dict:
     """Every figure of the scorecard, as scorecard.json holds it."""
     from wtftc.artefacts.loader import generated_code_sha256
-    from wtftc.campaign.sweep.dlc import fault_label
+    from wtftc.campaign.sweep.store import versions
 
     m = result["matrix"]
     cand, base = (c["name"] for c in result["columns"])
-    judged = fdi_columns(result["columns"])
-    from wtftc.campaign.sweep.store import versions
-
     doc = {"controller": cand, "baseline": base, "matrix_hash": result["matrix_hash"],
            "generated_code_sha256": generated_code_sha256(), "turbine": turbine,
            "engine": result.get("engine"), "versions": versions(), "groups": {}}
+    judged = fdi_columns(result["columns"])
     for group in m["groups"]:
         rows = _rows(Path(out), group)
         trip = m["groups"][group]["overspeed_trip"]
-        mine = [r for r in rows if r["controller"] == cand]
-        theirs = [r for r in rows if r["controller"] == base]
-        pp, counts = stats.held_pairs(mine, theirs, trip)
-        g = {"iec": m["groups"][group]["iec"], "counts": counts,
-             "metrics": _metrics(group, pp), "wall_s": result["groups"][group]["wall_s"],
-             "calls": result["groups"][group].get("calls_wall_s")}
-        g["fdi"] = _fdi(rows, judged)
-        if group == "normal_production":
-            g["lifetime"] = _lifetime(mine, theirs, m, turbine)
-            g["spectra"] = _metrics(group, pp, SPECTRA)
-            g["false_alarms"] = _false_alarms(rows, m["groups"][group]["scored_s"], judged)
+        if group == "baseline_as_shipped":
+            g = _as_shipped(rows, _rows(Path(out), "normal_production"), base, trip)
         else:
-            g["outcomes"] = _outcomes(rows, trip)
-            g["energy_after_onset"] = _energy(rows)
-            g["by_fault"] = {}
-            for label in sorted({fault_label(r) for r in rows}):
-                sub = [(a, b) for a, b in pp if fault_label(a) == label]
-                g["by_fault"][label] = _metrics(group, sub)
+            g = _group(group, rows, cand, base, trip, judged, m, turbine)
+        g.update(iec=m["groups"][group]["iec"], wall_s=result["groups"][group]["wall_s"],
+                 calls=result["groups"][group].get("calls_wall_s"))
         conf = Path(out) / f"{group}_openfast"
         if result.get("screen") is not None and conf.is_dir():
             g["confirmed"] = _confirmed(rows, _rows(Path(out), conf.name), group, cand,
@@ -203,6 +190,53 @@ def analyse(out: Path, result: dict, turbine: str | None = None) -> dict:
         doc["groups"][group] = g
     doc["screen"] = result.get("screen")
     return doc
+
+
+def _group(group: str, rows: list, cand: str, base: str, trip: float, judged: set,
+           m: dict, turbine: str | None) -> dict:
+    """One group's figures: the paired verdicts; the lifetime, bands and false alarms
+    (normal production); the outcomes, energy, per-fault verdicts (the fault groups); each
+    case's ratios (the deterministic group); the FDI's timing."""
+    from wtftc.campaign.sweep.dlc import fault_label
+
+    mine = [r for r in rows if r["controller"] == cand]
+    theirs = [r for r in rows if r["controller"] == base]
+    pp, counts = stats.held_pairs(mine, theirs, trip)
+    g = {"counts": counts, "metrics": _metrics(group, pp), "fdi": _fdi(rows, judged)}
+    if group == "normal_production":
+        g["lifetime"] = _lifetime(mine, theirs, m, turbine)
+        g["spectra"] = _metrics(group, pp, SPECTRA)
+        g["false_alarms"] = _false_alarms(rows, m["groups"][group]["scored_s"], judged)
+    elif group in FAULT_GROUPS:
+        g["outcomes"] = _outcomes(rows, trip)
+        g["energy_after_onset"] = _energy(rows)
+        g["by_fault"] = {label: _metrics(group, [(a, b) for a, b in pp
+                                                 if fault_label(a) == label])
+                         for label in sorted({fault_label(r) for r in rows})}
+    elif group == "deterministic":
+        g["outcomes"] = _outcomes(rows, trip, _case_label)
+        g["by_case"] = {_case_label(a): _metrics(group, [(a, b)]) for a, b in pp}
+    return g
+
+
+def _case_label(r: dict) -> str:
+    """A deterministic run's case: its wind's kind and mean wind."""
+    return f"{r.get('wind_kind') or 'ntm'} at {r['mean_wind_mps']:g} m/s"
+
+
+def _as_shipped(rows: list, normal: list, base: str, trip: float) -> dict:
+    """The baseline with the benchmark's actuator and sensors (its normal-production
+    runs) over the baseline as shipped (this group's runs), paired by mean wind and seed:
+    what the benchmark costs it, a ratio above 1."""
+    shipped = {(r["mean_wind_mps"], r["seed"]): r for r in rows}
+    bench = [r for r in normal if r["controller"] == base
+             and (r["mean_wind_mps"], r["seed"]) in shipped]
+    pp, counts = stats.held_pairs(bench, [shipped[(r["mean_wind_mps"], r["seed"])]
+                                          for r in bench], trip)
+    if len(bench) < len(shipped):  # a run of either side missing
+        counts["unpaired"] = len(shipped) - len(bench)
+    return {"counts": counts, "metrics": _metrics("baseline_as_shipped", pp),
+            "pairs": "the baseline's normal-production runs over its as-shipped runs"}
 
 
 def _cell(r: dict) -> str:
@@ -224,11 +258,12 @@ def markdown(doc: dict) -> str:
              "| group | metric | ratio (interval) verdict | pairs | seeds |",
              "|---|---|---|---|---|"]
     for name, g in doc["groups"].items():
-        for r in g["metrics"]:
+        for r in g["metrics"] if name != "baseline_as_shipped" else []:
             lines.append(f"| {name} (DLC {g['iec']}) | {r['what']} [{r['unit']}] | "
                          f"{_cell(r)} | {r['n_pairs']} | {r['n_seeds']} |")
-    for section in (_confirmed_lines, _lifetime_lines, _spectra_lines, _outcome_lines,
-                    _fdi_lines, _alarm_lines, _provenance_lines):
+    for section in (_confirmed_lines, _lifetime_lines, _spectra_lines, _case_lines,
+                    _as_shipped_lines, _outcome_lines, _fdi_lines, _alarm_lines,
+                    _provenance_lines):
         lines += section(doc)
     return "\n".join(lines) + "\n"
 
@@ -259,6 +294,43 @@ def _spectra_lines(doc: dict) -> list[str]:
               for r in rows if r.get("ratio") is not None)]
 
 
+def _case_lines(doc: dict) -> list[str]:
+    """The deterministic group's cases, one run each: each metric's ratio per case."""
+    cases = doc["groups"].get("deterministic", {}).get("by_case") or {}
+    if not cases:
+        return []
+    metrics = next(iter(cases.values()))
+    lines = ["", "## Deterministic winds: the ratio controller / baseline per case (one run "
+             "each, no interval)", "",
+             "| case | " + " | ".join(f"{r['what']} [{r['unit']}]" for r in metrics) + " |",
+             "|" + "---|" * (1 + len(metrics))]
+    for case, rs in sorted(cases.items()):
+        lines.append(f"| {case} | " + " | ".join(
+            "—" if r.get("ratio") is None else f"{r['ratio']:.3g}" for r in rs) + " |")
+    return lines
+
+
+def _as_shipped_lines(doc: dict) -> list[str]:
+    """What the benchmark's actuator and sensors cost the baseline."""
+    g = doc["groups"].get("baseline_as_shipped")
+    if not g:
+        return []
+    return ["", f"## What the benchmark's actuator and sensors cost `{doc['baseline']}`", "",
+            "Each cell: the baseline behind the benchmark's actuator and noisy sensors over "
+            "the baseline as its deck ships it (ideal pitch, exact sensors), paired by wind "
+            "and seed, with its 90 % interval over the seeds: above 1, what they cost.", "",
+            "| metric | ratio (interval) | pairs | seeds |", "|---|---|---|---|",
+            *(f"| {r['what']} [{r['unit']}] | {_cell({**r, 'verdict': _cost(r)})} | "
+              f"{r['n_pairs']} | {r['n_seeds']} |" for r in g["metrics"])]
+
+
+def _cost(r: dict) -> str:
+    """A ratio benchmark / as shipped in words: it costs, saves, or a tie."""
+    if r.get("low") is None or r["verdict"] in (stats.FEW_SEEDS, stats.NO_PAIRS):
+        return r["verdict"]
+    return "tie" if r["low"] <= 1.0 <= r["high"] else "costs" if r["low"] > 1.0 else "saves"
+
+
 def _outcome_lines(doc: dict) -> list[str]:
     lines = []
     for name, g in doc["groups"].items():
@@ -266,7 +338,7 @@ def _outcome_lines(doc: dict) -> list[str]:
             continue
         energy = g.get("energy_after_onset") or {}
         lines += ["", f"## Outcomes of {name} (every run), and the energy kept", "",
-                  "| fault | column | " + " | ".join(outcome.OUTCOMES)
+                  "| fault or case | column | " + " | ".join(outcome.OUTCOMES)
                   + " | mean energy after the onset [MWh] |",
                   "|" + "---|" * (3 + len(outcome.OUTCOMES))]
         for label, cols in g["outcomes"].items():

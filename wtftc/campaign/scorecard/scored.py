@@ -29,7 +29,22 @@ METRICS = {
          "after the onset", "N m", True),
         ("pitch_adc", "pitch actuator duty cycle", "-", True),
         ("energy_after_onset_J", "energy produced after the onset", "J", False)],
+    # one run a scenario, no seeds: a ratio per case, no interval
+    "deterministic": [
+        ("overspeed_peak_over_rated", "peak rotor speed / rated", "-", True),
+        ("rms_speed_error_rad_s", "RMS rotor-speed error", "rad/s", True),
+        ("shaft_torque_max_abs_Nm", "largest shaft torque", "N m", True),
+        ("tower_base_max_abs_Nm", "largest tower-base moment", "N m", True),
+        ("blade_root_flap_max_abs_Nm", "largest blade-root flapwise moment", "N m", True),
+        ("pitch_rate_max_abs_deg_s", "largest pitch rate", "deg/s", True),
+        ("pitch_adc", "pitch actuator duty cycle", "-", True)],
 }
+METRICS["sensor_faults"] = METRICS["actuator_faults"]
+#: the baseline with the benchmark's actuator and sensors over the baseline as its deck
+#: ships it: what they cost it (a ratio above 1), on the normal-production metrics
+METRICS["baseline_as_shipped"] = METRICS["normal_production"]
+#: the groups whose runs hold a fault from an onset
+FAULT_GROUPS = ("actuator_faults", "sensor_faults")
 #: the content of the loads in the rotor's 1P and 3P bands (the controller test bench's
 #: spectra), in the normal-production group: (key, what, unit, lower is better)
 SPECTRA = [

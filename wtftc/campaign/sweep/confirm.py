@@ -49,7 +49,7 @@ UNITS = ["-", "rad/s", "N m", "N m", "-"]
 
 def scenario(r: dict) -> tuple:
     """The key a run shares with the runs of the same case on either engine."""
-    return (fault_label(r), *(r.get(k) for k in AXES),
+    return (fault_label(r), r.get("wind_kind") or "ntm", *(r.get(k) for k in AXES),
             *(v for k, v in sorted(r.items()) if k.startswith("mismatch_")))
 
 

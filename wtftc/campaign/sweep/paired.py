@@ -31,8 +31,9 @@ SCENARIO = ("plant", "mean_wind_mps", "turbulence_class", "seed", "blade", "faul
 
 
 def scenario(r: dict) -> tuple:
-    """The key two runs of different controllers share when they ran the same case."""
-    return (fault_label(r), *(r.get(k) for k in SCENARIO),
+    """The key two runs of different controllers share when they ran the same case (a
+    row without a wind kind is an NTM run's: made before sweeps had other winds)."""
+    return (fault_label(r), r.get("wind_kind") or "ntm", *(r.get(k) for k in SCENARIO),
             *(v for k, v in sorted(r.items()) if k.startswith("mismatch_")))
 
 

@@ -115,7 +115,8 @@ def schema():
 
     fields = [f("run_id", pa.string()), f("controller", pa.string()),
               f("plant", pa.string()), f("mean_wind_mps", pa.float64(), "m/s"),
-              f("turbulence_class", pa.string()), f("seed", pa.int64()),
+              f("turbulence_class", pa.string()), f("wind_kind", pa.string()),
+              f("seed", pa.int64()),
               f("fault_type", pa.string()), f("blade", pa.int64()),
               f("fault_sensor", pa.int64()),
               f("onset_s", pa.float64(), "s"), f("rho", pa.float64(), "-"),
