@@ -179,12 +179,18 @@ def test_a_screened_scorecard_shows_both_engines_side_by_side(tmp_path):
     out = tmp_path / "out"
     doc = json.loads((out / "scorecard.json").read_text())
     assert doc["screen"] == 1
+    from wtftc.campaign.scorecard import screen as chooser
+    from wtftc.campaign.sweep import confirm
+
     for group, g in doc["groups"].items():
         screen = read_results(out / group).to_pylist()
         confirmed = read_results(out / f"{group}_openfast").to_pylist()
         assert {r["plant"] for r in screen} == {"tower_edge"}
-        assert {r["plant"] for r in confirmed} == {"openfast"} and len(confirmed) == 2
-        assert g["confirmed"]["counts"]["scenarios"] == 1
+        assert {r["plant"] for r in confirmed} == {"openfast"}
+        # what OpenFAST ran is what decides the screen's verdicts, every column of each
+        chosen = chooser.decisive(screen, 1, 1.2, group, doc["controller"], doc["baseline"])
+        assert {confirm.scenario(r) for r in confirmed} == {k for k, _ in chosen}
+        assert len(confirmed) == 2 * len(chosen) == 2 * g["confirmed"]["counts"]["scenarios"]
         for m in g["confirmed"]["metrics"]:
             if m["ratio"] is not None and m["screen_ratio"] is not None:
                 assert m["agree"] == ((m["ratio"] - 1) * (m["screen_ratio"] - 1) >= 0)

@@ -31,19 +31,20 @@ def grid(ratios):
     return rows
 
 
-def test_each_metric_sends_its_two_ends_and_no_more_than_it_needs():
+def test_each_metric_sends_its_end_against_the_ratio_then_the_one_for_it():
     ratios = {(w, s): 0.8 for w in (8.0, 12.0, 16.0) for s in range(4)}
     ratios[(12.0, 2)] = 1.3  # the scenario most against "better"
     ratios[(16.0, 1)] = 0.5  # the one most for it
-    chosen = screen.decisive(grid(ratios), 2, 1.2, "normal_production", "aftc", "pi")
-    keys = {k for k, _ in chosen}
-    by = {confirm.scenario(r): (r["mean_wind_mps"], r["seed"]) for r in grid(ratios)}
-    assert {by[k] for k in keys} >= {(12.0, 2), (16.0, 1)}
-    why = dict(chosen)
-    against = next(k for k in keys if by[k] == (12.0, 2))
-    assert "#1 against" in why[against] and "1.3" in why[against]
-    # every other metric is 1 everywhere: its ends are ties, two scenarios at most each
-    assert len(chosen) <= 2 * len(KEYS)
+    rows = grid(ratios)
+    by = {confirm.scenario(r): (r["mean_wind_mps"], r["seed"]) for r in rows}
+    chosen = screen.decisive(rows, 1, 1.2, "normal_production", "aftc", "pi")
+    why = {by[k]: w for k, w in chosen}
+    assert "#1 against" in why[(12.0, 2)] and "(1.3)" in why[(12.0, 2)]
+    # every other metric is 1 everywhere: one scenario each at most, before any for-end
+    assert len(chosen) <= len(KEYS) and (16.0, 1) not in why
+    more = screen.decisive(rows, len(KEYS) + 1, 1.2, "normal_production", "aftc", "pi")
+    why = {by[k]: w for k, w in more}
+    assert "#1 for" in why[(16.0, 1)] and "(0.5)" in why[(16.0, 1)]
 
 
 def test_a_worse_controller_is_argued_against_by_its_best_scenario():
@@ -74,6 +75,7 @@ def test_outcomes_that_differ_come_first_and_a_fault_lost_by_both_once():
     chosen = screen.decisive(rows, 1, 1.2, "actuator_faults", "aftc", "rosco")
     first_key, first_why = chosen[0]
     assert first_key[0] == "lock" and "controller held, baseline tripped" in first_why
+    assert sum("controller held" in why for _, why in chosen) == 1
     feather = [(k, why) for k, why in chosen if k[0] == "runaway_feather"]
     assert len(feather) == 1 and "tripped by both" in feather[0][1]
     assert feather[0][0][confirm.AXES.index("seed") + 2] == 2  # the highest peak

@@ -6,18 +6,21 @@ over the scenarios both columns held (wtftc.campaign.scorecard.stats), and an ou
 count over every scenario (wtftc.campaign.scorecard.outcome). What decides them, and so
 what OpenFAST confirms, in this order:
 
-1. **every scenario whose outcome differs between the columns** (one held, the other
-   tripped or was brought down): these decide the outcome counts, and leave the ratios;
+1. **where the outcomes differ** (one column held, the other tripped or was brought
+   down): for each fault and each such pair of outcomes, the scenario with the highest
+   peak speed. These decide the outcome counts, and leave the ratios;
 2. **one scenario of each fault both columns lost**, the one with the highest peak speed:
    whether OpenFAST loses it too;
-3. **each metric's two ends**: the scenario whose paired ratio argues most against the
-   screen's ratio (the largest log ratio where the controller is better, the smallest
-   where it is worse) and the one that carries it most. A verdict rests on its ends: the
-   bootstrap interval over the seeds is widest where they differ most;
+3. **each metric's scenario most against the screen's ratio**: the largest log ratio
+   where the controller is better, the smallest where it is worse. A verdict rests on its
+   ends (the bootstrap interval over the seeds is widest where they differ most), and the
+   end that argues against it is the one that could overturn it;
 
-then further ends of every metric in turn, the next-to-last and so on, until at least N
-are chosen. The list holds every scenario of steps 1 to 3 even when that is more than N:
-a verdict is confirmed whole or not at all.
+then, until at least N are chosen, each metric's scenario that carries its ratio most,
+then the next ones against and for, every metric in turn. The list holds every scenario
+of steps 1 to 3 even when that is more than N: a verdict is confirmed whole or not at
+all. In OpenFAST a scenario of a long run costs minutes: steps 1 to 3 are what a screened
+scorecard needs, N what it can afford beyond them.
 """
 
 from __future__ import annotations
@@ -51,19 +54,20 @@ def _peak(pair: dict) -> float:
 
 
 def _lost(by: dict, trip: float) -> dict[tuple, str]:
-    """Steps 1 and 2 of the module docstring: {scenario: why}."""
-    chosen: dict[tuple, str] = {}
-    worst_both: dict[str, tuple] = {}
+    """Steps 1 and 2 of the module docstring, in that order: {scenario: why}."""
+    differ: dict[tuple, tuple] = {}
+    both: dict[tuple, tuple] = {}
     for k in sorted(by, key=lambda k: -_peak(by[k])):
         mine, theirs = _outcomes(by[k], trip)
-        if mine != theirs:
-            chosen[k] = f"outcomes differ: controller {mine}, baseline {theirs}"
-        elif mine != "held":
-            worst_both.setdefault(fault_label(by[k]["cand"]), k)
-    for label, k in worst_both.items():
-        chosen.setdefault(k, f"{label} {_outcomes(by[k], trip)[0]} by both (the highest "
-                             "peak speed of those)")
-    return chosen
+        label = fault_label(by[k]["cand"])
+        if mine != theirs and (label, mine, theirs) not in differ.values():
+            differ[k] = (label, mine, theirs)
+        elif mine == theirs != "held" and (label, mine) not in both.values():
+            both[k] = (label, mine)
+    return {**{k: f"{v[0]}: controller {v[1]}, baseline {v[2]} (the highest peak speed "
+                  "of those)" for k, v in differ.items()},
+            **{k: f"{v[0]} {v[1]} by both (the highest peak speed of those)"
+               for k, v in both.items()}}
 
 
 def _ends(by: dict, trip: float, metric: tuple) -> list[tuple[tuple, str]]:
@@ -100,7 +104,7 @@ def decisive(rows: list[dict], n: int, trip: float, group: str, cand: str,
     ends = [_ends(by, trip, m) for m in scored.METRICS.get(group, [])]
     depth = max((len(e) for e in ends), default=0)
     for i in range(depth):
-        if i >= 2 and len(chosen) >= n:  # the first two of each: against and for
+        if i >= 1 and len(chosen) >= n:  # the first of each: the most against
             break
         for e in ends:
             if i < len(e):
