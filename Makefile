@@ -4,10 +4,10 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: help setup openfast regenerate check-generated test lint run verify bench standing clean
+.PHONY: help setup openfast regenerate check-generated test lint run verify bench standing headline scorecards clean
 
 help:
-	@echo "make run              set up, then the paper's three cases on both plants into results/"
+	@echo "make run              set up, then the paper's three cases on both plants into out/cases/"
 	@echo "make verify           set up, check generated/, verify the generated controller code"
 	@echo "make test             set up, get OpenFAST, run the whole test suite"
 	@echo "make openfast         get OpenFAST 5.0.0 and TurbSim into wtftc's cache (docs/openfast.md)"
@@ -15,7 +15,9 @@ help:
 	@echo "make check-generated  fail with a diff if generated/ is stale"
 	@echo "make bench            set up, time the closed loop through every method (out/bench/)"
 	@echo "make lint             ruff"
-	@echo "make standing         remake docs/standing.md and the README's table from docs/campaigns/"
+	@echo "make standing         remake docs/standing.md from docs/campaigns/"
+	@echo "make headline         remake the README's table of the committed scorecards (results/)"
+	@echo "make scorecards       remake (or resume) the committed scorecards in results/ (hours: results/README.md)"
 
 $(STAMP): pyproject.toml
 	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "wtftc needs Python >= 3.11; set PYTHON=python3.11")'
@@ -57,7 +59,7 @@ lint: setup
 	$(VENV)/bin/ruff check .
 
 run: setup
-	$(VENV)/bin/wtftc cases --out results
+	$(VENV)/bin/wtftc cases --out out/cases
 
 bench: setup openfast
 	$(PY) -m bench --out out/bench
@@ -67,7 +69,15 @@ verify: setup check-generated
 
 standing: setup
 	$(VENV)/bin/wtftc presets --standing --out docs/standing.md
-	$(PY) -c 'from pathlib import Path; from wtftc.campaign import standing as s; p = Path("README.md"); p.write_text(s.with_readme_table(p.read_text(), s.standing(s.default_folders())))'
+
+# the README's table of the committed scorecards, from results/*/scorecard.json
+headline: setup
+	$(PY) -c 'from pathlib import Path; from wtftc.campaign.scorecard import headline as h; p = Path("README.md"); p.write_text(h.main(p, Path("results")))'
+
+# the committed scorecards (results/README.md): each resumes where it stopped
+scorecards: setup openfast
+	$(VENV)/bin/wtftc scorecard --turbine nrel5mw --seeds 6 --screen 1 --out results/scorecard_nrel5mw
+	$(VENV)/bin/wtftc scorecard --turbine iea15mw --seeds 6 --screen 1 --out results/scorecard_iea15mw
 
 clean:
-	rm -rf out results .pytest_cache .ruff_cache
+	rm -rf out .pytest_cache .ruff_cache

@@ -45,6 +45,12 @@ angle_deg = "current"
 severity = 1.0
 runaway_targets_deg = [0.0]
 overspeed_trip = 1.2
+
+[groups.baseline_as_shipped]
+iec = "1.2"
+what = "ROSCO as shipped at the upper bin"
+near_mps = [18.0]
+overspeed_trip = 1.2
 """
 
 
@@ -142,7 +148,8 @@ def test_every_scored_metric_agrees_with_an_independent_read_of_the_outb(card):
     a difference of 1/N over N = 6000 samples)."""
     rated = turbine_file.load("nrel5mw").values["omega_g_rated"]
     doc = json.loads((card / "scorecard.json").read_text())
-    assert set(doc["groups"]) == {"normal_production", "actuator_faults"}
+    assert set(doc["groups"]) == {"normal_production", "actuator_faults",
+                                  "baseline_as_shipped"}
     checked = 0
     for group in doc["groups"]:
         for row in read_results(card / group).to_pylist():
@@ -167,7 +174,8 @@ def test_every_scored_metric_agrees_with_an_independent_read_of_the_outb(card):
                 assert w[a].min() / rated == pytest.approx(
                     row["speed_min_over_rated_after_onset"], rel=0.01)
             checked += 1
-    assert checked == 2 * 2 + 2  # the controller's and ROSCO's: two bins, one fault
+    # the controller's and ROSCO's: two bins, one fault; ROSCO as shipped at one bin
+    assert checked == 2 * 2 + 2 + 1
 
 
 def test_a_screened_scorecard_shows_both_engines_side_by_side(tmp_path):
@@ -182,7 +190,12 @@ def test_a_screened_scorecard_shows_both_engines_side_by_side(tmp_path):
     from wtftc.campaign.scorecard import screen as chooser
     from wtftc.campaign.sweep import confirm
 
+    shipped = read_results(out / "baseline_as_shipped").to_pylist()
+    assert {r["plant"] for r in shipped} == {"tower_edge"}  # one column: the screen alone
+    assert not (out / "baseline_as_shipped_openfast").exists()
     for group, g in doc["groups"].items():
+        if group == "baseline_as_shipped":
+            continue
         screen = read_results(out / group).to_pylist()
         confirmed = read_results(out / f"{group}_openfast").to_pylist()
         assert {r["plant"] for r in screen} == {"tower_edge"}

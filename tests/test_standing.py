@@ -176,17 +176,6 @@ def test_a_folder_without_a_sweep_is_refused(tmp_path):
         standing.standing([tmp_path])
 
 
-def test_the_readmes_table_is_what_the_folders_make():
-    """The README's standing table is made by `make standing`, not typed."""
-    rows = standing.standing(standing.default_folders())
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    assert standing.with_readme_table(readme, rows) == readme, "run `make standing`"
-    for preset in ("aftc-nrel5mw", "aftc-iea15mw"):
-        assert f"| `{preset}` | fault-free |" in readme and f"| `{preset}` | any fault |" in readme
-    with pytest.raises(ConfigError):
-        standing.with_readme_table("no marks here", rows)
-
-
 def test_presets_standing_writes_whole_and_refuses_a_users_file(tmp_path):
     import subprocess
     import sys

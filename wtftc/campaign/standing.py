@@ -347,47 +347,6 @@ def _current_code() -> str:
     return generated_code_sha256()
 
 
-#: the marks around the README's table (:func:`readme_table`)
-README_MARKS = ("<!-- standing:begin -->", "<!-- standing:end -->")
-
-
-def readme_table(rows: list[dict]) -> str:
-    """The README's short table: each preset's fault-free and any-fault standing, one
-    cell per metric (ratio, interval, verdict), the engine, seeds and winds behind it;
-    docs/standing.md has every fault type and the links."""
-    head = ["preset", "faults", "engine, turbine: seeds × winds, both held",
-            *(h for _, h, _ in METRICS), "generated code"]
-    lines = ["Ratio to ROSCO on the same scenarios (geometric mean, 95 % interval over "
-             "the scenarios both held; **tie** when it holds 1; lower is better), from "
-             "the campaign folders kept in `docs/campaigns/`, each made on the generated "
-             "code its row names (the hash `wtftc sweep` records in its sweep.json); "
-             "this version's is `" + _current_code() + "`, which an export's header "
-             "names too: a row with another hash measured an earlier version of the "
-             "designs. Every fault type, the counts of runs lost and the folders: "
-             "[docs/standing.md](docs/standing.md).", "",
-             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    order = list(controller.presets())
-    for r in sorted((r for r in rows if r["faults"] in GROUP_TEXT),
-                    key=lambda r: (order.index(r["preset"]), r["faults"] != FAULT_FREE)):
-        cells = ["—" if m["ratio"] is None else
-                 f"{_g(m['ratio'])} ({_g(m['low'])}–{_g(m['high'])}) {m['verdict']}"
-                 for m in (r["metrics"][k] for k, _, _ in METRICS)]
-        lines.append("| " + " | ".join([
-            f"`{r['preset']}`", GROUP_TEXT[r["faults"]],
-            f"{r['engine']}, {r['turbine']}: {r['seeds']} × {r['winds']}, {r['both_held']}",
-            *cells, f"`{r['code']}`"]) + " |")
-    return "\n".join(lines) + "\n"
-
-
-def with_readme_table(text: str, rows: list[dict]) -> str:
-    """``text`` (the README) with :func:`readme_table` between its marks."""
-    begin, end = README_MARKS
-    if text.count(begin) != 1 or text.count(end) != 1 or text.index(begin) > text.index(end):
-        raise ConfigError("README", "its standing marks", f"one {begin} before one {end}")
-    head, rest = text.split(begin)
-    return head + begin + "\n" + readme_table(rows) + end + rest.split(end, 1)[1]
-
-
 def written_by_it(path: Path) -> bool:
     """Whether ``path`` is a page this module wrote (its first two lines), which a new
     page may replace."""

@@ -154,8 +154,10 @@ def run_scorecard(candidate, out: Path, turbine: str | None = None, against="ros
         if not quiet:
             print(f"[scorecard] {group} (DLC {m['groups'][group]['iec']})", flush=True)
         t0, path = time.perf_counter(), write_sweep(out, group, raw)
+        # (a group of one column, the baseline as shipped, has no verdict to confirm:
+        # screened, it runs on the screen alone)
         counts = sweep.run_sweep(path, out / group, workers, scheduler, quiet=quiet) \
-            if screen is None else sweep.run_confirm(
+            if screen is None or len(raw["controllers"]) < 2 else sweep.run_confirm(
                 path, out / group, screen, out / CONFIRMED.format(group=group), workers,
                 scheduler, quiet=quiet, pick=deciding(group, cand["name"], base["name"]))
         done[group] = {**counts, "wall_s": time.perf_counter() - t0}

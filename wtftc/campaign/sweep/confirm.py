@@ -175,8 +175,8 @@ def report(screen_dir: Path, confirm_dir: Path, chosen: list[tuple[tuple, str]],
                                f"{state(r, trip)},"
                                + ",".join(_raw(r, key) for key, *_ in COLUMNS))
     rows = _agreement(on, keys, trip)
-    md += ["", "## Ranking agreement (issue 23: ties within each metric's tolerance count "
-           "as agreement)", "", ranking.summary_markdown(rows) if rows else
+    md += ["", "## Ranking agreement (ties within each metric's tolerance count as "
+           "agreement)", "", ranking.summary_markdown(rows) if rows else
            "No scenario has two controllers on both engines.", "",
            ranking.rows_markdown(rows, "wtftc", "OpenFAST") if rows else ""]
     text = "\n".join(md).rstrip() + "\n"
