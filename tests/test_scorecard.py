@@ -295,3 +295,15 @@ def test_the_plan_counts_the_runs_and_runs_nothing(tmp_path):
     assert sorted(x.name for x in tmp_path.iterdir()) == ["short.toml"]
     q = wtftc("scorecard", "--matrix", tmp_path / "short.toml", cwd=tmp_path)
     assert q.returncode == 2 and q.stderr.startswith("wtftc: error: --out = None")
+
+
+def test_the_confirmed_outcomes_show_where_the_engines_part():
+    held = dict.fromkeys(("failed", "failed_structurally", "brought_down", "tripped"), 0)
+    doc = {"screen": 1, "groups": {"actuator_faults": {"confirmed": {"metrics": [], "outcomes": {
+        "screen": {"runaway_feather": {"aftc": {**held, "tripped": 1, "held": 0}},
+                   "lock": {"aftc": {**held, "held": 2}}},
+        "openfast": {"runaway_feather": {"aftc": {**held, "brought_down": 1, "held": 0}},
+                     "lock": {"aftc": {**held, "held": 2}}}}}}}}
+    lines = report._confirmed_lines(doc)
+    assert "| actuator_faults | runaway_feather | aftc | tripped 1 | brought_down 1 |" in lines
+    assert not any("| lock |" in line for line in lines)  # held on both: not repeated

@@ -160,6 +160,9 @@ def _confirmed(screen_rows: list, conf_rows: list, group: str, cand: str, base: 
         a["screen_ratio"] = b.get("ratio")
         a["agree"] = None if None in (a.get("ratio"), b.get("ratio")) else \
             (a["ratio"] - 1.0) * (b["ratio"] - 1.0) >= 0.0
+    label = _case_label if group == "deterministic" else None
+    on["openfast"]["outcomes"] = {"openfast": _outcomes(conf_rows, trip, label),
+                                  "screen": _outcomes(mine, trip, label)}
     return on["openfast"]
 
 
@@ -315,10 +318,14 @@ def _as_shipped_lines(doc: dict) -> list[str]:
     g = doc["groups"].get("baseline_as_shipped")
     if not g:
         return []
+    where = ("in OpenFAST" if doc.get("screen") is None and doc.get("engine") != "wtftc"
+             else "on wtftc's plant, where the actuator's dynamics are the plant's in both "
+             "runs: what the sensors' noise and sampling cost, not the actuator")
     return ["", f"## What the benchmark's actuator and sensors cost `{doc['baseline']}`", "",
             "Each cell: the baseline behind the benchmark's actuator and noisy sensors over "
             "the baseline as its deck ships it (ideal pitch, exact sensors), paired by wind "
-            "and seed, with its 90 % interval over the seeds: above 1, what they cost.", "",
+            f"and seed, with its 90 % interval over the seeds: above 1, what they cost; "
+            f"{where}.", "",
             "| metric | ratio (interval) | pairs | seeds |", "|---|---|---|---|",
             *(f"| {r['what']} [{r['unit']}] | {_cell({**r, 'verdict': _cost(r)})} | "
               f"{r['n_pairs']} | {r['n_seeds']} |" for r in g["metrics"])]
@@ -416,7 +423,30 @@ def _confirmed_lines(doc: dict) -> list[str]:
             screen = "—" if r["screen_ratio"] is None else f"{r['screen_ratio']:.3g}"
             agree = {None: "—", True: "yes", False: "**no**"}[r["agree"]]
             lines.append(f"| {name} | {r['what']} | {_cell(r)} | {screen} | {agree} |")
-    return lines
+    return lines + _confirmed_outcome_lines(doc)
+
+
+def _counts(n: dict | None) -> str:
+    return "—" if n is None else ", ".join(f"{o} {k}" for o, k in n.items() if k)
+
+
+def _confirmed_outcome_lines(doc: dict) -> list[str]:
+    """The confirmed scenarios' outcomes on both engines, where either lost one."""
+    lines = []
+    for name, g in doc["groups"].items():
+        both = (g.get("confirmed") or {}).get("outcomes") or {}
+        for label, cols in (both.get("openfast") or {}).items():
+            for col, n in cols.items():
+                screen = (both.get("screen") or {}).get(label, {}).get(col)
+                if n.get("held", 0) != sum(n.values()) or screen is None or \
+                        screen.get("held", 0) != sum(screen.values()):
+                    lines.append(f"| {name} | {label} | {col} | {_counts(screen)} | "
+                                 f"{_counts(n)} |")
+    if not lines:
+        return []
+    return ["", "The confirmed scenarios that either engine did not hold, their outcomes "
+            "on each:", "", "| group | fault or case | column | screen | OpenFAST |",
+            "|---|---|---|---|---|", *lines]
 
 
 def write(out: Path, result: dict, turbine: str | None = None) -> str:
