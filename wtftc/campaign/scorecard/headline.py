@@ -44,7 +44,10 @@ def table(found: list[tuple[Path, dict]], base: Path) -> str:
         return "No scorecard is committed yet (results/README.md)."
     lines = ["Each cell: the ratio controller / ROSCO over the scenarios both held, its 90 % "
              "bootstrap interval over the seeds, and the verdict (**tie** where the interval "
-             "holds 1). Lower is better but for the power. From the committed scorecards:", ""]
+             "holds 1). Lower is better but for the power and the energy. A screened card's "
+             "verdicts are the reduced plant's: its report says, metric by metric, where "
+             "OpenFAST disagrees over the scenarios it confirmed, and which runs either "
+             "engine lost. From the committed scorecards:", ""]
     for folder, doc in found:
         rel = folder.relative_to(base).as_posix()
         lines.append(f"- [`{rel}`]({rel}/scorecard.md): `{doc['controller']}` against "
