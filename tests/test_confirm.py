@@ -32,14 +32,14 @@ def test_lost_scenarios_come_first_then_the_worst_of_each_metric_in_turn():
             _row("a", 16.0, 1.01), _row("b", 16.0, 1.00, status="diverged"),  # lost by b
             _row("a", 18.0, 1.08, shaft=5e6), _row("b", 18.0, 1.07, tower=5e7)]
     chosen = confirm.pick(rows, 10, TRIP)
-    winds = [k[1] for k, _ in chosen]
+    winds = [k[2] for k, _ in chosen]  # (fault, wind kind, mean wind, ...)
     # lost (by their peak: 14 then 16); then in turn: peak #1 (14, taken), shaft #1 (10),
     # tower #1 (12); peak #2 (12, taken), shaft #2 (18)
     assert winds == [14.0, 16.0, 10.0, 12.0, 18.0]
     assert [w for _, w in chosen] == ["lost by a", "lost by b", "worst shaft DEL (#1)",
                                       "worst tower-base DEL (#1)", "worst shaft DEL (#2)"]
-    assert [k[1] for k, _ in confirm.pick(rows, 3, TRIP)] == [14.0, 16.0, 10.0]
-    assert [k[1] for k, _ in confirm.pick(rows, 1, TRIP)] == [14.0]  # N caps the lost too
+    assert [k[2] for k, _ in confirm.pick(rows, 3, TRIP)] == [14.0, 16.0, 10.0]
+    assert [k[2] for k, _ in confirm.pick(rows, 1, TRIP)] == [14.0]  # N caps the lost too
 
 
 def test_a_failed_run_is_not_lost_and_each_fault_size_is_its_own_scenario():
