@@ -4,7 +4,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: help setup openfast regenerate check-generated test lint run verify bench standing headline scorecards clean
+.PHONY: help setup openfast regenerate check-generated test lint run verify bench headline scorecards clean
 
 help:
 	@echo "make run              set up, then the paper's three cases on both plants into out/cases/"
@@ -15,7 +15,6 @@ help:
 	@echo "make check-generated  fail with a diff if generated/ is stale"
 	@echo "make bench            set up, time the closed loop through every method (out/bench/)"
 	@echo "make lint             ruff"
-	@echo "make standing         remake docs/standing.md from docs/campaigns/"
 	@echo "make headline         remake the README's table of the committed scorecards (results/)"
 	@echo "make scorecards       remake (or resume) the committed scorecards in results/ (hours: results/README.md)"
 
@@ -66,9 +65,6 @@ bench: setup openfast
 
 verify: setup check-generated
 	$(VENV)/bin/wtftc verify --out out/verify
-
-standing: setup
-	$(VENV)/bin/wtftc presets --standing --out docs/standing.md
 
 # the README's table of the committed scorecards, from results/*/scorecard.json
 headline: setup

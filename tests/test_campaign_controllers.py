@@ -1,40 +1,16 @@
-"""Campaign columns as controller settings: every kept campaign folder still summarises and
-its migrated sweep file gives its runs, the former controller names run as they were
-defined, and a column refused is one line naming it."""
+"""Campaign columns as controller settings: the former controller names run as they were
+defined, a sweep records its columns and reads them back, and a column refused is one
+line naming it."""
 
 import json
-import math
-import shutil
 from pathlib import Path
 
 import pytest
 
 from wtftc import controller
-from wtftc.campaign import compare, tune
-from wtftc.campaign.sweep import expand, load_sweep, parse_sweep, read_results, summarize
+from wtftc.campaign import compare
+from wtftc.campaign.sweep import expand, load_sweep, parse_sweep
 from wtftc.errors import ConfigError
-
-ROOT = Path(__file__).resolve().parents[1]
-KEPT = ROOT / "docs" / "campaigns"
-#: each kept folder with a sweep file → the example file it was made from, migrated
-EXAMPLE = {
-    "dlc12_openfast_ct_nrel5mw": "dlc12_openfast_ct",
-    "dlc12_openfast_iea15mw_ct": "dlc12_openfast_iea15mw_ct",
-    "dlc12_openfast_nrel5mw": "dlc12_openfast",
-    "dlc12_openfast_obs30_nrel5mw": "dlc12_openfast_obs30",
-    "dlc12_openfast_obs3to45_nrel5mw": "dlc12_openfast_obs3to45",
-    "dlc12_openfast_td_nrel5mw": "dlc12_openfast_td",
-    "dlc21_openfast_ct_nrel5mw": "dlc21_openfast_ct",
-    "dlc21_openfast_iea15mw_ct": "dlc21_openfast_iea15mw_ct",
-    "dlc21_openfast_nrel5mw": "dlc21_openfast",
-    "dlc21_openfast_obs30_nrel5mw": "dlc21_openfast_obs30",
-    "dlc21_openfast_obs3to45_nrel5mw": "dlc21_openfast_obs3to45",
-    "tower_damper_openfast_nrel5mw": "tower_damper_openfast",
-}
-#: the IEA 15-MW candidate, set in its folder's sweep file by its target mode, which the
-#: preset aftc-iea15mw holds as the gains that target solves to: other run ids, the same
-#: runs once the target is solved
-TUNED = {"physical_obs15_w04_ps_ct_fdi": "aftc-iea15mw"}
 
 #: the 21 controller names of the earlier wtftc (wtftc/campaign/compare.py at b2e8c34):
 #: name → (design, case under a fault, (ω_n, ζ) target or None, [controller_params],
@@ -87,56 +63,6 @@ def _old_run_keys(name: str, faulty: bool) -> dict:
     if design != "rosco":
         cfg["turbine_params"] = {"gen_torque_law": 1.0, **turbine}
     return cfg
-
-
-def test_the_kept_folders_are_those_with_a_sweep_file():
-    assert sorted(EXAMPLE) == sorted(d.name for d in KEPT.iterdir()
-                                     if (d / "sweep.toml").is_file())
-
-
-@pytest.mark.parametrize("folder", sorted(EXAMPLE))
-def test_a_kept_folder_summarises_and_its_migrated_file_gives_its_runs(folder, tmp_path):
-    """The folder's sweep.json names its columns only: they resolve as former names, and
-    its summary is made again (in a copy). Its migrated example file lists the runs the
-    folder holds: the same run ids, the IEA 15-MW candidate's the same configuration once
-    its target is solved (the gains to 1e-9)."""
-    copy = tmp_path / folder
-    shutil.copytree(KEPT / folder, copy)
-    text = summarize(copy)
-    saved = read_results(copy).to_pylist()
-    assert f"{len(saved)} of {len(saved)} runs saved" in text
-    assert all(f"| {c} |" in text for c in {r["controller"] for r in saved})
-    runs, _ = expand(load_sweep(ROOT / "examples" / f"{EXAMPLE[folder]}.toml"))
-    assert len(runs) == len(saved)
-    ids = {pt["run_id"]: pt for pt in runs}
-    plain = [r for r in saved if r["controller"] not in TUNED]
-    assert plain and all(r["run_id"] in ids for r in plain)
-    for r in plain:  # the same column: the former name's settings under its new name
-        new = ids[r["run_id"]]["controller"]
-        assert load_sweep(ROOT / "examples" / f"{EXAMPLE[folder]}.toml").columns[new] \
-            .run_keys(True, True) == _old_run_keys(r["controller"], True)
-    tuned = [r for r in saved if r["controller"] in TUNED]
-    if tuned:
-        _same_once_solved(tuned, [pt for pt in runs if pt["controller"] in TUNED.values()])
-
-
-def _scenario(cfg: dict) -> str:
-    return json.dumps({k: v for k, v in cfg.items()
-                       if k not in ("label", "controller_params", "tuning")}, sort_keys=True)
-
-
-def _same_once_solved(saved: list[dict], runs: list[dict]) -> None:
-    """Each saved run of a tuned column has a run of its preset with the same
-    configuration after tune.resolve, its controller's gains equal to 1e-9."""
-    assert len(saved) == len(runs)
-    by = {_scenario(pt["config"]): tune.resolve(pt["config"]) for pt in runs}
-    for r in saved:
-        old = tune.resolve(json.loads(r["config_json"]))
-        new = by[_scenario(old)]
-        assert _scenario(new) == _scenario(old) and "tuning" not in new
-        a, b = old["controller_params"], new["controller_params"]
-        assert set(a) == set(b) >= {"phys_c1", "phys_c2", "phys_gamma"}
-        assert all(math.isclose(a[k], b[k], rel_tol=1e-9) for k in a), (a, b)
 
 
 @pytest.mark.parametrize("name", sorted(OLD))

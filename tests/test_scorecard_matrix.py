@@ -3,7 +3,6 @@ same runs for every controller, and the runs the kept campaign made."""
 
 from pathlib import Path
 
-import pyarrow.parquet as pq
 import pytest
 
 from wtftc.campaign.scorecard import matrix
@@ -67,15 +66,26 @@ def test_the_groups_sizes_and_times():
         == 4 * 6 * 6
 
 
-def test_its_fault_cases_are_the_kept_dlc21_campaigns_runs():
-    """With 2 seeds the actuator faults are, run for run, the OpenFAST campaign kept in
-    docs/campaigns/dlc21_openfast_obs3to45_nrel5mw (the same run ids)."""
-    raw = matrix.sweeps(matrix.load(), ["aftc-nrel5mw", "rosco"], None, "openfast",
-                        seeds=2)["actuator_faults"]
-    mine = {r["run_id"] for r in _runs(raw)}
-    kept = set(pq.read_table(ROOT / "docs" / "campaigns" / "dlc21_openfast_obs3to45_nrel5mw"
-                             / "runs", columns=["run_id"]).column("run_id").to_pylist())
-    assert mine == kept
+def test_the_committed_nrel5mw_card_holds_the_runs_the_matrix_makes():
+    """results/scorecard_nrel5mw (`make scorecards`, 6 seeds, --screen 1): every group's
+    screen is, run for run, what the matrix makes now (the same run ids, which hash each
+    run's whole configuration), and every OpenFAST confirmation run is one of the
+    matrix's OpenFAST runs. A change to the matrix or to what a run is fails here until
+    the card is made again."""
+    from wtftc.campaign.scorecard import run
+    from wtftc.campaign.sweep import store
+
+    card = ROOT / "results" / "scorecard_nrel5mw"
+    cols = ["aftc-nrel5mw", "rosco"]
+    screened = run._sweeps(matrix.load(), cols, "nrel5mw", "openfast", 6, 1)
+    judged = matrix.sweeps(matrix.load(), cols, "nrel5mw", "openfast", seeds=6)
+    for group, raw in screened.items():
+        kept = store.read_results(card / group).column("run_id").to_pylist()
+        assert sorted(kept) == sorted(r["run_id"] for r in _runs(raw)), group
+        confirmed = card / f"{group}_openfast"
+        if confirmed.is_dir():
+            ids = set(store.read_results(confirmed).column("run_id").to_pylist())
+            assert ids and ids <= {r["run_id"] for r in _runs(judged[group])}, group
 
 
 @pytest.mark.parametrize("edit, field", [

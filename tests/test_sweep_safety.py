@@ -345,7 +345,7 @@ def test_summary_pairs_each_controller_with_rosco_in_its_own_csv(tmp_path):
     assert float(cells["rms_speed_error_rad_s_ratio_median"]) == 1.0
     assert all(Record.open(out, "--summary").ours(rel) for rel in (
         "summary_paired.csv", "figures/paired_tradeoff.png", "figures/paired_tradeoff.pdf"))
-    # a folder kept without its record (docs/campaigns/): its summary is recognised by
+    # a folder kept without its record (copied, or committed): its summary is recognised by
     # its header, replaced, recorded
     (out / RECORD).unlink()
     assert sweep.summarize(out) == text

@@ -1316,25 +1316,11 @@ def _add_presets(sub) -> None:
                     "to copy into a configuration and change. docs/controllers.md.",
         epilog="Example: wtftc presets aftc-nrel5mw")
     p.add_argument("name", nargs="?", metavar="NAME", help="a preset to show in full")
-    p.add_argument("--standing", nargs="*", type=Path, metavar="FOLDER",
-                   help="instead: each preset's standing against ROSCO, paired by scenario "
-                        "with a 95 %% interval, from these sweep folders (default: the "
-                        "campaign folders kept in the checkout's docs/campaigns/), as "
-                        "Markdown (docs/standing.md is this page)")
-    p.add_argument("--out", type=Path, help="with --standing: write the page here (a page "
-                   "it wrote is replaced; any other file is refused)")
-    p.add_argument("--overwrite", action="store_true",
-                   help="with --out: replace an existing file that wtftc did not write")
 
 
 def _cmd_presets(args) -> int:
     from wtftc import config, controller
     from wtftc.model import turbine_file
-
-    if args.standing is not None:
-        return _standing(args)
-    if args.out is not None:
-        raise ConfigError("--out", str(args.out), "only with --standing")
 
     table = controller.presets()
     recommends = {}
@@ -1460,25 +1446,6 @@ def _cmd_scorecard(args) -> int:
     print(text, end="")
     print(f"written under {args.out}/: scorecard.md, scorecard.json, and each group's "
           "results folder")
-    return 0
-
-
-def _standing(args) -> int:
-    """``wtftc presets --standing``: the page, printed or written whole to --out."""
-    from wtftc.campaign import standing
-    from wtftc.files import check_new_file
-    from wtftc.results.io import atomic_write_text
-
-    if args.name is not None:
-        raise ConfigError("NAME", args.name, "no preset name with --standing (the page "
-                          "holds every preset found in the folders)")
-    if args.out is not None:
-        check_new_file(args.out, "--out", args.overwrite, ours=standing.written_by_it)
-    text = standing.main(args.standing or None, out=args.out, write=atomic_write_text)
-    if args.out is None:
-        print(text, end="")
-    else:
-        print(f"written: {args.out}")
     return 0
 
 

@@ -389,13 +389,6 @@ def former_names() -> dict[str, Controller]:
     return out
 
 
-def standing_for() -> dict[str, tuple[str, str]]:
-    """Former names whose settings are a preset's written another way (a target mode for
-    the gains it solves to): name → (preset, why)."""
-    return {name: (v["preset"], v["why"])
-            for name, v in _presets_file().get("former_names_standing_for", {}).items()}
-
-
 def lookup(name, field: str = "controllers") -> Controller:
     """A controller by name: a preset, or a name earlier wtftc versions used."""
     if isinstance(name, str):

@@ -10,22 +10,21 @@ The rules read a sweep's run row (wtftc.campaign.sweep.tasks, the columns of its
    :func:`wtftc.openfast.engine.abort_message`, OpenFAST's own reason after it) →
    **failed_structurally** when the reason names a strike (:data:`STRUCTURAL`: AeroDyn's
    ``edInflow:TwrInfl:Tower strike.``, a blade through the tower, as the IEA 15-MW's
-   ROSCO under the runaway to fine at 24 m/s, seed 0, docs/campaigns/
-   dlc21_openfast_iea15mw_ct), else **failed**: OpenFAST stopped for another reason (the
-   DLC 1.2 NREL 5-MW runs of ``paper`` end in ``DLL_controller_call: ... the pitch
-   demand of blade 1 (#42) is -3.45e+38 ...: not a finite float``: the controller's
-   numbers, not the structure).
+   ROSCO under the runaway to fine at 24 m/s, seed 0, in tests/data/openfast_runs),
+   else **failed**: OpenFAST stopped for another reason (the DLC 1.2 NREL 5-MW runs of
+   ``paper`` end in ``DLL_controller_call: ... the pitch demand of blade 1 (#42) is
+   -3.45e+38 ...: not a finite float``: the controller's numbers, not the structure).
 3. ``status == "diverged"`` and ``cause`` ending in "the rotor stalled" (the envelope's
    reason, :meth:`wtftc.sim.integrate.Envelope.reason`: ω_r below ``stall_under_rated``
    × rated, 0.2 in layout.json) → **brought_down**. Threshold 0.2 × rated because it is
    where every run already ends as lost, and it lies below every controller's own speed
    range (ROSCO's minimum rotor speed for the NREL 5-MW, VS_MinOMSpd, is 0.28 × rated):
    a rotor there no longer makes power under control, it is stopping. Every runaway to
-   feather of the kept DLC 2.1 folders that did not hold ends so (ω_r 0.2533 rad/s
-   against a floor of 0.2534 on the NREL 5-MW, 40 s onset, lost at 53-67 s): the
-   feathered blade brakes the rotor, as a shutdown would. This rule comes before the
-   overspeed's: a stopped rotor is never counted as an overspeed, whatever its peak.
-   ``cause`` ending in "the rotor ran away" (above 2 × rated) → **tripped**.
+   feather of the DLC 2.1 runs in tests/data/openfast_runs that did not hold ends so
+   (ω_r 0.2533 rad/s against a floor of 0.2534 on the NREL 5-MW, 40 s onset, lost at
+   53-67 s): the feathered blade brakes the rotor, as a shutdown would. This rule comes
+   before the overspeed's: a stopped rotor is never counted as an overspeed, whatever
+   its peak. ``cause`` ending in "the rotor ran away" (above 2 × rated) → **tripped**.
 4. Any other ``diverged`` (wtftc's own plant: a non-finite or |state| > 1e8) → **failed**.
 5. ``status == "ok"``: a shutdown (:data:`SHUTDOWN` set) or a speed after the onset
    below 0.2 × rated (:data:`MIN_AFTER_ONSET`) → **brought_down**; a peak rotor speed

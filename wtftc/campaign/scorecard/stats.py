@@ -32,7 +32,6 @@ from itertools import combinations_with_replacement
 
 import numpy as np
 
-from wtftc.campaign import standing
 from wtftc.campaign.sweep import dlc, paired
 
 #: the interval's confidence, as the scorecard reports it
@@ -137,7 +136,7 @@ def expanded_tail(n: int, level: float) -> float:
     plain percentile interval is as narrow as a z interval with the divisor n in the
     standard deviation; this widens it to a t interval's with n − 1. 0.0137 for 6 seeds
     at 90 % (against 0.05)."""
-    t = standing.t_quantile((1 + level) / 2, n - 1)
+    t = t_quantile((1 + level) / 2, n - 1)
     return 0.5 * math.erfc(math.sqrt(n / (n - 1)) * t / math.sqrt(2.0))
 
 
@@ -306,3 +305,26 @@ def upper_rate_bound(events: int, hours: float, level: float = 0.95) -> float:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if poisson_cdf(events, mid) > 1.0 - level else (lo, mid)
     return 0.5 * (lo + hi) / hours
+
+
+def t_quantile(p: float, df: int) -> float:
+    """Student's t quantile: the t with P(T ≤ t) = ``p`` (0.5 < p < 1) at ``df`` degrees
+    of freedom. With t = √df tan θ, P(T ≤ t) − ½ = c ∫₀^θ cos^(df−1) φ dφ, c = Γ((df+1)/2)
+    / (√π Γ(df/2)): a smooth integral on [0, π/2) (64-point Gauss-Legendre), solved for θ
+    by Newton's method (its derivative the integrand)."""
+    if not 0.5 < p < 1.0 or df < 1:
+        raise ValueError(f"t_quantile needs 0.5 < p < 1 and df >= 1, not {p}, {df}")
+    c = math.exp(math.lgamma((df + 1) / 2) - math.lgamma(df / 2)) / math.sqrt(math.pi)
+    x, w = np.polynomial.legendre.leggauss(64)
+
+    def area(theta: float) -> float:
+        phi = 0.5 * theta * (x + 1.0)
+        return c * 0.5 * theta * float(np.sum(w * np.cos(phi) ** (df - 1)))
+
+    theta = math.atan(2.0 / math.sqrt(df))
+    for _ in range(100):
+        step = (area(theta) - (p - 0.5)) / (c * math.cos(theta) ** (df - 1))
+        theta = min(max(theta - step, 0.5 * theta), 0.5 * (theta + math.pi / 2))
+        if abs(step) < 1e-15:
+            break
+    return math.sqrt(df) * math.tan(theta)
