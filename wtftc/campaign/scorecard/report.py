@@ -192,7 +192,25 @@ def analyse(out: Path, result: dict, turbine: str | None = None) -> dict:
                                         base, trip)
         doc["groups"][group] = g
     doc["screen"] = result.get("screen")
+    doc["seeds"] = result.get("seeds")
+    doc["cost"] = _wall(Path(out), result, turbine)
     return doc
+
+
+def _wall(out: Path, result: dict, turbine: str | None) -> dict:
+    """The card's wall over its calls, its OpenFAST runs' rate, the whole matrix's
+    projection at that rate (wtftc.campaign.scorecard.cost)."""
+    from wtftc.campaign.scorecard import cost, matrix
+
+    m, groups = result["matrix"], result["groups"]
+    if result.get("screen") is not None:
+        folders = [f"{g}_openfast" for g in groups if (out / f"{g}_openfast").is_dir()]
+    else:
+        folders = list(groups) if (result.get("engine") or "openfast") == "openfast" else []
+    rows = [r for f in folders for r in _rows(out, f)]
+    calls = {g: groups[g].get("calls_wall_s") or [{"wall_s": groups[g]["wall_s"],
+                                                    "workers": None}] for g in groups}
+    return cost.summary(groups, rows, matrix.plan(m, turbine, result.get("seeds")), calls)
 
 
 def _group(group: str, rows: list, cand: str, base: str, trip: float, judged: set,
@@ -266,7 +284,7 @@ def markdown(doc: dict) -> str:
                          f"{_cell(r)} | {r['n_pairs']} | {r['n_seeds']} |")
     for section in (_confirmed_lines, _lifetime_lines, _spectra_lines, _case_lines,
                     _as_shipped_lines, _outcome_lines, _fdi_lines, _alarm_lines,
-                    _provenance_lines):
+                    _wall_lines, _provenance_lines):
         lines += section(doc)
     return "\n".join(lines) + "\n"
 
@@ -386,6 +404,12 @@ def _alarm_lines(doc: dict) -> list[str]:
             *(f"| {c} | {a['alarms']} | {a['hours']:.3g} | {a['runs_with_an_alarm']} of "
               f"{a['runs']} | {a['per_hour']:.3g} | {a['per_hour_upper_95']:.3g} |"
               for c, a in rates.items())]
+
+
+def _wall_lines(doc: dict) -> list[str]:
+    from wtftc.campaign.scorecard import cost
+
+    return cost.lines(doc.get("cost"))
 
 
 def _provenance_lines(doc: dict) -> list[str]:

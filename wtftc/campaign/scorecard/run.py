@@ -164,4 +164,4 @@ def run_scorecard(candidate, out: Path, turbine: str | None = None, against="ros
         done[group]["calls_wall_s"] = log_wall(out, group, done[group]["wall_s"], workers,
                                                screen)
     return {"matrix": m, "matrix_hash": matrix.matrix_hash(m), "columns": [cand, base],
-            "groups": done, "screen": screen, "engine": engine}
+            "groups": done, "screen": screen, "engine": engine, "seeds": seeds}
