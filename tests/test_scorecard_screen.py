@@ -27,7 +27,7 @@ def grid(ratios):
     rows = []
     for (wind, seed), x in ratios.items():
         rows.append(row("pi", wind, seed))
-        rows.append(row("aftc", wind, seed, rms_speed_error_rad_s=x))
+        rows.append(row("aftc", wind, seed, rms_speed_error_own_above_rated_rad_s=x))
     return rows
 
 

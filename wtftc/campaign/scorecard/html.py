@@ -8,7 +8,8 @@ import html
 from pathlib import Path
 
 #: the per-bin figure's metrics: (key, label with its unit, scale)
-PER_BIN = [("rms_speed_error_rad_s", "RMS rotor-speed error [rad/s]", 1.0),
+PER_BIN = [("rms_speed_error_own_above_rated_rad_s",
+            "RMS rotor-speed error, wind above rated [rad/s]", 1.0),
            ("shaft_torque_del_1hz_Nm", "shaft-torque DEL, 1 Hz [MN m]", 1e-6),
            ("tower_base_del_1hz_Nm", "tower-base DEL, 1 Hz [MN m]", 1e-6),
            ("blade_root_flap_del_1hz_Nm", "blade-root flapwise DEL, 1 Hz [MN m]", 1e-6),

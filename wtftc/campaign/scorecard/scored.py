@@ -6,7 +6,11 @@ verdict table (wtftc.campaign.scorecard.report) and of the screen's choice
 #: the paired metrics of each group: (key, what, unit, lower is better)
 METRICS = {
     "normal_production": [
-        ("rms_speed_error_rad_s", "RMS rotor-speed error", "rad/s", True),
+        # where the wind is at or above rated, against rated speed (both controllers'
+        # reference there; below it the speed follows the torque law's operating point,
+        # which the power and the lifetime's below-rated share judge)
+        ("rms_speed_error_own_above_rated_rad_s", "RMS rotor-speed error, wind above rated",
+         "rad/s", True),
         ("shaft_torque_del_1hz_Nm", "shaft-torque DEL (1 Hz)", "N m", True),
         ("tower_base_del_1hz_Nm", "tower-base DEL (1 Hz)", "N m", True),
         ("blade_root_flap_del_1hz_Nm", "blade-root flapwise DEL (1 Hz, worst blade)",
