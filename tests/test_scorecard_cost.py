@@ -4,6 +4,8 @@ and the section on the committed NREL 5-MW card, whose OpenFAST runs it reads.""
 
 import json
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -11,6 +13,11 @@ import pytest
 from wtftc.campaign.scorecard import cost, matrix, report
 
 CARD = Path(__file__).resolve().parents[1] / "results" / "scorecard_nrel5mw"
+
+
+def wtftc(*args):
+    return subprocess.run([sys.executable, "-m", "wtftc.cli", *map(str, args)],
+                          capture_output=True, text=True)
 
 
 def _row(status, wall, t_final, stopped=None):
@@ -74,3 +81,25 @@ def test_the_committed_card_reports_its_wall_and_projection():
     assert kept["openfast"]["runs"] == of["runs"]
     assert {int(w): s for w, s in kept["projected_wall_s"].items()} == pytest.approx(proj)
     assert math.isclose(kept["card_wall_s"], got["card_wall_s"], rel_tol=1e-12)
+
+
+def test_the_plan_prices_a_card_at_its_own_rate():
+    """`wtftc scorecard --plan --out CARD`: the rate is the one the card's OpenFAST runs
+    measured (the report's), and the hours are the projection on --workers at it; without
+    a card, the NREL 5-MW's planning rate. Nothing is written into the card."""
+    before = sorted(p.name for p in CARD.iterdir())
+    measured = cost.measured_in(CARD)
+    kept = json.loads((CARD / "scorecard.json").read_text())["cost"]["openfast"]
+    assert measured["runs"] == kept["runs"]
+    assert measured["wall_per_simulated_s"] == pytest.approx(
+        kept["wall_per_simulated_s"], rel=1e-12)
+    p = wtftc("scorecard", "--plan", "--turbine", "nrel5mw", "--seeds", 6, "--workers", 3,
+              "--out", CARD)
+    assert p.returncode == 0, p.stderr
+    hours = cost.projection(matrix.plan(matrix.load(), "nrel5mw", 6),
+                            measured["wall_per_simulated_s"], (3,))[3] / 3600
+    assert f"at {measured['wall_per_simulated_s']:.3g} s of wall" in p.stdout
+    assert f"about {hours:.1f} h on 3 workers" in p.stdout
+    assert sorted(p.name for p in CARD.iterdir()) == before
+    q = wtftc("scorecard", "--plan", "--turbine", "nrel5mw", "--workers", 2)
+    assert f"at {matrix.OPENFAST_WALL_PER_SIM_S:.3g} s of wall" in q.stdout

@@ -1375,7 +1375,8 @@ def _add_scorecard(sub) -> None:
                    "fields), then in OpenFAST the scenarios that decide each verdict, at "
                    "least N a group, and report both engines side by side")
     p.add_argument("--plan", action="store_true", help="print each group's runs, simulated "
-                   "time and OpenFAST's cost, and run nothing")
+                   "time and OpenFAST's cost, and run nothing (with --out, a card's folder: "
+                   "at the rate its OpenFAST runs measured)")
     p.add_argument("--matrix", type=Path, help="another case matrix file (default: the "
                    "shipped one)")
     p.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1,
@@ -1389,24 +1390,29 @@ def _add_scorecard(sub) -> None:
 
 
 def _scorecard_plan(args, turbine: str | None) -> int:
-    """``wtftc scorecard --plan``: each group's runs and their cost, nothing run."""
-    from wtftc.campaign.scorecard import matrix
+    """``wtftc scorecard --plan``: each group's runs and their cost, nothing run; at the
+    rate a card's OpenFAST runs measured where --out is one, else the NREL 5-MW's."""
+    from wtftc.campaign.scorecard import cost, matrix
 
     m = matrix.load(args.matrix)
     plan = matrix.plan(m, turbine, args.seeds)
-    rate = matrix.OPENFAST_WALL_PER_SIM_S
+    measured = cost.measured_in(args.out) if args.out and args.out.is_dir() else None
+    rate = measured["wall_per_simulated_s"] if measured else matrix.OPENFAST_WALL_PER_SIM_S
+    where = (f"measured over the {measured['runs']} OpenFAST runs in {args.out}"
+             if measured else "the NREL 5-MW's, measured; --out a card's folder for its own")
     print(f"{'group':<20} {'DLC':<19} {'columns':>7} {'runs/column':>11} "
           f"{'simulated/column [h]':>20} {'OpenFAST CPU [h]':>16}")
     for name, g in plan.items():
+        cpu = g["simulated_s_per_column"] * g["columns"] * rate
         print(f"{name:<20} {g['iec']:<19} {g['columns']:>7} {g['runs_per_column']:>11} "
-              f"{g['simulated_s_per_column'] / 3600:>20.2f} {g['openfast_cpu_s'] / 3600:>16.2f}")
-    cpu = sum(g["openfast_cpu_s"] for g in plan.values())
+              f"{g['simulated_s_per_column'] / 3600:>20.2f} {cpu / 3600:>16.2f}")
     runs = sum(g["runs_per_column"] * g["columns"] for g in plan.values())
-    print(f"{runs} runs; in OpenFAST about {cpu / 3600:.1f} h of one core at {rate:g} s of "
-          f"wall a simulated second (the NREL 5-MW's, measured), so about "
-          f"{cpu / 3600 / args.workers:.1f} h on {args.workers} workers. With --screen N "
-          "every run is on wtftc's plant (minutes, after the TurbSim fields), then the "
-          "scenarios that decide each verdict in OpenFAST.")
+    wall = cost.projection(plan, rate, (args.workers,))[args.workers]
+    print(f"{runs} runs; in OpenFAST at {rate:.3g} s of wall a simulated second ({where}), "
+          f"about {wall / 3600:.1f} h on {args.workers} workers, each group's runs in "
+          "rounds of the workers. With --screen N every run is on wtftc's plant (minutes, "
+          "after the TurbSim fields), then the scenarios that decide each verdict in "
+          "OpenFAST.")
     return 0
 
 

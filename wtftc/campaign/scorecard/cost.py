@@ -45,6 +45,19 @@ def rate(rows: list[dict]) -> dict | None:
             "wall_per_simulated_s": wall / sim}
 
 
+def measured_in(folder) -> dict | None:
+    """:func:`rate` over the OpenFAST runs (plant ``openfast``) of every results folder
+    in a scorecard's folder: what its card measured, for ``wtftc scorecard --plan --out``;
+    None where it holds none."""
+    from pathlib import Path
+
+    from wtftc.campaign.sweep.store import read_results
+
+    rows = [r for d in sorted(Path(folder).iterdir()) if (d / "runs").is_dir()
+            for r in read_results(d).to_pylist() if r.get("plant") == "openfast"]
+    return rate(rows)
+
+
 def projection(plan: dict[str, dict], wall_per_sim_s: float,
                workers=PROJECTED_WORKERS) -> dict[int, float]:
     """The whole matrix in OpenFAST on each of ``workers``: Σ over the groups of
