@@ -42,6 +42,7 @@ def test_each_card_is_a_column_and_a_tie_is_called_one(tmp_path):
     assert "| normal_production | pitch duty [-] | 0.8 (0.7–0.9) better | " \
            "1.02 (0.95–1.1) **tie** |" in text
     assert "deterministic" not in text  # a group without seeds is not in the headline
+    assert "OpenFAST" not in text.split("| group |")[1]  # nothing confirmed, nothing said
     assert "[`scorecard_a`](scorecard_a/scorecard.md): `aftc-nrel5mw` against `rosco`" in text
 
 
@@ -49,3 +50,15 @@ def test_a_readme_without_its_markers_is_refused():
     with pytest.raises(ValueError, match="results:begin"):
         headline.with_table("no markers", "x")
     assert headline.table([], ROOT).startswith("No scorecard is committed yet")
+
+
+def test_a_confirmed_verdict_carries_openfasts_ratio_and_whether_it_agrees(tmp_path):
+    card(tmp_path, "scorecard_a", "nrel5mw", 0.8, 0.7, 0.9, "better")
+    doc = json.loads((tmp_path / "scorecard_a" / "scorecard.json").read_text())
+    doc["groups"]["normal_production"]["confirmed"] = {"metrics": [
+        {"metric": "pitch_adc", "ratio": 1.31, "n_pairs": 4, "agree": False,
+         "screen_ratio": 0.92}]}
+    (tmp_path / "scorecard_a" / "scorecard.json").write_text(json.dumps(doc))
+    text = headline.table(headline.cards(tmp_path), tmp_path)
+    assert "| normal_production | pitch duty [-] | 0.8 (0.7–0.9) better; over 4 " \
+           "confirmed: OpenFAST 1.31, screen 0.92 (**other sides of 1**) |" in text

@@ -30,6 +30,18 @@ def _cell(r: dict | None) -> str:
     return f"{r['ratio']:.3g} ({r['low']:.3g}–{r['high']:.3g}) {verdict}"
 
 
+def _in_openfast(doc: dict, group: str, key: str) -> str:
+    """A screened card's confirmation of one verdict: OpenFAST's ratio over the scenarios
+    it ran, and whether it lies on the screen's side of 1 there; empty where none."""
+    conf = doc["groups"].get(group, {}).get("confirmed") or {}
+    r = next((r for r in conf.get("metrics", []) if r["metric"] == key), None)
+    if r is None or r.get("ratio") is None or r.get("agree") is None:
+        return ""
+    side = "same side of 1" if r["agree"] else "**other sides of 1**"
+    return (f"; over {r['n_pairs']} confirmed: OpenFAST {r['ratio']:.3g}, screen "
+            f"{r['screen_ratio']:.3g} ({side})")
+
+
 def _how(doc: dict) -> str:
     screen = doc.get("screen")
     how = "OpenFAST" if screen is None else \
@@ -45,9 +57,11 @@ def table(found: list[tuple[Path, dict]], base: Path) -> str:
     lines = ["Each cell: the ratio controller / ROSCO over the scenarios both held, its 90 % "
              "bootstrap interval over the seeds, and the verdict (**tie** where the interval "
              "holds 1). Lower is better but for the power and the energy. A screened card's "
-             "verdicts are the reduced plant's: its report says, metric by metric, where "
-             "OpenFAST disagrees over the scenarios it confirmed, and which runs either "
-             "engine lost. From the committed scorecards:", ""]
+             "verdicts are the reduced plant's over every scenario; after each, the ratio "
+             "on both engines over the scenarios OpenFAST confirmed (chosen as those "
+             "most against the verdict, so not a sample of the whole), and whether the two "
+             "lie on the same side of 1. Its report has these with their intervals, and "
+             "which runs either engine lost. From the committed scorecards:", ""]
     for folder, doc in found:
         rel = folder.relative_to(base).as_posix()
         lines.append(f"- [`{rel}`]({rel}/scorecard.md): `{doc['controller']}` against "
@@ -64,7 +78,8 @@ def table(found: list[tuple[Path, dict]], base: Path) -> str:
                     keys.append((r["metric"], r["what"], r["unit"]))
         for key, what, unit in keys:
             cells = [_cell(next((r for r in doc["groups"].get(group, {}).get("metrics", [])
-                                 if r["metric"] == key), None)) for _, doc in found]
+                                 if r["metric"] == key), None))
+                     + _in_openfast(doc, group, key) for _, doc in found]
             if any(c != "—" for c in cells):
                 lines.append(f"| {group} | {what} [{unit}] | " + " | ".join(cells) + " |")
     return "\n".join(lines)
