@@ -16,6 +16,7 @@ FASTOutputFile = pytest.importorskip(
 ).FASTOutputFile
 
 from wtftc.campaign.sweep.store import read_results  # noqa: E402
+from wtftc.config import rated_wind_speed  # noqa: E402
 from wtftc.model import turbine_file  # noqa: E402
 
 MICRO = """annual_mean_mps = 10.0
@@ -146,7 +147,10 @@ def test_every_scored_metric_agrees_with_an_independent_read_of_the_outb(card):
     the onset is the metrics' from the outputs wtftc keeps (10 Hz), here from every step;
     the bands' periodogram is SciPy's (a periodic Hann window where wtftc's is symmetric:
     a difference of 1/N over N = 6000 samples)."""
-    rated = turbine_file.load("nrel5mw").values["omega_g_rated"]
+    t5 = turbine_file.load("nrel5mw")
+    rated = t5.values["omega_g_rated"]
+    rated_wind = rated_wind_speed(t5.vector(), t5.table)
+    checked_above = 0
     doc = json.loads((card / "scorecard.json").read_text())
     assert set(doc["groups"]) == {"normal_production", "actuator_faults",
                                   "baseline_as_shipped"}
@@ -160,6 +164,14 @@ def test_every_scored_metric_agrees_with_an_independent_read_of_the_outb(card):
             s = t >= row["transient_s"] - 1e-9
             assert math.sqrt(np.mean((w[s] - rated) ** 2)) == pytest.approx(
                 row["rms_speed_error_rad_s"], rel=0.01)
+            # the verdict's speed error: where the hub's wind is at or above rated
+            up = s & (ch["Wind1VelX"] >= rated_wind)
+            if row["rms_speed_error_own_above_rated_rad_s"] is None:
+                assert not up.any()
+            else:
+                assert math.sqrt(np.mean((w[up] - rated) ** 2)) == pytest.approx(
+                    row["rms_speed_error_own_above_rated_rad_s"], rel=0.01)
+                checked_above += 1
             m = 4.0
             duration = t[s][-1] - t[s][0]
             del_1hz = (_rainflow_damage(ch["TwrBsMyt"][s] * 1e3, m) / duration) ** (1 / m)
@@ -176,6 +188,7 @@ def test_every_scored_metric_agrees_with_an_independent_read_of_the_outb(card):
             checked += 1
     # the controller's and ROSCO's: two bins, one fault; ROSCO as shipped at one bin
     assert checked == 2 * 2 + 2 + 1
+    assert checked_above >= 2 + 2 + 1  # the upper bin's, the fault's at 16 m/s, as shipped
 
 
 def test_a_screened_scorecard_shows_both_engines_side_by_side(tmp_path):
