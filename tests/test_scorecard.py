@@ -119,6 +119,14 @@ def test_the_report_holds_every_group_and_its_figures_are_the_runs(card):
                if m["metric"] == key)
     assert got["ratio"] == pytest.approx(math.exp(sum(logs) / len(logs)), rel=1e-12)
     assert got["n_seeds"] == 2 and got["verdict"] == "not enough seeds"
+    # the blades' pitch travel per second, over the pairs where both pitched (the test
+    # bench's figure; a blade resting at fine below rated travels nothing: no ratio)
+    key = "pitch_travel_rate_deg_s"
+    moved = [math.log(a[key] / b[key]) for a, b in pp if a[key] > 0 and b[key] > 0]
+    got = next(m for m in doc["groups"]["normal_production"]["pitch"] if m["metric"] == key)
+    assert moved and got["n_pairs"] == len(moved)
+    assert got["ratio"] == pytest.approx(math.exp(sum(moved) / len(moved)), rel=1e-12)
+    assert "## The blades' pitch travel and direction changes" in p.stdout
     # every fault run counted in one outcome, none dropped
     faults = read_results(out / "actuator_faults").to_pylist()
     counted = sum(sum(n.values()) for cols in doc["groups"]["actuator_faults"]["outcomes"]

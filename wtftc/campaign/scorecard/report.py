@@ -15,7 +15,7 @@ import json
 from pathlib import Path
 
 from wtftc.campaign.scorecard import outcome, stats
-from wtftc.campaign.scorecard.scored import FAULT_GROUPS, METRICS, SPECTRA
+from wtftc.campaign.scorecard.scored import FAULT_GROUPS, METRICS, PITCH, SPECTRA
 
 
 def _rows(out: Path, group: str) -> list[dict]:
@@ -227,6 +227,7 @@ def _group(group: str, rows: list, cand: str, base: str, trip: float, judged: se
     if group == "normal_production":
         g["lifetime"] = _lifetime(mine, theirs, m, turbine)
         g["spectra"] = _metrics(group, pp, SPECTRA)
+        g["pitch"] = _metrics(group, pp, PITCH)
         g["false_alarms"] = _false_alarms(rows, m["groups"][group]["scored_s"], judged)
     elif group in FAULT_GROUPS:
         g["outcomes"] = _outcomes(rows, trip)
@@ -282,9 +283,9 @@ def markdown(doc: dict) -> str:
         for r in g["metrics"] if name != "baseline_as_shipped" else []:
             lines.append(f"| {name} (DLC {g['iec']}) | {r['what']} [{r['unit']}] | "
                          f"{_cell(r)} | {r['n_pairs']} | {r['n_seeds']} |")
-    for section in (_confirmed_lines, _lifetime_lines, _spectra_lines, _case_lines,
-                    _as_shipped_lines, _outcome_lines, _fdi_lines, _alarm_lines,
-                    _wall_lines, _provenance_lines):
+    for section in (_confirmed_lines, _lifetime_lines, _spectra_lines, _pitch_lines,
+                    _case_lines, _as_shipped_lines, _outcome_lines, _fdi_lines,
+                    _alarm_lines, _wall_lines, _provenance_lines):
         lines += section(doc)
     return "\n".join(lines) + "\n"
 
@@ -311,6 +312,18 @@ def _spectra_lines(doc: dict) -> list[str]:
         return []
     return ["", "## Loads in the rotor's 1P and 3P bands (normal production)", "",
             "| load, band | ratio (interval) verdict | pairs |", "|---|---|---|",
+            *(f"| {r['what']} [{r['unit']}] | {_cell(r)} | {r['n_pairs']} |"
+              for r in rows if r.get("ratio") is not None)]
+
+
+def _pitch_lines(doc: dict) -> list[str]:
+    rows = doc["groups"].get("normal_production", {}).get("pitch") or []
+    if not any(r.get("ratio") is not None for r in rows):
+        return []
+    return ["", "## The blades' pitch travel and direction changes (normal production)",
+            "", "Each the mean over the blades; a direction change is a turn back by more "
+            "than the hysteresis (`[loads] reversal_hysteresis_deg`).", "",
+            "| metric | ratio (interval) verdict | pairs |", "|---|---|---|",
             *(f"| {r['what']} [{r['unit']}] | {_cell(r)} | {r['n_pairs']} |"
               for r in rows if r.get("ratio") is not None)]
 
