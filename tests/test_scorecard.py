@@ -318,3 +318,31 @@ def test_the_confirmed_outcomes_show_where_the_engines_part():
     lines = report._confirmed_lines(doc)
     assert "| actuator_faults | runaway_feather | aftc | tripped 1 | brought_down 1 |" in lines
     assert not any("| lock |" in line for line in lines)  # held on both: not repeated
+
+
+def test_ctrl_c_stops_a_scorecard_in_one_line_and_the_same_command_resumes(tmp_path):
+    """SIGINT once the first group has saved runs: exit 130, one line saying where the
+    finished runs are, no traceback; the same command then runs only what is missing
+    and writes the report."""
+    import signal
+    import time
+
+    (tmp_path / "short.toml").write_text(SHORT)
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "wtftc.cli", "scorecard", "--engine", "wtftc", "--against",
+           "pi", "--matrix", str(tmp_path / "short.toml"), "--workers", "2", "--out",
+           str(out), "--quiet"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 240
+    while proc.poll() is None and time.monotonic() < deadline and not list(
+            (out / "actuator_faults").glob("runs/part-*.parquet")):
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.strip().count("\n") == 0, err
+    assert err.strip().startswith("wtftc scorecard: interrupted (SIGINT)")
+    assert not (out / "scorecard.json").exists()
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr
+    assert (out / "scorecard.json").is_file()

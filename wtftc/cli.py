@@ -1445,9 +1445,20 @@ def _cmd_scorecard(args) -> int:
         raise ConfigError("--out", None, "the scorecard's folder (or --plan to see what "
                           "it would run)")
     _check_out_name(args.out)
-    result = run.run_scorecard(candidate, args.out, cfg.get("turbine"), against,
-                               args.engine, args.seeds, args.workers, args.scheduler,
-                               args.matrix, args.quiet, args.screen)
+    from wtftc.campaign import sweep
+
+    try:
+        result = run.run_scorecard(candidate, args.out, cfg.get("turbine"), against,
+                                   args.engine, args.seeds, args.workers, args.scheduler,
+                                   args.matrix, args.quiet, args.screen)
+    except sweep.Interrupted as exc:
+        print(f"\nwtftc scorecard: interrupted ({exc}); the finished runs are saved under "
+              f"{args.out}; run the same command to resume", file=sys.stderr)
+        return 130
+    except sweep.Incomplete as exc:
+        print(f"wtftc scorecard: a screen is incomplete ({exc}: tasks were lost); nothing "
+              "is picked from part of it: run the same command again", file=sys.stderr)
+        return 1
     text = report.write(args.out, result, cfg.get("turbine"))
     print(text, end="")
     print(f"written under {args.out}/: scorecard.md, scorecard.json, and each group's "
