@@ -56,9 +56,10 @@ def test_a_confirmed_verdict_carries_openfasts_ratio_and_whether_it_agrees(tmp_p
     card(tmp_path, "scorecard_a", "nrel5mw", 0.8, 0.7, 0.9, "better")
     doc = json.loads((tmp_path / "scorecard_a" / "scorecard.json").read_text())
     doc["groups"]["normal_production"]["confirmed"] = {"metrics": [
-        {"metric": "pitch_adc", "ratio": 1.31, "n_pairs": 4, "agree": False,
-         "screen_ratio": 0.92}]}
+        {"metric": "pitch_adc", "ratio": 1.31, "low": 1.1, "high": 1.5, "n_pairs": 4,
+         "verdict": "not enough seeds", "agree": "disagrees", "screen_ratio": 0.92}]}
     (tmp_path / "scorecard_a" / "scorecard.json").write_text(json.dumps(doc))
     text = headline.table(headline.cards(tmp_path), tmp_path)
-    assert "| normal_production | pitch duty [-] | 0.8 (0.7–0.9) better; over 4 " \
-           "confirmed: OpenFAST 1.31, screen 0.92 (**other sides of 1**) |" in text
+    assert "| normal_production | pitch duty [-] | 0.8 (0.7–0.9) better; OpenFAST over 4 " \
+           "confirmed: 1.31 (1.1–1.5) not enough seeds, screen 0.92 there " \
+           "(**disagrees**) |" in text

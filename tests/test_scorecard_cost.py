@@ -31,6 +31,7 @@ def test_rate_is_wall_over_simulated_seconds_of_the_runs_that_ran():
     got = cost.rate(rows)
     assert (got["runs"], got["wall_s"], got["simulated_s"]) == (2, 70.0, 160.0)
     assert got["wall_per_simulated_s"] == 70.0 / 160.0
+    assert (got["run_min"], got["run_max"]) == (0.25, 0.5)
     assert cost.rate([_row("failed", 5.0, 10.0)]) is None
 
 
@@ -69,7 +70,9 @@ def test_the_committed_card_reports_its_wall_and_projection():
                                      for g in plan.values())
     of = got["openfast"]
     folders = [p for p in CARD.iterdir() if p.name.endswith("_openfast")]
-    assert of["runs"] == sum(len(report._rows(CARD, p.name)) for p in folders)
+    assert of["runs"] == sum(r["status"] in ("ok", "diverged") and r["wall_s"] is not None
+                             for p in folders for r in report._rows(CARD, p.name))
+    assert of["run_min"] <= of["wall_per_simulated_s"] <= of["run_max"]
     # an OpenFAST run of the NREL 5-MW: 0.2-1 s of wall a simulated second on one core
     assert 0.2 < of["wall_per_simulated_s"] < 1.0
     proj = got["projected_wall_s"]
@@ -103,3 +106,12 @@ def test_the_plan_prices_a_card_at_its_own_rate():
     assert sorted(p.name for p in CARD.iterdir()) == before
     q = wtftc("scorecard", "--plan", "--turbine", "nrel5mw", "--workers", 2)
     assert f"at {matrix.OPENFAST_WALL_PER_SIM_S:.3g} s of wall" in q.stdout
+
+
+def test_the_plan_refuses_another_turbines_card_and_reads_no_other_folder(tmp_path):
+    p = wtftc("scorecard", "--plan", "--turbine", "iea15mw", "--out", CARD)
+    assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
+    assert p.stderr.startswith("wtftc: error: --out") and "nrel5mw" in p.stderr
+    (tmp_path / "mine" / "runs").mkdir(parents=True)  # a folder, not a card's
+    q = wtftc("scorecard", "--plan", "--out", tmp_path)
+    assert q.returncode == 0 and f"no OpenFAST run of a card in {tmp_path}" in q.stdout

@@ -218,8 +218,12 @@ def test_a_screened_scorecard_shows_both_engines_side_by_side(tmp_path):
         assert {confirm.scenario(r) for r in confirmed} == {k for k, _ in chosen}
         assert len(confirmed) == 2 * len(chosen) == 2 * g["confirmed"]["counts"]["scenarios"]
         for m in g["confirmed"]["metrics"]:
-            if m["ratio"] is not None and m["screen_ratio"] is not None:
-                assert m["agree"] == ((m["ratio"] - 1) * (m["screen_ratio"] - 1) >= 0)
+            assert m["agree"] in (None, "agrees", "disagrees", "holds 1")
+            assert m["n_pairs"] <= g["confirmed"]["counts"]["both_held"]
+            if m["agree"] in ("agrees", "disagrees"):  # an interval wholly off 1
+                assert not m["low"] <= 1.0 <= m["high"]
+                assert ((m["high"] < 1.0) == (m["screen_ratio"] < 1.0)) == (
+                    m["agree"] == "agrees")
     assert "## The screen, confirmed in OpenFAST (--screen 1)" in p.stdout
 
 

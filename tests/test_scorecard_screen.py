@@ -90,3 +90,30 @@ def test_a_metric_without_values_sends_nothing():
     assert ends == []
     chosen = screen.decisive(rows, 1, 1.2, "normal_production", "aftc", "pi")
     assert not any(why.startswith("blade") for _, why in chosen)
+
+
+def test_the_confirmation_compares_both_engines_over_the_scenarios_both_held():
+    """A scenario OpenFAST lost (the controller tripped there) but the screen held leaves
+    both engines' ratios: the screen's is over the same three scenarios as OpenFAST's.
+    The blade root, which the screen has not, is OpenFAST's alone."""
+    from wtftc.campaign.scorecard import report
+
+    key, blade = "rms_speed_error_own_above_rated_rad_s", "blade_root_flap_del_1hz_Nm"
+    screen_rows, of_rows = [], []
+    for seed, (on_screen, in_openfast) in enumerate([(0.9, 0.8), (0.9, 0.8), (0.9, 0.8),
+                                                     (3.0, None)]):
+        for rows, x, plant in ((screen_rows, on_screen, "tower_edge"),
+                               (of_rows, in_openfast, "openfast")):
+            lost = x is None
+            rows.append(row("pi", 16.0, seed, plant=plant, **{blade: None if plant ==
+                                                               "tower_edge" else 1.0}))
+            rows.append(row("aftc", 16.0, seed, plant=plant, peak=1.5 if lost else 1.05,
+                            **{key: 1.0 if lost else x,
+                               blade: None if plant == "tower_edge" else 1.1}))
+    got = report._confirmed(screen_rows, of_rows, "normal_production", "aftc", "pi", 1.2)
+    m = {r["metric"]: r for r in got["metrics"]}
+    assert m[key]["n_pairs"] == 3 and abs(m[key]["ratio"] - 0.8) < 1e-12
+    assert abs(m[key]["screen_ratio"] - 0.9) < 1e-12  # not pulled by the lost seed's 3.0
+    assert m[blade]["screen_ratio"] is None and abs(m[blade]["ratio"] - 1.1) < 1e-12
+    assert m[blade]["agree"] is None
+    assert got["counts"]["both_held"] == 3

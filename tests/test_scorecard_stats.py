@@ -347,3 +347,13 @@ def test_other_losses_are_failed_not_the_structure():
     assert outcome.classify(dict(base, **{outcome.MIN_AFTER_ONSET: 0.3})) == "held"
     with pytest.raises(ValueError):
         outcome.classify(dict(base, status="unfinished"))
+
+
+def test_agreement_reads_the_confirmations_interval_against_the_screens_side():
+    assert stats.agreement({"ratio": 0.8, "low": 0.7, "high": 0.9}, 0.95) == "agrees"
+    assert stats.agreement({"ratio": 0.8, "low": 0.7, "high": 0.9}, 1.10) == "disagrees"
+    assert stats.agreement({"ratio": 1.2, "low": 1.1, "high": 1.3}, 1.01) == "agrees"
+    assert stats.agreement({"ratio": 1.0037, "low": 0.961, "high": 1.02}, 0.97) == "holds 1"
+    assert stats.agreement({"ratio": 0.7, "low": None, "high": None}, 0.9) == "holds 1"
+    assert stats.agreement({"ratio": None}, 0.9) is None
+    assert stats.agreement({"ratio": 0.8, "low": 0.7, "high": 0.9}, None) is None

@@ -1396,10 +1396,17 @@ def _scorecard_plan(args, turbine: str | None) -> int:
 
     m = matrix.load(args.matrix)
     plan = matrix.plan(m, turbine, args.seeds)
-    measured = cost.measured_in(args.out) if args.out and args.out.is_dir() else None
+    measured, where = None, "an estimate for the NREL 5-MW; --out a card's folder for its own"
+    if args.out is not None and args.out.is_dir():
+        made_for = cost.card_turbine(args.out)
+        if made_for is not None and made_for != str(turbine or "nrel5mw"):
+            raise ConfigError("--out", str(args.out), f"a card of the --turbine planned "
+                              f"({turbine or 'nrel5mw'}); this one is {made_for}'s")
+        measured = cost.measured_in(args.out) if made_for is not None else None
+        where = (f"measured over the {measured['runs']} OpenFAST runs in {args.out}"
+                 if measured else f"no OpenFAST run of a card in {args.out}: an estimate "
+                 "for the NREL 5-MW")
     rate = measured["wall_per_simulated_s"] if measured else matrix.OPENFAST_WALL_PER_SIM_S
-    where = (f"measured over the {measured['runs']} OpenFAST runs in {args.out}"
-             if measured else "the NREL 5-MW's, measured; --out a card's folder for its own")
     print(f"{'group':<20} {'DLC':<19} {'columns':>7} {'runs/column':>11} "
           f"{'simulated/column [h]':>20} {'OpenFAST CPU [h]':>16}")
     for name, g in plan.items():
@@ -1451,9 +1458,9 @@ def _cmd_scorecard(args) -> int:
         result = run.run_scorecard(candidate, args.out, cfg.get("turbine"), against,
                                    args.engine, args.seeds, args.workers, args.scheduler,
                                    args.matrix, args.quiet, args.screen)
-    except sweep.Interrupted as exc:
-        print(f"\nwtftc scorecard: interrupted ({exc}); the finished runs are saved under "
-              f"{args.out}; run the same command to resume", file=sys.stderr)
+    except (sweep.Interrupted, KeyboardInterrupt) as exc:
+        print(f"\nwtftc scorecard: interrupted ({exc or 'SIGINT'}); the finished runs are "
+              f"saved under {args.out}; run the same command to resume", file=sys.stderr)
         return 130
     except sweep.Incomplete as exc:
         print(f"wtftc scorecard: a screen is incomplete ({exc}: tasks were lost); nothing "

@@ -20,8 +20,8 @@ from __future__ import annotations
 import json
 import math
 
-#: the worker counts the projection is given for: one core, this machine's two, a
-#: workstation, and a cluster as large as the biggest group's round
+#: the worker counts the projection is given for: one core, a two-core machine, a
+#: workstation, a small and a large cluster
 PROJECTED_WORKERS = (1, 2, 8, 32, 100)
 
 
@@ -36,13 +36,26 @@ def simulated_s(row: dict) -> float:
 def rate(rows: list[dict]) -> dict | None:
     """Σ wall / Σ simulated seconds over the runs that ran (a failed run's wall is not
     a simulation's), with the counts it stands on; None without a run."""
-    ran = [r for r in rows if r.get("status") in ("ok", "diverged") and r.get("wall_s")]
+    ran = [r for r in rows if r.get("status") in ("ok", "diverged")
+           and r.get("wall_s") and math.isfinite(r["wall_s"]) and simulated_s(r) > 0]
     if not ran:
         return None
     wall = sum(float(r["wall_s"]) for r in ran)
     sim = sum(simulated_s(r) for r in ran)
+    each = [float(r["wall_s"]) / simulated_s(r) for r in ran]
     return {"runs": len(ran), "wall_s": wall, "simulated_s": sim,
-            "wall_per_simulated_s": wall / sim}
+            "wall_per_simulated_s": wall / sim, "run_min": min(each), "run_max": max(each)}
+
+
+def card_turbine(folder) -> str | None:
+    """The turbine a scorecard's folder was made for (its sweep files' ``turbine``), None
+    where it holds no sweep file."""
+    import tomllib
+    from pathlib import Path
+
+    for f in sorted((Path(folder) / "sweeps").glob("*.toml")):
+        return str(tomllib.loads(f.read_text("utf-8")).get("turbine"))
+    return None
 
 
 def measured_in(folder) -> dict | None:
@@ -89,7 +102,7 @@ def lines(cost: dict | None) -> list[str]:
     """The report's section: the card's wall, the measured rate, the projection."""
     if not cost:
         return []
-    on = " and ".join(str(w) for w in cost["call_workers"]) or "?"
+    on = " and ".join(str(w) for w in cost["call_workers"]) or "an unrecorded number of"
     out = ["", "## Wall time", "",
            f"This card: {cost['card_wall_s'] / 3600:.2f} h of wall over every call that "
            f"made it, on {on} workers (walls.json; a call's wall holds the TurbSim "
@@ -99,11 +112,13 @@ def lines(cost: dict | None) -> list[str]:
         return out + ["No OpenFAST run in this card: nothing to project the whole matrix "
                       "in OpenFAST from."]
     out += [f"Its {of['runs']} OpenFAST runs took {of['wall_per_simulated_s']:.3f} s of "
-            f"wall per simulated second each ({of['wall_s']:.0f} s over "
-            f"{of['simulated_s']:.0f} s simulated). At that rate the whole matrix in "
-            f"OpenFAST ({cost['matrix_runs']} runs, no --screen) would take, each group's "
-            "runs in rounds of as many as there are workers, the groups one after "
-            "another, TurbSim fields aside:", "",
+            f"wall per simulated second together ({of['wall_s']:.0f} s over "
+            f"{of['simulated_s']:.0f} s simulated; single runs {of['run_min']:.2f}-"
+            f"{of['run_max']:.2f} s/s), each run one OpenFAST process on one core beside "
+            f"the card's other workers. Projected at that rate, not run: the whole matrix "
+            f"in OpenFAST ({cost['matrix_runs']} runs, no --screen), each group's runs in "
+            "rounds of as many as there are workers, a round as long as one run, the "
+            "groups one after another, TurbSim fields aside:", "",
             "| workers | projected wall [h] |", "|---|---|"]
     out += [f"| {w} | {s / 3600:.2f} |" for w, s in cost["projected_wall_s"].items()]
     return out

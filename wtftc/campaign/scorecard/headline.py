@@ -31,15 +31,16 @@ def _cell(r: dict | None) -> str:
 
 
 def _in_openfast(doc: dict, group: str, key: str) -> str:
-    """A screened card's confirmation of one verdict: OpenFAST's ratio over the scenarios
-    it ran, and whether it lies on the screen's side of 1 there; empty where none."""
+    """A screened card's confirmation of one verdict: OpenFAST's ratio, interval and
+    verdict over the confirmed scenarios both engines held, the screen's ratio there, and
+    whether OpenFAST's interval agrees (stats.agreement); empty where none."""
     conf = doc["groups"].get(group, {}).get("confirmed") or {}
     r = next((r for r in conf.get("metrics", []) if r["metric"] == key), None)
     if r is None or r.get("ratio") is None or r.get("agree") is None:
         return ""
-    side = "same side of 1" if r["agree"] else "**other sides of 1**"
-    return (f"; over {r['n_pairs']} confirmed: OpenFAST {r['ratio']:.3g}, screen "
-            f"{r['screen_ratio']:.3g} ({side})")
+    said = f"**{r['agree']}**" if r["agree"] == "disagrees" else r["agree"]
+    return (f"; OpenFAST over {r['n_pairs']} confirmed: {_cell(r)}, screen "
+            f"{r['screen_ratio']:.3g} there ({said})")
 
 
 def _how(doc: dict) -> str:
@@ -57,11 +58,13 @@ def table(found: list[tuple[Path, dict]], base: Path) -> str:
     lines = ["Each cell: the ratio controller / ROSCO over the scenarios both held, its 90 % "
              "bootstrap interval over the seeds, and the verdict (**tie** where the interval "
              "holds 1). Lower is better but for the power and the energy. A screened card's "
-             "verdicts are the reduced plant's over every scenario; after each, the ratio "
-             "on both engines over the scenarios OpenFAST confirmed (chosen as those "
-             "most against the verdict, so not a sample of the whole), and whether the two "
-             "lie on the same side of 1. Its report has these with their intervals, and "
-             "which runs either engine lost. From the committed scorecards:", ""]
+             "verdicts are the reduced plant's over every scenario. After each: OpenFAST's "
+             "ratio over the confirmed scenarios both engines held, the screen's over the "
+             "same, and whether OpenFAST's interval lies on the screen's side of 1 "
+             "(agrees), the other (disagrees) or holds 1. The confirmed scenarios are each "
+             "metric's most against and most for its verdict and those whose outcomes "
+             "differ: not a sample of the whole. Each report lists the runs either engine "
+             "lost. From the committed scorecards:", ""]
     for folder, doc in found:
         rel = folder.relative_to(base).as_posix()
         lines.append(f"- [`{rel}`]({rel}/scorecard.md): `{doc['controller']}` against "

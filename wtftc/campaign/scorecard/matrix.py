@@ -68,10 +68,10 @@ WIND_IEC = {"eog": "test bench (the EOG of IEC 61400-1 ed. 3, 6.3.2.2, in power 
 DETERMINISTIC_KINDS = ("eog", "ecd", "steps", "ramp")
 #: a speed sensor fault's magnitude given as a fraction of its shaft's rated speed
 SPEED_FRACTIONS = ("value_rad_s", "offset_rad_s")
-#: one OpenFAST run of the NREL 5-MW on one core: about 0.43 s of wall time per simulated
-#: second (the aftc-nrel5mw preset under an ECD, on a 2-core machine shared with others:
-#: 6.8 s for 4 s simulated, 21.9 s for 40 s, 0.42 s a second past the start), a
-#: projection for :func:`plan`
+#: an estimate of one OpenFAST run of the NREL 5-MW on one core: about 0.43 s of wall
+#: time per simulated second (the aftc-nrel5mw preset under an ECD, on a 2-core machine
+#: shared with others: 6.8 s for 4 s simulated, 21.9 s for 40 s, 0.42 s a second past the
+#: start), for :func:`plan` where no card's own rate is at hand
 OPENFAST_WALL_PER_SIM_S = 0.43
 #: the most seeds a group may ask for (a grid of 11 bins × 100 seeds is 1,100 runs a
 #: controller)

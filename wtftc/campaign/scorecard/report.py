@@ -148,22 +148,37 @@ def _same_scenario(r: dict) -> tuple:
 def _confirmed(screen_rows: list, conf_rows: list, group: str, cand: str, base: str,
                trip: float) -> dict:
     """The confirmed scenarios on both engines: each metric's ratio in OpenFAST and on the
-    screen over the same scenarios, and whether the two fall on the same side of 1."""
+    screen over the scenarios both engines held and both have the metric for (OpenFAST's
+    alone where the screen has no such metric: the blade root), and how OpenFAST's
+    interval stands to the screen's ratio (stats.agreement)."""
     keys = {_same_scenario(r) for r in conf_rows}
     mine = [r for r in screen_rows if _same_scenario(r) in keys]
-    on = {}
-    for name, rows in (("openfast", conf_rows), ("screen", mine)):
-        pp, counts = stats.held_pairs([r for r in rows if r["controller"] == cand],
-                                      [r for r in rows if r["controller"] == base], trip)
-        on[name] = {"counts": counts, "metrics": _metrics(group, pp)}
-    for a, b in zip(on["openfast"]["metrics"], on["screen"]["metrics"], strict=True):
-        a["screen_ratio"] = b.get("ratio")
-        a["agree"] = None if None in (a.get("ratio"), b.get("ratio")) else \
-            (a["ratio"] - 1.0) * (b["ratio"] - 1.0) >= 0.0
+
+    def held(rows):
+        return stats.held_pairs([r for r in rows if r["controller"] == cand],
+                                [r for r in rows if r["controller"] == base], trip)
+
+    of_pp, counts = held(conf_rows)
+    on_screen = {_same_scenario(a): (a, b) for a, b in held(mine)[0]}
+    both = [(p, on_screen[_same_scenario(p[0])]) for p in of_pp
+            if _same_scenario(p[0]) in on_screen]
+    metrics = []
+    for key, what, unit, lower in METRICS[group]:
+        if not any(s[0].get(key) is not None for _, s in both):
+            r = {"metric": key, "what": what, "unit": unit, **_paired(of_pp, key, lower),
+                 "screen_ratio": None, "agree": None}
+        else:
+            ok = [(o, s) for o, s in both if stats.has_ratio(o[0].get(key), o[1].get(key))
+                  and stats.has_ratio(s[0].get(key), s[1].get(key))]
+            r = {"metric": key, "what": what, "unit": unit,
+                 **_paired([o for o, _ in ok], key, lower)}
+            r["screen_ratio"] = _paired([s for _, s in ok], key, lower)["ratio"]
+            r["agree"] = stats.agreement(r, r["screen_ratio"])
+        metrics.append(r)
     label = _case_label if group == "deterministic" else None
-    on["openfast"]["outcomes"] = {"openfast": _outcomes(conf_rows, trip, label),
-                                  "screen": _outcomes(mine, trip, label)}
-    return on["openfast"]
+    return {"counts": counts, "metrics": metrics,
+            "outcomes": {"openfast": _outcomes(conf_rows, trip, label),
+                         "screen": _outcomes(mine, trip, label)}}
 
 
 def analyse(out: Path, result: dict, turbine: str | None = None) -> dict:
@@ -320,9 +335,11 @@ def _pitch_lines(doc: dict) -> list[str]:
     rows = doc["groups"].get("normal_production", {}).get("pitch") or []
     if not any(r.get("ratio") is not None for r in rows):
         return []
-    return ["", "## The blades' pitch travel and direction changes (normal production)",
-            "", "Each the mean over the blades; a direction change is a turn back by more "
-            "than the hysteresis (`[loads] reversal_hysteresis_deg`).", "",
+    return ["", "## The blades' pitch direction changes (normal production)", "",
+            "The mean over the blades; a direction change is a turn back by more than the "
+            "hysteresis (`[loads] reversal_hysteresis_deg`). The blades' pitch travel per "
+            "second is the pitch actuator duty cycle times the rate limit: its ratio is "
+            "the duty cycle's.", "",
             "| metric | ratio (interval) verdict | pairs |", "|---|---|---|",
             *(f"| {r['what']} [{r['unit']}] | {_cell(r)} | {r['n_pairs']} |"
               for r in rows if r.get("ratio") is not None)]
@@ -451,14 +468,19 @@ def _confirmed_lines(doc: dict) -> list[str]:
         return []
     lines = ["", f"## The screen, confirmed in OpenFAST (--screen {doc['screen']})", "",
              "The verdicts above are the screen's, on wtftc's tower_edge plant over every "
-             "scenario. Here the scenarios confirmed in OpenFAST, on both engines: a ratio "
-             "on the other side of 1 in OpenFAST is a disagreement.", "",
-             "| group | metric | OpenFAST | screen, same scenarios | agree |",
+             "scenario. Here each metric over the confirmed scenarios both engines held, "
+             "on both engines (OpenFAST's alone where the screen has no such metric). "
+             "OpenFAST agrees where its interval lies wholly on the screen's side of 1, "
+             "disagrees where wholly on the other, and decides nothing where it holds 1. "
+             "The scenarios are each metric's most against and most for its verdict and "
+             "those whose outcomes differ: not a sample of the whole.", "",
+             "| group | metric | OpenFAST | screen, same scenarios | OpenFAST |",
              "|---|---|---|---|---|"]
     for name, g in doc["groups"].items():
         for r in g.get("confirmed", {}).get("metrics", []):
             screen = "—" if r["screen_ratio"] is None else f"{r['screen_ratio']:.3g}"
-            agree = {None: "—", True: "yes", False: "**no**"}[r["agree"]]
+            agree = "—" if r["agree"] is None else \
+                f"**{r['agree']}**" if r["agree"] == "disagrees" else r["agree"]
             lines.append(f"| {name} | {r['what']} | {_cell(r)} | {screen} | {agree} |")
     return lines + _confirmed_outcome_lines(doc)
 

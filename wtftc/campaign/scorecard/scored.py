@@ -56,11 +56,10 @@ SPECTRA = [
     ("tower_base_3p_std_Nm", "tower-base moment, 3P band", "N m", True),
     ("blade_root_flap_1p_std_Nm", "blade-root flapwise moment, 1P band", "N m", True),
     ("blade_root_flap_3p_std_Nm", "blade-root flapwise moment, 3P band", "N m", True)]
-#: the blades' pitch travel and direction changes in the normal-production group, each the
-#: mean over the blades (the controller test bench's per-blade figures, as WEIS names
-#: them): (key, what, unit, lower is better)
+#: the blades' pitch direction changes in the normal-production group, the mean over the
+#: blades (the controller test bench's per-blade figure; its pitch travel per second is
+#: the pitch actuator duty cycle times the rate limit, so the same ratio as the ADC's):
+#: (key, what, unit, lower is better)
 PITCH = [
-    ("pitch_travel_rate_deg_s", "pitch travel per second (WEIS's avg_pitch_travel)",
-     "deg/s", True),
-    ("pitch_reversals_per_s", "pitch direction changes per second (WEIS's "
+    ("pitch_reversals_per_s", "pitch direction changes per second (WEIS reports it as "
      "pitch_duty_cycle)", "1/s", True)]

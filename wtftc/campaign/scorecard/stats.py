@@ -63,6 +63,24 @@ def _why_left_out(a, b) -> str | None:
     return None
 
 
+def has_ratio(a, b) -> bool:
+    """Whether a pair of values has a log ratio (:func:`_why_left_out`)."""
+    return _why_left_out(a, b) is None
+
+
+def agreement(other: dict, screen_ratio: float | None) -> str | None:
+    """How a confirmation's ratio (``other``: :func:`paired_ratio`'s) stands to the
+    screen's over the same scenarios: "agrees" where its interval lies wholly on the
+    screen's side of 1, "disagrees" wholly on the other, "holds 1" where it reaches 1 or
+    has no interval (fewer than two seeds); None without both ratios."""
+    if other.get("ratio") is None or screen_ratio is None:
+        return None
+    low, high = other.get("low"), other.get("high")
+    if low is None or high is None or low <= 1.0 <= high:
+        return "holds 1"
+    return "agrees" if (high < 1.0) == (screen_ratio < 1.0) else "disagrees"
+
+
 def paired_ratio(pairs, level: float = LEVEL, n_boot: int = 2000, seed: int = 0,
                  lower_is_better: bool = True, min_seeds: int = MIN_SEEDS,
                  expand: bool = True) -> dict:
