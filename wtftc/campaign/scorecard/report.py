@@ -474,7 +474,7 @@ def _confirmed_lines(doc: dict) -> list[str]:
              "disagrees where wholly on the other, and decides nothing where it holds 1. "
              "The scenarios are each metric's most against and most for its verdict and "
              "those whose outcomes differ: not a sample of the whole.", "",
-             "| group | metric | OpenFAST | screen, same scenarios | OpenFAST |",
+             "| group | metric | OpenFAST | screen, same scenarios | OpenFAST's interval |",
              "|---|---|---|---|---|"]
     for name, g in doc["groups"].items():
         for r in g.get("confirmed", {}).get("metrics", []):
