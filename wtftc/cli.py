@@ -1395,7 +1395,6 @@ def _scorecard_plan(args, turbine: str | None) -> int:
     from wtftc.campaign.scorecard import cost, matrix
 
     m = matrix.load(args.matrix)
-    plan = matrix.plan(m, turbine, args.seeds)
     measured, where = None, "an estimate for the NREL 5-MW; --out a card's folder for its own"
     if args.out is not None and args.out.is_dir():
         made_for = cost.card_turbine(args.out)
@@ -1407,12 +1406,12 @@ def _scorecard_plan(args, turbine: str | None) -> int:
                  if measured else f"no OpenFAST run of a card in {args.out}: an estimate "
                  "for the NREL 5-MW")
     rate = measured["wall_per_simulated_s"] if measured else matrix.OPENFAST_WALL_PER_SIM_S
+    plan = matrix.plan(m, turbine, args.seeds, wall_per_sim_s=rate)
     print(f"{'group':<20} {'DLC':<19} {'columns':>7} {'runs/column':>11} "
           f"{'simulated/column [h]':>20} {'OpenFAST CPU [h]':>16}")
     for name, g in plan.items():
-        cpu = g["simulated_s_per_column"] * g["columns"] * rate
         print(f"{name:<20} {g['iec']:<19} {g['columns']:>7} {g['runs_per_column']:>11} "
-              f"{g['simulated_s_per_column'] / 3600:>20.2f} {cpu / 3600:>16.2f}")
+              f"{g['simulated_s_per_column'] / 3600:>20.2f} {g['openfast_cpu_s'] / 3600:>16.2f}")
     runs = sum(g["runs_per_column"] * g["columns"] for g in plan.values())
     wall = cost.projection(plan, rate, (args.workers,))[args.workers]
     print(f"{runs} runs; in OpenFAST at {rate:.3g} s of wall a simulated second ({where}), "
