@@ -1415,10 +1415,10 @@ def _scorecard_plan(args, turbine: str | None) -> int:
     runs = sum(g["runs_per_column"] * g["columns"] for g in plan.values())
     wall = cost.projection(plan, rate, (args.workers,))[args.workers]
     print(f"{runs} runs; in OpenFAST at {rate:.3g} s of wall a simulated second ({where}), "
-          f"about {wall / 3600:.1f} h on {args.workers} workers, each group's runs in "
-          "rounds of the workers. With --screen N every run is on wtftc's plant (minutes, "
-          "after the TurbSim fields), then the scenarios that decide each verdict in "
-          "OpenFAST.")
+          f"about {wall / 3600:.1f} h on {args.workers} worker{'s' * (args.workers != 1)}, "
+          "each group's runs in rounds of the workers. With --screen N every run is on "
+          "wtftc's plant (minutes, after the TurbSim fields), then the scenarios that "
+          "decide each verdict in OpenFAST.")
     return 0
 
 

@@ -103,9 +103,10 @@ def lines(cost: dict | None) -> list[str]:
     if not cost:
         return []
     on = " and ".join(str(w) for w in cost["call_workers"]) or "an unrecorded number of"
+    plural = "" if cost["call_workers"] == [1] else "s"
     out = ["", "## Wall time", "",
            f"This card: {cost['card_wall_s'] / 3600:.2f} h of wall over every call that "
-           f"made it, on {on} workers (walls.json; a call's wall holds the TurbSim "
+           f"made it, on {on} worker{plural} (walls.json; a call's wall holds the TurbSim "
            "fields it made).", ""]
     of = cost.get("openfast")
     if of is None:
