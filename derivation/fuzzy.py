@@ -191,8 +191,11 @@ class RuleBase:
     def phi_symbols(self) -> dict[sp.Symbol, int]:
         return {s: m for m, s in self._phi.items()}
 
-    def rate(self, sym: sp.Symbol, xhat_dot, chi, gamma, r) -> sp.Expr:
-        """Time derivative of one L or B symbol along the closed loop (module docstring)."""
+    def rate(self, sym: sp.Symbol, xhat_dot, chi, gamma, r, target=0) -> sp.Expr:
+        """Time derivative of one L or B symbol along the closed loop (module docstring),
+        for the adaptive law θ̂̇ = γ χ φ - r (θ̂ - target 1): a leakage toward a common
+        weight ``target`` adds r·target·∂^α(Σ_m φ_m) to the rate of L_α, which is r·target
+        for α = 0 and 0 for every other α (the normalized memberships sum to 1)."""
         kind = self.symbols()[sym]
 
         def shift(a, k):
@@ -200,25 +203,27 @@ class RuleBase:
 
         if kind[0] == "L":
             a = kind[1]
+            toward = r * target if a == self.zero() and target != 0 else 0
             return (sum(self.L(shift(a, k)) * xhat_dot[k] for k in range(self.i))
-                    + gamma * chi * self.B(self.zero(), a) - r * self.L(a))
+                    + gamma * chi * self.B(self.zero(), a) - r * self.L(a) + toward)
         _, a, b = kind
         return sum((self.B(shift(a, k), b) + self.B(a, shift(b, k))) * xhat_dot[k]
                    for k in range(self.i))
 
 
 def total_derivative(expr: sp.Expr, rates: dict, rule_base: RuleBase, xhat_dot, chi,
-                     gamma, r) -> sp.Expr:
+                     gamma, r, target=0) -> sp.Expr:
     """d/dt expr along the loop: Σ ∂expr/∂s · ṡ over its free symbols s, with ṡ from
     ``rates`` (symbol → rate) or, for the L/B symbols of ``rule_base``, from
-    :meth:`RuleBase.rate` with the adaptive law θ̂̇ = γ χ φ - r θ̂. Symbols with neither
-    are constants. Summed in symbol-name order, so the result is reproducible."""
+    :meth:`RuleBase.rate` with the adaptive law θ̂̇ = γ χ φ - r (θ̂ - target 1). Symbols
+    with neither are constants. Summed in symbol-name order, so the result is
+    reproducible."""
     out = sp.S.Zero
     for s in sorted(expr.free_symbols, key=lambda q: q.name):
         if s in rates:
             rate = rates[s]
         elif s in rule_base.symbols():
-            rate = rule_base.rate(s, xhat_dot, chi, gamma, r)
+            rate = rule_base.rate(s, xhat_dot, chi, gamma, r, target)
         else:
             continue
         out += sp.diff(expr, s) * rate

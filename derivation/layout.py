@@ -238,6 +238,7 @@ CONTROLLER_VALID = {
                      "obs_pitch_max"), _ANGLE),
     "control_sign": (-1.0, 1.0, False, False),
     "actuator_model": (0.0, 1.0, False, False),
+    "leak_nominal": (0.0, 1.0, False, False),
     "rho_hat": (0.0, 1.0, True, False),
     "lock_hat": (0.0, 1.0, False, False),
 }
