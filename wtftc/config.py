@@ -1231,7 +1231,11 @@ def _parameters(raw: dict, controller: str, turbine: turbine_file.Turbine
                           "not a parameter: eq (49) is told the fault by the case (3: the "
                           "true fault; 4: wtftc's FDI), so a value here would be ignored")
     p_turbine = _turbine_vector(raw, turbine)
-    p_ctrl = lay.vector(ctrl_group, {**tuning.turbine_params_of(ctrl_group, p_turbine),
+    # the PI baseline's pitch-loop target: the one the turbine's reference deck tunes ROSCO's
+    # pitch PI to, where the file gives it (the NREL 5-MW's is the layout's default)
+    target = dict(zip(("pi_omega_n", "pi_zeta"), turbine.rosco_tuning, strict=True)) \
+        if turbine.rosco_tuning and "pi_omega_n" in lay.names(ctrl_group) else {}
+    p_ctrl = lay.vector(ctrl_group, {**tuning.turbine_params_of(ctrl_group, p_turbine), **target,
                                      **_overrides(raw, "controller_params", ctrl_group),
                                      **({"control_sign": raw["control_sign"]} if signed else {})})
     vals = check_ranges(ctrl_group, p_ctrl, "controller_params")

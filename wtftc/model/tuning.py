@@ -3,8 +3,9 @@
 A controller's parameters are of two kinds. Facts of the turbine it runs on (its
 inertias, drivetrain, rated torque and speed, pitch limits and rate limit, actuator time
 constant) are taken from the turbine file here, so that a controller runs on any turbine
-without new code. Design choices (the backstepping gains c, γ, the PI's closed-loop
-ω_n and ζ, the memberships) keep their layout defaults: the designs are normalised by
+without new code. Design choices (the backstepping gains c, γ, the memberships) keep
+their layout defaults (the PI's closed-loop ω_n and ζ are the turbine file's reference
+target where it gives one: wtftc.config): the designs are normalised by
 the scheduled ∂T/∂β and the inertia, so their closed-loop poles do not depend on the
 turbine (docs/turbines.md says where that stops being true).
 
